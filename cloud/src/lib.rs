@@ -1,0 +1,1 @@
+//! Cloud roles. The scenario library (SQLite) lives in `library`.

@@ -1,0 +1,25 @@
+//! RiskTwin's domain core: pure, deterministic and free of I/O.
+//!
+//! Everything here takes its time step and its random numbers as arguments (no wall clock, no
+//! global RNG, no files except through `Read`/`Write`), so an episode replays to the same bytes
+//! given the same seed, whether it runs embedded or behind the edge–cloud pipeline.
+//!
+//! Map of the crate:
+//! - [`geometry`], [`rng`]: primitives.
+//! - [`road`]: lanes, Frenet frames, road edges, crosswalks, friction.
+//! - [`vehicle`]: ego dynamics (kinematic and dynamic single-track) and actuators.
+//! - [`traffic`]: IDM/MOBIL traffic, scripted manoeuvres, pedestrians, parked cars (SoA).
+//! - [`sensor`]: what the ego perceives (range, field of view, occlusion, noise, dropout).
+//! - [`risk`]: the driving risk field, criticality measures and the scenario risk score.
+//! - [`scenario`]: the five kinds, sampling, feasibility, building a world.
+//! - [`world`], [`driver`], [`metrics`]: one episode, its reference driver and its metrics.
+
+pub mod geometry;
+pub mod metrics;
+pub mod rng;
+pub mod risk;
+pub mod road;
+pub mod scenario;
+pub mod sensor;
+pub mod traffic;
+pub mod vehicle;

@@ -1,0 +1,1 @@
+//! The ego sensor model: range, field of view, occlusion by footprints, noise and dropout.

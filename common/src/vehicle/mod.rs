@@ -1,0 +1,1 @@
+//! Ego vehicle dynamics: parameters, kinematic and dynamic single-track models, actuators.

@@ -1,0 +1,1 @@
+//! Edge roles (vehicle, RSU, replay) land with the edge–cloud pipeline; nothing here yet.

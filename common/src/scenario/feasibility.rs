@@ -101,7 +101,7 @@ mod tests {
     #[test]
     fn overlap_and_impossible_motion_are_rejected() {
         let occ = ScenarioKind::SensorOcclusion;
-        let err = check(&spec(occ, &[("occluder_gap_m", 30.0), ("hidden_obstacle_distance_m", 50.0)])).unwrap_err();
+        let err = check(&spec(occ, &[("occluder_gap_m", 30.0), ("hidden_obstacle_distance_m", 40.0)])).unwrap_err();
         assert_eq!(err.code(), "overlap-at-start");
         assert!(check(&spec(occ, &[("occluder_gap_m", 10.0), ("hidden_obstacle_distance_m", 80.0)])).is_ok());
         let cut = ScenarioKind::CutIn;

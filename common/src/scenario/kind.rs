@@ -60,7 +60,7 @@ const PEDESTRIAN_CROSSING: &[ParamDef] = &[
 const SENSOR_OCCLUSION: &[ParamDef] = &[
     p("ego_speed_mps", 10.0, 30.0, "ego initial and desired speed, m/s"),
     p("occluder_gap_m", 8.0, 30.0, "gap to the lead truck that hides the road ahead, m"),
-    p("hidden_obstacle_distance_m", 50.0, 150.0, "distance from the ego to the stopped vehicle the truck swerves around, m"),
+    p("hidden_obstacle_distance_m", 30.0, 150.0, "distance from the ego to the stopped vehicle the truck swerves around, m"),
     p("sensor_range_m", 20.0, 150.0, "degraded sensor range, m"),
     p("sensor_fov_deg", 20.0, 120.0, "degraded horizontal field of view, degrees"),
     p("dropout_rate", 0.0, 0.9, "probability that a detection is lost in a frame"),

@@ -12,8 +12,10 @@
 //! - [`sensor`]: what the ego perceives (range, field of view, occlusion, noise, dropout).
 //! - [`risk`]: the driving risk field, criticality measures and the scenario risk score.
 //! - [`scenario`]: the five kinds, sampling, feasibility, building a world.
-//! - [`world`], [`driver`], [`metrics`]: one episode, its reference driver and its metrics.
+//! - [`world`], [`driver`], [`episode`], [`metrics`]: one episode, its reference driver, its metrics.
 
+pub mod driver;
+pub mod episode;
 pub mod geometry;
 pub mod metrics;
 pub mod rng;
@@ -23,3 +25,4 @@ pub mod scenario;
 pub mod sensor;
 pub mod traffic;
 pub mod vehicle;
+pub mod world;

@@ -1,0 +1,146 @@
+//! One episode of a scenario: build the world, drive it with a policy, measure and score it.
+
+use crate::driver::{Policy, ReferenceDriver};
+use crate::geometry::{Obb, Vec2};
+use crate::metrics::{EpisodeMetrics, MetricsAccumulator, RewardInputs, RewardWeights, StepSample, step_reward};
+use crate::risk::{
+    EgoKinematics, FieldError, FieldObject, GridEvaluator, RiskAccumulator, RiskFieldParams, RiskGrid, RiskStep, RiskTerms,
+    RiskWeights, RoadRaster,
+};
+use crate::road::Road;
+use crate::scenario::{ScenarioSpec, build};
+use crate::world::World;
+
+/// What an episode produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeResult {
+    pub metrics: EpisodeMetrics,
+    pub risk: RiskTerms,
+}
+
+/// Field inputs for the ego and everything around it, refreshed into `objects`.
+fn field_inputs(world: &mut World, jerk_mps3: f64, objects: &mut Vec<FieldObject>) -> EgoKinematics {
+    objects.clear();
+    objects.extend(world.scene_objects().iter().map(|o| FieldObject { obb: o.obb, velocity: o.velocity }));
+    EgoKinematics {
+        pose: world.ego.pose(),
+        velocity: world.ego.velocity(),
+        lateral_accel_mps2: world.ego.lateral_accel_mps2(),
+        jerk_mps3,
+        footprint: world.ego.params.footprint(),
+    }
+}
+
+/// Runs `world` to its end with `policy`, stopping at the first collision or road departure.
+pub fn run(world: &mut World, policy: &mut dyn Policy, weights: &RewardWeights) -> EpisodeResult {
+    let field = RiskFieldParams::default();
+    let mut metrics = MetricsAccumulator::default();
+    let mut risk = RiskAccumulator::new(RiskWeights::default());
+    let mut objects = Vec::new();
+    let (mut collision, mut offroad) = (false, false);
+    let mut progress_prev = world.progress_m();
+    while !world.finished() && !collision && !offroad {
+        let report = world.step(policy);
+        collision = report.contacts.collision;
+        offroad = report.contacts.offroad;
+        let jerk = metrics.jerk_of(world.ego.state.accel_mps2, world.dt_s);
+        let ego = field_inputs(world, jerk, &mut objects);
+        let ego_risk = field.evaluate_footprint(&world.road, &objects, &ego);
+        let lane_pos = world.road.locate_heading(ego.pose.position(), ego.pose.heading_rad);
+        let progress = world.progress_m();
+        let reward = step_reward(
+            weights,
+            &RewardInputs {
+                progress_m: progress - progress_prev,
+                desired_speed_mps: world.desired_speed_mps,
+                speed_mps: world.ego.state.speed_mps,
+                dt_s: world.dt_s,
+                risk: ego_risk,
+                lane_offset_m: lane_pos.frenet.e_y_m,
+                jerk_mps3: jerk,
+                collision,
+                offroad,
+            },
+        );
+        progress_prev = progress;
+        metrics.observe(StepSample {
+            dt_s: world.dt_s,
+            speed_mps: world.ego.state.speed_mps,
+            steer_rad: world.ego.state.steer_rad,
+            accel_mps2: world.ego.state.accel_mps2,
+            reward,
+        });
+        risk.observe(&RiskStep {
+            road: &world.road,
+            ego: &ego,
+            ego_accel_mps2: world.ego.state.accel_mps2,
+            lane_offset_m: lane_pos.frenet.e_y_m,
+            lane_width_m: world.road.lane(lane_pos.lane).width_m,
+            objects: &objects,
+            collision,
+        });
+    }
+    let completion = world.progress_m() / world.route.length_m;
+    let mut m = metrics.finish(completion, collision, offroad);
+    let (terms, summary) = risk.finish();
+    m.min_ttc_s = summary.min_ttc_s;
+    m.min_distance_m = summary.min_distance_m;
+    m.risk_score = terms.score;
+    EpisodeResult { metrics: m, risk: terms }
+}
+
+/// The scenario driven by the reference driver, with the default reward weights.
+pub fn evaluate(spec: &ScenarioSpec) -> EpisodeResult {
+    let mut world = build(spec);
+    let mut driver = ReferenceDriver::new(world.desired_speed_mps, world.ego.params.clone());
+    run(&mut world, &mut driver, &RewardWeights::default())
+}
+
+/// The risk field around the ego at one moment of a scenario, with what is needed to draw it.
+#[derive(Debug, Clone)]
+pub struct FieldSnapshot {
+    pub time_s: f64,
+    pub grid: RiskGrid,
+    pub road: Road,
+    pub ego: Obb,
+    pub others: Vec<Obb>,
+}
+
+impl FieldSnapshot {
+    /// Maximum, mean and the world position of the maximum.
+    pub fn stats(&self) -> (f64, f64, Vec2) {
+        let cells = &self.grid.cells;
+        let max = cells.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        let mean = cells.iter().map(|&c| f64::from(c)).sum::<f64>() / cells.len().max(1) as f64;
+        let (col, row) = self.grid.argmax();
+        (f64::from(max), mean, self.grid.cell_centre(col, row))
+    }
+}
+
+/// Drives the scenario with the reference driver until `time_s` (or its end) and evaluates the
+/// field on a `cells`×`cells` grid centred on the ego.
+pub fn field_snapshot(spec: &ScenarioSpec, time_s: f64, resolution_m: f64, cells: usize) -> Result<FieldSnapshot, FieldError> {
+    let mut world = build(spec);
+    let mut driver = ReferenceDriver::new(world.desired_speed_mps, world.ego.params.clone());
+    while world.time_s + 1e-9 < time_s && !world.finished() {
+        let report = world.step(&mut driver);
+        if report.contacts.collision || report.contacts.offroad {
+            break;
+        }
+    }
+    let params = RiskFieldParams::default();
+    let half_extent_m = 0.5 * resolution_m * cells as f64;
+    let raster = RoadRaster::new(&world.road, &params, resolution_m, half_extent_m + 10.0)?;
+    let mut objects = Vec::new();
+    let ego = field_inputs(&mut world, 0.0, &mut objects);
+    let origin = raster.snap_origin(ego.pose.position() - Vec2::new(half_extent_m, half_extent_m));
+    let mut grid = RiskGrid::new(origin, resolution_m, cells, cells)?;
+    GridEvaluator::new(params).fill(&mut grid, &raster, &world.road, &objects, &ego);
+    Ok(FieldSnapshot {
+        time_s: world.time_s,
+        grid,
+        road: world.road.clone(),
+        ego: ego.obb(),
+        others: objects.iter().map(|o| o.obb).collect(),
+    })
+}

@@ -1,0 +1,167 @@
+//! Command-line grammar (cli.md, contract v1). Only parsing lives here.
+
+use crate::output::Format;
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Debug, Parser)]
+#[command(name = "risktwin", version, about = "Closed-loop digital twin for autonomous-driving safety validation")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// The main job: generate, simulate, score and rank scenarios, and write a report folder.
+    Run(RunArgs),
+    /// Generate and rank scenarios in a library database.
+    #[command(subcommand)]
+    Scenarios(ScenariosCommand),
+    /// Simulate one episode with the reference driver.
+    Simulate(SimulateArgs),
+    /// Evaluate the driving risk field around the ego.
+    RiskField(RiskFieldArgs),
+    /// Throughput benchmarks.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// JSON config overriding the defaults of the run.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Report folder (default ./risktwin-out/<timestamp>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Loop iterations (generate → rank → mutate → re-score).
+    #[arg(long)]
+    pub iterations: Option<u32>,
+    /// A smoke-test sized run (well under a minute on 2 cores).
+    #[arg(long)]
+    pub quick: bool,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum ScenariosCommand {
+    /// Sample, filter, simulate, score and store scenarios.
+    Generate(GenerateArgs),
+    /// List stored scenarios, highest risk first.
+    Rank(RankArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct GenerateArgs {
+    /// A scenario kind or `all`.
+    #[arg(long)]
+    pub kind: String,
+    /// Candidates to sample per kind.
+    #[arg(long)]
+    pub count: u64,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[arg(long)]
+    pub db: PathBuf,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
+pub struct RankArgs {
+    #[arg(long)]
+    pub db: PathBuf,
+    #[arg(long)]
+    pub top: Option<usize>,
+    /// Restrict to one kind (or `all`).
+    #[arg(long)]
+    pub kind: Option<String>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+/// Where a scenario comes from: a library entry or a spec file.
+#[derive(Debug, Args)]
+#[group(required = true, multiple = true)]
+pub struct ScenarioSource {
+    #[arg(long, requires = "id", conflicts_with = "spec")]
+    pub db: Option<PathBuf>,
+    #[arg(long, requires = "db")]
+    pub id: Option<String>,
+    /// A JSON spec file: {"kind", "seed", "params"}.
+    #[arg(long)]
+    pub spec: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    #[command(flatten)]
+    pub source: ScenarioSource,
+    /// `idm` (the reference driver).
+    #[arg(long, default_value = "idm")]
+    pub policy: String,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
+pub struct RiskFieldArgs {
+    #[command(flatten)]
+    pub source: ScenarioSource,
+    /// Simulation time at which to evaluate, s.
+    #[arg(long, default_value_t = 0.0)]
+    pub time: f64,
+    /// Cell size, m.
+    #[arg(long, default_value_t = 0.5)]
+    pub resolution: f64,
+    /// Grid size (cells per side).
+    #[arg(long, default_value_t = 160)]
+    pub cells: usize,
+    /// Write a heatmap PNG here.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Traffic simulation throughput (dynamics, IDM/MOBIL, collision checks).
+    Sim(BenchSimArgs),
+    /// Risk-field evaluation throughput on one core.
+    RiskField(BenchRiskFieldArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BenchSimArgs {
+    #[arg(long, default_value_t = 1000)]
+    pub vehicles: usize,
+    #[arg(long, default_value_t = 1000)]
+    pub steps: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
+pub struct BenchRiskFieldArgs {
+    #[arg(long, default_value_t = 64)]
+    pub agents: usize,
+    #[arg(long, default_value_t = 256)]
+    pub cols: usize,
+    #[arg(long, default_value_t = 256)]
+    pub rows: usize,
+    /// Minimum measuring time, s.
+    #[arg(long, default_value_t = 2.0)]
+    pub seconds: f64,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}

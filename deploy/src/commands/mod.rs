@@ -1,0 +1,23 @@
+//! One module per subcommand; each turns parsed arguments into library calls and output.
+
+mod bench;
+mod risk_field;
+mod run;
+mod scenarios;
+mod simulate;
+mod source;
+
+use crate::cli::{BenchCommand, Cli, Command, ScenariosCommand};
+use crate::error::CliResult;
+
+pub fn dispatch(cli: Cli) -> CliResult {
+    match cli.command {
+        Command::Run(a) => run::run(a),
+        Command::Scenarios(ScenariosCommand::Generate(a)) => scenarios::generate(a),
+        Command::Scenarios(ScenariosCommand::Rank(a)) => scenarios::rank(a),
+        Command::Simulate(a) => simulate::simulate(a),
+        Command::RiskField(a) => risk_field::risk_field(a),
+        Command::Bench(BenchCommand::Sim(a)) => bench::sim(a),
+        Command::Bench(BenchCommand::RiskField(a)) => bench::risk_field(a),
+    }
+}

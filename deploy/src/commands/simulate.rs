@@ -1,0 +1,43 @@
+//! `risktwin simulate`: one episode of a scenario with the reference driver.
+
+use super::source;
+use crate::cli::SimulateArgs;
+use crate::error::{CliError, CliResult};
+use crate::output::{Format, csv_float, print_json, print_table};
+use risktwin_common::episode;
+use risktwin_common::metrics::EpisodeMetrics;
+
+pub fn simulate(args: SimulateArgs) -> CliResult {
+    if args.policy != "idm" {
+        return Err(CliError::input(format!("unknown policy '{}' (available: idm)", args.policy)));
+    }
+    let spec = source::load(&args.source)?;
+    let result = episode::evaluate(&spec);
+    match args.format {
+        Format::Json => print_json(&result.metrics),
+        Format::Table | Format::Csv => print_metrics(&result.metrics, args.format),
+    }
+}
+
+fn print_metrics(m: &EpisodeMetrics, format: Format) -> CliResult {
+    let rows: Vec<(&str, String)> = vec![
+        ("collision", m.collision.to_string()),
+        ("offroad", m.offroad.to_string()),
+        ("success", m.success.to_string()),
+        ("route_completion", csv_float(m.route_completion)),
+        ("avg_speed_mps", csv_float(m.avg_speed_mps)),
+        ("steering_smoothness", csv_float(m.steering_smoothness)),
+        ("longitudinal_smoothness", csv_float(m.longitudinal_smoothness)),
+        ("min_ttc_s", m.min_ttc_s.map_or("inf".into(), csv_float)),
+        ("min_distance_m", csv_float(m.min_distance_m)),
+        ("risk_score", csv_float(m.risk_score)),
+        ("reward", csv_float(m.reward)),
+        ("steps", m.steps.to_string()),
+    ];
+    if format == Format::Csv {
+        println!("{}", rows.iter().map(|r| r.0).collect::<Vec<_>>().join(","));
+        println!("{}", rows.iter().map(|r| r.1.as_str()).collect::<Vec<_>>().join(","));
+        return Ok(());
+    }
+    print_table(&["metric", "value"], &rows.into_iter().map(|(k, v)| vec![k.to_string(), v]).collect::<Vec<_>>())
+}

@@ -1,0 +1,58 @@
+//! Loading a scenario from `--spec FILE` or `--db FILE --id ID`, validated and feasible.
+
+use crate::cli::ScenarioSource;
+use crate::error::{CliError, CliResult};
+use risktwin_cloud::library::ScenarioLibrary;
+use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, check_feasible};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The spec file as written by a person: checked field by field before it becomes a spec.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SpecFile {
+    kind: String,
+    seed: u64,
+    params: BTreeMap<String, f64>,
+}
+
+/// Reads and validates a spec file; every problem is an input error naming the file.
+pub fn read_spec_file(path: &Path) -> CliResult<ScenarioSpec> {
+    let shown = path.display();
+    let text = std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read spec {shown}: {e}")))?;
+    let raw: SpecFile = serde_json::from_str(&text).map_err(|e| CliError::input(format!("spec {shown}: {e}")))?;
+    let kind: ScenarioKind = raw.kind.parse().map_err(|e| CliError::input(format!("spec {shown}: {e}")))?;
+    let spec = ScenarioSpec::new(kind, raw.seed, raw.params).map_err(|e| CliError::input(format!("spec {shown}: {e}")))?;
+    check_feasible(&spec).map_err(|e| CliError::input(format!("spec {shown}: infeasible: {e}")))?;
+    Ok(spec)
+}
+
+/// Opens a library database that must already exist (reading never creates one).
+pub fn open_existing_library(path: &Path) -> CliResult<ScenarioLibrary> {
+    if !path.is_file() {
+        return Err(CliError::input(format!("no scenario library at {}", path.display())));
+    }
+    ScenarioLibrary::open(path).map_err(CliError::input)
+}
+
+/// The scenario a `--spec` or `--db/--id` pair names.
+pub fn load(source: &ScenarioSource) -> CliResult<ScenarioSpec> {
+    match (&source.spec, &source.db, &source.id) {
+        (Some(path), None, None) => read_spec_file(path),
+        (None, Some(db), Some(id)) => {
+            let lib = open_existing_library(db)?;
+            let stored = lib.get(id).map_err(CliError::input)?;
+            stored.map(|s| s.spec).ok_or_else(|| CliError::input(format!("no scenario '{id}' in {}", db.display())))
+        }
+        _ => Err(CliError::input("give either --spec FILE or --db FILE --id ID")),
+    }
+}
+
+/// `--kind KIND|all` → the kinds it names.
+pub fn parse_kinds(kind: &str) -> CliResult<Vec<ScenarioKind>> {
+    if kind == "all" {
+        return Ok(ScenarioKind::ALL.to_vec());
+    }
+    kind.parse::<ScenarioKind>().map(|k| vec![k]).map_err(CliError::input)
+}

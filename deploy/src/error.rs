@@ -1,0 +1,39 @@
+//! The binary's error type: the exit code follows cli.md (2 bad usage or input, 1 runtime).
+
+use std::fmt;
+
+/// What went wrong, and whose fault it was.
+#[derive(Debug)]
+pub enum CliError {
+    /// Bad flags, files, specs or databases: exit 2.
+    Input(String),
+    /// Anything else: exit 1.
+    Runtime(String),
+}
+
+impl CliError {
+    pub fn input(what: impl fmt::Display) -> Self {
+        CliError::Input(what.to_string())
+    }
+    pub fn runtime(what: impl fmt::Display) -> Self {
+        CliError::Runtime(what.to_string())
+    }
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            CliError::Input(_) => 2,
+            CliError::Runtime(_) => 1,
+        }
+    }
+}
+
+impl fmt::Display for CliError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CliError::Input(s) | CliError::Runtime(s) => f.write_str(s),
+        }
+    }
+}
+
+impl std::error::Error for CliError {}
+
+pub type CliResult<T = ()> = Result<T, CliError>;

@@ -22,7 +22,7 @@ use super::params::{GRAVITY_MPS2, VehicleParams};
 use super::single_track::{
     BETA, CrState, DELTA, KINEMATIC_SWITCH_MPS, PSI, V, YAW_RATE, lateral_forces_n, rk4, st_rhs,
 };
-use crate::geometry::{Obb, Pose, Vec2};
+use crate::geometry::{Obb, Pose, Vec2, wrap_angle};
 
 /// Lowest friction coefficient accepted; NaN or smaller values are raised to it (worst case).
 pub const MU_MIN: f64 = 0.01;
@@ -109,14 +109,14 @@ impl Vehicle {
         }
     }
 
-    /// Footprint-centre pose.
+    /// Footprint-centre pose, heading wrapped into (−π, π].
     pub fn pose(&self) -> Pose {
         let s = &self.state;
         let off = self.params.centre_ahead_of_cog_m;
         Pose::new(
             s.x_m + off * s.heading_rad.cos(),
             s.y_m + off * s.heading_rad.sin(),
-            s.heading_rad,
+            wrap_angle(s.heading_rad),
         )
     }
 

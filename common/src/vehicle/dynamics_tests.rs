@@ -55,10 +55,9 @@ fn braking_distance_matches_mu_g_plus_lag() {
                 "{model:?} μ={mu}: measured {measured:.3} m, v²/(2μg) {ideal:.3} m, + lag {:.3} m = {analytic:.3} m",
                 analytic - ideal
             );
-            assert!(
-                (measured - analytic).abs() < 0.01 * analytic,
-                "{model:?} μ={mu}: {measured} vs {analytic}"
-            );
+            let rel = (measured - analytic).abs() / analytic;
+            eprintln!("  relative error {rel:.1e}");
+            assert!(rel < 0.005, "{model:?} μ={mu}: {measured} vs {analytic}");
             assert!(measured > ideal, "the lag adds distance");
         }
     }
@@ -125,7 +124,8 @@ fn circumradius_m(a: Vec2, b: Vec2, c: Vec2) -> f64 {
 }
 
 /// Drives a steady circle at 12 m/s with δ = 0.11 rad; returns the path radius over the last
-/// 3 s and the largest lateral acceleration, from the second difference of the CoG positions.
+/// 3 s and the largest acceleration magnitude, from the second difference of the CoG positions
+/// (coasting at constant speed, so it is all lateral).
 fn circle_run(mu: f64) -> (f64, f64) {
     let mut v = car(ModelKind::SingleTrack, 12.0);
     let c = Controls::new(0.11, 0.0, 0.0);
@@ -145,7 +145,7 @@ fn circle_run(mu: f64) -> (f64, f64) {
             800 => pts[2] = p,
             _ => {}
         }
-        // Finite-difference and force-based lateral accelerations agree.
+        // The force-based lateral acceleration stays inside the friction circle at every step.
         assert!(v.lateral_accel_mps2().abs() <= mu * GRAVITY_MPS2 + 1e-9);
     }
     (circumradius_m(pts[0], pts[1], pts[2]), max_lat)
@@ -262,4 +262,60 @@ fn pose_is_the_footprint_centre() {
     let obb = v.obb();
     assert!((obb.half_length_m - 2.254).abs() < 1e-12 && obb.axis.y > 0.999);
     assert!((v.velocity() - Vec2::new(0.0, 8.0)).norm() < 1e-12);
+}
+
+#[test]
+fn crawling_single_track_is_stable_at_any_step() {
+    // At 0.5 m/s the ST lateral modes have eigenvalues near −700 1/s: plain RK4 at 10 ms would
+    // blow up; the sub-stepping must keep it stable and close to the kinematic motion.
+    let p = VehicleParams::bmw_320i();
+    for dt in [0.01, 0.1] {
+        let mut st = car(ModelKind::SingleTrack, 0.5);
+        let mut ks = car(ModelKind::Kinematic, 0.5);
+        let steps = (5.0 / dt) as usize;
+        for _ in 0..steps {
+            st.step(Controls::new(0.1, 0.0, 0.0), 0.9, dt);
+            ks.step(Controls::new(0.1, 0.0, 0.0), 0.9, dt);
+        }
+        // δ small enough that the ST small-angle form (v·δ/l) and the kinematic
+        // v·cos β·tan δ/l agree to 0.1 %.
+        let kin_yaw = kinematic_yaw_rate_radps(&p, 0.5, 0.1);
+        assert!(
+            (st.state.yaw_rate_radps - kin_yaw).abs() < 0.01 * kin_yaw,
+            "dt {dt}: {:?}",
+            st.state
+        );
+        assert!(
+            (st.pose().position() - ks.pose().position()).norm() < 0.01,
+            "dt {dt}"
+        );
+    }
+}
+
+#[test]
+fn full_throttle_is_power_limited_above_v_switch() {
+    let p = VehicleParams::bmw_320i();
+    let mut v = car(ModelKind::SingleTrack, 20.0);
+    for _ in 0..100 {
+        v.step(Controls::new(0.0, 1.0, 0.0), 0.9, DT_S);
+    }
+    // After 1 s (≫ τ) the acceleration tracks the power limit a_max·v_switch/v, trailing it by
+    // the lag: a first-order lag follows a ramp τ·|d(limit)/dt| = τ·limit·a/v behind.
+    let (a, speed) = (v.state.accel_mps2, v.state.speed_mps);
+    let limit = p.a_max_mps2 * p.v_switch_mps / speed;
+    let trail = p.accel_lag_s * limit * a / speed;
+    assert!(
+        a > limit && a - limit < 1.2 * trail,
+        "{a} vs {limit} (+{trail})"
+    );
+    // From rest, full throttle is capped by traction: μ·g, not a_max.
+    let mut v = car(ModelKind::Kinematic, 0.0);
+    for _ in 0..50 {
+        v.step(Controls::new(0.0, 1.0, 0.0), 0.3, DT_S);
+    }
+    assert!(
+        (v.state.accel_mps2 - 0.3 * GRAVITY_MPS2).abs() < 1e-9,
+        "{}",
+        v.state.accel_mps2
+    );
 }

@@ -10,6 +10,7 @@ use crate::geometry::{Footprint, Pose, Vec2, wrap_angle};
 use crate::road::{LaneId, Road};
 use crate::sensor::PerceivedObject;
 use crate::traffic::{IdmParams, idm_accel};
+use crate::vehicle::actuator::drive_limit_mps2;
 use crate::vehicle::{Controls, VehicleParams};
 
 /// What a policy sees each step.
@@ -171,9 +172,9 @@ impl Policy for ReferenceDriver {
         let steer_rad = (2.0 * self.vehicle.wheelbase_m() * alpha.sin() / to.norm().max(1e-3)).atan();
 
         let (throttle, brake) = if accel >= 0.0 {
-            ((accel / self.vehicle.accel_max_mps2).min(1.0), 0.0)
+            ((accel / drive_limit_mps2(&self.vehicle, v)).min(1.0), 0.0)
         } else {
-            (0.0, (-accel / self.vehicle.brake_max_mps2).min(1.0))
+            (0.0, (-accel / self.vehicle.brake_decel_max_mps2).min(1.0))
         };
         Controls { steer_rad, throttle, brake }
     }

@@ -239,7 +239,10 @@ impl Sensor {
             // Callers build boxes with `Obb::new` (unit axis); a drifted axis must not scale them.
             let mut obb = object.obb;
             obb.axis = obb.axis.normalize();
-            let visible_fraction = self.visible_fraction(origin, forward, &obb, index);
+            if p.occlusion {
+                self.blockers.select(origin, obb.centre, radius_m, index);
+            }
+            let visible_fraction = self.visible_fraction(origin, forward, &obb);
             if visible_fraction <= 0.0 || visible_fraction < p.min_visible_fraction {
                 continue;
             }
@@ -261,7 +264,7 @@ impl Sensor {
 
     /// Share of the footprint's sample points inside range and field of view and, with
     /// occlusion on, in line of sight.
-    fn visible_fraction(&self, origin: Vec2, forward: Vec2, obb: &Obb, index: usize) -> f64 {
+    fn visible_fraction(&self, origin: Vec2, forward: Vec2, obb: &Obb) -> f64 {
         let c = obb.corners();
         let samples: [Vec2; SAMPLES] = [c[0], c[1], c[2], c[3], obb.centre];
         let range_sq = self.params.range_m * self.params.range_m;
@@ -272,7 +275,7 @@ impl Sensor {
                 let dist_sq = d.norm_squared();
                 dist_sq <= range_sq
                     && d.dot(&forward) >= self.cos_half_fov * dist_sq.sqrt()
-                    && !(self.params.occlusion && self.blockers.is_blocked(origin, point, index))
+                    && !(self.params.occlusion && self.blockers.is_blocked(origin, point))
             })
             .count();
         visible as f64 / SAMPLES as f64

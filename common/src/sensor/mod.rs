@@ -17,9 +17,10 @@
 //! occludes: the sensor looks out of it.
 //!
 //! Determinism and cost: all randomness comes from the `Rng` passed in, drawn in input order
-//! (per detected object: one dropout draw, then four normals), so a seed fixes the output. The
-//! output vector and the per-frame occluder cache are cleared and refilled, never reallocated
-//! once they have grown to the scene's size, so a steady simulation does not allocate here.
+//! (per visible object one dropout draw, then four normals if it is kept), so a seed fixes the
+//! output. The output vector and the per-frame occluder caches are cleared and refilled, never
+//! reallocated once they have grown to the scene's size, so a steady simulation does not
+//! allocate here.
 
 mod occlusion;
 #[cfg(test)]

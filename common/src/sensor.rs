@@ -1,1 +1,0 @@
-//! The ego sensor model: range, field of view, occlusion by footprints, noise and dropout.

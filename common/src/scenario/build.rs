@@ -126,5 +126,5 @@ pub fn build(spec: &ScenarioSpec) -> World {
     let start = road.lane(ego_lane).pose_at(EGO_START_S_M, 0.0);
     let ego = Vehicle::new(VehicleParams::bmw_320i(), ModelKind::SingleTrack, start, ego_speed);
     let route = Route { lane: ego_lane, start_s_m: EGO_START_S_M, length_m: ego_speed.max(5.0) * (HORIZON_S - ROUTE_SLACK_S) };
-    World::new(road, ego, traffic, pedestrians, Sensor::new(sensor_params), route, ego_speed, HORIZON_S, spec.seed)
+    World::new(road, ego, traffic, pedestrians, Sensor::new(sensor_params).expect("scenario parameter ranges lie inside the sensor model's valid ranges"), route, ego_speed, HORIZON_S, spec.seed)
 }

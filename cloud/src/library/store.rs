@@ -431,3 +431,359 @@ pub(super) fn decode_kind(id: &str, kind: &str) -> Result<ScenarioKind, LibraryE
         reason: format!("{e}"),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::fixtures::{file_library, outcome, sampled, spec};
+    use super::*;
+    use risktwin_common::rng::Rng;
+    use risktwin_common::scenario::mutate;
+
+    fn count(lib: &ScenarioLibrary, table: &str) -> i64 {
+        lib.conn
+            .query_row(&format!("SELECT COUNT(*) FROM {table}"), [], |r| r.get(0))
+            .expect("count")
+    }
+
+    #[test]
+    fn store_then_get_gives_back_exact_values() {
+        let (_dir, mut lib) = file_library();
+        let mut with_ttc = outcome(0.8125, false, Some(1.234_567_890_123_456_7));
+        with_ttc.metrics.steps = u64::from(u32::MAX) + 3;
+        let mut big_seed = spec(ScenarioKind::CutIn, 0);
+        big_seed.seed = u64::MAX - 5; // does not fit i64: stored bit for bit
+        let records = [
+            ScenarioRecord::sampled(big_seed.clone(), with_ttc.clone()),
+            ScenarioRecord::sampled(
+                spec(ScenarioKind::SensorOcclusion, 1),
+                outcome(0.25, false, None),
+            ),
+            ScenarioRecord::sampled(
+                spec(ScenarioKind::LowFriction, 2),
+                outcome(0.5, false, Some(f64::INFINITY)),
+            ),
+        ];
+        let summary = lib.insert_batch(&records).expect("insert");
+        assert_eq!(
+            summary,
+            InsertSummary {
+                inserted: 3,
+                duplicates: 0,
+                outcomes: 3
+            }
+        );
+
+        let got = lib
+            .get(&content_id(&big_seed))
+            .expect("get")
+            .expect("stored");
+        assert_eq!(got.spec, big_seed);
+        assert_eq!(got.outcomes, vec![with_ttc]);
+        assert_eq!(
+            (got.origin, got.parent_id, got.generation, got.created_seq),
+            (Origin::Sampled, None, 0, 1)
+        );
+
+        let no_ttc = lib
+            .get(&content_id(&records[1].spec))
+            .expect("get")
+            .expect("stored");
+        assert_eq!(no_ttc.outcomes[0].metrics.min_ttc_s, None);
+        assert_eq!(no_ttc.created_seq, 2);
+        // An infinite TTC ("never closing in") is stored as SQL NULL, not as a huge number.
+        let inf_id = content_id(&records[2].spec);
+        let is_null: bool = lib
+            .conn
+            .query_row(
+                "SELECT min_ttc_s IS NULL FROM outcomes WHERE scenario_id = ?1",
+                [&inf_id],
+                |r| r.get(0),
+            )
+            .expect("row");
+        assert!(is_null);
+        assert_eq!(
+            lib.get(&inf_id).expect("get").expect("stored").outcomes[0]
+                .metrics
+                .min_ttc_s,
+            None
+        );
+        assert_eq!(lib.get("0123456789abcdef").expect("get"), None);
+    }
+
+    #[test]
+    fn invalid_values_are_refused_and_nothing_is_written() {
+        let (_dir, mut lib) = file_library();
+        let good = sampled(ScenarioKind::CutIn, 0, 0.5, false);
+        let mut too_risky = sampled(ScenarioKind::CutIn, 1, 0.5, false);
+        too_risky.outcome.as_mut().expect("has outcome").risk.score = 1.5;
+        let err = lib
+            .insert_batch(&[good.clone(), too_risky.clone()])
+            .unwrap_err();
+        match err {
+            LibraryError::InvalidRecord {
+                id,
+                source:
+                    RecordError::OutOfRange {
+                        field: "risk.score",
+                        value,
+                        ..
+                    },
+            } => {
+                assert_eq!(id, content_id(&too_risky.spec));
+                assert_eq!(value, 1.5);
+            }
+            other => panic!("expected risk.score out of range, got {other:?}"),
+        }
+        let mut nan = good.clone();
+        nan.outcome
+            .as_mut()
+            .expect("has outcome")
+            .metrics
+            .route_completion = f64::NAN;
+        let err = lib.insert_batch(&[nan]).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                LibraryError::InvalidRecord {
+                    source: RecordError::NotFinite { .. },
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let mut negative_ttc = good.clone();
+        negative_ttc
+            .outcome
+            .as_mut()
+            .expect("has outcome")
+            .metrics
+            .min_ttc_s = Some(-1.0);
+        assert!(lib.insert_batch(&[negative_ttc]).is_err());
+        let mut out_of_range = good.clone();
+        out_of_range
+            .spec
+            .params
+            .insert("lateral_gap_m".into(), 99.0);
+        let err = lib.insert_batch(&[out_of_range]).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                LibraryError::InvalidRecord {
+                    source: RecordError::Spec(_),
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let orphan = ScenarioRecord::mutated(
+            spec(ScenarioKind::CutIn, 3),
+            "feedfacefeedface",
+            outcome(0.1, false, None),
+        );
+        let err = lib.insert_batch(&[good.clone(), orphan]).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                LibraryError::InvalidRecord {
+                    source: RecordError::UnknownParent(_),
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        // The failed batches were rolled back whole, including `good`, which came first.
+        assert_eq!((count(&lib, "scenarios"), count(&lib, "outcomes")), (0, 0));
+    }
+
+    #[test]
+    fn the_same_content_is_one_row() {
+        let (_dir, mut lib) = file_library();
+        let rec = sampled(ScenarioKind::EmergencyBraking, 4, 0.5, false);
+        let first = lib
+            .insert_batch(&[rec.clone(), rec.clone()])
+            .expect("insert");
+        assert_eq!(
+            first,
+            InsertSummary {
+                inserted: 1,
+                duplicates: 1,
+                outcomes: 2
+            }
+        );
+        let mut rebuilt = rec.clone();
+        rebuilt.spec = ScenarioSpec::new(rec.spec.kind, rec.spec.seed, rec.spec.params.clone())
+            .expect("valid");
+        lib.insert_batch(&[rebuilt]).expect("insert again");
+        assert_eq!(count(&lib, "scenarios"), 1);
+        assert_eq!(count(&lib, "outcomes"), 3);
+        let mut other_seed = rec.clone();
+        other_seed.spec.seed += 1;
+        lib.insert_batch(&[other_seed]).expect("insert");
+        assert_eq!(count(&lib, "scenarios"), 2);
+    }
+
+    #[test]
+    fn three_mutations_make_a_lineage_of_depth_three() {
+        let (_dir, mut lib) = file_library();
+        let root = sampled(ScenarioKind::EmergencyBraking, 0, 0.9, true);
+        lib.insert_batch(std::slice::from_ref(&root)).expect("root");
+        let mut rng = Rng::new(3);
+        let (mut parent_id, mut parent_spec) = (content_id(&root.spec), root.spec.clone());
+        let mut ids = vec![parent_id.clone()];
+        for _ in 0..3 {
+            let child = mutate(&parent_spec, 0.05, &mut rng).expect("feasible child");
+            lib.insert_batch(&[ScenarioRecord::mutated(
+                child.clone(),
+                &parent_id,
+                outcome(0.7, false, Some(1.0)),
+            )])
+            .expect("child");
+            parent_id = content_id(&child);
+            parent_spec = child;
+            ids.push(parent_id.clone());
+        }
+        let leaf = lib.get(&parent_id).expect("get").expect("stored");
+        assert_eq!((leaf.generation, leaf.origin), (3, Origin::Mutated));
+        let lineage = lib.lineage(&parent_id).expect("lineage");
+        ids.reverse();
+        assert_eq!(lineage, ids);
+        assert_eq!(lineage.len() - 1, 3);
+        assert!(matches!(
+            lib.lineage("nope"),
+            Err(LibraryError::UnknownScenario(_))
+        ));
+
+        let other_kind = ScenarioRecord::mutated(
+            spec(ScenarioKind::CutIn, 0),
+            &parent_id,
+            outcome(0.1, false, None),
+        );
+        let err = lib.insert_batch(&[other_kind]).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                LibraryError::InvalidRecord {
+                    source: RecordError::KindChanged { .. },
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let mut sampled_with_parent = sampled(ScenarioKind::CutIn, 1, 0.1, false);
+        sampled_with_parent.parent_id = Some(parent_id.clone());
+        assert!(matches!(
+            lib.insert_batch(&[sampled_with_parent]),
+            Err(LibraryError::InvalidRecord {
+                source: RecordError::Lineage { .. },
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn counts_rejections_and_regression_cases() {
+        let (_dir, mut lib) = file_library();
+        lib.insert_batch(&[
+            sampled(ScenarioKind::CutIn, 0, 0.9, true),
+            sampled(ScenarioKind::CutIn, 1, 0.2, false),
+            sampled(ScenarioKind::LowFriction, 0, 0.3, false),
+        ])
+        .expect("insert");
+        let rej = |kind, reason: &str, count| Rejection {
+            kind,
+            reason: reason.to_string(),
+            count,
+        };
+        lib.record_rejections(&[rej(ScenarioKind::CutIn, "negative-speed", 2)])
+            .expect("rejections");
+        lib.record_rejections(&[
+            rej(ScenarioKind::CutIn, "negative-speed", 3),
+            rej(ScenarioKind::CutIn, "lateral-beyond-friction", 1),
+        ])
+        .expect("rejections");
+        assert_eq!(
+            lib.rejected_counts().expect("counts"),
+            vec![
+                rej(ScenarioKind::CutIn, "lateral-beyond-friction", 1),
+                rej(ScenarioKind::CutIn, "negative-speed", 5)
+            ]
+        );
+        let counts = lib.count_by_kind().expect("counts");
+        assert_eq!(
+            counts[&ScenarioKind::CutIn],
+            KindCounts {
+                stored: 2,
+                infeasible: 6,
+                collisions: 1
+            }
+        );
+        assert_eq!(
+            counts[&ScenarioKind::LowFriction],
+            KindCounts {
+                stored: 1,
+                infeasible: 0,
+                collisions: 0
+            }
+        );
+        assert_eq!(
+            counts[&ScenarioKind::SensorOcclusion],
+            KindCounts::default()
+        );
+
+        // Collisions are regression cases by default; others only when marked.
+        let crash = content_id(&spec(ScenarioKind::CutIn, 0));
+        let calm = content_id(&spec(ScenarioKind::LowFriction, 0));
+        lib.mark_regression(&calm).expect("mark");
+        lib.mark_regression(&crash)
+            .expect("marking twice keeps the first reason");
+        let set: Vec<(String, RegressionReason)> = lib
+            .regression_set()
+            .expect("set")
+            .into_iter()
+            .map(|c| (c.id, c.reason))
+            .collect();
+        assert_eq!(
+            set,
+            vec![
+                (crash, RegressionReason::Collision),
+                (calm, RegressionReason::Manual)
+            ]
+        );
+        assert!(matches!(
+            lib.mark_regression("nope"),
+            Err(LibraryError::UnknownScenario(_))
+        ));
+    }
+
+    /// Run with `cargo test -p risktwin-cloud --release --lib library -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "measurement, prints the insert rate"]
+    fn insert_rate_of_ten_thousand_rows() {
+        let (_dir, mut lib) = file_library();
+        let records: Vec<ScenarioRecord> = (0..10_000u64)
+            .map(|i| {
+                let kind = ScenarioKind::ALL[(i % 5) as usize];
+                ScenarioRecord::sampled(
+                    spec(kind, i),
+                    outcome((i % 1000) as f64 / 1000.0, i % 7 == 0, Some(1.5)),
+                )
+            })
+            .collect();
+        let start = std::time::Instant::now();
+        let summary = lib.insert_batch(&records).expect("insert");
+        let elapsed_s = start.elapsed().as_secs_f64();
+        assert_eq!(summary.inserted, 10_000);
+        println!(
+            "inserted {} scenario + outcome rows in {elapsed_s:.3} s: {:.0} rows/s",
+            summary.inserted,
+            summary.inserted as f64 / elapsed_s
+        );
+        let start = std::time::Instant::now();
+        let top = lib.rank(Some(100), None).expect("rank");
+        println!(
+            "rank top 100 of 10000: {:.1} ms",
+            start.elapsed().as_secs_f64() * 1e3
+        );
+        assert_eq!(top.len(), 100);
+    }
+}

@@ -167,3 +167,132 @@ impl ScenarioLibrary {
         Ok(all)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::fixtures::{file_library, outcome, sampled, spec};
+    use super::super::{ScenarioRecord, content_id};
+    use super::*;
+
+    fn ids(ranked: &[RankedScenario]) -> Vec<String> {
+        ranked.iter().map(|r| r.id.clone()).collect()
+    }
+
+    #[test]
+    fn rank_is_by_score_then_id_with_top_k_and_kind_filter() {
+        let (_dir, mut lib) = file_library();
+        let k = ScenarioKind::CutIn;
+        lib.insert_batch(&[
+            sampled(k, 0, 0.3, false),
+            sampled(k, 1, 0.9, false),
+            sampled(k, 2, 0.9, false),
+            sampled(k, 3, 0.1, false),
+            sampled(ScenarioKind::LowFriction, 0, 0.95, false),
+        ])
+        .expect("insert");
+        let id = |kind, i| content_id(&spec(kind, i));
+        let (tie_lo, tie_hi) = {
+            let (a, b) = (id(k, 1), id(k, 2));
+            if a < b { (a, b) } else { (b, a) }
+        };
+        let cut_in = lib.rank(None, Some(k)).expect("rank");
+        assert_eq!(
+            ids(&cut_in),
+            vec![tie_lo.clone(), tie_hi, id(k, 0), id(k, 3)]
+        );
+        let all = lib.rank(None, None).expect("rank");
+        assert_eq!(all.len(), 5);
+        assert_eq!(all[0].id, id(ScenarioKind::LowFriction, 0));
+        let scores: Vec<f64> = all.iter().map(|r| r.risk.score).collect();
+        assert!(scores.windows(2).all(|w| w[0] >= w[1]), "{scores:?}");
+        assert_eq!(ids(&lib.rank(Some(2), None).expect("rank")), ids(&all[..2]));
+        assert_eq!(lib.rank(Some(0), None).expect("rank"), vec![]);
+        assert_eq!(lib.select_for_replay(3).expect("replay"), all[..3].to_vec());
+        assert_eq!(
+            lib.rank(None, Some(ScenarioKind::SensorOcclusion))
+                .expect("rank"),
+            vec![]
+        );
+        assert_eq!(
+            ids(&lib.rank(Some(1), Some(k)).expect("rank")),
+            vec![tie_lo]
+        );
+    }
+
+    #[test]
+    fn the_latest_default_policy_outcome_counts() {
+        let (_dir, mut lib) = file_library();
+        let k = ScenarioKind::EmergencyBraking;
+        lib.insert_batch(&[sampled(k, 0, 0.8, false), sampled(k, 1, 0.5, false)])
+            .expect("insert");
+        // A re-run of candidate 0 found it calmer; a learned policy's crash does not move the
+        // reference ranking.
+        let mut learned = outcome(1.0, true, Some(0.0));
+        learned.policy = "ppo-full".into();
+        lib.insert_batch(&[
+            ScenarioRecord::sampled(spec(k, 0), outcome(0.2, false, None)),
+            ScenarioRecord::sampled(spec(k, 1), learned),
+        ])
+        .expect("insert");
+        let ranked = lib.rank(None, None).expect("rank");
+        assert_eq!(
+            ids(&ranked),
+            vec![content_id(&spec(k, 1)), content_id(&spec(k, 0))]
+        );
+        assert_eq!(ranked[1].risk.score, 0.2);
+        assert_eq!(ranked[1].outcome.min_ttc_s, None);
+        let by_learned = lib.rank_for_policy("ppo-full", None, None).expect("rank");
+        assert_eq!(ids(&by_learned), vec![content_id(&spec(k, 1))]);
+    }
+
+    #[test]
+    fn ranked_json_is_the_cli_contract_object() {
+        let (_dir, mut lib) = file_library();
+        let s = spec(ScenarioKind::LowFriction, 0);
+        lib.insert_batch(&[ScenarioRecord::sampled(
+            s.clone(),
+            outcome(0.75, false, None),
+        )])
+        .expect("insert");
+        let ranked = lib.rank(None, None).expect("rank");
+        let params = serde_json::to_string(&s.params).expect("params json");
+        let expected = format!(
+            concat!(
+                r#"{{"id":"{}","kind":"low-friction","seed":{},"params":{},"#,
+                r#""risk":{{"score":0.75,"ttc":0.5,"dist":0.25,"lane":0.125,"jerk":0.0625,"collision":0.0}},"#,
+                r#""outcome":{{"collision":false,"min_ttc_s":null,"min_distance_m":4.25}}}}"#
+            ),
+            content_id(&s),
+            s.seed,
+            params
+        );
+        assert_eq!(serde_json::to_string(&ranked[0]).expect("json"), expected);
+        let back: RankedScenario = serde_json::from_str(&expected).expect("parse");
+        assert_eq!(back, ranked[0]);
+    }
+
+    #[test]
+    fn mutation_parents_are_failures_first_and_seeded() {
+        let (_dir, mut lib) = file_library();
+        let k = ScenarioKind::PedestrianCrossing;
+        let mut records: Vec<ScenarioRecord> = (0..6).map(|i| sampled(k, i, 0.6, false)).collect();
+        records.push(sampled(k, 6, 0.4, true)); // a collision with a lower score
+        records.push(sampled(k, 7, 0.95, false));
+        lib.insert_batch(&records).expect("insert");
+        let pick = |seed| {
+            ids(&lib
+                .select_for_mutation(4, &mut Rng::new(seed))
+                .expect("select"))
+        };
+        let a = pick(1);
+        assert_eq!(a.len(), 4);
+        assert_eq!(a[0], content_id(&spec(k, 6)), "the collision comes first");
+        assert_eq!(a[1], content_id(&spec(k, 7)), "then the highest risk");
+        let plateau: Vec<String> = (0..6).map(|i| content_id(&spec(k, i))).collect();
+        assert!(a[2..].iter().all(|id| plateau.contains(id)));
+        assert_eq!(a, pick(1), "same rng seed, same parents");
+        // The plateau of equal scores is broken by the salted hash, not always the same way.
+        let distinct: std::collections::BTreeSet<Vec<String>> = (0..16).map(pick).collect();
+        assert!(distinct.len() > 1);
+    }
+}

@@ -330,37 +330,36 @@ impl ScenarioLibrary {
             .into_iter()
             .map(|k| (k, KindCounts::default()))
             .collect();
-        let queries: [(&str, fn(&mut KindCounts, u64)); 3] = [
-            (
-                "SELECT kind, COUNT(*) FROM scenarios GROUP BY kind",
-                |c, n| c.stored = n,
-            ),
-            (
-                "SELECT kind, SUM(count) FROM rejected GROUP BY kind",
-                |c, n| c.infeasible = n,
-            ),
-            (
-                "SELECT s.kind, COUNT(*) FROM scenarios s JOIN outcomes o ON o.scenario_id = s.id \
-                 WHERE o.seq = (SELECT MAX(seq) FROM outcomes WHERE scenario_id = s.id AND policy = ?1) \
-                   AND o.collision = 1 GROUP BY s.kind",
-                |c, n| c.collisions = n,
-            ),
-        ];
-        for (sql, set) in queries {
-            let mut stmt = self.conn.prepare_cached(sql)?;
-            let rows = if stmt.parameter_count() == 1 {
-                stmt.query_map([DEFAULT_POLICY], |r| {
-                    Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?))
-                })?
-                .collect::<Result<Vec<_>, _>>()?
-            } else {
-                stmt.query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?)))?
-                    .collect::<Result<Vec<_>, _>>()?
-            };
-            for (kind, n) in rows {
-                let kind = decode_kind("count_by_kind", &kind)?;
-                set(counts.entry(kind).or_default(), n.max(0) as u64);
-            }
+        let mut stmt = self.conn.prepare_cached(
+            "SELECT k.kind, \
+                 (SELECT COUNT(*) FROM scenarios s WHERE s.kind = k.kind), \
+                 (SELECT COALESCE(SUM(count), 0) FROM rejected r WHERE r.kind = k.kind), \
+                 (SELECT COUNT(*) FROM scenarios s JOIN outcomes o ON o.scenario_id = s.id \
+                  WHERE s.kind = k.kind AND o.collision = 1 \
+                    AND o.seq = (SELECT MAX(seq) FROM outcomes WHERE scenario_id = s.id AND policy = ?1)) \
+             FROM (SELECT kind FROM scenarios UNION SELECT kind FROM rejected) k",
+        )?;
+        let rows = stmt
+            .query_map([DEFAULT_POLICY], |r| {
+                Ok((
+                    r.get::<_, String>(0)?,
+                    r.get::<_, i64>(1)?,
+                    r.get::<_, i64>(2)?,
+                    r.get::<_, i64>(3)?,
+                ))
+            })?
+            .collect::<Result<Vec<_>, _>>()?;
+        for (kind, stored, infeasible, collisions) in rows {
+            let kind = decode_kind("count_by_kind", &kind)?;
+            let as_count = |n: i64| n.max(0) as u64;
+            counts.insert(
+                kind,
+                KindCounts {
+                    stored: as_count(stored),
+                    infeasible: as_count(infeasible),
+                    collisions: as_count(collisions),
+                },
+            );
         }
         Ok(counts)
     }

@@ -2,7 +2,7 @@
 //! tell a RiskTwin library from a foreign SQLite file or from a file that is not SQLite at all.
 
 use super::error::LibraryError;
-use rusqlite::{Connection, ErrorCode};
+use rusqlite::{Connection, ErrorCode, TransactionBehavior};
 use std::path::Path;
 use std::time::Duration;
 
@@ -130,10 +130,15 @@ pub fn prepare(conn: &mut Connection, path: &Path) -> Result<(), LibraryError> {
     conn.pragma_update(None, "synchronous", "NORMAL")?;
     conn.pragma_update(None, "foreign_keys", true)?;
     if app_id == 0 {
-        let tx = conn.transaction()?;
-        tx.execute_batch(DDL)?;
-        tx.pragma_update(None, "application_id", APPLICATION_ID)?;
-        tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
+        // IMMEDIATE plus a second look: two processes creating the same new file do not both
+        // run the DDL.
+        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let app_id_now: i32 = tx.pragma_query_value(None, "application_id", |r| r.get(0))?;
+        if app_id_now != APPLICATION_ID {
+            tx.execute_batch(DDL)?;
+            tx.pragma_update(None, "application_id", APPLICATION_ID)?;
+            tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
+        }
         tx.commit()?;
     }
     Ok(())

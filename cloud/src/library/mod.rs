@@ -30,8 +30,10 @@
 //!   regression set. Any outcome with a collision adds its scenario automatically.
 
 mod error;
+mod query;
 mod rank;
 mod record;
+mod regression;
 mod schema;
 mod store;
 
@@ -44,8 +46,8 @@ pub use record::{
     DEFAULT_POLICY, InsertSummary, KindCounts, Origin, Outcome, Rejection, ScenarioRecord,
     StoredScenario, content_id,
 };
+pub use regression::{RegressionCase, RegressionReason};
 pub use schema::{APPLICATION_ID, SCHEMA_VERSION};
-pub use store::{RegressionCase, RegressionReason};
 
 use rusqlite::Connection;
 use std::path::{Path, PathBuf};

@@ -6,8 +6,8 @@
 
 use super::ScenarioLibrary;
 use super::error::LibraryError;
+use super::query::decode_spec;
 use super::record::{DEFAULT_POLICY, fnv1a64};
-use super::store::decode_spec;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::ScenarioKind;

@@ -1,1 +1,3 @@
 //! Cloud roles. The scenario library (SQLite) lives in `library`.
+
+pub mod library;

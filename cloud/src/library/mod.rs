@@ -1,0 +1,96 @@
+//! The high-risk scenario library (mission.md §3): every evaluated scenario with its spec, its
+//! outcomes and risk terms, and its lineage, in one SQLite file; ranked by risk and used to pick
+//! scenarios for replay, mutation and regression.
+//!
+//! # File
+//! A SQLite database in WAL journal mode (`synchronous = NORMAL`, foreign keys on), marked as
+//! ours by `PRAGMA application_id = 0x5254574C` ("RTWL") and versioned by `PRAGMA user_version`
+//! ([`SCHEMA_VERSION`]). Opening a file that is not SQLite, a SQLite database of something else,
+//! or a newer schema fails with a typed [`LibraryError`] naming the path; such files are never
+//! written to. Every batch is one transaction.
+//!
+//! # Schema (version 1; all tables `STRICT`)
+//! - `scenarios(id TEXT PK, kind TEXT, seed INTEGER, params TEXT, parent_id TEXT NULL → scenarios,
+//!   generation INTEGER, origin TEXT, created_seq INTEGER UNIQUE)`:
+//!   `id` is the content id ([`content_id`]: FNV-1a 64 of kind, seed and parameter bits, 16 hex
+//!   digits), so a scenario stored twice is one row. `seed` is the u64 seed stored bit for bit as
+//!   a signed integer. `params` is a JSON object with sorted keys and round-trip-exact numbers.
+//!   `generation` is 0 for roots and parent + 1 for mutations; `origin` is one of `sampled`,
+//!   `mutated`, `imported`, `regression`; `created_seq` counts insertions from 1.
+//! - `outcomes(seq INTEGER PK, scenario_id → scenarios, policy TEXT, collision, offroad, success
+//!   (0/1), route_completion, avg_speed_mps, steering_smoothness, longitudinal_smoothness,
+//!   min_ttc_s REAL NULL, min_distance_m, episode_risk_score, reward, steps, risk_score, risk_ttc,
+//!   risk_dist, risk_lane, risk_jerk, risk_collision)`: every field of `EpisodeMetrics` and
+//!   `RiskTerms`. A scenario may have many outcomes; the one with the highest `seq` for a policy
+//!   is its latest. `min_ttc_s` is NULL when no pair closed in (an infinite or NaN TTC is stored
+//!   as NULL too, as cli.md writes both as null). Risk terms carry a `CHECK` for [0, 1].
+//! - `rejected(kind, reason, count)`, primary key (kind, reason): infeasible candidates by
+//!   `Infeasible::code`, for reports.
+//! - `regression(scenario_id PK → scenarios, reason 'collision'|'manual', marked_seq)`: the
+//!   regression set. Any outcome with a collision adds its scenario automatically.
+
+mod error;
+mod query;
+mod rank;
+mod record;
+mod regression;
+mod schema;
+mod store;
+
+#[cfg(test)]
+mod fixtures;
+
+pub use error::{LibraryError, RecordError};
+pub use rank::{RankOutcome, RankedScenario};
+pub use record::{
+    DEFAULT_POLICY, InsertSummary, KindCounts, Origin, Outcome, Rejection, ScenarioRecord,
+    StoredScenario, content_id,
+};
+pub use regression::{RegressionCase, RegressionReason};
+pub use schema::{APPLICATION_ID, SCHEMA_VERSION};
+
+use rusqlite::Connection;
+use std::path::{Path, PathBuf};
+
+/// An open scenario library (one SQLite connection; open one per thread or process).
+#[derive(Debug)]
+pub struct ScenarioLibrary {
+    conn: Connection,
+    path: PathBuf,
+}
+
+impl ScenarioLibrary {
+    /// Opens the library at `path`, creating the file and its schema if it does not exist.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self, LibraryError> {
+        let path = path.as_ref().to_path_buf();
+        let mut conn = Connection::open(&path).map_err(|source| LibraryError::Open {
+            path: path.clone(),
+            source,
+        })?;
+        schema::prepare(&mut conn, &path)?;
+        Ok(Self { conn, path })
+    }
+
+    /// A fresh library that lives in memory only (tests, dry runs).
+    pub fn open_in_memory() -> Result<Self, LibraryError> {
+        let path = PathBuf::from(":memory:");
+        let mut conn = Connection::open_in_memory().map_err(|source| LibraryError::Open {
+            path: path.clone(),
+            source,
+        })?;
+        schema::prepare(&mut conn, &path)?;
+        Ok(Self { conn, path })
+    }
+
+    /// The file this library lives in (`:memory:` for in-memory ones).
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The journal mode SQLite reports: `wal` for files, `memory` for in-memory libraries.
+    pub fn journal_mode(&self) -> Result<String, LibraryError> {
+        Ok(self
+            .conn
+            .pragma_query_value(None, "journal_mode", |r| r.get(0))?)
+    }
+}

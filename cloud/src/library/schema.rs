@@ -1,0 +1,276 @@
+//! The on-disk schema (documented in the `library` module doc) and the open-time checks that
+//! tell a RiskTwin library from a foreign SQLite file or from a file that is not SQLite at all.
+
+use super::error::LibraryError;
+use rusqlite::{Connection, ErrorCode, TransactionBehavior};
+use std::path::Path;
+use std::time::Duration;
+
+/// `PRAGMA application_id` of a RiskTwin library: "RTWL" in ASCII.
+pub const APPLICATION_ID: i32 = 0x5254_574C;
+/// `PRAGMA user_version`: bumped whenever the tables change.
+pub const SCHEMA_VERSION: i64 = 1;
+/// How long a writer waits for another connection's lock (the cloud role and the CLI may share
+/// a file) before reporting SQLITE_BUSY.
+const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
+
+const DDL: &str = "
+CREATE TABLE scenarios (
+    id          TEXT PRIMARY KEY NOT NULL,
+    kind        TEXT NOT NULL CHECK (kind IN ('cut-in', 'emergency-braking', 'pedestrian-crossing',
+                                              'sensor-occlusion', 'low-friction')),
+    seed        INTEGER NOT NULL,
+    params      TEXT NOT NULL,
+    parent_id   TEXT REFERENCES scenarios(id),
+    generation  INTEGER NOT NULL CHECK (generation >= 0),
+    origin      TEXT NOT NULL CHECK (origin IN ('sampled', 'mutated', 'imported', 'regression')),
+    created_seq INTEGER NOT NULL UNIQUE
+) STRICT;
+CREATE INDEX scenarios_by_parent ON scenarios(parent_id);
+CREATE INDEX scenarios_by_kind ON scenarios(kind);
+
+CREATE TABLE outcomes (
+    seq                     INTEGER PRIMARY KEY,
+    scenario_id             TEXT NOT NULL REFERENCES scenarios(id),
+    policy                  TEXT NOT NULL CHECK (policy <> ''),
+    collision               INTEGER NOT NULL CHECK (collision IN (0, 1)),
+    offroad                 INTEGER NOT NULL CHECK (offroad IN (0, 1)),
+    success                 INTEGER NOT NULL CHECK (success IN (0, 1)),
+    route_completion        REAL NOT NULL,
+    avg_speed_mps           REAL NOT NULL,
+    steering_smoothness     REAL NOT NULL,
+    longitudinal_smoothness REAL NOT NULL,
+    min_ttc_s               REAL,
+    min_distance_m          REAL NOT NULL,
+    episode_risk_score      REAL NOT NULL,
+    reward                  REAL NOT NULL,
+    steps                   INTEGER NOT NULL CHECK (steps >= 0),
+    risk_score              REAL NOT NULL CHECK (risk_score BETWEEN 0 AND 1),
+    risk_ttc                REAL NOT NULL CHECK (risk_ttc BETWEEN 0 AND 1),
+    risk_dist               REAL NOT NULL CHECK (risk_dist BETWEEN 0 AND 1),
+    risk_lane               REAL NOT NULL CHECK (risk_lane BETWEEN 0 AND 1),
+    risk_jerk               REAL NOT NULL CHECK (risk_jerk BETWEEN 0 AND 1),
+    risk_collision          REAL NOT NULL CHECK (risk_collision BETWEEN 0 AND 1)
+) STRICT;
+CREATE INDEX outcomes_latest ON outcomes(scenario_id, policy, seq);
+
+CREATE TABLE rejected (
+    kind   TEXT NOT NULL,
+    reason TEXT NOT NULL,
+    count  INTEGER NOT NULL CHECK (count >= 0),
+    PRIMARY KEY (kind, reason)
+) STRICT;
+
+CREATE TABLE regression (
+    scenario_id TEXT PRIMARY KEY NOT NULL REFERENCES scenarios(id),
+    reason      TEXT NOT NULL CHECK (reason IN ('collision', 'manual')),
+    marked_seq  INTEGER NOT NULL
+) STRICT;
+";
+
+/// Maps the first error that reading a file raises to "not SQLite" when SQLite says so.
+fn read_error(path: &Path, err: rusqlite::Error) -> LibraryError {
+    match err.sqlite_error_code() {
+        Some(ErrorCode::NotADatabase | ErrorCode::DatabaseCorrupt) => LibraryError::NotSqlite {
+            path: path.to_path_buf(),
+            reason: err.to_string(),
+        },
+        _ => LibraryError::Open {
+            path: path.to_path_buf(),
+            source: err,
+        },
+    }
+}
+
+/// Checks what the file holds, creates the schema in an empty one, then sets the connection up.
+///
+/// Nothing is written before the file is known to be empty or ours, so opening a foreign
+/// database by mistake leaves it untouched.
+pub fn prepare(conn: &mut Connection, path: &Path) -> Result<(), LibraryError> {
+    // The first statement reads the header: garbage and text files fail here (SQLITE_NOTADB).
+    let app_id: i32 = conn
+        .pragma_query_value(None, "application_id", |r| r.get(0))
+        .map_err(|e| read_error(path, e))?;
+    let version: i64 = conn
+        .pragma_query_value(None, "user_version", |r| r.get(0))
+        .map_err(|e| read_error(path, e))?;
+    let objects: Vec<String> = {
+        let mut stmt = conn
+            .prepare("SELECT name FROM sqlite_schema WHERE name NOT LIKE 'sqlite_%' ORDER BY name")
+            .map_err(|e| read_error(path, e))?;
+        let rows = stmt
+            .query_map([], |r| r.get(0))
+            .map_err(|e| read_error(path, e))?;
+        rows.collect::<Result<_, _>>()
+            .map_err(|e| read_error(path, e))?
+    };
+    if app_id == APPLICATION_ID {
+        if version != SCHEMA_VERSION {
+            return Err(LibraryError::UnsupportedVersion {
+                path: path.to_path_buf(),
+                found: version,
+                expected: SCHEMA_VERSION,
+            });
+        }
+    } else if app_id != 0 || version != 0 || !objects.is_empty() {
+        let shown: Vec<&str> = objects.iter().take(5).map(String::as_str).collect();
+        return Err(LibraryError::NotALibrary {
+            path: path.to_path_buf(),
+            reason: format!(
+                "application_id is {app_id:#x} (expected {APPLICATION_ID:#x}), user_version {version}, objects: [{}]",
+                shown.join(", ")
+            ),
+        });
+    }
+    conn.busy_timeout(BUSY_TIMEOUT)?;
+    // WAL: readers do not block the writer and a crash loses at most the last transactions;
+    // NORMAL sync is durable across application crashes in WAL mode (sqlite.org/pragma.html).
+    // In-memory databases answer "memory" and stay so.
+    let _mode: String = conn.pragma_update_and_check(None, "journal_mode", "WAL", |r| r.get(0))?;
+    conn.pragma_update(None, "synchronous", "NORMAL")?;
+    conn.pragma_update(None, "foreign_keys", true)?;
+    if app_id == 0 {
+        // IMMEDIATE plus a second look: two processes creating the same new file do not both
+        // run the DDL.
+        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let app_id_now: i32 = tx.pragma_query_value(None, "application_id", |r| r.get(0))?;
+        if app_id_now != APPLICATION_ID {
+            tx.execute_batch(DDL)?;
+            tx.pragma_update(None, "application_id", APPLICATION_ID)?;
+            tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
+        }
+        tx.commit()?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::fixtures::{file_library, sampled};
+    use super::super::{LibraryError, ScenarioLibrary};
+    use super::*;
+    use risktwin_common::rng::Rng;
+    use risktwin_common::scenario::ScenarioKind;
+
+    #[test]
+    fn files_are_in_wal_mode_and_marked_as_ours() {
+        let (dir, lib) = file_library();
+        assert_eq!(lib.journal_mode().expect("pragma"), "wal");
+        // WAL is a property of the file: a second, plain connection sees it too.
+        let raw = Connection::open(dir.path().join("library.db")).expect("raw open");
+        let mode: String = raw
+            .pragma_query_value(None, "journal_mode", |r| r.get(0))
+            .expect("pragma");
+        assert_eq!(mode, "wal");
+        let app_id: i32 = raw
+            .pragma_query_value(None, "application_id", |r| r.get(0))
+            .expect("pragma");
+        assert_eq!(app_id, APPLICATION_ID);
+        let sync: i64 = lib
+            .conn
+            .pragma_query_value(None, "synchronous", |r| r.get(0))
+            .expect("pragma");
+        assert_eq!(sync, 1, "synchronous = NORMAL");
+        let fk: bool = lib
+            .conn
+            .pragma_query_value(None, "foreign_keys", |r| r.get(0))
+            .expect("pragma");
+        assert!(fk);
+        let mem = ScenarioLibrary::open_in_memory().expect("in memory");
+        assert_eq!(mem.journal_mode().expect("pragma"), "memory");
+    }
+
+    #[test]
+    fn data_survives_closing_and_reopening() {
+        let (dir, mut lib) = file_library();
+        let rec = sampled(ScenarioKind::LowFriction, 0, 0.625, true);
+        lib.insert_batch(std::slice::from_ref(&rec))
+            .expect("insert");
+        let before = lib.rank(None, None).expect("rank");
+        drop(lib);
+        let lib = ScenarioLibrary::open(dir.path().join("library.db")).expect("reopen");
+        assert_eq!(lib.rank(None, None).expect("rank"), before);
+        assert_eq!(before.len(), 1);
+        assert_eq!(lib.regression_set().expect("regression").len(), 1);
+    }
+
+    #[test]
+    fn random_bytes_and_text_are_not_sqlite() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut rng = Rng::new(99);
+        let garbage: Vec<u8> = (0..8192).map(|_| rng.next_u64() as u8).collect();
+        let text = b"kind,seed\ncut-in,1\n".repeat(200);
+        for (name, bytes) in [("garbage.db", garbage), ("notes.db", text)] {
+            let path = dir.path().join(name);
+            std::fs::write(&path, &bytes).expect("write");
+            match ScenarioLibrary::open(&path) {
+                Err(LibraryError::NotSqlite { path: p, reason }) => {
+                    assert_eq!(p, path);
+                    assert!(reason.contains("not a database"), "{reason}");
+                }
+                other => panic!("{name}: expected NotSqlite, got {other:?}"),
+            }
+            assert_eq!(
+                std::fs::read(&path).expect("read back"),
+                bytes,
+                "{name} must stay untouched"
+            );
+        }
+    }
+
+    #[test]
+    fn a_foreign_sqlite_database_is_refused_and_untouched() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("other.db");
+        {
+            let raw = Connection::open(&path).expect("raw");
+            raw.execute_batch(
+                "CREATE TABLE invoices (n INTEGER); INSERT INTO invoices VALUES (1);",
+            )
+            .expect("ddl");
+        }
+        match ScenarioLibrary::open(&path) {
+            Err(LibraryError::NotALibrary { path: p, reason }) => {
+                assert_eq!(p, path);
+                assert!(reason.contains("invoices"), "{reason}");
+            }
+            other => panic!("expected NotALibrary, got {other:?}"),
+        }
+        let raw = Connection::open(&path).expect("raw");
+        let tables: i64 = raw
+            .query_row("SELECT COUNT(*) FROM sqlite_schema", [], |r| r.get(0))
+            .expect("count");
+        assert_eq!(tables, 1, "no library table was created");
+        let mode: String = raw
+            .pragma_query_value(None, "journal_mode", |r| r.get(0))
+            .expect("pragma");
+        assert_eq!(mode, "delete", "journal mode left as it was");
+    }
+
+    #[test]
+    fn a_newer_schema_is_refused() {
+        let (dir, lib) = file_library();
+        drop(lib);
+        let path = dir.path().join("library.db");
+        Connection::open(&path)
+            .expect("raw")
+            .pragma_update(None, "user_version", 99)
+            .expect("bump");
+        match ScenarioLibrary::open(&path) {
+            Err(LibraryError::UnsupportedVersion {
+                found: 99,
+                expected: SCHEMA_VERSION,
+                ..
+            }) => {}
+            other => panic!("expected UnsupportedVersion, got {other:?}"),
+        }
+        let dir_as_file = ScenarioLibrary::open(dir.path());
+        assert!(
+            matches!(
+                dir_as_file,
+                Err(LibraryError::Open { .. } | LibraryError::NotSqlite { .. })
+            ),
+            "{dir_as_file:?}"
+        );
+    }
+}

@@ -4,6 +4,7 @@
 //! Episodes are independent, so they run on all cores; results are gathered by candidate index,
 //! which keeps the output identical whatever the number of threads.
 
+use crate::library::{DEFAULT_POLICY, LibraryError, Outcome, Rejection, ScenarioLibrary, ScenarioRecord};
 use risktwin_common::episode::{EpisodeResult, evaluate};
 use risktwin_common::scenario::{Infeasible, ScenarioKind, ScenarioSpec, check_feasible, sample};
 use std::collections::BTreeMap;
@@ -56,4 +57,58 @@ pub fn generate(kinds: &[ScenarioKind], count: u64, seed: u64, threads: usize) -
 pub fn evaluate_all(specs: Vec<ScenarioSpec>, threads: usize) -> Vec<Evaluated> {
     let results = parallel_map(&specs, threads, evaluate);
     specs.into_iter().zip(results).map(|(spec, result)| Evaluated { spec, result }).collect()
+}
+
+/// Per-kind counts of one batch (cli.md `scenarios generate` → `by_kind`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct KindReport {
+    pub stored: u64,
+    pub infeasible: u64,
+    pub collisions: u64,
+}
+
+/// The `scenarios generate` JSON document.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct GenerateReport {
+    pub generated: u64,
+    pub infeasible: u64,
+    pub stored: u64,
+    pub by_kind: BTreeMap<ScenarioKind, KindReport>,
+}
+
+/// The outcome record of an episode under the reference driver.
+pub fn reference_outcome(result: &EpisodeResult) -> Outcome {
+    Outcome { policy: DEFAULT_POLICY.to_string(), metrics: result.metrics.clone(), risk: result.risk }
+}
+
+/// Stores a batch (scenarios with outcomes, and rejection counts) and reports on it.
+pub fn store(library: &mut ScenarioLibrary, kinds: &[ScenarioKind], batch: &Batch) -> Result<GenerateReport, LibraryError> {
+    let records: Vec<ScenarioRecord> = batch
+        .evaluated
+        .iter()
+        .map(|e| ScenarioRecord::sampled(e.spec.clone(), reference_outcome(&e.result)))
+        .collect();
+    library.insert_batch(&records)?;
+    let rejections: Vec<Rejection> = batch
+        .rejected
+        .iter()
+        .map(|(&(kind, reason), &count)| Rejection { kind, reason: reason.to_string(), count })
+        .collect();
+    library.record_rejections(&rejections)?;
+
+    let mut report = GenerateReport { generated: batch.sampled, ..GenerateReport::default() };
+    for &kind in kinds {
+        report.by_kind.insert(kind, KindReport::default());
+    }
+    for e in &batch.evaluated {
+        let k = report.by_kind.entry(e.spec.kind).or_default();
+        k.stored += 1;
+        k.collisions += u64::from(e.result.metrics.collision);
+    }
+    for (&(kind, _), &count) in &batch.rejected {
+        report.by_kind.entry(kind).or_default().infeasible += count;
+    }
+    report.infeasible = report.by_kind.values().map(|k| k.infeasible).sum();
+    report.stored = report.by_kind.values().map(|k| k.stored).sum();
+    Ok(report)
 }

@@ -1,3 +1,4 @@
 //! Cloud roles. The scenario library (SQLite) lives in `library`.
 
+pub mod generate;
 pub mod library;

@@ -1,5 +1,18 @@
 //! The driving risk field (mission.md §3), criticality measures and the scenario risk score.
+//!
+//! - [`field`]: R(p, t) = α_o·R_o + α_l·R_l + α_b·R_b + α_c·R_c, exact at a point, over the ego
+//!   footprint and along a trajectory.
+//! - [`raster`] (with the Gaussian table of `kernel`): the same field on a grid, fast.
+//! - [`bench`]: the reproducible workload of `risktwin bench risk-field`.
 
+pub mod bench;
+pub mod field;
+mod kernel;
+pub mod raster;
 mod score;
 
+pub use bench::{BenchScene, bench_scene};
+pub use field::{EgoKinematics, FieldObject, RiskFieldParams};
+pub use kernel::GaussTable;
+pub use raster::{FieldError, GridEvaluator, RiskGrid, RoadRaster};
 pub use score::RiskTerms;

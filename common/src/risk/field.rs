@@ -29,8 +29,9 @@ pub struct RiskFieldParams {
     /// σ_b. 0.5 m: the boundary term is 1 at the edge, e^{−3.5} ≈ 0.03 at the centre of an
     /// outer 3.5 m lane, and grows by 1 per 0.5 m beyond the edge.
     pub boundary_scale_m: f64,
-    /// Cap on R_b off the road (4, reached 1.5 m beyond the edge), so a heatmap's colour scale
-    /// is not swallowed by far off-road cells.
+    /// Cap on R_b off the road (2, reached 0.5 m beyond the edge): off the road the static
+    /// terms then sum to α_l + 2α_b = 1.3, above a touching static obstacle (α_o = 1), without
+    /// swallowing a heatmap's colour scale in far off-road cells.
     pub boundary_cap: f64,
     /// j_ref. 2 m/s³: the ride-comfort jerk threshold commonly used in the comfort literature
     /// (ISO 15622 caps ACC jerk at 2.5 m/s³).
@@ -55,7 +56,7 @@ impl Default for RiskFieldParams {
             sigma_d_m: 2.0,
             lambda_v_s_per_m: 0.1,
             boundary_scale_m: 0.5,
-            boundary_cap: 4.0,
+            boundary_cap: 2.0,
             jerk_ref_mps3: 2.0,
             lateral_accel_ref_mps2: 3.0,
             comfort_cap: 4.0,
@@ -117,7 +118,9 @@ impl RiskFieldParams {
         let inv_two_sigma_sq = 1.0 / (2.0 * self.sigma_d_m * self.sigma_d_m);
         objects
             .iter()
-            .map(|o| (-o.obb.distance_sq_to_point(p) * inv_two_sigma_sq).exp() * self.object_gain(o, ego))
+            .map(|o| {
+                (-o.obb.distance_sq_to_point(p) * inv_two_sigma_sq).exp() * self.object_gain(o, ego)
+            })
             .fold(0.0, f64::max)
     }
 
@@ -150,16 +153,27 @@ impl RiskFieldParams {
         let j = ego.jerk_mps3 / self.jerk_ref_mps3;
         let a = ego.lateral_accel_mps2 / self.lateral_accel_ref_mps2;
         let r = j * j + a * a;
-        if r.is_finite() { r.min(self.comfort_cap) } else { self.comfort_cap }
+        if r.is_finite() {
+            r.min(self.comfort_cap)
+        } else {
+            self.comfort_cap
+        }
     }
 
     /// α_l·R_l + α_b·R_b: the static (road-only) part of the field at `p`.
     pub fn static_terms(&self, road: &Road, p: Vec2) -> f64 {
-        self.alpha_lane * self.lane_term(road, p) + self.alpha_boundary * self.boundary_term(road, p)
+        self.alpha_lane * self.lane_term(road, p)
+            + self.alpha_boundary * self.boundary_term(road, p)
     }
 
     /// The full field R(p, t), exactly (no cut-off, no table).
-    pub fn evaluate_point(&self, road: &Road, objects: &[FieldObject], ego: &EgoKinematics, p: Vec2) -> f64 {
+    pub fn evaluate_point(
+        &self,
+        road: &Road,
+        objects: &[FieldObject],
+        ego: &EgoKinematics,
+        p: Vec2,
+    ) -> f64 {
         self.alpha_obstacle * self.obstacle_term(objects, ego, p)
             + self.static_terms(road, p)
             + self.alpha_comfort * self.comfort_term(ego)
@@ -168,7 +182,12 @@ impl RiskFieldParams {
     /// R over the ego footprint: the maximum over nine sample points (centre, four corners,
     /// four edge midpoints). Max because risk reaching any part of the car counts; the corners
     /// and midpoints catch a Gaussian or an edge that touches only one side of the car.
-    pub fn evaluate_footprint(&self, road: &Road, objects: &[FieldObject], ego: &EgoKinematics) -> f64 {
+    pub fn evaluate_footprint(
+        &self,
+        road: &Road,
+        objects: &[FieldObject],
+        ego: &EgoKinematics,
+    ) -> f64 {
         footprint_samples(&ego.obb())
             .iter()
             .map(|p| self.evaluate_point(road, objects, ego, *p))
@@ -177,13 +196,28 @@ impl RiskFieldParams {
 
     /// R̄_t: the mean footprint risk over the poses of a candidate trajectory, with the
     /// objects frozen at their current state (the reward's look-ahead term). 0 for no poses.
-    pub fn evaluate_trajectory(&self, road: &Road, objects: &[FieldObject], ego: &EgoKinematics, poses: &[Pose]) -> f64 {
+    pub fn evaluate_trajectory(
+        &self,
+        road: &Road,
+        objects: &[FieldObject],
+        ego: &EgoKinematics,
+        poses: &[Pose],
+    ) -> f64 {
         if poses.is_empty() {
             return 0.0;
         }
         let sum: f64 = poses
             .iter()
-            .map(|pose| self.evaluate_footprint(road, objects, &EgoKinematics { pose: *pose, ..*ego }))
+            .map(|pose| {
+                self.evaluate_footprint(
+                    road,
+                    objects,
+                    &EgoKinematics {
+                        pose: *pose,
+                        ..*ego
+                    },
+                )
+            })
             .sum();
         sum / poses.len() as f64
     }
@@ -225,7 +259,10 @@ mod tests {
     }
 
     fn car(x: f64, y: f64, vx: f64) -> FieldObject {
-        FieldObject { obb: Obb::new(Pose::new(x, y, 0.0), Footprint::new(4.5, 1.8)), velocity: Vec2::new(vx, 0.0) }
+        FieldObject {
+            obb: Obb::new(Pose::new(x, y, 0.0), Footprint::new(4.5, 1.8)),
+            velocity: Vec2::new(vx, 0.0),
+        }
     }
 
     #[test]
@@ -248,8 +285,14 @@ mod tests {
         let none = p.obstacle_term(&[], &ego, at);
         let g = (-2.75f64 * 2.75 / 8.0).exp();
         assert!((static_obj - g).abs() < 1e-12);
-        assert!((approaching - g * 2.0).abs() < 1e-12, "Δv 10 m/s doubles: {approaching}");
-        assert!(approaching > receding && receding > none, "{approaching} {receding} {none}");
+        assert!(
+            (approaching - g * 2.0).abs() < 1e-12,
+            "Δv 10 m/s doubles: {approaching}"
+        );
+        assert!(
+            approaching > receding && receding > none,
+            "{approaching} {receding} {none}"
+        );
         assert_eq!(receding, static_obj, "receding counts like static");
     }
 
@@ -262,8 +305,15 @@ mod tests {
         let at = Vec2::new(30.0, 2.5);
         let both = p.obstacle_term(&[a, b], &ego, at);
         let one = p.obstacle_term(&[a], &ego, at);
-        assert!((both - one).abs() < 1e-12, "symmetric point: max equals each single value");
-        assert_eq!(p.obstacle_term(&[a, a], &ego, at), one, "duplicates do not add up");
+        assert!(
+            (both - one).abs() < 1e-12,
+            "symmetric point: max equals each single value"
+        );
+        assert_eq!(
+            p.obstacle_term(&[a, a], &ego, at),
+            one,
+            "duplicates do not add up"
+        );
         // Inside a footprint the Gaussian factor is 1.
         assert_eq!(p.obstacle_term(&[a], &ego, Vec2::new(30.0, 0.0)), 1.0);
     }
@@ -275,8 +325,15 @@ mod tests {
         assert!(p.lane_term(&road, Vec2::new(50.0, 0.0)).abs() < 1e-12);
         assert!((p.lane_term(&road, Vec2::new(50.0, -1.75)) - 1.0).abs() < 1e-12);
         assert!((p.lane_term(&road, Vec2::new(50.0, 0.875)) - 0.25).abs() < 1e-12);
-        assert!(p.lane_term(&road, Vec2::new(50.0, 3.5)).abs() < 1e-12, "centre of lane 1");
-        assert_eq!(p.lane_term(&road, Vec2::new(50.0, -9.0)), 1.0, "clamped off the road");
+        assert!(
+            p.lane_term(&road, Vec2::new(50.0, 3.5)).abs() < 1e-12,
+            "centre of lane 1"
+        );
+        assert_eq!(
+            p.lane_term(&road, Vec2::new(50.0, -9.0)),
+            1.0,
+            "clamped off the road"
+        );
     }
 
     #[test]
@@ -286,11 +343,17 @@ mod tests {
         let on_road_max = (0..=70)
             .map(|k| p.boundary_term(&road, Vec2::new(50.0, -1.75 + 0.1 * k as f64)))
             .fold(0.0, f64::max);
-        assert!((on_road_max - 1.0).abs() < 1e-9, "1 at the edge: {on_road_max}");
-        let off = p.boundary_term(&road, Vec2::new(50.0, -2.75));
-        assert!((off - 3.0).abs() < 1e-9, "1 m off: 1 + 1/0.5 = {off}");
+        assert!(
+            (on_road_max - 1.0).abs() < 1e-9,
+            "1 at the edge: {on_road_max}"
+        );
+        let off = p.boundary_term(&road, Vec2::new(50.0, -2.0));
+        assert!((off - 1.5).abs() < 1e-9, "0.25 m off: 1 + 0.25/0.5 = {off}");
         assert!(off > on_road_max);
-        assert_eq!(p.boundary_term(&road, Vec2::new(50.0, -30.0)), p.boundary_cap);
+        assert_eq!(
+            p.boundary_term(&road, Vec2::new(50.0, -30.0)),
+            p.boundary_cap
+        );
         // Centre of lane 0: 1.75 m from the right edge.
         assert!((p.boundary_term(&road, Vec2::new(50.0, 0.0)) - (-3.5f64).exp()).abs() < 1e-9);
     }
@@ -317,8 +380,15 @@ mod tests {
         let objs = [car(57.0, 0.0, 10.0)]; // 2.5 m bumper to bumper
         let fp = p.evaluate_footprint(&road, &objs, &ego);
         let expected_obstacle = (-2.5f64 * 2.5 / 8.0).exp(); // front corners/midpoint, same e_y
-        assert!(fp >= expected_obstacle && fp < expected_obstacle + 1.0, "{fp}");
-        let far = [EgoKinematics { pose: Pose::new(20.0, 0.0, 0.0), ..ego }.pose];
+        assert!(
+            fp >= expected_obstacle && fp < expected_obstacle + 1.0,
+            "{fp}"
+        );
+        let far = [EgoKinematics {
+            pose: Pose::new(20.0, 0.0, 0.0),
+            ..ego
+        }
+        .pose];
         let near = [ego.pose];
         let r_far = p.evaluate_trajectory(&road, &objs, &ego, &far);
         let r_near = p.evaluate_trajectory(&road, &objs, &ego, &near);

@@ -5,6 +5,7 @@
 //! - [`raster`] (with the Gaussian table of `kernel`): the same field on a grid, fast.
 //! - [`criticality`]: HW, THW, TTC, a_long,req per vehicle pair along the ego's lane.
 //! - [`score`]: S_risk, its normalised terms and the per-episode accumulator.
+//! - [`render`]: the field as a heatmap image with road and vehicle overlays.
 //! - [`bench`]: the reproducible workload of `risktwin bench risk-field`.
 
 pub mod bench;
@@ -12,11 +13,17 @@ pub mod criticality;
 pub mod field;
 mod kernel;
 pub mod raster;
+pub mod render;
 pub mod score;
 
 pub use bench::{BenchScene, bench_scene};
+pub use criticality::{
+    EgoLaneFrame, LaneState, PairMeasures, VehicleState, pair_measures, ttc_constant_accel_s,
+};
 pub use field::{EgoKinematics, FieldObject, RiskFieldParams};
 pub use kernel::GaussTable;
 pub use raster::{FieldError, GridEvaluator, RiskGrid, RoadRaster};
-pub use criticality::{EgoLaneFrame, LaneState, PairMeasures, VehicleState, pair_measures, ttc_constant_accel_s};
-pub use score::{PairExtremes, RiskAccumulator, RiskStep, RiskSummary, RiskTerms, RiskWeights, ScoreReferences};
+pub use render::{RgbImage, render_heatmap};
+pub use score::{
+    PairExtremes, RiskAccumulator, RiskStep, RiskSummary, RiskTerms, RiskWeights, ScoreReferences,
+};

@@ -243,6 +243,51 @@ mod tests {
     }
 
     #[test]
+    fn bench_grid_takes_the_raster_copy_path() {
+        let mut scene = bench_scene(4, 256, 256, 9);
+        for _ in 0..200 {
+            scene.evaluate();
+            let (ox, oy) = scene
+                .raster
+                .lattice_offset(&scene.grid, scene.evaluator.params())
+                .expect("on the lattice");
+            let r = scene.raster.grid();
+            assert!(ox >= 0 && oy >= 0, "{ox} {oy}");
+            assert!(
+                ox as usize + scene.grid.cols <= r.cols && oy as usize + scene.grid.rows <= r.rows
+            );
+        }
+    }
+
+    #[test]
+    fn raster_point_evaluation_matches_exact_away_from_lane_lines() {
+        let scene = bench_scene(8, 32, 32, 2);
+        let (p, road) = (scene.evaluator.params(), &scene.road);
+        for k in 0..50 {
+            // Lane centres ± 1 m, along the road: at least 0.75 m from any lane line.
+            let at = Vec2::new(
+                250.0 + 1.37 * k as f64,
+                (k % 4) as f64 * LANE_WIDTH_M + (k % 3) as f64 - 1.0,
+            );
+            let fast = scene
+                .raster
+                .evaluate_point(road, &scene.objects, &scene.ego, at);
+            let exact = p.evaluate_point(road, &scene.objects, &scene.ego, at);
+            // Bilinear error of the smooth static terms over a 0.5 m cell: curvature·h²/8.
+            assert!((fast - exact).abs() < 0.02, "{at:?}: {fast} vs {exact}");
+        }
+        let poses = [
+            scene.ego.pose,
+            Pose::new(scene.ego.pose.x_m + 5.0, scene.ego.pose.y_m, 0.0),
+        ];
+        let fast = scene
+            .raster
+            .evaluate_trajectory(road, &scene.objects, &scene.ego, &poses);
+        let exact = p.evaluate_trajectory(road, &scene.objects, &scene.ego, &poses);
+        assert!((fast - exact).abs() < 0.05, "{fast} vs {exact}");
+    }
+
+    #[test]
     fn repeated_fills_do_not_reallocate() {
         let mut scene = bench_scene(16, 64, 64, 1);
         scene.evaluate();

@@ -188,10 +188,7 @@ impl RiskFieldParams {
         objects: &[FieldObject],
         ego: &EgoKinematics,
     ) -> f64 {
-        footprint_samples(&ego.obb())
-            .iter()
-            .map(|p| self.evaluate_point(road, objects, ego, *p))
-            .fold(f64::NEG_INFINITY, f64::max)
+        footprint_max(ego, |p| self.evaluate_point(road, objects, ego, p))
     }
 
     /// R̄_t: the mean footprint risk over the poses of a candidate trajectory, with the
@@ -203,29 +200,42 @@ impl RiskFieldParams {
         ego: &EgoKinematics,
         poses: &[Pose],
     ) -> f64 {
-        if poses.is_empty() {
-            return 0.0;
-        }
-        let sum: f64 = poses
-            .iter()
-            .map(|pose| {
-                self.evaluate_footprint(
-                    road,
-                    objects,
-                    &EgoKinematics {
-                        pose: *pose,
-                        ..*ego
-                    },
-                )
-            })
-            .sum();
-        sum / poses.len() as f64
+        trajectory_mean(ego, poses, |e| self.evaluate_footprint(road, objects, e))
     }
 
     /// Radius beyond a footprint where the Gaussian factor falls to ε: σ_d·sqrt(2 ln(1/ε)).
     pub fn cutoff_radius_m(&self) -> f64 {
         self.sigma_d_m * (2.0 * (1.0 / self.cutoff_eps).ln()).sqrt()
     }
+}
+
+/// The maximum of `eval` over the ego's footprint samples.
+pub(crate) fn footprint_max(ego: &EgoKinematics, eval: impl Fn(Vec2) -> f64) -> f64 {
+    footprint_samples(&ego.obb())
+        .iter()
+        .map(|p| eval(*p))
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// The mean of `eval` over the ego moved to each pose; 0 for no poses.
+pub(crate) fn trajectory_mean(
+    ego: &EgoKinematics,
+    poses: &[Pose],
+    eval: impl Fn(&EgoKinematics) -> f64,
+) -> f64 {
+    if poses.is_empty() {
+        return 0.0;
+    }
+    let sum: f64 = poses
+        .iter()
+        .map(|pose| {
+            eval(&EgoKinematics {
+                pose: *pose,
+                ..*ego
+            })
+        })
+        .sum();
+    sum / poses.len() as f64
 }
 
 /// The nine footprint sample points: centre, corners, edge midpoints.

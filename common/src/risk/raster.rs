@@ -9,8 +9,9 @@
 //! σ_d·sqrt(2 ln(1/ε)) of its footprint. (3) The Gaussian comes from a table over d²
 //! ([`GaussTable`]), and d² to the box is updated incrementally along a row.
 
-use super::field::{EgoKinematics, FieldObject, RiskFieldParams};
+use super::field::{EgoKinematics, FieldObject, RiskFieldParams, footprint_max, trajectory_mean};
 use super::kernel::GaussTable;
+use crate::geometry::Pose;
 use crate::geometry::Vec2;
 use crate::road::Road;
 
@@ -171,6 +172,74 @@ impl RoadRaster {
         &self.grid
     }
 
+    /// The parameters the raster was built with.
+    pub fn params(&self) -> &RiskFieldParams {
+        &self.params
+    }
+
+    /// α_l·R_l + α_b·R_b at `p`, bilinear between cell centres; `None` outside the raster.
+    /// Exact at cell centres; between them it smooths the lane term's jump from 1 to 0 at a
+    /// lane line over one cell, so within one cell of a lane line it can be off by up to α_l.
+    pub fn static_at(&self, p: Vec2) -> Option<f64> {
+        let g = &self.grid;
+        let u = (p - g.origin_m) / g.resolution_m - Vec2::new(0.5, 0.5);
+        let inside =
+            u.x >= 0.0 && u.y >= 0.0 && u.x <= (g.cols - 1) as f64 && u.y <= (g.rows - 1) as f64;
+        if !inside {
+            return None;
+        }
+        let (c, r) = (
+            (u.x as usize).min(g.cols.saturating_sub(2)),
+            (u.y as usize).min(g.rows.saturating_sub(2)),
+        );
+        let (fx, fy) = (u.x - c as f64, u.y - r as f64);
+        let at = |cc: usize, rr: usize| {
+            g.cells[(rr.min(g.rows - 1)) * g.cols + cc.min(g.cols - 1)] as f64
+        };
+        let bottom = at(c, r) * (1.0 - fx) + at(c + 1, r) * fx;
+        let top = at(c, r + 1) * (1.0 - fx) + at(c + 1, r + 1) * fx;
+        Some(bottom * (1.0 - fy) + top * fy)
+    }
+
+    /// R(p, t) with the static terms from the raster (exact outside it) and the obstacle and
+    /// comfort terms exact: the fast point evaluation for per-step rewards.
+    pub fn evaluate_point(
+        &self,
+        road: &Road,
+        objects: &[FieldObject],
+        ego: &EgoKinematics,
+        p: Vec2,
+    ) -> f64 {
+        let prm = &self.params;
+        let statics = self
+            .static_at(p)
+            .unwrap_or_else(|| prm.static_terms(road, p));
+        prm.alpha_obstacle * prm.obstacle_term(objects, ego, p)
+            + statics
+            + prm.alpha_comfort * prm.comfort_term(ego)
+    }
+
+    /// [`RiskFieldParams::evaluate_footprint`] with raster statics.
+    pub fn evaluate_footprint(
+        &self,
+        road: &Road,
+        objects: &[FieldObject],
+        ego: &EgoKinematics,
+    ) -> f64 {
+        footprint_max(ego, |p| self.evaluate_point(road, objects, ego, p))
+    }
+
+    /// [`RiskFieldParams::evaluate_trajectory`] (R̄_t) with raster statics.
+    pub fn evaluate_trajectory(
+        &self,
+        road: &Road,
+        objects: &[FieldObject],
+        ego: &EgoKinematics,
+        poses: &[Pose],
+    ) -> f64 {
+        trajectory_mean(ego, poses, |e| self.evaluate_footprint(road, objects, e))
+    }
+
     /// The lattice point nearest to `p`: a grid with this origin and the raster's resolution
     /// copies the static terms instead of evaluating them.
     pub fn snap_origin(&self, p: Vec2) -> Vec2 {
@@ -183,7 +252,11 @@ impl RoadRaster {
     }
 
     /// The lattice offset (columns, rows) of `grid` in the raster, when it lies on the lattice.
-    fn lattice_offset(&self, grid: &RiskGrid, params: &RiskFieldParams) -> Option<(i64, i64)> {
+    pub(super) fn lattice_offset(
+        &self,
+        grid: &RiskGrid,
+        params: &RiskFieldParams,
+    ) -> Option<(i64, i64)> {
         let same_static = params.alpha_lane == self.params.alpha_lane
             && params.alpha_boundary == self.params.alpha_boundary
             && params.boundary_scale_m == self.params.boundary_scale_m

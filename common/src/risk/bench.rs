@@ -10,6 +10,9 @@ use crate::road::Road;
 
 /// Grid resolution of the benchmark (m): fine enough to resolve a 1.8 m wide car in 4 cells.
 pub const BENCH_RESOLUTION_M: f64 = 0.5;
+/// Largest grid side the scene builds (cells): keeps the grid and the raster (which must reach
+/// half a grid beyond the road) within `raster::MAX_CELLS` whatever the CLI asks for.
+pub const BENCH_MAX_SIDE: usize = 2048;
 /// Time step by which agents move between evaluations (s).
 const BENCH_DT_S: f64 = 0.05;
 const LANES: usize = 4;
@@ -33,12 +36,12 @@ pub struct BenchScene {
 }
 
 /// A scene with `agents` cars within ±60 m of the ego on a four-lane road and a
-/// `cols`×`rows` grid at [`BENCH_RESOLUTION_M`] centred on the ego. Zero-sized grids are
-/// bumped to one cell.
+/// `cols`×`rows` grid at [`BENCH_RESOLUTION_M`] centred on the ego. Each side is clamped to
+/// [1, [`BENCH_MAX_SIDE`]].
 pub fn bench_scene(agents: usize, cols: usize, rows: usize, seed: u64) -> BenchScene {
     let road = Road::straight(LANES, LANE_WIDTH_M, ROAD_LENGTH_M, 30.0);
     let params = RiskFieldParams::default();
-    let (cols, rows) = (cols.max(1), rows.max(1));
+    let (cols, rows) = (cols.clamp(1, BENCH_MAX_SIDE), rows.clamp(1, BENCH_MAX_SIDE));
     let half = 0.5 * BENCH_RESOLUTION_M * cols.max(rows) as f64;
     // The ego stays within EGO_X_RANGE_M (it wraps back) and the raster covers that range plus
     // the grid's reach, so the copy path is always taken.

@@ -4,11 +4,14 @@
 //! These are the reference evaluations: plain `f64`, no cut-off, no tables. The fast grid fill
 //! in [`super::raster`] approximates them within [`RiskFieldParams::grid_error_bound`].
 
+use super::raster::FieldError;
 use crate::geometry::{Footprint, Obb, Pose, Vec2};
 use crate::road::Road;
+use serde::{Deserialize, Serialize};
 
 /// Weights and shape parameters of the risk field; every default carries its reason.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct RiskFieldParams {
     /// α_o. 1: obstacles are the reference scale (a touching, non-closing object gives 1).
     pub alpha_obstacle: f64,
@@ -104,6 +107,54 @@ pub fn closing_speed_mps(object: &FieldObject, ego: &EgoKinematics) -> f64 {
 }
 
 impl RiskFieldParams {
+    /// Checks every parameter (they can come from a config file): weights and λ_v finite and
+    /// ≥ 0, scales and references finite and > 0, caps ≥ 1, ε in (0, 1).
+    pub fn validate(&self) -> Result<(), FieldError> {
+        let nonneg = [
+            ("alpha_obstacle", self.alpha_obstacle),
+            ("alpha_lane", self.alpha_lane),
+            ("alpha_boundary", self.alpha_boundary),
+            ("alpha_comfort", self.alpha_comfort),
+            ("lambda_v_s_per_m", self.lambda_v_s_per_m),
+        ];
+        let positive = [
+            ("sigma_d_m", self.sigma_d_m),
+            ("boundary_scale_m", self.boundary_scale_m),
+            ("jerk_ref_mps3", self.jerk_ref_mps3),
+            ("lateral_accel_ref_mps2", self.lateral_accel_ref_mps2),
+        ];
+        let caps = [
+            ("boundary_cap", self.boundary_cap),
+            ("comfort_cap", self.comfort_cap),
+        ];
+        let bad = |name, value, expected| {
+            Err(FieldError::InvalidParam {
+                name,
+                value,
+                expected,
+            })
+        };
+        for (name, v) in nonneg {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(name, v, "finite and >= 0");
+            }
+        }
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(name, v, "finite and > 0");
+            }
+        }
+        for (name, v) in caps {
+            if !(v.is_finite() && v >= 1.0) {
+                return bad(name, v, "finite and >= 1");
+            }
+        }
+        if !(self.cutoff_eps > 0.0 && self.cutoff_eps < 1.0) {
+            return bad("cutoff_eps", self.cutoff_eps, "in (0, 1)");
+        }
+        Ok(())
+    }
+
     /// The velocity gain (1 + λ_v·Δv_i) of one object.
     pub fn object_gain(&self, object: &FieldObject, ego: &EgoKinematics) -> f64 {
         1.0 + self.lambda_v_s_per_m * closing_speed_mps(object, ego)
@@ -273,6 +324,44 @@ mod tests {
             obb: Obb::new(Pose::new(x, y, 0.0), Footprint::new(4.5, 1.8)),
             velocity: Vec2::new(vx, 0.0),
         }
+    }
+
+    #[test]
+    fn validation_names_the_bad_parameter() {
+        assert_eq!(RiskFieldParams::default().validate(), Ok(()));
+        let p = RiskFieldParams {
+            sigma_d_m: 0.0,
+            ..Default::default()
+        };
+        assert!(matches!(
+            p.validate(),
+            Err(FieldError::InvalidParam {
+                name: "sigma_d_m",
+                ..
+            })
+        ));
+        let p = RiskFieldParams {
+            cutoff_eps: 1.0,
+            ..Default::default()
+        };
+        assert!(matches!(
+            p.validate(),
+            Err(FieldError::InvalidParam {
+                name: "cutoff_eps",
+                ..
+            })
+        ));
+        let p = RiskFieldParams {
+            alpha_lane: f64::NAN,
+            ..Default::default()
+        };
+        assert!(matches!(
+            p.validate(),
+            Err(FieldError::InvalidParam {
+                name: "alpha_lane",
+                ..
+            })
+        ));
     }
 
     #[test]

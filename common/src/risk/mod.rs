@@ -25,5 +25,6 @@ pub use kernel::GaussTable;
 pub use raster::{FieldError, GridEvaluator, RiskGrid, RoadRaster};
 pub use render::{RgbImage, render_heatmap};
 pub use score::{
-    PairExtremes, RiskAccumulator, RiskStep, RiskSummary, RiskTerms, RiskWeights, ScoreReferences,
+    PairExtremes, RiskAccumulator, RiskStep, RiskSummary, RiskTerms, RiskWeights, ScoreError,
+    ScoreReferences,
 };

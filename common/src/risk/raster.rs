@@ -31,6 +31,12 @@ pub enum FieldError {
     },
     #[error("grid of {cells} cells exceeds the limit of {max}")]
     TooLarge { cells: usize, max: usize },
+    #[error("invalid risk-field parameter {name} = {value} (expected {expected})")]
+    InvalidParam {
+        name: &'static str,
+        value: f64,
+        expected: &'static str,
+    },
 }
 
 fn check_shape(resolution_m: f64, cols: usize, rows: usize) -> Result<usize, FieldError> {
@@ -318,6 +324,8 @@ impl GridEvaluator {
         ego: &EgoKinematics,
     ) {
         let n = grid.cols * grid.rows;
+        // The fields are public: restore the cells = cols·rows invariant rather than panic.
+        grid.cells.resize(n, 0.0);
         self.obstacle.clear();
         self.obstacle.resize(n, 0.0);
         for o in objects {

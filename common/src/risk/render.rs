@@ -118,7 +118,12 @@ pub fn render_heatmap(
     for y in 0..height {
         let row = grid.rows - 1 - y / ppc;
         for x in 0..width {
-            let v = grid.cells[row * grid.cols + x / ppc];
+            // `get`: the fields are public, a short `cells` renders as 0 instead of panicking.
+            let v = grid
+                .cells
+                .get(row * grid.cols + x / ppc)
+                .copied()
+                .unwrap_or(0.0);
             let i = 3 * (y * width + x);
             img.data[i..i + 3].copy_from_slice(&viridis((v / max) as f64));
         }

@@ -22,12 +22,85 @@ pub struct RiskTerms {
 /// outranks every collision-free episode with the same TTC and distance terms; lane 0.10 and
 /// jerk 0.10 separate episodes that never came near a conflict.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct RiskWeights {
     pub ttc: f64,
     pub dist: f64,
     pub lane: f64,
     pub jerk: f64,
     pub collision: f64,
+}
+
+/// Why score weights or references were rejected.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ScoreError {
+    #[error("invalid risk-score parameter {name} = {value} (expected {expected})")]
+    InvalidParam {
+        name: &'static str,
+        value: f64,
+        expected: &'static str,
+    },
+}
+
+impl RiskWeights {
+    /// Each β finite and ≥ 0, and their sum 1 (± 1e-6) so S_risk stays in [0, 1].
+    pub fn validate(&self) -> Result<(), ScoreError> {
+        let all = [
+            ("ttc", self.ttc),
+            ("dist", self.dist),
+            ("lane", self.lane),
+            ("jerk", self.jerk),
+            ("collision", self.collision),
+        ];
+        for (name, value) in all {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(ScoreError::InvalidParam {
+                    name,
+                    value,
+                    expected: "finite and >= 0",
+                });
+            }
+        }
+        let sum: f64 = all.iter().map(|(_, v)| v).sum();
+        if (sum - 1.0).abs() > 1e-6 {
+            return Err(ScoreError::InvalidParam {
+                name: "sum of weights",
+                value: sum,
+                expected: "1",
+            });
+        }
+        Ok(())
+    }
+}
+
+impl ScoreReferences {
+    /// Every reference finite and > 0, and the jerk maximum above the comfort level.
+    pub fn validate(&self) -> Result<(), ScoreError> {
+        let all = [
+            ("ttc_crit_s", self.ttc_crit_s),
+            ("dist_ref_m", self.dist_ref_m),
+            ("jerk_comfort_mps3", self.jerk_comfort_mps3),
+            ("jerk_max_mps3", self.jerk_max_mps3),
+        ];
+        for (name, value) in all {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(ScoreError::InvalidParam {
+                    name,
+                    value,
+                    expected: "finite and > 0",
+                });
+            }
+        }
+        if self.jerk_max_mps3 <= self.jerk_comfort_mps3 {
+            let value = self.jerk_max_mps3;
+            return Err(ScoreError::InvalidParam {
+                name: "jerk_max_mps3",
+                value,
+                expected: "> jerk_comfort_mps3",
+            });
+        }
+        Ok(())
+    }
 }
 
 impl Default for RiskWeights {
@@ -44,6 +117,7 @@ impl Default for RiskWeights {
 
 /// The references that normalise each term to [0, 1].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct ScoreReferences {
     /// TTC_crit. 4 s: the usual upper bound of "critical" TTC in the conflict literature
     /// (thresholds of 1.5–4 s); S_TTC = clamp(1 − min TTC/TTC_crit).
@@ -306,7 +380,16 @@ mod tests {
         assert_eq!(t.lane, 1.0);
         assert!((t.jerk - 0.5).abs() < 1e-12);
         let w = RiskWeights::default();
-        assert!((w.ttc + w.dist + w.lane + w.jerk + w.collision - 1.0).abs() < 1e-12);
+        assert_eq!(w.validate(), Ok(()));
+        assert_eq!(ScoreReferences::default().validate(), Ok(()));
+        let heavy = RiskWeights { ttc: 0.5, ..w };
+        assert!(matches!(
+            heavy.validate(),
+            Err(ScoreError::InvalidParam {
+                name: "sum of weights",
+                ..
+            })
+        ));
         let worst = RiskSummary {
             min_ttc_s: Some(0.0),
             min_distance_m: 0.0,

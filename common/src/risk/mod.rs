@@ -1,5 +1,30 @@
 //! The driving risk field (mission.md §3), criticality measures and the scenario risk score.
+//!
+//! - [`field`]: R(p, t) = α_o·R_o + α_l·R_l + α_b·R_b + α_c·R_c, exact at a point, over the ego
+//!   footprint and along a trajectory.
+//! - [`raster`] (with the Gaussian table of `kernel`): the same field on a grid, fast.
+//! - [`criticality`]: HW, THW, TTC, a_long,req per vehicle pair along the ego's lane.
+//! - [`score`]: S_risk, its normalised terms and the per-episode accumulator.
+//! - [`render`]: the field as a heatmap image with road and vehicle overlays.
+//! - [`bench`]: the reproducible workload of `risktwin bench risk-field`.
 
-mod score;
+pub mod bench;
+pub mod criticality;
+pub mod field;
+mod kernel;
+pub mod raster;
+pub mod render;
+pub mod score;
 
-pub use score::RiskTerms;
+pub use bench::{BenchScene, bench_scene};
+pub use criticality::{
+    EgoLaneFrame, LaneState, PairMeasures, VehicleState, pair_measures, ttc_constant_accel_s,
+};
+pub use field::{EgoKinematics, FieldObject, RiskFieldParams};
+pub use kernel::GaussTable;
+pub use raster::{FieldError, GridEvaluator, RiskGrid, RoadRaster};
+pub use render::{RgbImage, render_heatmap};
+pub use score::{
+    PairExtremes, RiskAccumulator, RiskStep, RiskSummary, RiskTerms, RiskWeights, ScoreError,
+    ScoreReferences,
+};

@@ -5,7 +5,7 @@ use crate::geometry::{Obb, Vec2};
 use crate::metrics::{EpisodeMetrics, MetricsAccumulator, RewardInputs, RewardWeights, StepSample, step_reward};
 use crate::risk::{
     EgoKinematics, FieldError, FieldObject, GridEvaluator, RiskAccumulator, RiskFieldParams, RiskGrid, RiskStep, RiskTerms,
-    RiskWeights, RoadRaster,
+    RiskWeights, RoadRaster, ScoreReferences, VehicleState,
 };
 use crate::road::Road;
 use crate::scenario::{ScenarioSpec, build};
@@ -31,12 +31,30 @@ fn field_inputs(world: &mut World, jerk_mps3: f64, objects: &mut Vec<FieldObject
     }
 }
 
+/// Kinematic states of everything but the ego for the criticality measures: traffic in index
+/// order, then the pedestrians on the road (accelerations along the heading).
+fn critical_states(world: &World, out: &mut Vec<VehicleState>) {
+    out.clear();
+    let t = &world.traffic;
+    for i in 0..t.len() {
+        let obb = t.obb(i);
+        out.push(VehicleState { obb, velocity: t.velocity(i), accel: obb.axis * t.accel_mps2(i) });
+    }
+    for p in &world.pedestrians {
+        if let Some(pos) = p.position_at(world.time_s) {
+            let velocity = p.velocity_at(world.time_s);
+            out.push(VehicleState { obb: World::pedestrian_obb(pos, velocity), velocity, accel: Vec2::zeros() });
+        }
+    }
+}
+
 /// Runs `world` to its end with `policy`, stopping at the first collision or road departure.
 pub fn run(world: &mut World, policy: &mut dyn Policy, weights: &RewardWeights) -> EpisodeResult {
     let field = RiskFieldParams::default();
     let mut metrics = MetricsAccumulator::default();
-    let mut risk = RiskAccumulator::new(RiskWeights::default());
+    let mut risk = RiskAccumulator::new(RiskWeights::default(), ScoreReferences::default());
     let mut objects = Vec::new();
+    let mut others = Vec::new();
     let (mut collision, mut offroad) = (false, false);
     let mut progress_prev = world.progress_m();
     while !world.finished() && !collision && !offroad {
@@ -70,15 +88,19 @@ pub fn run(world: &mut World, policy: &mut dyn Policy, weights: &RewardWeights) 
             accel_mps2: world.ego.state.accel_mps2,
             reward,
         });
-        risk.observe(&RiskStep {
-            road: &world.road,
-            ego: &ego,
-            ego_accel_mps2: world.ego.state.accel_mps2,
-            lane_offset_m: lane_pos.frenet.e_y_m,
-            lane_width_m: world.road.lane(lane_pos.lane).width_m,
-            objects: &objects,
-            collision,
-        });
+        critical_states(world, &mut others);
+        let ego_state = VehicleState { obb: ego.obb(), velocity: ego.velocity, accel: ego.obb().axis * world.ego.state.accel_mps2 };
+        risk.push(
+            &world.road,
+            &RiskStep {
+                ego: ego_state,
+                lane_offset_m: lane_pos.frenet.e_y_m,
+                lane_width_m: world.road.lane(lane_pos.lane).width_m,
+                jerk_mps3: jerk,
+                others: &others,
+                collision,
+            },
+        );
     }
     let completion = world.progress_m() / world.route.length_m;
     let mut m = metrics.finish(completion, collision, offroad);

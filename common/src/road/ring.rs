@@ -5,9 +5,12 @@ use super::{Lane, Road};
 use crate::geometry::Vec2;
 use std::f64::consts::TAU;
 
-/// Longest chord of a ring lane's polyline; short enough that the polygon's length is within
-/// 1e-5 of the circle's for any radius above ~50 m.
-const RING_SEGMENT_M: f64 = 2.0;
+/// Largest distance between a ring lane's polyline and its circle (the sagitta L²/(8R) of a
+/// chord L): 1 cm, so chords grow with the radius (≈ 10 m at R = 1.2 km) and a long ring stays
+/// a small polyline. The polygon's length is then short of the circle's by θ²/24 ≤ 5e-5.
+const RING_SAGITTA_M: f64 = 0.01;
+/// Longest chord, whatever the radius.
+const RING_MAX_CHORD_M: f64 = 50.0;
 
 impl Lane {
     /// True when the centreline is a loop: its first and last vertex coincide, so arc length
@@ -28,7 +31,9 @@ impl Road {
     pub fn ring(n_lanes: usize, lane_width_m: f64, circumference_m: f64, speed_limit_mps: f64) -> Road {
         let n = n_lanes.max(1);
         let r0 = (circumference_m / TAU).max(n as f64 * lane_width_m);
-        let segments = ((TAU * r0 / RING_SEGMENT_M).ceil() as usize).max(32);
+        let r_min = (r0 - (n - 1) as f64 * lane_width_m).max(lane_width_m);
+        let chord = (8.0 * r_min * RING_SAGITTA_M).sqrt().min(RING_MAX_CHORD_M);
+        let segments = ((TAU * r0 / chord).ceil() as usize).max(32);
         let mut lanes: Vec<Lane> = (0..n)
             .map(|i| {
                 let r = r0 - i as f64 * lane_width_m;
@@ -65,14 +70,16 @@ mod tests {
         let road = Road::ring(3, 3.5, 1000.0, 30.0);
         assert!(road.lanes.iter().all(Lane::is_closed));
         assert!(!Road::straight(2, 3.5, 100.0, 30.0).lanes[0].is_closed());
-        // Polygon length within 1e-5 relative of the circle's.
+        // The polyline stays within the 1 cm sagitta of its circle, its length within 5e-5.
         let r0 = 1000.0 / TAU;
         for (i, lane) in road.lanes.iter().enumerate() {
-            let circle = TAU * (r0 - 3.5 * i as f64);
-            assert!((lane.length_m() / circle - 1.0).abs() < 1e-5, "lane {i}");
+            let r = r0 - 3.5 * i as f64;
+            assert!((lane.length_m() / (TAU * r) - 1.0).abs() < 5e-5, "lane {i}");
+            let mid = 0.5 * (lane.centre[0] + lane.centre[1]);
+            assert!(r - mid.norm() <= RING_SAGITTA_M + 1e-12 && r - mid.norm() > 0.0, "lane {i}");
         }
         // Counter-clockwise: heading at s = 0 (on +x) points along +y; lane 1 is to the left.
-        assert!((road.lanes[0].heading_at(0.5) - std::f64::consts::FRAC_PI_2).abs() < 0.01);
+        assert!((road.lanes[0].heading_at(0.5) - std::f64::consts::FRAC_PI_2).abs() < 0.02);
         assert_eq!(road.locate(Vec2::new(r0 - 3.5, 0.5)).lane, 1);
         assert_eq!(road.lanes[0].left, Some(1));
     }

@@ -8,7 +8,7 @@ use super::idm::IdmCoeffs;
 use super::lane_index::{Entry, LaneInfo, NONE};
 use super::manoeuvre::{LaneChange, MOBIL_LANE_CHANGE_S};
 use super::mobil::{MobilAccels, mobil_incentive, mobil_should_change};
-use super::track::{frenet_to_world, project_near, seek_segment};
+use super::track::{project_near, seek};
 use super::{GRAVITY_MPS2, IdmParams, Manoeuvre, Traffic};
 use crate::geometry::Vec2;
 use crate::road::Road;
@@ -279,7 +279,8 @@ impl Traffic {
     }
 
     /// The next state of vehicle `i`.
-    pub(crate) fn next_state(&self, inp: &StepInput, i: usize) -> Next {
+    /// `mobil_due`: MOBIL is evaluated for this vehicle in this step.
+    pub(crate) fn next_state(&self, inp: &StepInput, i: usize, mobil_due: bool) -> Next {
         let mut out = self.current(i);
         if !out.active || self.manoeuvre[i] == Manoeuvre::Parked {
             return out;
@@ -299,8 +300,7 @@ impl Traffic {
         let started = self.manoeuvre_started[i];
         match self.manoeuvre[i] {
             Manoeuvre::None | Manoeuvre::Parked => {
-                let due = (inp.step_count + i as u64) % inp.mobil_period == 0;
-                if self.lane_changes[i] && !self.lane_change[i].active && due {
+                if mobil_due && self.lane_changes[i] && !self.lane_change[i].active {
                     change = self.mobil_target(i, lead.accel_mps2).map(|l| (l, t, MOBIL_LANE_CHANGE_S));
                 }
             }
@@ -354,28 +354,39 @@ impl Traffic {
         }
         let info = self.lanes[out.lane as usize];
         if info.closed {
-            out.s_m = out.s_m.rem_euclid(info.length_m);
+            // A step moves far less than a lap: one subtraction instead of fmod.
             if out.s_m >= info.length_m {
-                out.s_m = 0.0;
+                out.s_m -= info.length_m;
+            } else if out.s_m < 0.0 {
+                out.s_m += info.length_m;
+            }
+            if !(out.s_m >= 0.0 && out.s_m < info.length_m) {
+                out.s_m = out.s_m.rem_euclid(info.length_m) % info.length_m;
             }
         } else if out.s_m > info.length_m {
             out.active = false;
             return out;
         }
-        self.place(road, &info, i, &mut out);
+        self.place(&info, i, &mut out);
         out
     }
 
     /// World pose and lane-boundary intrusion of the state in `out`.
-    pub(crate) fn place(&self, road: &Road, info: &LaneInfo, i: usize, out: &mut Next) {
-        let lane = &road.lanes[out.lane as usize];
-        out.seg = seek_segment(lane, out.s_m, out.seg);
-        let (p, dir) = frenet_to_world(lane, out.seg, out.s_m, out.d_m);
+    pub(crate) fn place(&self, info: &LaneInfo, i: usize, out: &mut Next) {
+        let segs = &self.segments[out.lane as usize];
+        out.seg = seek(segs, out.s_m, out.seg);
+        let seg = &segs[out.seg as usize];
+        let p = seg.world(out.s_m, out.d_m);
+        let dir = seg.dir;
         // Heading relative to the lane: atan2(ḋ, v), with v floored so a slow lane change
         // does not turn the car sideways.
-        let (fwd, lat) = (out.speed_mps.max(1.0), out.d_rate_mps);
-        let inv = 1.0 / fwd.hypot(lat);
-        let (c, s) = (fwd * inv, lat * inv);
+        let (c, s) = if out.d_rate_mps == 0.0 {
+            (1.0, 0.0)
+        } else {
+            let (fwd, lat) = (out.speed_mps.max(1.0), out.d_rate_mps);
+            let inv = 1.0 / (fwd * fwd + lat * lat).sqrt();
+            (fwd * inv, lat * inv)
+        };
         out.x_m = p.x;
         out.y_m = p.y;
         out.cos_h = dir.x * c - dir.y * s;

@@ -17,6 +17,7 @@ pub(crate) const NONE: u32 = u32::MAX;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct LaneInfo {
     pub closed: bool,
+    pub vertices: usize,
     pub length_m: f64,
     pub width_m: f64,
     pub left: u32,
@@ -28,6 +29,7 @@ impl LaneInfo {
         out.clear();
         out.extend(road.lanes.iter().map(|l| LaneInfo {
             closed: l.is_closed(),
+            vertices: l.centre.len(),
             length_m: l.length_m(),
             width_m: l.width_m,
             left: l.left.map_or(NONE, |x| x as u32),

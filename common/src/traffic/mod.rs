@@ -118,6 +118,9 @@ pub struct Traffic {
     max_radius_m: f64,
     // Per-step machinery, reused so a step allocates nothing.
     lanes: Vec<LaneInfo>,
+    lanes_check: Vec<LaneInfo>,
+    /// Every lane's centreline segments, laid out for the pose update.
+    segments: Vec<Vec<track::Segment>>,
     index: LaneIndex,
     next: Vec<Next>,
     changed: Vec<u32>,

@@ -2,7 +2,7 @@
 
 use super::kernel::{ExtEntry, Next, StepInput};
 use super::lane_index::{LaneInfo, Members};
-use super::track::seek_segment;
+use super::track::{lane_segments, seek};
 use super::{ACTUATOR_LAG_S, ExternalAgent, Traffic};
 use crate::road::Road;
 
@@ -19,10 +19,11 @@ impl Traffic {
     /// Like [`Traffic::step`] with the per-vehicle work split over `threads` threads; the
     /// result is bit-identical for every thread count.
     pub fn step_threads(&mut self, road: &Road, time_s: f64, dt_s: f64, external: &[ExternalAgent], threads: usize) {
-        if !self.ready || self.lanes.len() != road.lanes.len() {
+        // The road is expected to stay the same; a different one (checked by lane shape)
+        // rebuilds the cached geometry and the lane lists.
+        LaneInfo::of_road(road, &mut self.lanes_check);
+        if !self.ready || self.lanes_check != self.lanes {
             self.prepare(road);
-        } else {
-            LaneInfo::of_road(road, &mut self.lanes);
         }
         let n = self.len();
         if n == 0 || !(dt_s > 0.0 && dt_s.is_finite()) {
@@ -65,8 +66,14 @@ impl Traffic {
     }
 
     fn fill(&self, inp: &StepInput, offset: usize, out: &mut [Next]) {
+        // MOBIL is due for vehicle i when (step + i) % period == 0; counted, not divided.
+        let mut phase = (inp.step_count + offset as u64) % inp.mobil_period;
         for (k, o) in out.iter_mut().enumerate() {
-            *o = self.next_state(inp, offset + k);
+            *o = self.next_state(inp, offset + k, phase == 0);
+            phase += 1;
+            if phase == inp.mobil_period {
+                phase = 0;
+            }
         }
     }
 
@@ -103,6 +110,10 @@ impl Traffic {
     /// (done automatically by the first step after [`Traffic::add`]).
     pub fn prepare(&mut self, road: &Road) {
         LaneInfo::of_road(road, &mut self.lanes);
+        self.segments.resize_with(road.lanes.len(), Vec::new);
+        for (segs, lane) in self.segments.iter_mut().zip(&road.lanes) {
+            lane_segments(lane, segs);
+        }
         for i in 0..self.len() {
             let lane = self.lane[i] as usize;
             if lane >= self.lanes.len() {
@@ -114,8 +125,8 @@ impl Traffic {
                 self.s_m[i] = self.s_m[i].rem_euclid(info.length_m);
             }
             let mut out = self.current_for_prepare(i);
-            out.seg = seek_segment(&road.lanes[lane], out.s_m, 0);
-            self.place(road, &info, i, &mut out);
+            out.seg = seek(&self.segments[lane], out.s_m, 0);
+            self.place(&info, i, &mut out);
             self.seg[i] = out.seg;
             self.x_m[i] = out.x_m;
             self.y_m[i] = out.y_m;

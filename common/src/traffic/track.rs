@@ -32,14 +32,59 @@ pub(crate) fn segment_dir(lane: &Lane, seg: u32) -> Vec2 {
     ab / ab.norm().max(1e-12)
 }
 
-/// World point of (s, d) on segment `seg` (extended linearly beyond the segment ends) and the
-/// segment's unit direction.
-#[inline]
-pub(crate) fn frenet_to_world(lane: &Lane, seg: u32, s_m: f64, d_m: f64) -> (Vec2, Vec2) {
+/// World point of (s, d) on segment `seg` (extended linearly beyond the segment ends), given
+/// the segment's unit direction `dir`.
+#[cfg(test)]
+fn frenet_to_world(lane: &Lane, dir: Vec2, seg: u32, s_m: f64, d_m: f64) -> Vec2 {
     let k = seg as usize;
-    let dir = segment_dir(lane, seg);
     let normal = Vec2::new(-dir.y, dir.x);
-    (lane.centre[k] + dir * (s_m - lane.cum_s[k]) + normal * d_m, dir)
+    lane.centre[k] + dir * (s_m - lane.cum_s[k]) + normal * d_m
+}
+
+/// One centreline segment with everything a pose update needs in one cache line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Segment {
+    pub start: Vec2,
+    pub dir: Vec2,
+    pub s0_m: f64,
+    pub s1_m: f64,
+}
+
+impl Segment {
+    /// World point of (s, d), extended linearly beyond the segment's ends.
+    #[inline]
+    pub(crate) fn world(&self, s_m: f64, d_m: f64) -> Vec2 {
+        let normal = Vec2::new(-self.dir.y, self.dir.x);
+        self.start + self.dir * (s_m - self.s0_m) + normal * d_m
+    }
+}
+
+/// The segments of `lane` (cached by [`super::Traffic`]).
+pub(crate) fn lane_segments(lane: &Lane, out: &mut Vec<Segment>) {
+    out.clear();
+    out.extend((0..lane.cum_s.len().saturating_sub(1)).map(|k| Segment {
+        start: lane.centre[k],
+        dir: segment_dir(lane, k as u32),
+        s0_m: lane.cum_s[k],
+        s1_m: lane.cum_s[k + 1],
+    }));
+}
+
+/// Index of the cached segment containing `s_m` (clamped), starting from `hint`.
+#[inline]
+pub(crate) fn seek(segs: &[Segment], s_m: f64, hint: u32) -> u32 {
+    let n = segs.len().max(1);
+    let mut k = (hint as usize).min(n - 1);
+    for _ in 0..WALK_LIMIT {
+        if k > 0 && s_m < segs[k].s0_m {
+            k -= 1;
+        } else if k + 1 < n && s_m >= segs[k].s1_m {
+            k += 1;
+        } else {
+            return k as u32;
+        }
+    }
+    (segs.partition_point(|g| g.s0_m <= s_m).saturating_sub(1).min(n - 1)) as u32
 }
 
 /// Projects `p` on `lane` searching only segments near the arc length `s_guess_m` (wrapping
@@ -93,15 +138,21 @@ mod tests {
     fn hinted_segment_matches_search_and_projection_round_trips() {
         let road = Road::ring(2, 3.5, 500.0, 20.0);
         let lane = &road.lanes[0];
+        let mut segs = Vec::new();
+        lane_segments(lane, &mut segs);
         let mut hint = 0;
         for k in 0..200 {
             let s = k as f64 * 2.3;
             hint = seek_segment(lane, s, hint);
             let exact = lane.cum_s.partition_point(|&c| c <= s) - 1;
             assert_eq!(hint as usize, exact, "s {s}");
+            assert_eq!(seek(&segs, s, hint.saturating_sub(3)), hint);
+            assert_eq!(seek(&segs, s, 0), hint);
+            let w = segs[hint as usize].world(s, -1.0);
             // Offset to the outside (right of a counter-clockwise ring): near a vertex an inside
             // point is genuinely closer to the neighbouring segment, an outside one is not.
-            let (p, _) = frenet_to_world(lane, hint, s, -1.0);
+            let p = frenet_to_world(lane, segment_dir(lane, hint), hint, s, -1.0);
+            assert!((p - w).norm() < 1e-12);
             let (s2, d2, _) = project_near(lane, p, s + 0.7, true);
             assert!((s2 - s).abs() < 1e-9 && (d2 + 1.0).abs() < 1e-9, "s {s}: {s2} {d2}");
         }

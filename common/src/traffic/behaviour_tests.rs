@@ -193,7 +193,8 @@ fn thread_count_does_not_change_a_bit() {
     let states: Vec<Vec<u64>> = [1usize, 2, 3]
         .iter()
         .map(|&threads| {
-            let (road, mut t) = bench_traffic(2_000, 3);
+            let (road, mut t) = bench_traffic(2_001, 3);
+            t.min_vehicles_per_thread = 1; // really split 2,001 vehicles over the threads
             let mut collisions = 0;
             for k in 0..300 {
                 t.step_threads(&road, k as f64 * 0.1, 0.1, &[], threads);

@@ -9,29 +9,10 @@ use super::lane_index::{Entry, LaneInfo, NONE};
 use super::manoeuvre::{LaneChange, MOBIL_LANE_CHANGE_S};
 use super::mobil::{MobilAccels, mobil_incentive, mobil_should_change};
 use super::track::{project_near, seek};
+use super::state::Next;
 use super::{GRAVITY_MPS2, IdmParams, Manoeuvre, Traffic};
 use crate::geometry::Vec2;
 use crate::road::Road;
-
-/// A vehicle's state after the step (the double buffer of the step).
-#[derive(Debug, Clone, Copy, Default)]
-pub(crate) struct Next {
-    pub s_m: f64,
-    pub d_m: f64,
-    pub d_rate_mps: f64,
-    pub speed_mps: f64,
-    pub accel_mps2: f64,
-    pub x_m: f64,
-    pub y_m: f64,
-    pub cos_h: f64,
-    pub sin_h: f64,
-    pub lane: u32,
-    pub seg: u32,
-    pub lane_change: LaneChange,
-    pub manoeuvre_started: bool,
-    pub active: bool,
-    pub intrude: u8,
-}
 
 /// An external agent as seen from one lane.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -85,26 +66,6 @@ fn prev_of(list: &[Entry], k: usize, info: &LaneInfo) -> Option<(Entry, f64)> {
 }
 
 impl Traffic {
-    fn current(&self, i: usize) -> Next {
-        Next {
-            s_m: self.s_m[i],
-            d_m: self.d_m[i],
-            d_rate_mps: self.d_rate_mps[i],
-            speed_mps: self.speed_mps[i],
-            accel_mps2: self.accel_mps2[i],
-            x_m: self.x_m[i],
-            y_m: self.y_m[i],
-            cos_h: self.cos_h[i],
-            sin_h: self.sin_h[i],
-            lane: self.lane[i],
-            seg: self.seg[i],
-            lane_change: self.lane_change[i],
-            manoeuvre_started: self.manoeuvre_started[i],
-            active: self.active[i],
-            intrude: self.intrude[i],
-        }
-    }
-
     #[inline]
     fn coeffs(&self, i: usize) -> &IdmCoeffs {
         &self.idm_coeffs[self.idm_idx[i] as usize]
@@ -112,9 +73,9 @@ impl Traffic {
 
     /// Leaders of vehicle `i` in every list it belongs to, and external agents in those lanes.
     fn lead(&self, i: usize, c: &IdmCoeffs) -> Lead {
-        let v = self.speed_mps[i];
+        let v = self.cur.speed_mps[i];
         let hl = self.half_length_m[i];
-        let own = self.lane[i];
+        let own = self.cur.lane[i];
         let mut lead = Lead { accel_mps2: c.accel(v, f64::INFINITY, 0.0), gap_m: f64::INFINITY };
         let mut consider = |gap: f64, closing: f64| {
             lead.gap_m = lead.gap_m.min(gap);
@@ -131,7 +92,7 @@ impl Traffic {
             let me = list[slot as usize];
             if let Some((e, off)) = next_of(list, slot as usize, info) {
                 let j = e.id as usize;
-                consider(e.s_m + off - me.s_m - hl - self.half_length_m[j], v - self.speed_mps[j]);
+                consider(e.s_m + off - me.s_m - hl - self.half_length_m[j], v - self.cur.speed_mps[j]);
             }
             for x in &self.ext_lists[lane as usize] {
                 let mut ds = x.s_m - me.s_m;
@@ -152,19 +113,19 @@ impl Traffic {
         if self.manoeuvre[j] == Manoeuvre::Parked {
             return 0.0;
         }
-        let v = self.speed_mps[j];
+        let v = self.cur.speed_mps[j];
         self.coeffs(j).accel(v, gap_m, v - lead_mps)
     }
 
     /// The lane MOBIL moves vehicle `i` to, if any (Kesting et al. 2007, symmetric rules).
     fn mobil_target(&self, i: usize, a_now: f64) -> Option<u32> {
-        let own = self.lane[i];
+        let own = self.cur.lane[i];
         let info = &self.lanes[own as usize];
         let slot = self.index.slots[i][0];
         if slot == NONE {
             return None;
         }
-        let (v, hl, s) = (self.speed_mps[i], self.half_length_m[i], self.s_m[i]);
+        let (v, hl, s) = (self.cur.speed_mps[i], self.half_length_m[i], self.cur.s_m[i]);
         let c = self.coeffs(i);
         let own_list = &self.index.lists[own as usize];
         // Old follower o: now behind i, afterwards behind i's current leader.
@@ -177,7 +138,7 @@ impl Traffic {
                 Some((l, loff)) if l.id != o.id => {
                     let k = l.id as usize;
                     let gap = l.s_m + loff - (o.s_m + off) - self.half_length_m[j] - self.half_length_m[k];
-                    self.follower_accel(j, gap, self.speed_mps[k])
+                    self.follower_accel(j, gap, self.cur.speed_mps[k])
                 }
                 _ => self.follower_accel(j, f64::INFINITY, 0.0),
             };
@@ -217,7 +178,7 @@ impl Traffic {
                 if gap <= 0.0 {
                     continue;
                 }
-                acc.own_after_mps2 = c.accel(v, gap, v - self.speed_mps[k]);
+                acc.own_after_mps2 = c.accel(v, gap, v - self.cur.speed_mps[k]);
             }
             if let Some((n, ds)) = follower {
                 let j = n.id as usize;
@@ -229,7 +190,7 @@ impl Traffic {
                 acc.new_follower_now_mps2 = match leader {
                     Some((l, lds)) => {
                         let k = l.id as usize;
-                        self.follower_accel(j, ds + lds - self.half_length_m[j] - self.half_length_m[k], self.speed_mps[k])
+                        self.follower_accel(j, ds + lds - self.half_length_m[j] - self.half_length_m[k], self.cur.speed_mps[k])
                     }
                     None => self.follower_accel(j, f64::INFINITY, 0.0),
                 };
@@ -266,10 +227,10 @@ impl Traffic {
     /// Moves vehicle `i` into `target` (its Frenet coordinates re-expressed there) and starts
     /// the lateral profile.
     fn begin_lane_change(&self, road: &Road, i: usize, target: u32, t0_s: f64, duration_s: f64, out: &mut Next) {
-        let from = &self.lanes[self.lane[i] as usize];
+        let from = &self.lanes[self.cur.lane[i] as usize];
         let to = &self.lanes[target as usize];
-        let p = Vec2::new(self.x_m[i], self.y_m[i]);
-        let s_guess = self.s_m[i] * to.length_m / from.length_m.max(1e-9);
+        let p = Vec2::new(self.cur.x_m[i], self.cur.y_m[i]);
+        let s_guess = self.cur.s_m[i] * to.length_m / from.length_m.max(1e-9);
         let (s, d, seg) = project_near(&road.lanes[target as usize], p, s_guess, to.closed);
         out.lane = target;
         out.s_m = s;
@@ -281,26 +242,26 @@ impl Traffic {
     /// The next state of vehicle `i`.
     /// `mobil_due`: MOBIL is evaluated for this vehicle in this step.
     pub(crate) fn next_state(&self, inp: &StepInput, i: usize, mobil_due: bool) -> Next {
-        let mut out = self.current(i);
+        let mut out = self.cur.get(i);
         if !out.active || self.manoeuvre[i] == Manoeuvre::Parked {
             return out;
         }
         let (road, t, dt) = (inp.road, inp.time_s, inp.dt_s);
         let c = self.coeffs(i);
-        let v = self.speed_mps[i];
+        let v = self.cur.speed_mps[i];
         let lead = self.lead(i, c);
         let mu = if road.friction_patches.is_empty() {
             road.friction_default
         } else {
-            road.friction_at(Vec2::new(self.x_m[i], self.y_m[i]))
+            road.friction_at(Vec2::new(self.cur.x_m[i], self.cur.y_m[i]))
         };
         let mu_g = mu.max(0.0) * GRAVITY_MPS2;
         let mut a_cmd = lead.accel_mps2;
         let mut change: Option<(u32, f64, f64)> = None;
-        let started = self.manoeuvre_started[i];
+        let started = self.cur.manoeuvre_started[i];
         match self.manoeuvre[i] {
             Manoeuvre::None | Manoeuvre::Parked => {
-                if mobil_due && self.lane_changes[i] && !self.lane_change[i].active {
+                if mobil_due && self.lane_changes[i] && !self.cur.lane_change[i].active {
                     change = self.mobil_target(i, lead.accel_mps2).map(|l| (l, t, MOBIL_LANE_CHANGE_S));
                 }
             }
@@ -322,12 +283,12 @@ impl Traffic {
         }
         if let Some((target, t0, dur)) = change {
             out.manoeuvre_started = true;
-            if (target as usize) < self.lanes.len() && target != self.lane[i] {
+            if (target as usize) < self.lanes.len() && target != self.cur.lane[i] {
                 self.begin_lane_change(road, i, target, t0, dur, &mut out);
             }
         }
         // First-order actuator lag, then the friction limit |a| ≤ μ·g.
-        let a_prev = self.accel_mps2[i];
+        let a_prev = self.cur.accel_mps2[i];
         let a = (a_prev + (a_cmd - a_prev) * inp.lag_alpha).clamp(-mu_g, mu_g);
         // Ballistic update that stops exactly at v = 0 instead of reversing (Treiber &
         // Kanagaraj 2015, "Comparing numerical integration schemes for time-continuous

@@ -33,6 +33,7 @@ mod manoeuvre;
 mod mobil;
 mod pedestrian;
 mod sim;
+mod state;
 mod track;
 #[cfg(test)]
 mod behaviour_tests;
@@ -46,9 +47,9 @@ pub use pedestrian::PedestrianWalk;
 pub use crate::road::LaneId;
 use crate::geometry::{Footprint, Obb, Pose, Vec2};
 use idm::IdmCoeffs;
-use kernel::{ExtEntry, Next};
+use kernel::ExtEntry;
+use state::{Kinematics, Next};
 use lane_index::{LaneIndex, LaneInfo};
-use manoeuvre::LaneChange;
 use std::collections::HashMap;
 
 /// Time constant τ of the first-order lag between commanded and actual acceleration
@@ -84,23 +85,10 @@ pub struct ExternalAgent {
 /// N traffic vehicles as a structure of arrays (see the module docs for one step).
 #[derive(Debug, Clone, Default)]
 pub struct Traffic {
-    // Kinematic state.
-    lane: Vec<u32>,
-    s_m: Vec<f64>,
-    d_m: Vec<f64>,
-    d_rate_mps: Vec<f64>,
-    speed_mps: Vec<f64>,
-    accel_mps2: Vec<f64>,
-    /// Centreline segment containing s (hint for O(1) pose updates).
-    seg: Vec<u32>,
-    active: Vec<bool>,
-    /// Bit 0: the footprint reaches into the left neighbour lane; bit 1: into the right one.
-    intrude: Vec<u8>,
-    // World pose cache, updated every step.
-    x_m: Vec<f64>,
-    y_m: Vec<f64>,
-    cos_h: Vec<f64>,
-    sin_h: Vec<f64>,
+    /// Per-step state (lane, s, d, ḋ, v, a, world pose, segment hint, lane change, lane-line
+    /// intrusion bits: 1 left, 2 right), and the buffer the next step is written to.
+    cur: Kinematics,
+    nxt: Kinematics,
     // Vehicle properties.
     half_length_m: Vec<f64>,
     half_width_m: Vec<f64>,
@@ -108,8 +96,6 @@ pub struct Traffic {
     idm_idx: Vec<u32>,
     lane_changes: Vec<bool>,
     manoeuvre: Vec<Manoeuvre>,
-    manoeuvre_started: Vec<bool>,
-    lane_change: Vec<LaneChange>,
     // Shared tables.
     idm_params: Vec<IdmParams>,
     idm_coeffs: Vec<IdmCoeffs>,
@@ -122,11 +108,12 @@ pub struct Traffic {
     /// Every lane's centreline segments, laid out for the pose update.
     segments: Vec<Vec<track::Segment>>,
     index: LaneIndex,
-    next: Vec<Next>,
     changed: Vec<u32>,
     ext_lists: Vec<Vec<ExtEntry>>,
     collisions: Vec<(u32, u32)>,
     step_count: u64,
+    /// Override of the smallest per-thread chunk (0: the default); tests force threads on.
+    min_vehicles_per_thread: usize,
     /// False after `add`: the next step (or `prepare`) rebuilds poses and lane lists.
     ready: bool,
 }
@@ -146,9 +133,7 @@ impl Traffic {
 
     fn reserve(&mut self, n: usize) {
         macro_rules! reserve_all { ($($v:ident),*) => { $(self.$v.reserve(n);)* } }
-        reserve_all!(lane, s_m, d_m, d_rate_mps, speed_mps, accel_mps2, seg, active, intrude, x_m, y_m, cos_h, sin_h);
-        reserve_all!(half_length_m, half_width_m, radius_m, idm_idx, lane_changes, manoeuvre, manoeuvre_started);
-        reserve_all!(lane_change, next);
+        reserve_all!(cur, nxt, half_length_m, half_width_m, radius_m, idm_idx, lane_changes, manoeuvre);
     }
 
     /// Sets the MOBIL parameters of every vehicle.
@@ -176,19 +161,15 @@ impl Traffic {
         let parked = v.manoeuvre == Manoeuvre::Parked;
         let hl = 0.5 * v.footprint.length_m.max(0.0);
         let hw = 0.5 * v.footprint.width_m.max(0.0);
-        self.lane.push(u32::try_from(v.lane).unwrap_or(u32::MAX));
-        self.s_m.push(if v.s_m.is_finite() { v.s_m } else { 0.0 });
-        self.d_m.push(if v.d_m.is_finite() { v.d_m } else { 0.0 });
-        self.d_rate_mps.push(0.0);
-        self.speed_mps.push(if parked || !v.speed_mps.is_finite() { 0.0 } else { v.speed_mps.max(0.0) });
-        self.accel_mps2.push(0.0);
-        self.seg.push(0);
-        self.active.push(true);
-        self.intrude.push(0);
-        self.x_m.push(0.0);
-        self.y_m.push(0.0);
-        self.cos_h.push(1.0);
-        self.sin_h.push(0.0);
+        self.cur.push(&Next {
+            lane: u32::try_from(v.lane).unwrap_or(u32::MAX),
+            s_m: if v.s_m.is_finite() { v.s_m } else { 0.0 },
+            d_m: if v.d_m.is_finite() { v.d_m } else { 0.0 },
+            speed_mps: if parked || !v.speed_mps.is_finite() { 0.0 } else { v.speed_mps.max(0.0) },
+            active: true,
+            cos_h: 1.0,
+            ..Next::default()
+        });
         self.half_length_m.push(hl);
         self.half_width_m.push(hw);
         self.radius_m.push(hl.hypot(hw));
@@ -196,43 +177,41 @@ impl Traffic {
         self.idm_idx.push(idx);
         self.lane_changes.push(v.lane_changes);
         self.manoeuvre.push(v.manoeuvre);
-        self.manoeuvre_started.push(false);
-        self.lane_change.push(LaneChange::default());
         self.ready = false;
-        self.lane.len() - 1
+        self.cur.s_m.len() - 1
     }
 
     /// Number of vehicles (active or not).
     pub fn len(&self) -> usize {
-        self.lane.len()
+        self.cur.s_m.len()
     }
 
     /// True when there are no vehicles.
     pub fn is_empty(&self) -> bool {
-        self.lane.is_empty()
+        self.cur.s_m.is_empty()
     }
 
     /// World pose of vehicle `i` (centre of its footprint).
     pub fn pose(&self, i: usize) -> Pose {
-        Pose::new(self.x_m[i], self.y_m[i], self.sin_h[i].atan2(self.cos_h[i]))
+        Pose::new(self.cur.x_m[i], self.cur.y_m[i], self.cur.sin_h[i].atan2(self.cur.cos_h[i]))
     }
 
     /// World velocity of vehicle `i`: its speed along the heading plus the lateral rate.
     pub fn velocity(&self, i: usize) -> Vec2 {
-        let v = self.speed_mps[i];
-        let w = self.d_rate_mps[i];
+        let v = self.cur.speed_mps[i];
+        let w = self.cur.d_rate_mps[i];
         let speed = v.hypot(w);
-        Vec2::new(self.cos_h[i], self.sin_h[i]) * speed
+        Vec2::new(self.cur.cos_h[i], self.cur.sin_h[i]) * speed
     }
 
     /// Longitudinal speed of vehicle `i`.
     pub fn speed_mps(&self, i: usize) -> f64 {
-        self.speed_mps[i]
+        self.cur.speed_mps[i]
     }
 
     /// Longitudinal acceleration of vehicle `i` after the last step.
     pub fn accel_mps2(&self, i: usize) -> f64 {
-        self.accel_mps2[i]
+        self.cur.accel_mps2[i]
     }
 
     /// Footprint of vehicle `i`.
@@ -243,8 +222,8 @@ impl Traffic {
     /// Oriented box of vehicle `i`.
     pub fn obb(&self, i: usize) -> Obb {
         Obb {
-            centre: Vec2::new(self.x_m[i], self.y_m[i]),
-            axis: Vec2::new(self.cos_h[i], self.sin_h[i]),
+            centre: Vec2::new(self.cur.x_m[i], self.cur.y_m[i]),
+            axis: Vec2::new(self.cur.cos_h[i], self.cur.sin_h[i]),
             half_length_m: self.half_length_m[i],
             half_width_m: self.half_width_m[i],
         }
@@ -252,27 +231,27 @@ impl Traffic {
 
     /// Lane of vehicle `i` (the target lane from the start of a lane change).
     pub fn lane(&self, i: usize) -> LaneId {
-        self.lane[i] as LaneId
+        self.cur.lane[i] as LaneId
     }
 
     /// Arc length of vehicle `i` along its lane.
     pub fn s_m(&self, i: usize) -> f64 {
-        self.s_m[i]
+        self.cur.s_m[i]
     }
 
     /// Lateral offset of vehicle `i` from its lane's centre (positive left).
     pub fn d_m(&self, i: usize) -> f64 {
-        self.d_m[i]
+        self.cur.d_m[i]
     }
 
     /// False once vehicle `i` has left the end of an open lane (or was put on a missing lane).
     pub fn is_active(&self, i: usize) -> bool {
-        self.active[i]
+        self.cur.active[i]
     }
 
     /// True while vehicle `i` is changing lanes.
     pub fn is_changing_lane(&self, i: usize) -> bool {
-        self.lane_change[i].active
+        self.cur.lane_change[i].active
     }
 
     /// Traffic–traffic pairs (lower index first, sorted) in contact after the last step.

@@ -1,6 +1,7 @@
 //! The step: parallel compute into a scratch buffer, serial commit, index update, collisions.
 
-use super::kernel::{ExtEntry, Next, StepInput};
+use super::kernel::{ExtEntry, StepInput};
+use super::state::{Kinematics, KinematicsMut};
 use super::lane_index::{LaneInfo, Members};
 use super::track::{lane_segments, seek};
 use super::{ACTUATOR_LAG_S, ExternalAgent, Traffic};
@@ -9,6 +10,9 @@ use crate::road::Road;
 /// MOBIL decisions are taken about once per second per vehicle, staggered over the vehicles
 /// (highway-env likewise decides lane changes at its 1 Hz policy rate).
 const MOBIL_PERIOD_S: f64 = 1.0;
+
+/// Fewest vehicles worth a thread of their own (a thread start costs tens of µs).
+const MIN_VEHICLES_PER_THREAD: usize = 2048;
 
 impl Traffic {
     /// Advances every vehicle from `time_s` to `time_s + dt_s` on one thread.
@@ -39,37 +43,41 @@ impl Traffic {
             mobil_period: (MOBIL_PERIOD_S / dt_s).round().max(1.0) as u64,
             step_count: self.step_count,
         };
-        let mut next = std::mem::take(&mut self.next);
-        next.resize(n, Next::default());
-        let threads = threads.clamp(1, n);
+        let mut nxt = std::mem::take(&mut self.nxt);
+        nxt.resize(n);
+        // Small chunks cost more in thread start-up than they save.
+        let min_chunk = if self.min_vehicles_per_thread == 0 { MIN_VEHICLES_PER_THREAD } else { self.min_vehicles_per_thread };
+        let threads = threads.clamp(1, n.div_ceil(min_chunk).max(1));
         if threads == 1 {
-            self.fill(&inp, 0, &mut next);
+            self.fill(&inp, 0, nxt.view());
         } else {
             let chunk = n.div_ceil(threads);
             let this = &*self;
             let inp = &inp;
             std::thread::scope(|scope| {
-                let mut chunks = next.chunks_mut(chunk).enumerate();
-                let first = chunks.next();
-                for (c, part) in chunks {
-                    scope.spawn(move || this.fill(inp, c * chunk, part));
+                let (first, mut rest) = nxt.view().split_at(chunk.min(n));
+                let mut offset = chunk;
+                while rest.len() > 0 {
+                    let take = chunk.min(rest.len());
+                    let (part, tail) = rest.split_at(take);
+                    let start = offset;
+                    scope.spawn(move || this.fill(inp, start, part));
+                    offset += chunk;
+                    rest = tail;
                 }
-                if let Some((_, part)) = first {
-                    this.fill(inp, 0, part);
-                }
+                this.fill(inp, 0, first);
             });
         }
-        self.commit(&next);
-        self.next = next;
+        self.commit(nxt);
         self.detect_collisions();
         self.step_count += 1;
     }
 
-    fn fill(&self, inp: &StepInput, offset: usize, out: &mut [Next]) {
+    fn fill(&self, inp: &StepInput, offset: usize, mut out: KinematicsMut) {
         // MOBIL is due for vehicle i when (step + i) % period == 0; counted, not divided.
         let mut phase = (inp.step_count + offset as u64) % inp.mobil_period;
-        for (k, o) in out.iter_mut().enumerate() {
-            *o = self.next_state(inp, offset + k, phase == 0);
+        for k in 0..out.len() {
+            out.set(k, &self.next_state(inp, offset + k, phase == 0));
             phase += 1;
             if phase == inp.mobil_period {
                 phase = 0;
@@ -77,31 +85,18 @@ impl Traffic {
         }
     }
 
-    /// Writes the step's results back and updates the lane lists.
-    fn commit(&mut self, next: &[Next]) {
+    /// Makes `nxt` the current state (a swap) and updates the lane lists.
+    fn commit(&mut self, nxt: Kinematics) {
         let mut changed = std::mem::take(&mut self.changed);
         changed.clear();
-        for (i, o) in next.iter().enumerate() {
-            if o.lane != self.lane[i] || o.intrude != self.intrude[i] || o.active != self.active[i] {
+        for i in 0..nxt.lane.len() {
+            let (c, x) = (&self.cur, &nxt);
+            if x.lane[i] != c.lane[i] || x.intrude[i] != c.intrude[i] || x.active[i] != c.active[i] {
                 changed.push(i as u32);
             }
-            self.s_m[i] = o.s_m;
-            self.d_m[i] = o.d_m;
-            self.d_rate_mps[i] = o.d_rate_mps;
-            self.speed_mps[i] = o.speed_mps;
-            self.accel_mps2[i] = o.accel_mps2;
-            self.x_m[i] = o.x_m;
-            self.y_m[i] = o.y_m;
-            self.cos_h[i] = o.cos_h;
-            self.sin_h[i] = o.sin_h;
-            self.lane[i] = o.lane;
-            self.seg[i] = o.seg;
-            self.lane_change[i] = o.lane_change;
-            self.manoeuvre_started[i] = o.manoeuvre_started;
-            self.active[i] = o.active;
-            self.intrude[i] = o.intrude;
         }
-        let members = Members { lane: &self.lane, s_m: &self.s_m, intrude: &self.intrude, active: &self.active };
+        self.nxt = std::mem::replace(&mut self.cur, nxt);
+        let members = Members { lane: &self.cur.lane, s_m: &self.cur.s_m, intrude: &self.cur.intrude, active: &self.cur.active };
         self.index.update(&members, &self.lanes, &changed);
         self.changed = changed;
     }
@@ -115,40 +110,24 @@ impl Traffic {
             lane_segments(lane, segs);
         }
         for i in 0..self.len() {
-            let lane = self.lane[i] as usize;
+            let lane = self.cur.lane[i] as usize;
             if lane >= self.lanes.len() {
-                self.active[i] = false;
+                self.cur.active[i] = false;
                 continue;
             }
             let info = self.lanes[lane];
             if info.closed {
-                self.s_m[i] = self.s_m[i].rem_euclid(info.length_m);
+                self.cur.s_m[i] = self.cur.s_m[i].rem_euclid(info.length_m);
             }
-            let mut out = self.current_for_prepare(i);
+            let mut out = self.cur.get(i);
             out.seg = seek(&self.segments[lane], out.s_m, 0);
             self.place(&info, i, &mut out);
-            self.seg[i] = out.seg;
-            self.x_m[i] = out.x_m;
-            self.y_m[i] = out.y_m;
-            self.cos_h[i] = out.cos_h;
-            self.sin_h[i] = out.sin_h;
-            self.intrude[i] = out.intrude;
+            self.cur.set(i, &out);
         }
-        let members = Members { lane: &self.lane, s_m: &self.s_m, intrude: &self.intrude, active: &self.active };
+        let members = Members { lane: &self.cur.lane, s_m: &self.cur.s_m, intrude: &self.cur.intrude, active: &self.cur.active };
         self.index.rebuild(&members, &self.lanes);
         self.detect_collisions();
         self.ready = true;
-    }
-
-    fn current_for_prepare(&self, i: usize) -> Next {
-        Next {
-            s_m: self.s_m[i],
-            d_m: self.d_m[i],
-            d_rate_mps: self.d_rate_mps[i],
-            speed_mps: self.speed_mps[i],
-            lane: self.lane[i],
-            ..Next::default()
-        }
     }
 
     /// Projects every external agent on every lane whose strip its footprint overlaps.

@@ -5,7 +5,7 @@
 //! of threads with bit-identical results.
 
 use super::idm::IdmCoeffs;
-use super::lane_index::{Entry, LaneInfo, NONE};
+use super::lane_index::{Entry, LaneInfo, NONE, upper_bound_near};
 use super::manoeuvre::{LaneChange, MOBIL_LANE_CHANGE_S};
 use super::mobil::{MobilAccels, mobil_incentive, mobil_should_change};
 use super::track::{project_near, seek};
@@ -154,7 +154,9 @@ impl Traffic {
             if self.index.slots[i][side] != NONE {
                 continue; // already straddling that lane: leave it to finish first
             }
-            let k = list.partition_point(|e| e.s_m <= s_t);
+            // Lists are spread alike along the road: start from the same fraction of the list.
+            let guess = (slot as usize * list.len()) / own_list.len().max(1);
+            let k = upper_bound_near(list, s_t, guess);
             // New leader l (ahead of s_t) and new follower n (behind), with wrap on rings.
             let leader = if k < list.len() {
                 Some((list[k], list[k].s_m - s_t))

@@ -179,6 +179,41 @@ impl LaneIndex {
     }
 }
 
+/// Index of the first entry with s > `s_m` (like `partition_point(|e| e.s_m <= s_m)`),
+/// galloping out from `guess`: O(log distance) instead of O(log n) cache-missing probes.
+pub(crate) fn upper_bound_near(list: &[Entry], s_m: f64, guess: usize) -> usize {
+    let n = list.len();
+    let g = guess.min(n);
+    let (lo, hi) = if g < n && list[g].s_m <= s_m {
+        let (mut lo, mut step) = (g + 1, 1);
+        loop {
+            let hi = g + step;
+            if hi >= n {
+                break (lo, n);
+            }
+            if list[hi].s_m > s_m {
+                break (lo, hi);
+            }
+            lo = hi + 1;
+            step *= 2;
+        }
+    } else {
+        let (mut hi, mut step) = (g, 1);
+        loop {
+            if step > g {
+                break (0, hi);
+            }
+            let lo = g - step;
+            if list[lo].s_m <= s_m {
+                break (lo + 1, hi);
+            }
+            hi = lo;
+            step *= 2;
+        }
+    };
+    lo + list[lo..hi].partition_point(|e| e.s_m <= s_m)
+}
+
 /// Insertion sort: O(n + number of inversions), i.e. O(n) on an almost sorted list.
 fn insertion_sort(v: &mut [Entry]) {
     for i in 1..v.len() {
@@ -217,6 +252,19 @@ mod tests {
 
     fn e(s: f64, id: u32) -> Entry {
         Entry { s_m: s, id, side: 0 }
+    }
+
+    #[test]
+    fn galloping_search_matches_binary_search() {
+        let list: Vec<Entry> = (0..300).map(|k| e((k / 2) as f64 * 1.5, k)).collect();
+        for q in 0..500 {
+            let s = q as f64 * 0.47 - 3.0;
+            let exact = list.partition_point(|x| x.s_m <= s);
+            for guess in [0, 1, 37, 150, 299, 300, 1000] {
+                assert_eq!(upper_bound_near(&list, s, guess), exact, "s {s} guess {guess}");
+            }
+        }
+        assert_eq!(upper_bound_near(&[], 1.0, 5), 0);
     }
 
     #[test]

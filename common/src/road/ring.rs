@@ -51,13 +51,7 @@ impl Road {
             lanes[i].left = Some(i + 1);
             lanes[i + 1].right = Some(i);
         }
-        Road {
-            lanes,
-            crosswalks: Vec::new(),
-            friction_default: 0.9,
-            friction_patches: Vec::new(),
-            reference_lane: 0,
-        }
+        Road { lanes, crosswalks: Vec::new(), friction_default: 0.9, friction_patches: Vec::new(), reference_lane: 0 }
     }
 }
 

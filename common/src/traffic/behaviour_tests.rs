@@ -78,7 +78,11 @@ fn stops_for_a_pedestrian_on_the_crosswalk() {
     t.add(car(0, 40.0, 13.9, 13.9));
     // A pedestrian standing in lane 0 at the crosswalk.
     let ped = |_: f64| {
-        vec![ExternalAgent { pose: Pose::new(120.0, 0.0, FRAC_PI_2), velocity: Vec2::zeros(), footprint: Footprint::new(0.6, 0.6) }]
+        vec![ExternalAgent {
+            pose: Pose::new(120.0, 0.0, FRAC_PI_2),
+            velocity: Vec2::zeros(),
+            footprint: Footprint::new(0.6, 0.6),
+        }]
     };
     run(&road, &mut t, 0.05, 800, ped);
     let front = t.pose(0).x_m + 0.5 * CAR.length_m;
@@ -115,7 +119,10 @@ fn braking_lead_decelerates_at_the_given_rate_and_caps_at_mu_g() {
     for (decel, mu, expected) in [(4.0, 0.9, 4.0), (12.0, 0.9, 0.9 * GRAVITY_MPS2), (6.0, 0.3, 0.3 * GRAVITY_MPS2)] {
         let road = Road::straight(1, 3.5, 2_000.0, 40.0).with_friction_patch(0.0, 2_000.0, mu);
         let mut t = Traffic::new();
-        t.add(VehicleInit { manoeuvre: Manoeuvre::Brake { start_time_s: 1.0, decel_mps2: decel }, ..car(0, 10.0, 30.0, 30.0) });
+        t.add(VehicleInit {
+            manoeuvre: Manoeuvre::Brake { start_time_s: 1.0, decel_mps2: decel },
+            ..car(0, 10.0, 30.0, 30.0)
+        });
         let dt = 0.05;
         // 1.5 s after the start the actuator lag (τ = 0.2 s) has settled to e^−7.5.
         run(&road, &mut t, dt, 50, |_| vec![]);

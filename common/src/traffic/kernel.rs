@@ -8,8 +8,8 @@ use super::idm::IdmCoeffs;
 use super::lane_index::{Entry, LaneInfo, NONE, upper_bound_near};
 use super::manoeuvre::{LaneChange, MOBIL_LANE_CHANGE_S};
 use super::mobil::{MobilAccels, mobil_incentive, mobil_should_change};
-use super::track::{project_near, seek};
 use super::state::Next;
+use super::track::{project_near, seek};
 use super::{GRAVITY_MPS2, IdmParams, Manoeuvre, Traffic};
 use crate::geometry::Vec2;
 use crate::road::Road;
@@ -172,7 +172,12 @@ impl Traffic {
             } else {
                 None
             };
-            let mut acc = MobilAccels { own_now_mps2: a_now, old_follower_now_mps2: ao_now, old_follower_after_mps2: ao_after, ..Default::default() };
+            let mut acc = MobilAccels {
+                own_now_mps2: a_now,
+                old_follower_now_mps2: ao_now,
+                old_follower_after_mps2: ao_after,
+                ..Default::default()
+            };
             acc.own_after_mps2 = c.accel(v, f64::INFINITY, 0.0);
             if let Some((l, ds)) = leader {
                 let k = l.id as usize;
@@ -192,7 +197,11 @@ impl Traffic {
                 acc.new_follower_now_mps2 = match leader {
                     Some((l, lds)) => {
                         let k = l.id as usize;
-                        self.follower_accel(j, ds + lds - self.half_length_m[j] - self.half_length_m[k], self.cur.speed_mps[k])
+                        self.follower_accel(
+                            j,
+                            ds + lds - self.half_length_m[j] - self.half_length_m[k],
+                            self.cur.speed_mps[k],
+                        )
                     }
                     None => self.follower_accel(j, f64::INFINITY, 0.0),
                 };

@@ -156,7 +156,8 @@ impl LaneIndex {
             for &id in changed {
                 self.push_entries(m, lanes, id, true);
             }
-            self.pending.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.s_m.total_cmp(&b.1.s_m)).then(a.1.id.cmp(&b.1.id)));
+            self.pending
+                .sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.s_m.total_cmp(&b.1.s_m)).then(a.1.id.cmp(&b.1.id)));
             let mut start = 0;
             while start < self.pending.len() {
                 let lane = self.pending[start].0;

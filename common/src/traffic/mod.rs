@@ -24,6 +24,8 @@
 //! neighbouring lanes are related by the ratio of lane lengths (exact for straight roads and
 //! rings, a metre-level approximation after a bend).
 
+#[cfg(test)]
+mod behaviour_tests;
 mod bench;
 mod collision;
 mod idm;
@@ -35,8 +37,6 @@ mod pedestrian;
 mod sim;
 mod state;
 mod track;
-#[cfg(test)]
-mod behaviour_tests;
 
 pub use bench::bench_traffic;
 pub use idm::{IdmParams, MIN_GAP_M, idm_accel};
@@ -44,12 +44,12 @@ pub use manoeuvre::{MOBIL_LANE_CHANGE_S, Manoeuvre};
 pub use mobil::{MobilAccels, MobilParams, mobil_incentive, mobil_safe, mobil_should_change};
 pub use pedestrian::PedestrianWalk;
 
-pub use crate::road::LaneId;
 use crate::geometry::{Footprint, Obb, Pose, Vec2};
+pub use crate::road::LaneId;
 use idm::IdmCoeffs;
 use kernel::ExtEntry;
-use state::{Kinematics, Next};
 use lane_index::{LaneIndex, LaneInfo};
+use state::{Kinematics, Next};
 use std::collections::HashMap;
 
 /// Time constant τ of the first-order lag between commanded and actual acceleration

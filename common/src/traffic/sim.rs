@@ -1,8 +1,8 @@
 //! The step: parallel compute into a scratch buffer, serial commit, index update, collisions.
 
 use super::kernel::{ExtEntry, StepInput};
-use super::state::{Kinematics, KinematicsMut};
 use super::lane_index::{LaneInfo, Members};
+use super::state::{Kinematics, KinematicsMut};
 use super::track::{lane_segments, seek};
 use super::{ACTUATOR_LAG_S, ExternalAgent, Traffic};
 use crate::road::Road;
@@ -46,7 +46,8 @@ impl Traffic {
         let mut nxt = std::mem::take(&mut self.nxt);
         nxt.resize(n);
         // Small chunks cost more in thread start-up than they save.
-        let min_chunk = if self.min_vehicles_per_thread == 0 { MIN_VEHICLES_PER_THREAD } else { self.min_vehicles_per_thread };
+        let min_chunk =
+            if self.min_vehicles_per_thread == 0 { MIN_VEHICLES_PER_THREAD } else { self.min_vehicles_per_thread };
         let threads = threads.clamp(1, n.div_ceil(min_chunk).max(1));
         if threads == 1 {
             self.fill(&inp, 0, nxt.view());
@@ -96,7 +97,8 @@ impl Traffic {
             }
         }
         self.nxt = std::mem::replace(&mut self.cur, nxt);
-        let members = Members { lane: &self.cur.lane, s_m: &self.cur.s_m, intrude: &self.cur.intrude, active: &self.cur.active };
+        let members =
+            Members { lane: &self.cur.lane, s_m: &self.cur.s_m, intrude: &self.cur.intrude, active: &self.cur.active };
         self.index.update(&members, &self.lanes, &changed);
         self.changed = changed;
     }
@@ -124,7 +126,8 @@ impl Traffic {
             self.place(&info, i, &mut out);
             self.cur.set(i, &out);
         }
-        let members = Members { lane: &self.cur.lane, s_m: &self.cur.s_m, intrude: &self.cur.intrude, active: &self.cur.active };
+        let members =
+            Members { lane: &self.cur.lane, s_m: &self.cur.s_m, intrude: &self.cur.intrude, active: &self.cur.active };
         self.index.rebuild(&members, &self.lanes);
         self.detect_collisions();
         self.ready = true;
@@ -149,7 +152,11 @@ impl Traffic {
                 if inside_s && f.e_y_m.abs() - lateral_half < 0.5 * info.width_m {
                     let dir = crate::geometry::Vec2::new(f.lane_heading_rad.cos(), f.lane_heading_rad.sin());
                     let s_m = if info.closed { f.s_m.rem_euclid(info.length_m) } else { f.s_m };
-                    self.ext_lists[id].push(ExtEntry { s_m, half_length_m: along_half, speed_mps: agent.velocity.dot(&dir) });
+                    self.ext_lists[id].push(ExtEntry {
+                        s_m,
+                        half_length_m: along_half,
+                        speed_mps: agent.velocity.dot(&dir),
+                    });
                 }
             }
         }

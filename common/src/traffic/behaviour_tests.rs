@@ -196,6 +196,18 @@ fn collision_detection_finds_planted_overlaps_and_no_false_positives() {
 }
 
 #[test]
+fn collisions_are_found_across_a_junction() {
+    let road = Road::crossing(3.5, 300.0, 120.0, 100.0, 13.9);
+    let mut t = Traffic::new();
+    // Eastbound lane 0 and northbound lane 3 (x = 121.75) meet at (121.75, 0).
+    let east = t.add(car(0, 121.0, 10.0, 10.0)) as u32;
+    let north = t.add(car(3, 60.5, 10.0, 10.0)) as u32;
+    t.add(car(1, 20.0, 10.0, 10.0)); // far away
+    t.prepare(&road);
+    assert_eq!(t.collisions(), &[(east, north)]);
+}
+
+#[test]
 fn thread_count_does_not_change_a_bit() {
     let states: Vec<Vec<u64>> = [1usize, 2, 3]
         .iter()

@@ -55,7 +55,9 @@ mod tests {
     fn measure_vehicle_steps_per_second() {
         for vehicles in [1_000usize, 10_000] {
             for threads in [1usize, 2] {
+                let setup = std::time::Instant::now();
                 let (road, mut traffic) = bench_traffic(vehicles, 1);
+                let setup_ms = setup.elapsed().as_secs_f64() * 1e3;
                 let steps = if vehicles >= 10_000 { 300 } else { 1_000 };
                 let dt = 0.1;
                 for k in 0..50 {
@@ -70,7 +72,7 @@ mod tests {
                 let secs = start.elapsed().as_secs_f64();
                 let rate = (vehicles * steps) as f64 / secs;
                 println!(
-                    "vehicles {vehicles} threads {threads}: {:.1} M vehicle-steps/s ({:.1} ns/vehicle-step), contacts {contacts}",
+                    "vehicles {vehicles} threads {threads}: {:.1} M vehicle-steps/s ({:.1} ns/vehicle-step), contacts {contacts}, setup {setup_ms:.1} ms",
                     rate / 1e6,
                     1e9 / rate
                 );

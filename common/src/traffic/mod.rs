@@ -28,6 +28,7 @@
 mod behaviour_tests;
 mod bench;
 mod collision;
+mod crossing;
 mod idm;
 mod kernel;
 mod lane_index;
@@ -107,6 +108,10 @@ pub struct Traffic {
     lanes_check: Vec<LaneInfo>,
     /// Every lane's centreline segments, laid out for the pose update.
     segments: Vec<Vec<track::Segment>>,
+    /// Per lane: it meets a lane other than itself and its neighbours (see [`crossing`]).
+    crossing: Vec<bool>,
+    /// Scratch for the crossing-lane collision sweep: (x, vehicle).
+    crossing_scratch: Vec<(f64, u32)>,
     index: LaneIndex,
     changed: Vec<u32>,
     ext_lists: Vec<Vec<ExtEntry>>,

@@ -1,5 +1,6 @@
 //! The step: parallel compute into a scratch buffer, serial commit, index update, collisions.
 
+use super::crossing::crossing_lanes;
 use super::kernel::{ExtEntry, StepInput};
 use super::lane_index::{LaneInfo, Members};
 use super::state::{Kinematics, KinematicsMut};
@@ -111,6 +112,7 @@ impl Traffic {
         for (segs, lane) in self.segments.iter_mut().zip(&road.lanes) {
             lane_segments(lane, segs);
         }
+        crossing_lanes(&self.lanes, &self.segments, &mut self.crossing);
         for i in 0..self.len() {
             let lane = self.cur.lane[i] as usize;
             if lane >= self.lanes.len() {

@@ -91,6 +91,56 @@ fn stops_for_a_pedestrian_on_the_crosswalk() {
 }
 
 #[test]
+fn a_car_parked_over_the_line_blocks_the_next_lane() {
+    let road = Road::straight(2, 3.5, 2_000.0, 40.0);
+    let mut t = Traffic::new();
+    // Parked in lane 0 with its left side 0.45 m into lane 1 (1.3 + 0.9 − 1.75).
+    t.add(VehicleInit { d_m: 1.3, ..parked(0, 300.0) });
+    t.add(car(1, 0.0, 20.0, 20.0));
+    assert_eq!(run(&road, &mut t, 0.05, 1200, |_| vec![]), 0);
+    assert_eq!(t.speed_mps(1), 0.0, "stops behind the intruding car");
+    assert!(t.pose(1).x_m < 300.0 - CAR.length_m - 1.5);
+    // The same car parked inside its lane does not bother lane 1.
+    let mut t = Traffic::new();
+    t.add(VehicleInit { d_m: 0.5, ..parked(0, 300.0) });
+    t.add(car(1, 0.0, 20.0, 20.0));
+    assert_eq!(run(&road, &mut t, 0.05, 1200, |_| vec![]), 0);
+    assert!(t.pose(1).x_m > 400.0);
+}
+
+#[test]
+fn pedestrian_walk_stops_traffic_while_on_the_crosswalk() {
+    let road = Road::crossing(3.5, 300.0, 250.0, 120.0, 13.9);
+    let walk = PedestrianWalk {
+        start: Vec2::new(120.0, -3.0),
+        heading_rad: FRAC_PI_2,
+        speed_mps: 0.5, // in lane 0 (|y| < 1.75 + 0.3) from 1.9 s to 10.1 s
+        start_time_s: 0.0,
+        path_length_m: 13.5,
+        radius_m: 0.3,
+    };
+    let mut t = Traffic::new();
+    t.add(car(0, 60.0, 13.9, 13.9));
+    let (mut min_speed, mut min_clearance) = (f64::INFINITY, f64::INFINITY);
+    for k in 0..600 {
+        let time = k as f64 * 0.05;
+        let agents: Vec<ExternalAgent> = walk.agent_at(time).into_iter().collect();
+        t.step(&road, time, 0.05, &agents);
+        if let Some(a) = agents.first() {
+            min_clearance = min_clearance.min(t.obb(0).distance_to(&Obb::new(a.pose, a.footprint)));
+        }
+        if time < 10.1 {
+            min_speed = min_speed.min(t.speed_mps(0));
+        }
+    }
+    // It (all but) stopped while the pedestrian was in its lane — IDM approaches standstill
+    // asymptotically — kept about s0 = 2 m away, then drove on.
+    assert!(min_speed < 0.1, "min speed {min_speed}");
+    assert!(min_clearance > 1.5, "clearance {min_clearance}");
+    assert!(t.pose(0).x_m > 130.0 && t.speed_mps(0) > 5.0, "x {}", t.pose(0).x_m);
+}
+
+#[test]
 fn cut_in_follows_its_timing() {
     let road = Road::straight(2, 3.5, 1_000.0, 30.0);
     let mut t = Traffic::new();

@@ -3,7 +3,8 @@
 //! Pure functions of time; the world turns a walking pedestrian into an
 //! [`super::ExternalAgent`] so traffic yields to it.
 
-use crate::geometry::Vec2;
+use super::ExternalAgent;
+use crate::geometry::{Footprint, Pose, Vec2};
 use serde::{Deserialize, Serialize};
 
 /// A pedestrian walking from `start` along `heading_rad` for `path_length_m`.
@@ -38,6 +39,17 @@ impl PedestrianWalk {
         Some(self.start + dir * travelled_m)
     }
 
+    /// The pedestrian as an agent traffic yields to (a square of side 2r), while on its path.
+    pub fn agent_at(&self, time_s: f64) -> Option<ExternalAgent> {
+        let p = self.position_at(time_s)?;
+        let side = 2.0 * self.radius_m.max(0.0);
+        Some(ExternalAgent {
+            pose: Pose::new(p.x, p.y, self.heading_rad),
+            velocity: self.velocity_at(time_s),
+            footprint: Footprint::new(side, side),
+        })
+    }
+
     /// Velocity at `time_s` (zero when not on the path).
     pub fn velocity_at(&self, time_s: f64) -> Vec2 {
         if !self.is_walking(time_s) {
@@ -70,5 +82,9 @@ mod tests {
         // 14 m at 1.4 m/s: done at 12 s.
         assert!(w.position_at(12.0).is_some());
         assert_eq!(w.position_at(12.01), None);
+        let agent = w.agent_at(7.0).expect("walking");
+        assert_eq!(agent.footprint, Footprint::new(0.6, 0.6));
+        assert_eq!(agent.pose.position(), p);
+        assert!(w.agent_at(1.0).is_none());
     }
 }

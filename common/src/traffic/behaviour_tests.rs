@@ -303,6 +303,22 @@ fn ring_wrap_keeps_vehicles_on_the_road() {
 }
 
 #[test]
+fn bad_input_deactivates_instead_of_panicking() {
+    let mut road = Road::straight(2, 3.5, 100.0, 30.0);
+    road.lanes[1].centre.truncate(1); // a degenerate lane
+    road.lanes[1].cum_s.truncate(1);
+    let mut t = Traffic::new();
+    t.add(car(7, 10.0, 10.0, 10.0)); // no such lane
+    t.add(car(1, 10.0, 10.0, 10.0)); // degenerate lane
+    let cut = Manoeuvre::CutIn { start_time_s: 0.0, duration_s: 2.0, target_lane: 9 };
+    t.add(VehicleInit { manoeuvre: cut, ..car(0, 10.0, 10.0, 10.0) });
+    let walker = ExternalAgent { pose: Pose::new(50.0, 0.0, 0.0), velocity: Vec2::zeros(), footprint: CAR };
+    run(&road, &mut t, 0.1, 10, |_| vec![walker]);
+    assert!(!t.is_active(0) && !t.is_active(1) && t.is_active(2));
+    assert_eq!(t.lane(2), 0);
+}
+
+#[test]
 fn leaving_an_open_lane_deactivates() {
     let road = Road::straight(1, 3.5, 100.0, 30.0);
     let mut t = Traffic::new();

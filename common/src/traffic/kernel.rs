@@ -294,7 +294,8 @@ impl Traffic {
         }
         if let Some((target, t0, dur)) = change {
             out.manoeuvre_started = true;
-            if (target as usize) < self.lanes.len() && target != self.cur.lane[i] {
+            let usable = self.lanes.get(target as usize).is_some_and(LaneInfo::usable);
+            if usable && target != self.cur.lane[i] {
                 self.begin_lane_change(road, i, target, t0, dur, &mut out);
             }
         }

@@ -37,6 +37,12 @@ impl LaneInfo {
         }));
     }
 
+    /// A lane needs a centreline of at least one segment of positive length to carry traffic
+    /// (the road builders guarantee it; a deserialised road might not).
+    pub(crate) fn usable(&self) -> bool {
+        self.vertices >= 2 && self.length_m > 0.0
+    }
+
     /// The lane a side code refers to: 0 this lane, 1 its left, 2 its right neighbour.
     #[inline]
     pub(crate) fn side_lane(&self, own: u32, side: usize) -> u32 {

@@ -115,7 +115,7 @@ impl Traffic {
         crossing_lanes(&self.lanes, &self.segments, &mut self.crossing);
         for i in 0..self.len() {
             let lane = self.cur.lane[i] as usize;
-            if lane >= self.lanes.len() {
+            if lane >= self.lanes.len() || !self.lanes[lane].usable() {
                 self.cur.active[i] = false;
                 continue;
             }
@@ -144,6 +144,9 @@ impl Traffic {
             let hl = 0.5 * agent.footprint.length_m;
             let hw = 0.5 * agent.footprint.width_m;
             for (id, lane) in road.lanes.iter().enumerate() {
+                if !self.lanes[id].usable() {
+                    continue;
+                }
                 let f = lane.project(p);
                 let info = &self.lanes[id];
                 let rel = agent.pose.heading_rad - f.lane_heading_rad;

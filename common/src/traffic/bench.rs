@@ -7,10 +7,11 @@ use crate::road::Road;
 
 const BENCH_LANES: usize = 4;
 const LANE_WIDTH_M: f64 = 3.5;
-/// Road length per vehicle per lane: ≈ 33 veh/km/lane, dense but flowing highway traffic.
-const SPACING_M: f64 = 30.0;
+/// Road length per vehicle per lane: 25 veh/km/lane, dense but flowing highway traffic
+/// (≈ 20 m/s on average with these IDM parameters, with MOBIL lane changes going on).
+const SPACING_M: f64 = 40.0;
 
-/// A 4-lane ring sized to 30 m per vehicle per lane with `vehicles` vehicles (10 % trucks),
+/// A 4-lane ring sized to 40 m per vehicle per lane with `vehicles` vehicles (10 % trucks),
 /// desired speeds uniform in 22–36 m/s, MOBIL on; the same seed gives the same world.
 pub fn bench_traffic(vehicles: usize, seed: u64) -> (Road, Traffic) {
     let per_lane = vehicles.div_ceil(BENCH_LANES).max(1);
@@ -71,10 +72,13 @@ mod tests {
                 }
                 let secs = start.elapsed().as_secs_f64();
                 let rate = (vehicles * steps) as f64 / secs;
+                let mean_speed = (0..vehicles).map(|i| traffic.speed_mps(i)).sum::<f64>() / vehicles as f64;
                 println!(
-                    "vehicles {vehicles} threads {threads}: {:.1} M vehicle-steps/s ({:.1} ns/vehicle-step), contacts {contacts}, setup {setup_ms:.1} ms",
+                    "vehicles {vehicles} threads {threads}: {:.1} M vehicle-steps/s ({:.1} ns/vehicle-step), \
+                     contacts {contacts}, lane changes {}, mean speed {mean_speed:.1} m/s, setup {setup_ms:.1} ms",
                     rate / 1e6,
-                    1e9 / rate
+                    1e9 / rate,
+                    traffic.lane_changes_started()
                 );
             }
         }
@@ -83,16 +87,14 @@ mod tests {
     #[test]
     fn bench_world_runs_without_crashes_and_stays_on_the_ring() {
         let (road, mut traffic) = bench_traffic(400, 7);
-        let (mut contacts, mut changes) = (0, 0);
+        let mut contacts = 0;
         for k in 0..600 {
-            let before: Vec<bool> = (0..traffic.len()).map(|i| traffic.is_changing_lane(i)).collect();
             traffic.step(&road, k as f64 * 0.1, 0.1, &[]);
             contacts += traffic.collisions().len();
-            changes += (0..traffic.len()).filter(|&i| traffic.is_changing_lane(i) && !before[i]).count();
         }
         assert_eq!(contacts, 0, "IDM/MOBIL traffic must not crash");
-        println!("lane changes {changes}");
-        assert!(changes >= 5, "MOBIL should change some lanes: {changes}");
+        let changes = traffic.lane_changes_started();
+        assert!(changes >= 10, "MOBIL should change some lanes: {changes}");
         for i in 0..traffic.len() {
             assert!(traffic.is_active(i));
             assert!(road.edge_distance_m(traffic.pose(i).position()) > 0.0, "vehicle {i} off the road");

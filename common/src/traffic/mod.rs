@@ -117,6 +117,7 @@ pub struct Traffic {
     ext_lists: Vec<Vec<ExtEntry>>,
     collisions: Vec<(u32, u32)>,
     step_count: u64,
+    lane_changes_started: u64,
     /// Override of the smallest per-thread chunk (0: the default); tests force threads on.
     min_vehicles_per_thread: usize,
     /// False after `add`: the next step (or `prepare`) rebuilds poses and lane lists.
@@ -257,6 +258,11 @@ impl Traffic {
     /// True while vehicle `i` is changing lanes.
     pub fn is_changing_lane(&self, i: usize) -> bool {
         self.cur.lane_change[i].active
+    }
+
+    /// Lane changes (MOBIL and scripted) started since the traffic was built.
+    pub fn lane_changes_started(&self) -> u64 {
+        self.lane_changes_started
     }
 
     /// Traffic–traffic pairs (lower index first, sorted) in contact after the last step.

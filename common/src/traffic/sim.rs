@@ -95,6 +95,7 @@ impl Traffic {
             let (c, x) = (&self.cur, &nxt);
             if x.lane[i] != c.lane[i] || x.intrude[i] != c.intrude[i] || x.active[i] != c.active[i] {
                 changed.push(i as u32);
+                self.lane_changes_started += u64::from(x.lane[i] != c.lane[i]);
             }
         }
         self.nxt = std::mem::replace(&mut self.cur, nxt);

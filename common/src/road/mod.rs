@@ -8,6 +8,7 @@
 
 mod builders;
 mod lane;
+mod ring;
 
 pub use lane::{Frenet, Lane, LaneId};
 

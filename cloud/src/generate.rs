@@ -30,7 +30,8 @@ pub fn parallel_map<T: Sync, R: Send>(items: &[T], threads: usize, f: impl Fn(&T
     let threads = threads.max(1).min(items.len().max(1));
     let chunk = items.len().div_ceil(threads).max(1);
     std::thread::scope(|scope| {
-        let handles: Vec<_> = items.chunks(chunk).map(|c| scope.spawn(|| c.iter().map(&f).collect::<Vec<R>>())).collect();
+        let handles: Vec<_> =
+            items.chunks(chunk).map(|c| scope.spawn(|| c.iter().map(&f).collect::<Vec<R>>())).collect();
         handles.into_iter().flat_map(|h| h.join().expect("episode workers do not panic")).collect()
     })
 }
@@ -82,12 +83,13 @@ pub fn reference_outcome(result: &EpisodeResult) -> Outcome {
 }
 
 /// Stores a batch (scenarios with outcomes, and rejection counts) and reports on it.
-pub fn store(library: &mut ScenarioLibrary, kinds: &[ScenarioKind], batch: &Batch) -> Result<GenerateReport, LibraryError> {
-    let records: Vec<ScenarioRecord> = batch
-        .evaluated
-        .iter()
-        .map(|e| ScenarioRecord::sampled(e.spec.clone(), reference_outcome(&e.result)))
-        .collect();
+pub fn store(
+    library: &mut ScenarioLibrary,
+    kinds: &[ScenarioKind],
+    batch: &Batch,
+) -> Result<GenerateReport, LibraryError> {
+    let records: Vec<ScenarioRecord> =
+        batch.evaluated.iter().map(|e| ScenarioRecord::sampled(e.spec.clone(), reference_outcome(&e.result))).collect();
     library.insert_batch(&records)?;
     let rejections: Vec<Rejection> = batch
         .rejected

@@ -4,12 +4,12 @@ use crate::driver::{Policy, ReferenceDriver};
 use crate::geometry::{Obb, Vec2};
 use crate::metrics::{EpisodeMetrics, MetricsAccumulator, RewardInputs, RewardWeights, StepSample, step_reward};
 use crate::risk::{
-    EgoKinematics, FieldError, FieldObject, GridEvaluator, RiskAccumulator, RiskFieldParams, RiskGrid, RiskStep, RiskTerms,
-    RiskWeights, RoadRaster, ScoreReferences, VehicleState,
+    EgoKinematics, FieldError, FieldObject, GridEvaluator, RiskAccumulator, RiskFieldParams, RiskGrid, RiskStep,
+    RiskTerms, RiskWeights, RoadRaster, ScoreReferences, VehicleState,
 };
 use crate::road::Road;
 use crate::scenario::{ScenarioSpec, build};
-use crate::world::World;
+use crate::world::{StepReport, World};
 
 /// What an episode produced.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,6 +50,16 @@ fn critical_states(world: &World, out: &mut Vec<VehicleState>) {
 
 /// Runs `world` to its end with `policy`, stopping at the first collision or road departure.
 pub fn run(world: &mut World, policy: &mut dyn Policy, weights: &RewardWeights) -> EpisodeResult {
+    run_observed(world, policy, weights, &mut |_, _| {})
+}
+
+/// [`run`], calling `observe` after every step (for traces and recordings).
+pub fn run_observed(
+    world: &mut World,
+    policy: &mut dyn Policy,
+    weights: &RewardWeights,
+    observe: &mut dyn FnMut(&World, &StepReport),
+) -> EpisodeResult {
     let field = RiskFieldParams::default();
     let mut metrics = MetricsAccumulator::default();
     let mut risk = RiskAccumulator::new(RiskWeights::default(), ScoreReferences::default());
@@ -61,6 +71,7 @@ pub fn run(world: &mut World, policy: &mut dyn Policy, weights: &RewardWeights) 
         let report = world.step(policy);
         collision = report.contacts.collision;
         offroad = report.contacts.offroad;
+        observe(world, &report);
         let jerk = metrics.jerk_of(world.ego.state.accel_mps2, world.dt_s);
         let ego = field_inputs(world, jerk, &mut objects);
         let ego_risk = field.evaluate_footprint(&world.road, &objects, &ego);
@@ -89,7 +100,8 @@ pub fn run(world: &mut World, policy: &mut dyn Policy, weights: &RewardWeights) 
             reward,
         });
         critical_states(world, &mut others);
-        let ego_state = VehicleState { obb: ego.obb(), velocity: ego.velocity, accel: ego.obb().axis * world.ego.state.accel_mps2 };
+        let ego_state =
+            VehicleState { obb: ego.obb(), velocity: ego.velocity, accel: ego.obb().axis * world.ego.state.accel_mps2 };
         risk.push(
             &world.road,
             &RiskStep {
@@ -113,9 +125,14 @@ pub fn run(world: &mut World, policy: &mut dyn Policy, weights: &RewardWeights) 
 
 /// The scenario driven by the reference driver, with the default reward weights.
 pub fn evaluate(spec: &ScenarioSpec) -> EpisodeResult {
+    evaluate_observed(spec, &mut |_, _| {})
+}
+
+/// [`evaluate`], calling `observe` after every step.
+pub fn evaluate_observed(spec: &ScenarioSpec, observe: &mut dyn FnMut(&World, &StepReport)) -> EpisodeResult {
     let mut world = build(spec);
     let mut driver = ReferenceDriver::new(world.desired_speed_mps, world.ego.params.clone());
-    run(&mut world, &mut driver, &RewardWeights::default())
+    run_observed(&mut world, &mut driver, &RewardWeights::default(), observe)
 }
 
 /// The risk field around the ego at one moment of a scenario, with what is needed to draw it.
@@ -141,7 +158,12 @@ impl FieldSnapshot {
 
 /// Drives the scenario with the reference driver until `time_s` (or its end) and evaluates the
 /// field on a `cells`×`cells` grid centred on the ego.
-pub fn field_snapshot(spec: &ScenarioSpec, time_s: f64, resolution_m: f64, cells: usize) -> Result<FieldSnapshot, FieldError> {
+pub fn field_snapshot(
+    spec: &ScenarioSpec,
+    time_s: f64,
+    resolution_m: f64,
+    cells: usize,
+) -> Result<FieldSnapshot, FieldError> {
     let mut world = build(spec);
     let mut driver = ReferenceDriver::new(world.desired_speed_mps, world.ego.params.clone());
     while world.time_s + 1e-9 < time_s && !world.finished() {

@@ -172,7 +172,13 @@ mod tests {
         // Steering ramps at 0.1 rad/s, acceleration ramps at 2 m/s³.
         for k in 0..11 {
             let t = k as f64 * 0.1;
-            acc.observe(StepSample { dt_s: 0.1, speed_mps: 10.0, steer_rad: 0.1 * t, accel_mps2: 2.0 * t, reward: 0.0 });
+            acc.observe(StepSample {
+                dt_s: 0.1,
+                speed_mps: 10.0,
+                steer_rad: 0.1 * t,
+                accel_mps2: 2.0 * t,
+                reward: 0.0,
+            });
         }
         let m = acc.finish(1.0, false, false);
         assert!((m.steering_smoothness - 0.1).abs() < 1e-9);

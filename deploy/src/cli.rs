@@ -104,6 +104,9 @@ pub struct SimulateArgs {
     /// `idm` (the reference driver).
     #[arg(long, default_value = "idm")]
     pub policy: String,
+    /// Write a per-step CSV trace of the ego and its nearest object here.
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

@@ -8,7 +8,6 @@ mod output;
 mod png_out;
 
 use clap::Parser;
-use error::CliError;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {

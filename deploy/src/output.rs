@@ -43,9 +43,8 @@ pub fn print_table(header: &[&str], rows: &[Vec<String>]) -> CliResult {
         }
     }
     let mut out = std::io::stdout().lock();
-    let line = |cells: Vec<&str>| {
-        cells.iter().zip(&widths).map(|(c, w)| format!("{c:<w$}")).collect::<Vec<_>>().join("  ")
-    };
+    let line =
+        |cells: Vec<&str>| cells.iter().zip(&widths).map(|(c, w)| format!("{c:<w$}")).collect::<Vec<_>>().join("  ");
     let write = |out: &mut std::io::StdoutLock, s: String| writeln!(out, "{}", s.trim_end()).map_err(CliError::runtime);
     write(&mut out, line(header.to_vec()))?;
     write(&mut out, widths.iter().map(|w| "-".repeat(*w)).collect::<Vec<_>>().join("  "))?;

@@ -7,7 +7,8 @@ use std::path::Path;
 
 /// Writes an 8-bit RGB image.
 pub fn write_png(path: &Path, image: &RgbImage) -> CliResult {
-    let file = std::fs::File::create(path).map_err(|e| CliError::input(format!("cannot create {}: {e}", path.display())))?;
+    let file =
+        std::fs::File::create(path).map_err(|e| CliError::input(format!("cannot create {}: {e}", path.display())))?;
     let mut encoder = png::Encoder::new(BufWriter::new(file), image.width as u32, image.height as u32);
     encoder.set_color(png::ColorType::Rgb);
     encoder.set_depth(png::BitDepth::Eight);

@@ -7,20 +7,13 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum LibraryError {
     #[error("cannot open scenario library {}: {source}", path.display())]
-    Open {
-        path: PathBuf,
-        source: rusqlite::Error,
-    },
+    Open { path: PathBuf, source: rusqlite::Error },
     #[error("{} is not a SQLite database: {reason}", path.display())]
     NotSqlite { path: PathBuf, reason: String },
     #[error("{} is not a RiskTwin scenario library: {reason}", path.display())]
     NotALibrary { path: PathBuf, reason: String },
     #[error("{}: scenario library schema version {found} is not supported (this build reads version {expected})", path.display())]
-    UnsupportedVersion {
-        path: PathBuf,
-        found: i64,
-        expected: i64,
-    },
+    UnsupportedVersion { path: PathBuf, found: i64, expected: i64 },
     #[error("invalid record for scenario {id}: {source}")]
     InvalidRecord { id: String, source: RecordError },
     #[error("unknown scenario '{0}'")]
@@ -39,26 +32,15 @@ pub enum RecordError {
     #[error("{field} = {value} is not a finite number")]
     NotFinite { field: &'static str, value: f64 },
     #[error("{field} = {value} is out of range [{min}, {max}]")]
-    OutOfRange {
-        field: &'static str,
-        value: f64,
-        min: f64,
-        max: f64,
-    },
+    OutOfRange { field: &'static str, value: f64, min: f64, max: f64 },
     #[error("steps = {0} does not fit a signed 64-bit SQLite integer")]
     StepsTooLarge(u64),
     #[error("policy name is empty")]
     EmptyPolicy,
     #[error("a {origin} scenario {expectation}")]
-    Lineage {
-        origin: &'static str,
-        expectation: &'static str,
-    },
+    Lineage { origin: &'static str, expectation: &'static str },
     #[error("parent '{0}' is not in the library")]
     UnknownParent(String),
     #[error("parent is a {parent} scenario, the child a {child} one: mutation keeps the kind")]
-    KindChanged {
-        parent: ScenarioKind,
-        child: ScenarioKind,
-    },
+    KindChanged { parent: ScenarioKind, child: ScenarioKind },
 }

@@ -9,8 +9,7 @@ use tempfile::TempDir;
 /// A library in a fresh file `library.db` of a temporary directory (removed on drop).
 pub fn file_library() -> (TempDir, ScenarioLibrary) {
     let dir = tempfile::tempdir().expect("temporary directory");
-    let lib = ScenarioLibrary::open(dir.path().join("library.db"))
-        .expect("a new file opens as a library");
+    let lib = ScenarioLibrary::open(dir.path().join("library.db")).expect("a new file opens as a library");
     (dir, lib)
 }
 

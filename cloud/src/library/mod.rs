@@ -43,8 +43,7 @@ mod fixtures;
 pub use error::{LibraryError, RecordError};
 pub use rank::{RankOutcome, RankedScenario};
 pub use record::{
-    DEFAULT_POLICY, InsertSummary, KindCounts, Origin, Outcome, Rejection, ScenarioRecord,
-    StoredScenario, content_id,
+    DEFAULT_POLICY, InsertSummary, KindCounts, Origin, Outcome, Rejection, ScenarioRecord, StoredScenario, content_id,
 };
 pub use regression::{RegressionCase, RegressionReason};
 pub use schema::{APPLICATION_ID, SCHEMA_VERSION};
@@ -63,10 +62,7 @@ impl ScenarioLibrary {
     /// Opens the library at `path`, creating the file and its schema if it does not exist.
     pub fn open(path: impl AsRef<Path>) -> Result<Self, LibraryError> {
         let path = path.as_ref().to_path_buf();
-        let mut conn = Connection::open(&path).map_err(|source| LibraryError::Open {
-            path: path.clone(),
-            source,
-        })?;
+        let mut conn = Connection::open(&path).map_err(|source| LibraryError::Open { path: path.clone(), source })?;
         schema::prepare(&mut conn, &path)?;
         Ok(Self { conn, path })
     }
@@ -74,10 +70,8 @@ impl ScenarioLibrary {
     /// A fresh library that lives in memory only (tests, dry runs).
     pub fn open_in_memory() -> Result<Self, LibraryError> {
         let path = PathBuf::from(":memory:");
-        let mut conn = Connection::open_in_memory().map_err(|source| LibraryError::Open {
-            path: path.clone(),
-            source,
-        })?;
+        let mut conn =
+            Connection::open_in_memory().map_err(|source| LibraryError::Open { path: path.clone(), source })?;
         schema::prepare(&mut conn, &path)?;
         Ok(Self { conn, path })
     }
@@ -89,8 +83,6 @@ impl ScenarioLibrary {
 
     /// The journal mode SQLite reports: `wal` for files, `memory` for in-memory libraries.
     pub fn journal_mode(&self) -> Result<String, LibraryError> {
-        Ok(self
-            .conn
-            .pragma_query_value(None, "journal_mode", |r| r.get(0))?)
+        Ok(self.conn.pragma_query_value(None, "journal_mode", |r| r.get(0))?)
     }
 }

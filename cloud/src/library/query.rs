@@ -47,19 +47,11 @@ fn outcome_from_row(r: &Row<'_>) -> rusqlite::Result<Outcome> {
 
 /// Rebuilds and re-validates a spec from its columns; a row that fails is reported as corrupt.
 /// Seeds are u64 stored bit for bit in SQLite's signed 64-bit integers.
-pub(super) fn decode_spec(
-    id: &str,
-    kind: &str,
-    seed: i64,
-    params: &str,
-) -> Result<ScenarioSpec, LibraryError> {
-    let corrupt = |reason: String| LibraryError::Corrupt {
-        id: id.to_string(),
-        reason,
-    };
+pub(super) fn decode_spec(id: &str, kind: &str, seed: i64, params: &str) -> Result<ScenarioSpec, LibraryError> {
+    let corrupt = |reason: String| LibraryError::Corrupt { id: id.to_string(), reason };
     let kind: ScenarioKind = kind.parse().map_err(|e| corrupt(format!("{e}")))?;
-    let params: BTreeMap<String, f64> = serde_json::from_str(params)
-        .map_err(|e| corrupt(format!("params are not a JSON object of numbers: {e}")))?;
+    let params: BTreeMap<String, f64> =
+        serde_json::from_str(params).map_err(|e| corrupt(format!("params are not a JSON object of numbers: {e}")))?;
     ScenarioSpec::new(kind, seed as u64, params).map_err(|e| corrupt(e.to_string()))
 }
 
@@ -95,12 +87,10 @@ impl ScenarioLibrary {
             id: id.to_string(),
             reason: format!("generation {generation} out of range"),
         })?;
-        let mut stmt = self.conn.prepare_cached(&format!(
-            "SELECT {OUTCOME_COLUMNS} FROM outcomes WHERE scenario_id = ?1 ORDER BY seq"
-        ))?;
-        let outcomes = stmt
-            .query_map([id], outcome_from_row)?
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut stmt = self
+            .conn
+            .prepare_cached(&format!("SELECT {OUTCOME_COLUMNS} FROM outcomes WHERE scenario_id = ?1 ORDER BY seq"))?;
+        let outcomes = stmt.query_map([id], outcome_from_row)?.collect::<Result<Vec<_>, _>>()?;
         Ok(Some(StoredScenario {
             id: id.to_string(),
             spec,
@@ -123,9 +113,7 @@ impl ScenarioLibrary {
                  WHERE c.depth < 100000) \
              SELECT id FROM chain ORDER BY depth",
         )?;
-        let chain = stmt
-            .query_map([id], |r| r.get(0))?
-            .collect::<Result<Vec<String>, _>>()?;
+        let chain = stmt.query_map([id], |r| r.get(0))?.collect::<Result<Vec<String>, _>>()?;
         if chain.is_empty() {
             return Err(LibraryError::UnknownScenario(id.to_string()));
         }
@@ -134,10 +122,8 @@ impl ScenarioLibrary {
 
     /// Stored, rejected and colliding (latest default-policy outcome) counts for every kind.
     pub fn count_by_kind(&self) -> Result<BTreeMap<ScenarioKind, KindCounts>, LibraryError> {
-        let mut counts: BTreeMap<ScenarioKind, KindCounts> = ScenarioKind::ALL
-            .into_iter()
-            .map(|k| (k, KindCounts::default()))
-            .collect();
+        let mut counts: BTreeMap<ScenarioKind, KindCounts> =
+            ScenarioKind::ALL.into_iter().map(|k| (k, KindCounts::default())).collect();
         let mut stmt = self.conn.prepare_cached(
             "SELECT k.kind, \
                  (SELECT COUNT(*) FROM scenarios s WHERE s.kind = k.kind), \
@@ -149,12 +135,7 @@ impl ScenarioLibrary {
         )?;
         let rows = stmt
             .query_map([DEFAULT_POLICY], |r| {
-                Ok((
-                    r.get::<_, String>(0)?,
-                    r.get::<_, i64>(1)?,
-                    r.get::<_, i64>(2)?,
-                    r.get::<_, i64>(3)?,
-                ))
+                Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?, r.get::<_, i64>(2)?, r.get::<_, i64>(3)?))
             })?
             .collect::<Result<Vec<_>, _>>()?;
         for (kind, stored, infeasible, collisions) in rows {
@@ -175,10 +156,7 @@ impl ScenarioLibrary {
 
 /// A stored kind name, or a corruption error naming where it was found.
 pub(super) fn decode_kind(id: &str, kind: &str) -> Result<ScenarioKind, LibraryError> {
-    kind.parse().map_err(|e| LibraryError::Corrupt {
-        id: id.to_string(),
-        reason: format!("{e}"),
-    })
+    kind.parse().map_err(|e| LibraryError::Corrupt { id: id.to_string(), reason: format!("{e}") })
 }
 
 #[cfg(test)]
@@ -199,59 +177,28 @@ mod tests {
         big_seed.seed = u64::MAX - 5; // does not fit i64: stored bit for bit
         let records = [
             ScenarioRecord::sampled(big_seed.clone(), with_ttc.clone()),
-            ScenarioRecord::sampled(
-                spec(ScenarioKind::SensorOcclusion, 1),
-                outcome(0.25, false, None),
-            ),
-            ScenarioRecord::sampled(
-                spec(ScenarioKind::LowFriction, 2),
-                outcome(0.5, false, Some(f64::INFINITY)),
-            ),
+            ScenarioRecord::sampled(spec(ScenarioKind::SensorOcclusion, 1), outcome(0.25, false, None)),
+            ScenarioRecord::sampled(spec(ScenarioKind::LowFriction, 2), outcome(0.5, false, Some(f64::INFINITY))),
         ];
         let summary = lib.insert_batch(&records).expect("insert");
-        assert_eq!(
-            summary,
-            InsertSummary {
-                inserted: 3,
-                duplicates: 0,
-                outcomes: 3
-            }
-        );
+        assert_eq!(summary, InsertSummary { inserted: 3, duplicates: 0, outcomes: 3 });
 
-        let got = lib
-            .get(&content_id(&big_seed))
-            .expect("get")
-            .expect("stored");
+        let got = lib.get(&content_id(&big_seed)).expect("get").expect("stored");
         assert_eq!(got.spec, big_seed);
         assert_eq!(got.outcomes, vec![with_ttc]);
-        assert_eq!(
-            (got.origin, got.parent_id, got.generation, got.created_seq),
-            (Origin::Sampled, None, 0, 1)
-        );
+        assert_eq!((got.origin, got.parent_id, got.generation, got.created_seq), (Origin::Sampled, None, 0, 1));
 
-        let no_ttc = lib
-            .get(&content_id(&records[1].spec))
-            .expect("get")
-            .expect("stored");
+        let no_ttc = lib.get(&content_id(&records[1].spec)).expect("get").expect("stored");
         assert_eq!(no_ttc.outcomes[0].metrics.min_ttc_s, None);
         assert_eq!(no_ttc.created_seq, 2);
         // An infinite TTC ("never closing in") is stored as SQL NULL, not as a huge number.
         let inf_id = content_id(&records[2].spec);
         let is_null: bool = lib
             .conn
-            .query_row(
-                "SELECT min_ttc_s IS NULL FROM outcomes WHERE scenario_id = ?1",
-                [&inf_id],
-                |r| r.get(0),
-            )
+            .query_row("SELECT min_ttc_s IS NULL FROM outcomes WHERE scenario_id = ?1", [&inf_id], |r| r.get(0))
             .expect("row");
         assert!(is_null);
-        assert_eq!(
-            lib.get(&inf_id).expect("get").expect("stored").outcomes[0]
-                .metrics
-                .min_ttc_s,
-            None
-        );
+        assert_eq!(lib.get(&inf_id).expect("get").expect("stored").outcomes[0].metrics.min_ttc_s, None);
         assert_eq!(lib.get("0123456789abcdef").expect("get"), None);
     }
 
@@ -265,12 +212,8 @@ mod tests {
         let mut ids = vec![parent_id.clone()];
         for _ in 0..3 {
             let child = mutate(&parent_spec, 0.05, &mut rng).expect("feasible child");
-            lib.insert_batch(&[ScenarioRecord::mutated(
-                child.clone(),
-                &parent_id,
-                outcome(0.7, false, Some(1.0)),
-            )])
-            .expect("child");
+            lib.insert_batch(&[ScenarioRecord::mutated(child.clone(), &parent_id, outcome(0.7, false, Some(1.0)))])
+                .expect("child");
             parent_id = content_id(&child);
             parent_spec = child;
             ids.push(parent_id.clone());
@@ -281,35 +224,16 @@ mod tests {
         ids.reverse();
         assert_eq!(lineage, ids);
         assert_eq!(lineage.len() - 1, 3);
-        assert!(matches!(
-            lib.lineage("nope"),
-            Err(LibraryError::UnknownScenario(_))
-        ));
+        assert!(matches!(lib.lineage("nope"), Err(LibraryError::UnknownScenario(_))));
 
-        let other_kind = ScenarioRecord::mutated(
-            spec(ScenarioKind::CutIn, 0),
-            &parent_id,
-            outcome(0.1, false, None),
-        );
+        let other_kind = ScenarioRecord::mutated(spec(ScenarioKind::CutIn, 0), &parent_id, outcome(0.1, false, None));
         let err = lib.insert_batch(&[other_kind]).unwrap_err();
-        assert!(
-            matches!(
-                err,
-                LibraryError::InvalidRecord {
-                    source: RecordError::KindChanged { .. },
-                    ..
-                }
-            ),
-            "{err}"
-        );
+        assert!(matches!(err, LibraryError::InvalidRecord { source: RecordError::KindChanged { .. }, .. }), "{err}");
         let mut sampled_with_parent = sampled(ScenarioKind::CutIn, 1, 0.1, false);
         sampled_with_parent.parent_id = Some(parent_id.clone());
         assert!(matches!(
             lib.insert_batch(&[sampled_with_parent]),
-            Err(LibraryError::InvalidRecord {
-                source: RecordError::Lineage { .. },
-                ..
-            })
+            Err(LibraryError::InvalidRecord { source: RecordError::Lineage { .. }, .. })
         ));
     }
 
@@ -322,13 +246,8 @@ mod tests {
             sampled(ScenarioKind::LowFriction, 0, 0.3, false),
         ])
         .expect("insert");
-        let rej = |kind, reason: &str, count| Rejection {
-            kind,
-            reason: reason.to_string(),
-            count,
-        };
-        lib.record_rejections(&[rej(ScenarioKind::CutIn, "negative-speed", 2)])
-            .expect("rejections");
+        let rej = |kind, reason: &str, count| Rejection { kind, reason: reason.to_string(), count };
+        lib.record_rejections(&[rej(ScenarioKind::CutIn, "negative-speed", 2)]).expect("rejections");
         lib.record_rejections(&[
             rej(ScenarioKind::CutIn, "negative-speed", 3),
             rej(ScenarioKind::CutIn, "lateral-beyond-friction", 1),
@@ -336,31 +255,11 @@ mod tests {
         .expect("rejections");
         assert_eq!(
             lib.rejected_counts().expect("counts"),
-            vec![
-                rej(ScenarioKind::CutIn, "lateral-beyond-friction", 1),
-                rej(ScenarioKind::CutIn, "negative-speed", 5)
-            ]
+            vec![rej(ScenarioKind::CutIn, "lateral-beyond-friction", 1), rej(ScenarioKind::CutIn, "negative-speed", 5)]
         );
         let counts = lib.count_by_kind().expect("counts");
-        assert_eq!(
-            counts[&ScenarioKind::CutIn],
-            KindCounts {
-                stored: 2,
-                infeasible: 6,
-                collisions: 1
-            }
-        );
-        assert_eq!(
-            counts[&ScenarioKind::LowFriction],
-            KindCounts {
-                stored: 1,
-                infeasible: 0,
-                collisions: 0
-            }
-        );
-        assert_eq!(
-            counts[&ScenarioKind::SensorOcclusion],
-            KindCounts::default()
-        );
+        assert_eq!(counts[&ScenarioKind::CutIn], KindCounts { stored: 2, infeasible: 6, collisions: 1 });
+        assert_eq!(counts[&ScenarioKind::LowFriction], KindCounts { stored: 1, infeasible: 0, collisions: 0 });
+        assert_eq!(counts[&ScenarioKind::SensorOcclusion], KindCounts::default());
     }
 }

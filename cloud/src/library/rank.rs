@@ -34,25 +34,12 @@ pub struct RankOutcome {
     pub min_distance_m: f64,
 }
 
-type RankRow = (
-    String,
-    String,
-    i64,
-    String,
-    [f64; 6],
-    bool,
-    Option<f64>,
-    f64,
-);
+type RankRow = (String, String, i64, String, [f64; 6], bool, Option<f64>, f64);
 
 impl ScenarioLibrary {
     /// The `top` riskiest scenarios (all when `None`), of one kind or all, by the latest
     /// outcome of the reference driver.
-    pub fn rank(
-        &self,
-        top: Option<usize>,
-        kind: Option<ScenarioKind>,
-    ) -> Result<Vec<RankedScenario>, LibraryError> {
+    pub fn rank(&self, top: Option<usize>, kind: Option<ScenarioKind>) -> Result<Vec<RankedScenario>, LibraryError> {
         self.rank_for_policy(DEFAULT_POLICY, top, kind)
     }
 
@@ -77,28 +64,18 @@ impl ScenarioLibrary {
              LIMIT ?3",
         )?;
         let rows: Vec<RankRow> = stmt
-            .query_map(
-                rusqlite::params![policy, kind.map(ScenarioKind::name), limit],
-                |r| {
-                    Ok((
-                        r.get(0)?,
-                        r.get(1)?,
-                        r.get(2)?,
-                        r.get(3)?,
-                        [
-                            r.get(4)?,
-                            r.get(5)?,
-                            r.get(6)?,
-                            r.get(7)?,
-                            r.get(8)?,
-                            r.get(9)?,
-                        ],
-                        r.get(10)?,
-                        r.get(11)?,
-                        r.get(12)?,
-                    ))
-                },
-            )?
+            .query_map(rusqlite::params![policy, kind.map(ScenarioKind::name), limit], |r| {
+                Ok((
+                    r.get(0)?,
+                    r.get(1)?,
+                    r.get(2)?,
+                    r.get(3)?,
+                    [r.get(4)?, r.get(5)?, r.get(6)?, r.get(7)?, r.get(8)?, r.get(9)?],
+                    r.get(10)?,
+                    r.get(11)?,
+                    r.get(12)?,
+                ))
+            })?
             .collect::<Result<_, _>>()?;
         rows.into_iter()
             .map(
@@ -118,19 +95,8 @@ impl ScenarioLibrary {
                         kind: spec.kind,
                         seed: spec.seed,
                         params: spec.params,
-                        risk: RiskTerms {
-                            score,
-                            ttc,
-                            dist,
-                            lane,
-                            jerk,
-                            collision: collision_term,
-                        },
-                        outcome: RankOutcome {
-                            collision,
-                            min_ttc_s,
-                            min_distance_m,
-                        },
+                        risk: RiskTerms { score, ttc, dist, lane, jerk, collision: collision_term },
+                        outcome: RankOutcome { collision, min_ttc_s, min_distance_m },
                     })
                 },
             )
@@ -147,11 +113,7 @@ impl ScenarioLibrary {
     /// Equal candidates are ordered by a hash of their id salted from `rng`, so repeated rounds
     /// with a fresh rng spread over a plateau of equal scores instead of always mutating the
     /// lexicographically smallest ids; the same rng state gives the same choice.
-    pub fn select_for_mutation(
-        &self,
-        k: usize,
-        rng: &mut Rng,
-    ) -> Result<Vec<RankedScenario>, LibraryError> {
+    pub fn select_for_mutation(&self, k: usize, rng: &mut Rng) -> Result<Vec<RankedScenario>, LibraryError> {
         let salt = rng.next_u64();
         let mut all = self.rank(None, None)?;
         let tie_key = |id: &str| Rng::derive(salt, fnv1a64(id.bytes())).next_u64();
@@ -196,10 +158,7 @@ mod tests {
             if a < b { (a, b) } else { (b, a) }
         };
         let cut_in = lib.rank(None, Some(k)).expect("rank");
-        assert_eq!(
-            ids(&cut_in),
-            vec![tie_lo.clone(), tie_hi, id(k, 0), id(k, 3)]
-        );
+        assert_eq!(ids(&cut_in), vec![tie_lo.clone(), tie_hi, id(k, 0), id(k, 3)]);
         let all = lib.rank(None, None).expect("rank");
         assert_eq!(all.len(), 5);
         assert_eq!(all[0].id, id(ScenarioKind::LowFriction, 0));
@@ -208,23 +167,15 @@ mod tests {
         assert_eq!(ids(&lib.rank(Some(2), None).expect("rank")), ids(&all[..2]));
         assert_eq!(lib.rank(Some(0), None).expect("rank"), vec![]);
         assert_eq!(lib.select_for_replay(3).expect("replay"), all[..3].to_vec());
-        assert_eq!(
-            lib.rank(None, Some(ScenarioKind::SensorOcclusion))
-                .expect("rank"),
-            vec![]
-        );
-        assert_eq!(
-            ids(&lib.rank(Some(1), Some(k)).expect("rank")),
-            vec![tie_lo]
-        );
+        assert_eq!(lib.rank(None, Some(ScenarioKind::SensorOcclusion)).expect("rank"), vec![]);
+        assert_eq!(ids(&lib.rank(Some(1), Some(k)).expect("rank")), vec![tie_lo]);
     }
 
     #[test]
     fn the_latest_default_policy_outcome_counts() {
         let (_dir, mut lib) = file_library();
         let k = ScenarioKind::EmergencyBraking;
-        lib.insert_batch(&[sampled(k, 0, 0.8, false), sampled(k, 1, 0.5, false)])
-            .expect("insert");
+        lib.insert_batch(&[sampled(k, 0, 0.8, false), sampled(k, 1, 0.5, false)]).expect("insert");
         // A re-run of candidate 0 found it calmer; a learned policy's crash does not move the
         // reference ranking.
         let mut learned = outcome(1.0, true, Some(0.0));
@@ -235,10 +186,7 @@ mod tests {
         ])
         .expect("insert");
         let ranked = lib.rank(None, None).expect("rank");
-        assert_eq!(
-            ids(&ranked),
-            vec![content_id(&spec(k, 1)), content_id(&spec(k, 0))]
-        );
+        assert_eq!(ids(&ranked), vec![content_id(&spec(k, 1)), content_id(&spec(k, 0))]);
         assert_eq!(ranked[1].risk.score, 0.2);
         assert_eq!(ranked[1].outcome.min_ttc_s, None);
         let by_learned = lib.rank_for_policy("ppo-full", None, None).expect("rank");
@@ -249,11 +197,7 @@ mod tests {
     fn ranked_json_is_the_cli_contract_object() {
         let (_dir, mut lib) = file_library();
         let s = spec(ScenarioKind::LowFriction, 0);
-        lib.insert_batch(&[ScenarioRecord::sampled(
-            s.clone(),
-            outcome(0.75, false, None),
-        )])
-        .expect("insert");
+        lib.insert_batch(&[ScenarioRecord::sampled(s.clone(), outcome(0.75, false, None))]).expect("insert");
         let ranked = lib.rank(None, None).expect("rank");
         let params = serde_json::to_string(&s.params).expect("params json");
         let expected = format!(
@@ -279,11 +223,7 @@ mod tests {
         records.push(sampled(k, 6, 0.4, true)); // a collision with a lower score
         records.push(sampled(k, 7, 0.95, false));
         lib.insert_batch(&records).expect("insert");
-        let pick = |seed| {
-            ids(&lib
-                .select_for_mutation(4, &mut Rng::new(seed))
-                .expect("select"))
-        };
+        let pick = |seed| ids(&lib.select_for_mutation(4, &mut Rng::new(seed)).expect("select"));
         let a = pick(1);
         assert_eq!(a.len(), 4);
         assert_eq!(a[0], content_id(&spec(k, 6)), "the collision comes first");

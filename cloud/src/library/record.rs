@@ -35,14 +35,7 @@ impl Origin {
 
     /// The origin stored as `s`, if any.
     pub fn parse(s: &str) -> Option<Self> {
-        [
-            Origin::Sampled,
-            Origin::Mutated,
-            Origin::Imported,
-            Origin::Regression,
-        ]
-        .into_iter()
-        .find(|o| o.as_str() == s)
+        [Origin::Sampled, Origin::Mutated, Origin::Imported, Origin::Regression].into_iter().find(|o| o.as_str() == s)
     }
 }
 
@@ -68,22 +61,12 @@ pub struct ScenarioRecord {
 impl ScenarioRecord {
     /// A sampled scenario with its outcome.
     pub fn sampled(spec: ScenarioSpec, outcome: Outcome) -> Self {
-        Self {
-            spec,
-            origin: Origin::Sampled,
-            parent_id: None,
-            outcome: Some(outcome),
-        }
+        Self { spec, origin: Origin::Sampled, parent_id: None, outcome: Some(outcome) }
     }
 
     /// A child of `parent_id` with its outcome.
     pub fn mutated(spec: ScenarioSpec, parent_id: &str, outcome: Outcome) -> Self {
-        Self {
-            spec,
-            origin: Origin::Mutated,
-            parent_id: Some(parent_id.to_string()),
-            outcome: Some(outcome),
-        }
+        Self { spec, origin: Origin::Mutated, parent_id: Some(parent_id.to_string()), outcome: Some(outcome) }
     }
 }
 
@@ -143,9 +126,7 @@ pub struct InsertSummary {
 pub(super) fn fnv1a64(bytes: impl IntoIterator<Item = u8>) -> u64 {
     const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
     const PRIME: u64 = 0x0000_0100_0000_01b3;
-    bytes
-        .into_iter()
-        .fold(OFFSET, |h, b| (h ^ u64::from(b)).wrapping_mul(PRIME))
+    bytes.into_iter().fold(OFFSET, |h, b| (h ^ u64::from(b)).wrapping_mul(PRIME))
 }
 
 /// The stable content id of a spec: FNV-1a over kind, seed and the exact parameter bits, in hex.
@@ -167,25 +148,12 @@ pub fn content_id(spec: &ScenarioSpec) -> String {
 }
 
 fn finite(field: &'static str, value: f64) -> Result<(), RecordError> {
-    if value.is_finite() {
-        Ok(())
-    } else {
-        Err(RecordError::NotFinite { field, value })
-    }
+    if value.is_finite() { Ok(()) } else { Err(RecordError::NotFinite { field, value }) }
 }
 
 fn within(field: &'static str, value: f64, min: f64, max: f64) -> Result<(), RecordError> {
     finite(field, value)?;
-    if (min..=max).contains(&value) {
-        Ok(())
-    } else {
-        Err(RecordError::OutOfRange {
-            field,
-            value,
-            min,
-            max,
-        })
-    }
+    if (min..=max).contains(&value) { Ok(()) } else { Err(RecordError::OutOfRange { field, value, min, max }) }
 }
 
 /// `min_ttc_s` as stored: an infinite or undefined TTC means "never closing in", which the
@@ -194,12 +162,7 @@ pub fn ttc_for_storage(min_ttc_s: Option<f64>) -> Result<Option<f64>, RecordErro
     match min_ttc_s {
         Some(t) if t.is_finite() => within("min_ttc_s", t, 0.0, f64::MAX).map(|()| Some(t)),
         Some(t) if t == f64::INFINITY || t.is_nan() => Ok(None),
-        Some(t) => Err(RecordError::OutOfRange {
-            field: "min_ttc_s",
-            value: t,
-            min: 0.0,
-            max: f64::INFINITY,
-        }),
+        Some(t) => Err(RecordError::OutOfRange { field: "min_ttc_s", value: t, min: 0.0, max: f64::INFINITY }),
         None => Ok(None),
     }
 }
@@ -239,17 +202,11 @@ pub fn validate_record(rec: &ScenarioRecord) -> Result<(), RecordError> {
     ScenarioSpec::new(rec.spec.kind, rec.spec.seed, rec.spec.params.clone())?;
     match (rec.origin, &rec.parent_id) {
         (Origin::Mutated, None) => {
-            return Err(RecordError::Lineage {
-                origin: "mutated",
-                expectation: "needs a parent id",
-            });
+            return Err(RecordError::Lineage { origin: "mutated", expectation: "needs a parent id" });
         }
         (Origin::Mutated, Some(_)) | (_, None) => {}
         (origin, Some(_)) => {
-            return Err(RecordError::Lineage {
-                origin: origin.as_str(),
-                expectation: "has no parent",
-            });
+            return Err(RecordError::Lineage { origin: origin.as_str(), expectation: "has no parent" });
         }
     }
     if let Some(o) = &rec.outcome {

@@ -27,14 +27,8 @@ pub struct RegressionCase {
 impl ScenarioLibrary {
     /// Keeps `id` as a regression case (an automatic collision mark stays as it is).
     pub fn mark_regression(&mut self, id: &str) -> Result<(), LibraryError> {
-        let tx = self
-            .conn
-            .transaction_with_behavior(TransactionBehavior::Immediate)?;
-        let exists: bool = tx.query_row(
-            "SELECT EXISTS (SELECT 1 FROM scenarios WHERE id = ?1)",
-            [id],
-            |r| r.get(0),
-        )?;
+        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let exists: bool = tx.query_row("SELECT EXISTS (SELECT 1 FROM scenarios WHERE id = ?1)", [id], |r| r.get(0))?;
         if !exists {
             return Err(LibraryError::UnknownScenario(id.to_string()));
         }
@@ -103,24 +97,10 @@ mod tests {
         let crash = content_id(&spec(ScenarioKind::CutIn, 0));
         let calm = content_id(&spec(ScenarioKind::LowFriction, 0));
         lib.mark_regression(&calm).expect("mark");
-        lib.mark_regression(&crash)
-            .expect("marking twice keeps the first reason");
-        let set: Vec<(String, RegressionReason)> = lib
-            .regression_set()
-            .expect("set")
-            .into_iter()
-            .map(|c| (c.id, c.reason))
-            .collect();
-        assert_eq!(
-            set,
-            vec![
-                (crash, RegressionReason::Collision),
-                (calm, RegressionReason::Manual)
-            ]
-        );
-        assert!(matches!(
-            lib.mark_regression("nope"),
-            Err(LibraryError::UnknownScenario(_))
-        ));
+        lib.mark_regression(&crash).expect("marking twice keeps the first reason");
+        let set: Vec<(String, RegressionReason)> =
+            lib.regression_set().expect("set").into_iter().map(|c| (c.id, c.reason)).collect();
+        assert_eq!(set, vec![(crash, RegressionReason::Collision), (calm, RegressionReason::Manual)]);
+        assert!(matches!(lib.mark_regression("nope"), Err(LibraryError::UnknownScenario(_))));
     }
 }

@@ -71,14 +71,10 @@ CREATE TABLE regression (
 /// Maps the first error that reading a file raises to "not SQLite" when SQLite says so.
 fn read_error(path: &Path, err: rusqlite::Error) -> LibraryError {
     match err.sqlite_error_code() {
-        Some(ErrorCode::NotADatabase | ErrorCode::DatabaseCorrupt) => LibraryError::NotSqlite {
-            path: path.to_path_buf(),
-            reason: err.to_string(),
-        },
-        _ => LibraryError::Open {
-            path: path.to_path_buf(),
-            source: err,
-        },
+        Some(ErrorCode::NotADatabase | ErrorCode::DatabaseCorrupt) => {
+            LibraryError::NotSqlite { path: path.to_path_buf(), reason: err.to_string() }
+        }
+        _ => LibraryError::Open { path: path.to_path_buf(), source: err },
     }
 }
 
@@ -88,21 +84,14 @@ fn read_error(path: &Path, err: rusqlite::Error) -> LibraryError {
 /// database by mistake leaves it untouched.
 pub fn prepare(conn: &mut Connection, path: &Path) -> Result<(), LibraryError> {
     // The first statement reads the header: garbage and text files fail here (SQLITE_NOTADB).
-    let app_id: i32 = conn
-        .pragma_query_value(None, "application_id", |r| r.get(0))
-        .map_err(|e| read_error(path, e))?;
-    let version: i64 = conn
-        .pragma_query_value(None, "user_version", |r| r.get(0))
-        .map_err(|e| read_error(path, e))?;
+    let app_id: i32 = conn.pragma_query_value(None, "application_id", |r| r.get(0)).map_err(|e| read_error(path, e))?;
+    let version: i64 = conn.pragma_query_value(None, "user_version", |r| r.get(0)).map_err(|e| read_error(path, e))?;
     let objects: Vec<String> = {
         let mut stmt = conn
             .prepare("SELECT name FROM sqlite_schema WHERE name NOT LIKE 'sqlite_%' ORDER BY name")
             .map_err(|e| read_error(path, e))?;
-        let rows = stmt
-            .query_map([], |r| r.get(0))
-            .map_err(|e| read_error(path, e))?;
-        rows.collect::<Result<_, _>>()
-            .map_err(|e| read_error(path, e))?
+        let rows = stmt.query_map([], |r| r.get(0)).map_err(|e| read_error(path, e))?;
+        rows.collect::<Result<_, _>>().map_err(|e| read_error(path, e))?
     };
     if app_id == APPLICATION_ID {
         if version != SCHEMA_VERSION {
@@ -158,23 +147,13 @@ mod tests {
         assert_eq!(lib.journal_mode().expect("pragma"), "wal");
         // WAL is a property of the file: a second, plain connection sees it too.
         let raw = Connection::open(dir.path().join("library.db")).expect("raw open");
-        let mode: String = raw
-            .pragma_query_value(None, "journal_mode", |r| r.get(0))
-            .expect("pragma");
+        let mode: String = raw.pragma_query_value(None, "journal_mode", |r| r.get(0)).expect("pragma");
         assert_eq!(mode, "wal");
-        let app_id: i32 = raw
-            .pragma_query_value(None, "application_id", |r| r.get(0))
-            .expect("pragma");
+        let app_id: i32 = raw.pragma_query_value(None, "application_id", |r| r.get(0)).expect("pragma");
         assert_eq!(app_id, APPLICATION_ID);
-        let sync: i64 = lib
-            .conn
-            .pragma_query_value(None, "synchronous", |r| r.get(0))
-            .expect("pragma");
+        let sync: i64 = lib.conn.pragma_query_value(None, "synchronous", |r| r.get(0)).expect("pragma");
         assert_eq!(sync, 1, "synchronous = NORMAL");
-        let fk: bool = lib
-            .conn
-            .pragma_query_value(None, "foreign_keys", |r| r.get(0))
-            .expect("pragma");
+        let fk: bool = lib.conn.pragma_query_value(None, "foreign_keys", |r| r.get(0)).expect("pragma");
         assert!(fk);
         let mem = ScenarioLibrary::open_in_memory().expect("in memory");
         assert_eq!(mem.journal_mode().expect("pragma"), "memory");
@@ -184,8 +163,7 @@ mod tests {
     fn data_survives_closing_and_reopening() {
         let (dir, mut lib) = file_library();
         let rec = sampled(ScenarioKind::LowFriction, 0, 0.625, true);
-        lib.insert_batch(std::slice::from_ref(&rec))
-            .expect("insert");
+        lib.insert_batch(std::slice::from_ref(&rec)).expect("insert");
         let before = lib.rank(None, None).expect("rank");
         drop(lib);
         let lib = ScenarioLibrary::open(dir.path().join("library.db")).expect("reopen");
@@ -210,11 +188,7 @@ mod tests {
                 }
                 other => panic!("{name}: expected NotSqlite, got {other:?}"),
             }
-            assert_eq!(
-                std::fs::read(&path).expect("read back"),
-                bytes,
-                "{name} must stay untouched"
-            );
+            assert_eq!(std::fs::read(&path).expect("read back"), bytes, "{name} must stay untouched");
         }
     }
 
@@ -224,10 +198,7 @@ mod tests {
         let path = dir.path().join("other.db");
         {
             let raw = Connection::open(&path).expect("raw");
-            raw.execute_batch(
-                "CREATE TABLE invoices (n INTEGER); INSERT INTO invoices VALUES (1);",
-            )
-            .expect("ddl");
+            raw.execute_batch("CREATE TABLE invoices (n INTEGER); INSERT INTO invoices VALUES (1);").expect("ddl");
         }
         match ScenarioLibrary::open(&path) {
             Err(LibraryError::NotALibrary { path: p, reason }) => {
@@ -237,13 +208,9 @@ mod tests {
             other => panic!("expected NotALibrary, got {other:?}"),
         }
         let raw = Connection::open(&path).expect("raw");
-        let tables: i64 = raw
-            .query_row("SELECT COUNT(*) FROM sqlite_schema", [], |r| r.get(0))
-            .expect("count");
+        let tables: i64 = raw.query_row("SELECT COUNT(*) FROM sqlite_schema", [], |r| r.get(0)).expect("count");
         assert_eq!(tables, 1, "no library table was created");
-        let mode: String = raw
-            .pragma_query_value(None, "journal_mode", |r| r.get(0))
-            .expect("pragma");
+        let mode: String = raw.pragma_query_value(None, "journal_mode", |r| r.get(0)).expect("pragma");
         assert_eq!(mode, "delete", "journal mode left as it was");
     }
 
@@ -252,24 +219,14 @@ mod tests {
         let (dir, lib) = file_library();
         drop(lib);
         let path = dir.path().join("library.db");
-        Connection::open(&path)
-            .expect("raw")
-            .pragma_update(None, "user_version", 99)
-            .expect("bump");
+        Connection::open(&path).expect("raw").pragma_update(None, "user_version", 99).expect("bump");
         match ScenarioLibrary::open(&path) {
-            Err(LibraryError::UnsupportedVersion {
-                found: 99,
-                expected: SCHEMA_VERSION,
-                ..
-            }) => {}
+            Err(LibraryError::UnsupportedVersion { found: 99, expected: SCHEMA_VERSION, .. }) => {}
             other => panic!("expected UnsupportedVersion, got {other:?}"),
         }
         let dir_as_file = ScenarioLibrary::open(dir.path());
         assert!(
-            matches!(
-                dir_as_file,
-                Err(LibraryError::Open { .. } | LibraryError::NotSqlite { .. })
-            ),
+            matches!(dir_as_file, Err(LibraryError::Open { .. } | LibraryError::NotSqlite { .. })),
             "{dir_as_file:?}"
         );
     }

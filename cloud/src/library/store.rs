@@ -4,9 +4,7 @@
 use super::ScenarioLibrary;
 use super::error::{LibraryError, RecordError};
 use super::query::{OUTCOME_COLUMNS, decode_kind};
-use super::record::{
-    InsertSummary, Rejection, ScenarioRecord, content_id, ttc_for_storage, validate_record,
-};
+use super::record::{InsertSummary, Rejection, ScenarioRecord, content_id, ttc_for_storage, validate_record};
 use rusqlite::{OptionalExtension, TransactionBehavior, params};
 
 impl ScenarioLibrary {
@@ -15,10 +13,7 @@ impl ScenarioLibrary {
     /// Every record is validated before anything is written. A scenario whose content is
     /// already stored keeps its first row (lineage included); its new outcome is still added.
     /// Outcomes with a collision mark their scenario as a regression case.
-    pub fn insert_batch(
-        &mut self,
-        records: &[ScenarioRecord],
-    ) -> Result<InsertSummary, LibraryError> {
+    pub fn insert_batch(&mut self, records: &[ScenarioRecord]) -> Result<InsertSummary, LibraryError> {
         let ids = records
             .iter()
             .map(|rec| {
@@ -31,22 +26,13 @@ impl ScenarioLibrary {
             .collect::<Result<Vec<String>, LibraryError>>()?;
         let mut summary = InsertSummary::default();
         // IMMEDIATE takes the write lock first, so the sequence numbers read below stay ours.
-        let tx = self
-            .conn
-            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
         {
-            let mut created_seq: i64 = tx.query_row(
-                "SELECT COALESCE(MAX(created_seq), 0) FROM scenarios",
-                [],
-                |r| r.get(0),
-            )?;
-            let mut marked_seq: i64 = tx.query_row(
-                "SELECT COALESCE(MAX(marked_seq), 0) FROM regression",
-                [],
-                |r| r.get(0),
-            )?;
-            let mut parent_stmt =
-                tx.prepare_cached("SELECT kind, generation FROM scenarios WHERE id = ?1")?;
+            let mut created_seq: i64 =
+                tx.query_row("SELECT COALESCE(MAX(created_seq), 0) FROM scenarios", [], |r| r.get(0))?;
+            let mut marked_seq: i64 =
+                tx.query_row("SELECT COALESCE(MAX(marked_seq), 0) FROM regression", [], |r| r.get(0))?;
+            let mut parent_stmt = tx.prepare_cached("SELECT kind, generation FROM scenarios WHERE id = ?1")?;
             let mut scenario_stmt = tx.prepare_cached(
                 "INSERT INTO scenarios (id, kind, seed, params, parent_id, generation, origin, created_seq) \
                  VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8) ON CONFLICT (id) DO NOTHING",
@@ -60,16 +46,12 @@ impl ScenarioLibrary {
                  ON CONFLICT (scenario_id) DO NOTHING",
             )?;
             for (rec, id) in records.iter().zip(&ids) {
-                let invalid = |source| LibraryError::InvalidRecord {
-                    id: id.clone(),
-                    source,
-                };
+                let invalid = |source| LibraryError::InvalidRecord { id: id.clone(), source };
                 let generation: i64 = match &rec.parent_id {
                     None => 0,
                     Some(parent) => {
-                        let row: Option<(String, i64)> = parent_stmt
-                            .query_row([parent], |r| Ok((r.get(0)?, r.get(1)?)))
-                            .optional()?;
+                        let row: Option<(String, i64)> =
+                            parent_stmt.query_row([parent], |r| Ok((r.get(0)?, r.get(1)?))).optional()?;
                         let (parent_kind, parent_generation) =
                             row.ok_or_else(|| invalid(RecordError::UnknownParent(parent.clone())))?;
                         if parent_kind != rec.spec.kind.name() {
@@ -82,8 +64,7 @@ impl ScenarioLibrary {
                         parent_generation + 1
                     }
                 };
-                let params_json = serde_json::to_string(&rec.spec.params)
-                    .expect("validated params are finite numbers");
+                let params_json = serde_json::to_string(&rec.spec.params).expect("validated params are finite numbers");
                 let added = scenario_stmt.execute(params![
                     id,
                     rec.spec.kind.name(),
@@ -103,8 +84,7 @@ impl ScenarioLibrary {
                 if let Some(o) = &rec.outcome {
                     let (m, r) = (&o.metrics, &o.risk);
                     let min_ttc_s = ttc_for_storage(m.min_ttc_s).map_err(invalid)?;
-                    let steps = i64::try_from(m.steps)
-                        .map_err(|_| invalid(RecordError::StepsTooLarge(m.steps)))?;
+                    let steps = i64::try_from(m.steps).map_err(|_| invalid(RecordError::StepsTooLarge(m.steps)))?;
                     outcome_stmt.execute(params![
                         id,
                         o.policy,
@@ -140,9 +120,7 @@ impl ScenarioLibrary {
 
     /// Adds rejected-candidate counts (by kind and `Infeasible::code`) in one transaction.
     pub fn record_rejections(&mut self, rejections: &[Rejection]) -> Result<(), LibraryError> {
-        let tx = self
-            .conn
-            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
         {
             let mut stmt = tx.prepare_cached(
                 "INSERT INTO rejected (kind, reason, count) VALUES (?1, ?2, ?3) \
@@ -158,25 +136,13 @@ impl ScenarioLibrary {
 
     /// Every rejection count, by kind then reason.
     pub fn rejected_counts(&self) -> Result<Vec<Rejection>, LibraryError> {
-        let mut stmt = self
-            .conn
-            .prepare_cached("SELECT kind, reason, count FROM rejected ORDER BY kind, reason")?;
-        let rows = stmt.query_map([], |r| {
-            Ok((
-                r.get::<_, String>(0)?,
-                r.get::<_, String>(1)?,
-                r.get::<_, i64>(2)?,
-            ))
-        })?;
+        let mut stmt = self.conn.prepare_cached("SELECT kind, reason, count FROM rejected ORDER BY kind, reason")?;
+        let rows = stmt.query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, String>(1)?, r.get::<_, i64>(2)?)))?;
         let mut out = Vec::new();
         for row in rows {
             let (kind, reason, count) = row?;
             let kind = decode_kind(&format!("rejected/{reason}"), &kind)?;
-            out.push(Rejection {
-                kind,
-                reason,
-                count: count.max(0) as u64,
-            });
+            out.push(Rejection { kind, reason, count: count.max(0) as u64 });
         }
         out.sort_by(|a, b| (a.kind, &a.reason).cmp(&(b.kind, &b.reason)));
         Ok(out)
@@ -190,9 +156,7 @@ mod tests {
     use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
 
     fn count(lib: &ScenarioLibrary, table: &str) -> i64 {
-        lib.conn
-            .query_row(&format!("SELECT COUNT(*) FROM {table}"), [], |r| r.get(0))
-            .expect("count")
+        lib.conn.query_row(&format!("SELECT COUNT(*) FROM {table}"), [], |r| r.get(0)).expect("count")
     }
 
     #[test]
@@ -201,81 +165,29 @@ mod tests {
         let good = sampled(ScenarioKind::CutIn, 0, 0.5, false);
         let mut too_risky = sampled(ScenarioKind::CutIn, 1, 0.5, false);
         too_risky.outcome.as_mut().expect("has outcome").risk.score = 1.5;
-        let err = lib
-            .insert_batch(&[good.clone(), too_risky.clone()])
-            .unwrap_err();
+        let err = lib.insert_batch(&[good.clone(), too_risky.clone()]).unwrap_err();
         match err {
-            LibraryError::InvalidRecord {
-                id,
-                source:
-                    RecordError::OutOfRange {
-                        field: "risk.score",
-                        value,
-                        ..
-                    },
-            } => {
+            LibraryError::InvalidRecord { id, source: RecordError::OutOfRange { field: "risk.score", value, .. } } => {
                 assert_eq!(id, content_id(&too_risky.spec));
                 assert_eq!(value, 1.5);
             }
             other => panic!("expected risk.score out of range, got {other:?}"),
         }
         let mut nan = good.clone();
-        nan.outcome
-            .as_mut()
-            .expect("has outcome")
-            .metrics
-            .route_completion = f64::NAN;
+        nan.outcome.as_mut().expect("has outcome").metrics.route_completion = f64::NAN;
         let err = lib.insert_batch(&[nan]).unwrap_err();
-        assert!(
-            matches!(
-                err,
-                LibraryError::InvalidRecord {
-                    source: RecordError::NotFinite { .. },
-                    ..
-                }
-            ),
-            "{err}"
-        );
+        assert!(matches!(err, LibraryError::InvalidRecord { source: RecordError::NotFinite { .. }, .. }), "{err}");
         let mut negative_ttc = good.clone();
-        negative_ttc
-            .outcome
-            .as_mut()
-            .expect("has outcome")
-            .metrics
-            .min_ttc_s = Some(-1.0);
+        negative_ttc.outcome.as_mut().expect("has outcome").metrics.min_ttc_s = Some(-1.0);
         assert!(lib.insert_batch(&[negative_ttc]).is_err());
         let mut out_of_range = good.clone();
-        out_of_range
-            .spec
-            .params
-            .insert("lateral_gap_m".into(), 99.0);
+        out_of_range.spec.params.insert("lateral_gap_m".into(), 99.0);
         let err = lib.insert_batch(&[out_of_range]).unwrap_err();
-        assert!(
-            matches!(
-                err,
-                LibraryError::InvalidRecord {
-                    source: RecordError::Spec(_),
-                    ..
-                }
-            ),
-            "{err}"
-        );
-        let orphan = ScenarioRecord::mutated(
-            spec(ScenarioKind::CutIn, 3),
-            "feedfacefeedface",
-            outcome(0.1, false, None),
-        );
+        assert!(matches!(err, LibraryError::InvalidRecord { source: RecordError::Spec(_), .. }), "{err}");
+        let orphan =
+            ScenarioRecord::mutated(spec(ScenarioKind::CutIn, 3), "feedfacefeedface", outcome(0.1, false, None));
         let err = lib.insert_batch(&[good.clone(), orphan]).unwrap_err();
-        assert!(
-            matches!(
-                err,
-                LibraryError::InvalidRecord {
-                    source: RecordError::UnknownParent(_),
-                    ..
-                }
-            ),
-            "{err}"
-        );
+        assert!(matches!(err, LibraryError::InvalidRecord { source: RecordError::UnknownParent(_), .. }), "{err}");
         // The failed batches were rolled back whole, including `good`, which came first.
         assert_eq!((count(&lib, "scenarios"), count(&lib, "outcomes")), (0, 0));
     }
@@ -284,20 +196,10 @@ mod tests {
     fn the_same_content_is_one_row() {
         let (_dir, mut lib) = file_library();
         let rec = sampled(ScenarioKind::EmergencyBraking, 4, 0.5, false);
-        let first = lib
-            .insert_batch(&[rec.clone(), rec.clone()])
-            .expect("insert");
-        assert_eq!(
-            first,
-            InsertSummary {
-                inserted: 1,
-                duplicates: 1,
-                outcomes: 2
-            }
-        );
+        let first = lib.insert_batch(&[rec.clone(), rec.clone()]).expect("insert");
+        assert_eq!(first, InsertSummary { inserted: 1, duplicates: 1, outcomes: 2 });
         let mut rebuilt = rec.clone();
-        rebuilt.spec = ScenarioSpec::new(rec.spec.kind, rec.spec.seed, rec.spec.params.clone())
-            .expect("valid");
+        rebuilt.spec = ScenarioSpec::new(rec.spec.kind, rec.spec.seed, rec.spec.params.clone()).expect("valid");
         lib.insert_batch(&[rebuilt]).expect("insert again");
         assert_eq!(count(&lib, "scenarios"), 1);
         assert_eq!(count(&lib, "outcomes"), 3);
@@ -315,10 +217,7 @@ mod tests {
         let records: Vec<ScenarioRecord> = (0..10_000u64)
             .map(|i| {
                 let kind = ScenarioKind::ALL[(i % 5) as usize];
-                ScenarioRecord::sampled(
-                    spec(kind, i),
-                    outcome((i % 1000) as f64 / 1000.0, i % 7 == 0, Some(1.5)),
-                )
+                ScenarioRecord::sampled(spec(kind, i), outcome((i % 1000) as f64 / 1000.0, i % 7 == 0, Some(1.5)))
             })
             .collect();
         let start = std::time::Instant::now();
@@ -332,10 +231,7 @@ mod tests {
         );
         let start = std::time::Instant::now();
         let top = lib.rank(Some(100), None).expect("rank");
-        println!(
-            "rank top 100 of 10000: {:.1} ms",
-            start.elapsed().as_secs_f64() * 1e3
-        );
+        println!("rank top 100 of 10000: {:.1} ms", start.elapsed().as_secs_f64() * 1e3);
         assert_eq!(top.len(), 100);
     }
 }

@@ -67,30 +67,13 @@ pub fn bench_scene(agents: usize, cols: usize, rows: usize, seed: u64) -> BenchS
     let mut objects = Vec::with_capacity(agents);
     for (pose, fp) in poses.iter().zip(&footprints) {
         let speed = 20.0 + 10.0 * rng.unit();
-        objects.push(FieldObject {
-            obb: Obb::new(*pose, *fp),
-            velocity: pose.forward() * speed,
-        });
+        objects.push(FieldObject { obb: Obb::new(*pose, *fp), velocity: pose.forward() * speed });
     }
     let origin = raster.snap_origin(
-        ego.pose.position()
-            - Vec2::new(
-                0.5 * BENCH_RESOLUTION_M * cols as f64,
-                0.5 * BENCH_RESOLUTION_M * rows as f64,
-            ),
+        ego.pose.position() - Vec2::new(0.5 * BENCH_RESOLUTION_M * cols as f64, 0.5 * BENCH_RESOLUTION_M * rows as f64),
     );
-    let grid =
-        RiskGrid::new(origin, BENCH_RESOLUTION_M, cols, rows).expect("bench grid: valid shape");
-    BenchScene {
-        road,
-        raster,
-        evaluator: GridEvaluator::new(params),
-        grid,
-        ego,
-        objects,
-        footprints,
-        poses,
-    }
+    let grid = RiskGrid::new(origin, BENCH_RESOLUTION_M, cols, rows).expect("bench grid: valid shape");
+    BenchScene { road, raster, evaluator: GridEvaluator::new(params), grid, ego, objects, footprints, poses }
 }
 
 impl BenchScene {
@@ -101,18 +84,9 @@ impl BenchScene {
         let ego_step = self.ego.velocity * BENCH_DT_S;
         self.ego.pose.x_m += ego_step.x;
         self.ego.pose.y_m += ego_step.y;
-        let wrap = if self.ego.pose.x_m > EGO_X_RANGE_M.1 {
-            EGO_X_RANGE_M.1 - EGO_X_RANGE_M.0
-        } else {
-            0.0
-        };
+        let wrap = if self.ego.pose.x_m > EGO_X_RANGE_M.1 { EGO_X_RANGE_M.1 - EGO_X_RANGE_M.0 } else { 0.0 };
         self.ego.pose.x_m -= wrap;
-        for ((o, pose), fp) in self
-            .objects
-            .iter_mut()
-            .zip(&mut self.poses)
-            .zip(&self.footprints)
-        {
+        for ((o, pose), fp) in self.objects.iter_mut().zip(&mut self.poses).zip(&self.footprints) {
             pose.x_m += o.velocity.x * BENCH_DT_S - wrap;
             pose.y_m += o.velocity.y * BENCH_DT_S;
             // Keep the traffic around the ego: an agent more than 60 m away re-enters opposite.
@@ -125,18 +99,8 @@ impl BenchScene {
         let (cols, rows) = (self.grid.cols as f64, self.grid.rows as f64);
         let corner = self.ego.pose.position() - 0.5 * BENCH_RESOLUTION_M * Vec2::new(cols, rows);
         self.grid.origin_m = self.raster.snap_origin(corner);
-        self.evaluator.fill(
-            &mut self.grid,
-            &self.raster,
-            &self.road,
-            &self.objects,
-            &self.ego,
-        );
-        self.grid
-            .cells
-            .iter()
-            .copied()
-            .fold(f32::NEG_INFINITY, f32::max)
+        self.evaluator.fill(&mut self.grid, &self.raster, &self.road, &self.objects, &self.ego);
+        self.grid.cells.iter().copied().fold(f32::NEG_INFINITY, f32::max)
     }
 }
 
@@ -151,12 +115,7 @@ mod tests {
         let mut out = Vec::with_capacity(g.cols * g.rows);
         for r in 0..g.rows {
             for c in 0..g.cols {
-                out.push(p.evaluate_point(
-                    &scene.road,
-                    &scene.objects,
-                    &scene.ego,
-                    g.cell_centre(c, r),
-                ));
+                out.push(p.evaluate_point(&scene.road, &scene.objects, &scene.ego, g.cell_centre(c, r)));
             }
         }
         out
@@ -168,25 +127,11 @@ mod tests {
         scene.evaluate();
         let exact = exact_grid(&scene);
         let max_value = exact.iter().copied().fold(0.0, f64::max);
-        let bound = scene
-            .evaluator
-            .error_bound(&scene.objects, &scene.ego, max_value);
-        let worst = scene
-            .grid
-            .cells
-            .iter()
-            .zip(&exact)
-            .map(|(f, e)| (*f as f64 - e).abs())
-            .fold(0.0, f64::max);
-        assert!(
-            worst <= bound,
-            "max |fast − exact| = {worst} > bound {bound}"
-        );
+        let bound = scene.evaluator.error_bound(&scene.objects, &scene.ego, max_value);
+        let worst = scene.grid.cells.iter().zip(&exact).map(|(f, e)| (*f as f64 - e).abs()).fold(0.0, f64::max);
+        assert!(worst <= bound, "max |fast − exact| = {worst} > bound {bound}");
         // The bound is tight enough to matter: a few thousandths of a field that peaks above 1.
-        assert!(
-            bound < 5e-3 && max_value > 1.0,
-            "bound {bound}, max {max_value}"
-        );
+        assert!(bound < 5e-3 && max_value > 1.0, "bound {bound}, max {max_value}");
     }
 
     #[test]
@@ -196,18 +141,10 @@ mod tests {
         // Off the lattice by a third of a cell, and partly beyond the raster's end (x < 0).
         scene.grid.origin_m = Vec2::new(-5.0 + BENCH_RESOLUTION_M / 3.0, -8.0);
         let (raster, road, objects, ego) = (&scene.raster, &scene.road, &scene.objects, &scene.ego);
-        scene
-            .evaluator
-            .fill(&mut scene.grid, raster, road, objects, ego);
+        scene.evaluator.fill(&mut scene.grid, raster, road, objects, ego);
         let exact = exact_grid(&scene);
         let bound = scene.evaluator.error_bound(objects, ego, 10.0);
-        let worst = scene
-            .grid
-            .cells
-            .iter()
-            .zip(&exact)
-            .map(|(f, e)| (*f as f64 - e).abs())
-            .fold(0.0, f64::max);
+        let worst = scene.grid.cells.iter().zip(&exact).map(|(f, e)| (*f as f64 - e).abs()).fold(0.0, f64::max);
         assert!(worst <= bound, "{worst} > {bound}");
     }
 
@@ -227,8 +164,7 @@ mod tests {
             obb: Obb::new(Pose::new(130.0, 3.5, 0.3), Footprint::new(4.5, 1.8)),
             velocity: Vec2::zeros(),
         };
-        let mut grid = RiskGrid::new(raster.snap_origin(Vec2::new(90.0, -4.0)), 0.5, 120, 30)
-            .expect("valid grid");
+        let mut grid = RiskGrid::new(raster.snap_origin(Vec2::new(90.0, -4.0)), 0.5, 120, 30).expect("valid grid");
         let mut eval = GridEvaluator::new(params);
         eval.fill(&mut grid, &raster, &road, &[obstacle], &ego);
         let (c, r) = grid.argmax();
@@ -236,10 +172,7 @@ mod tests {
         assert!(d <= 2.0 * 0.5, "argmax {d} m from the footprint");
         // Approaching raises the whole bump: the field in front of a car closing at 20 m/s.
         let before = grid.value_at(Vec2::new(125.0, 3.5)).expect("inside");
-        let closing = FieldObject {
-            velocity: Vec2::new(-20.0, 0.0),
-            ..obstacle
-        };
+        let closing = FieldObject { velocity: Vec2::new(-20.0, 0.0), ..obstacle };
         eval.fill(&mut grid, &raster, &road, &[closing], &ego);
         let after = grid.value_at(Vec2::new(125.0, 3.5)).expect("inside");
         assert!(after > before + 0.1, "{after} vs {before}");
@@ -250,15 +183,10 @@ mod tests {
         let mut scene = bench_scene(4, 256, 256, 9);
         for _ in 0..200 {
             scene.evaluate();
-            let (ox, oy) = scene
-                .raster
-                .lattice_offset(&scene.grid, scene.evaluator.params())
-                .expect("on the lattice");
+            let (ox, oy) = scene.raster.lattice_offset(&scene.grid, scene.evaluator.params()).expect("on the lattice");
             let r = scene.raster.grid();
             assert!(ox >= 0 && oy >= 0, "{ox} {oy}");
-            assert!(
-                ox as usize + scene.grid.cols <= r.cols && oy as usize + scene.grid.rows <= r.rows
-            );
+            assert!(ox as usize + scene.grid.cols <= r.cols && oy as usize + scene.grid.rows <= r.rows);
         }
     }
 
@@ -268,24 +196,14 @@ mod tests {
         let (p, road) = (scene.evaluator.params(), &scene.road);
         for k in 0..50 {
             // Lane centres ± 1 m, along the road: at least 0.75 m from any lane line.
-            let at = Vec2::new(
-                250.0 + 1.37 * k as f64,
-                (k % 4) as f64 * LANE_WIDTH_M + (k % 3) as f64 - 1.0,
-            );
-            let fast = scene
-                .raster
-                .evaluate_point(road, &scene.objects, &scene.ego, at);
+            let at = Vec2::new(250.0 + 1.37 * k as f64, (k % 4) as f64 * LANE_WIDTH_M + (k % 3) as f64 - 1.0);
+            let fast = scene.raster.evaluate_point(road, &scene.objects, &scene.ego, at);
             let exact = p.evaluate_point(road, &scene.objects, &scene.ego, at);
             // Bilinear error of the smooth static terms over a 0.5 m cell: curvature·h²/8.
             assert!((fast - exact).abs() < 0.02, "{at:?}: {fast} vs {exact}");
         }
-        let poses = [
-            scene.ego.pose,
-            Pose::new(scene.ego.pose.x_m + 5.0, scene.ego.pose.y_m, 0.0),
-        ];
-        let fast = scene
-            .raster
-            .evaluate_trajectory(road, &scene.objects, &scene.ego, &poses);
+        let poses = [scene.ego.pose, Pose::new(scene.ego.pose.x_m + 5.0, scene.ego.pose.y_m, 0.0)];
+        let fast = scene.raster.evaluate_trajectory(road, &scene.objects, &scene.ego, &poses);
         let exact = p.evaluate_trajectory(road, &scene.objects, &scene.ego, &poses);
         assert!((fast - exact).abs() < 0.05, "{fast} vs {exact}");
     }

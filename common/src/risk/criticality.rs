@@ -39,37 +39,21 @@ pub struct PairMeasures {
 impl PairMeasures {
     /// The values of a pair that is not in the ego's lane (criticality.md §7, "not in same
     /// lanelet").
-    pub const NOT_IN_LANE: PairMeasures = PairMeasures {
-        hw_m: f64::INFINITY,
-        thw_s: f64::INFINITY,
-        ttc_s: f64::INFINITY,
-        a_long_req_mps2: 0.0,
-    };
+    pub const NOT_IN_LANE: PairMeasures =
+        PairMeasures { hw_m: f64::INFINITY, thw_s: f64::INFINITY, ttc_s: f64::INFINITY, a_long_req_mps2: 0.0 };
 }
 
 /// First τ ≥ 0 with gap(τ) = d + Δv·τ + ½·Δa·τ² = 0 (Jansson 2005, eq. 5.24/5.26), +inf when
 /// the gap never closes. `gap_m` ≥ 0.
 pub fn ttc_constant_accel_s(gap_m: f64, dv_mps: f64, da_mps2: f64) -> f64 {
     if !(gap_m.is_finite() && dv_mps.is_finite() && da_mps2.is_finite()) {
-        return if gap_m == f64::INFINITY {
-            f64::INFINITY
-        } else {
-            f64::NAN
-        };
+        return if gap_m == f64::INFINITY { f64::INFINITY } else { f64::NAN };
     }
     if gap_m <= 0.0 {
-        return if dv_mps < 0.0 || (dv_mps == 0.0 && da_mps2 < 0.0) {
-            0.0
-        } else {
-            f64::INFINITY
-        };
+        return if dv_mps < 0.0 || (dv_mps == 0.0 && da_mps2 < 0.0) { 0.0 } else { f64::INFINITY };
     }
     if da_mps2.abs() < 1e-9 {
-        return if dv_mps < 0.0 {
-            gap_m / -dv_mps
-        } else {
-            f64::INFINITY
-        };
+        return if dv_mps < 0.0 { gap_m / -dv_mps } else { f64::INFINITY };
     }
     let disc = dv_mps * dv_mps - 2.0 * gap_m * da_mps2;
     if disc < 0.0 || (dv_mps >= 0.0 && da_mps2 > 0.0) {
@@ -78,11 +62,7 @@ pub fn ttc_constant_accel_s(gap_m: f64, dv_mps: f64, da_mps2: f64) -> f64 {
     let root = disc.sqrt();
     // The first positive root is (−Δv − √disc)/Δa; for Δv ≤ 0 its rationalised form
     // 2d/(−Δv + √disc) avoids cancellation when Δa is small.
-    if dv_mps <= 0.0 {
-        2.0 * gap_m / (-dv_mps + root)
-    } else {
-        (-dv_mps - root) / da_mps2
-    }
+    if dv_mps <= 0.0 { 2.0 * gap_m / (-dv_mps + root) } else { (-dv_mps - root) / da_mps2 }
 }
 
 /// The measures of `other` ahead of `ego` on the same lane (both already projected on it).
@@ -91,43 +71,22 @@ pub fn ttc_constant_accel_s(gap_m: f64, dv_mps: f64, da_mps2: f64) -> f64 {
 pub fn pair_measures(ego: &LaneState, other: &LaneState) -> PairMeasures {
     let hw = other.s_m - 0.5 * other.length_m - (ego.s_m + 0.5 * ego.length_m);
     if hw.is_nan() {
-        return PairMeasures {
-            hw_m: f64::NAN,
-            thw_s: f64::NAN,
-            ttc_s: f64::NAN,
-            a_long_req_mps2: f64::NAN,
-        };
+        return PairMeasures { hw_m: f64::NAN, thw_s: f64::NAN, ttc_s: f64::NAN, a_long_req_mps2: f64::NAN };
     }
     if hw < 0.0 {
-        return PairMeasures {
-            a_long_req_mps2: other.accel_mps2.min(0.0),
-            ..PairMeasures::NOT_IN_LANE
-        };
+        return PairMeasures { a_long_req_mps2: other.accel_mps2.min(0.0), ..PairMeasures::NOT_IN_LANE };
     }
-    let thw = if ego.speed_mps > 0.0 {
-        hw / ego.speed_mps
-    } else {
-        f64::INFINITY
-    };
+    let thw = if ego.speed_mps > 0.0 { hw / ego.speed_mps } else { f64::INFINITY };
     let dv = other.speed_mps - ego.speed_mps;
     let ttc = ttc_constant_accel_s(hw, dv, other.accel_mps2 - ego.accel_mps2);
     // a_req = a_lead − v_rel²/(2·HW) when closing (CriMe mode 1, §6.4); an opening gap only
     // requires matching the leader's deceleration.
     let a_req = if dv < 0.0 {
-        if hw > 0.0 {
-            (other.accel_mps2 - dv * dv / (2.0 * hw)).min(0.0)
-        } else {
-            f64::NAN
-        }
+        if hw > 0.0 { (other.accel_mps2 - dv * dv / (2.0 * hw)).min(0.0) } else { f64::NAN }
     } else {
         other.accel_mps2.min(0.0)
     };
-    PairMeasures {
-        hw_m: hw,
-        thw_s: thw,
-        ttc_s: ttc,
-        a_long_req_mps2: a_req,
-    }
+    PairMeasures { hw_m: hw, thw_s: thw, ttc_s: ttc, a_long_req_mps2: a_req }
 }
 
 /// A vehicle's world state for the criticality measures.
@@ -158,11 +117,7 @@ impl EgoLaneFrame {
     pub fn new(road: &Road, ego: &VehicleState) -> Self {
         let heading = ego.obb.axis.y.atan2(ego.obb.axis.x);
         let at = road.locate_heading(ego.obb.centre, heading);
-        Self {
-            lane: at.lane,
-            ego: project(road, at.lane, ego).0,
-            e_y_m: at.frenet.e_y_m,
-        }
+        Self { lane: at.lane, ego: project(road, at.lane, ego).0, e_y_m: at.frenet.e_y_m }
     }
 
     /// The pair measures of `other`, or [`PairMeasures::NOT_IN_LANE`] when its footprint does
@@ -206,12 +161,7 @@ mod tests {
     use crate::geometry::{Footprint, Pose};
 
     fn st(s: f64, v: f64, a: f64) -> LaneState {
-        LaneState {
-            s_m: s,
-            speed_mps: v,
-            accel_mps2: a,
-            length_m: 4.0,
-        }
+        LaneState { s_m: s, speed_mps: v, accel_mps2: a, length_m: 4.0 }
     }
 
     #[test]
@@ -230,17 +180,10 @@ mod tests {
         // Same speed, lead brakes at 5 m/s²: 26 − 2.5τ² = 0 → τ = sqrt(10.4) s.
         let m = pair_measures(&st(0.0, 20.0, 0.0), &st(30.0, 20.0, -5.0));
         assert!((m.ttc_s - 10.4f64.sqrt()).abs() < 1e-12, "{}", m.ttc_s);
-        assert_eq!(
-            m.a_long_req_mps2, -5.0,
-            "opening/equal speeds: match the leader"
-        );
+        assert_eq!(m.a_long_req_mps2, -5.0, "opening/equal speeds: match the leader");
         // Closing at 5 m/s and lead braking 4 m/s²: 26 − 5τ − 2τ² = 0 → τ = (−5 + sqrt(233))/4.
         let m = pair_measures(&st(0.0, 20.0, 0.0), &st(30.0, 15.0, -4.0));
-        assert!(
-            (m.ttc_s - (233f64.sqrt() - 5.0) / 4.0).abs() < 1e-12,
-            "{}",
-            m.ttc_s
-        );
+        assert!((m.ttc_s - (233f64.sqrt() - 5.0) / 4.0).abs() < 1e-12, "{}", m.ttc_s);
         assert!((m.a_long_req_mps2 - (-4.0 - 25.0 / 52.0)).abs() < 1e-12);
     }
 
@@ -272,18 +215,12 @@ mod tests {
         assert_eq!(frame.lane, 0);
         let ahead = frame.measure(&road, &car(130.0, 0.3, 10.0));
         assert!((ahead.ttc_s - 2.6).abs() < 1e-9, "{}", ahead.ttc_s);
-        assert_eq!(
-            frame.measure(&road, &car(130.0, 3.5, 10.0)),
-            PairMeasures::NOT_IN_LANE
-        );
+        assert_eq!(frame.measure(&road, &car(130.0, 3.5, 10.0)), PairMeasures::NOT_IN_LANE);
         // Straddling the lane line (its right side at 1.75 − 0.05 m): counts.
         let straddling = frame.measure(&road, &car(130.0, 2.6, 10.0));
         assert!(straddling.ttc_s.is_finite());
         // A westbound car ahead in our lane: closing at 30 m/s.
-        let head_on = VehicleState {
-            velocity: Vec2::new(-10.0, 0.0),
-            ..car(130.0, 0.0, 0.0)
-        };
+        let head_on = VehicleState { velocity: Vec2::new(-10.0, 0.0), ..car(130.0, 0.0, 0.0) };
         assert!((frame.measure(&road, &head_on).ttc_s - 26.0 / 30.0).abs() < 1e-9);
     }
 }

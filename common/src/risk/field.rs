@@ -123,17 +123,8 @@ impl RiskFieldParams {
             ("jerk_ref_mps3", self.jerk_ref_mps3),
             ("lateral_accel_ref_mps2", self.lateral_accel_ref_mps2),
         ];
-        let caps = [
-            ("boundary_cap", self.boundary_cap),
-            ("comfort_cap", self.comfort_cap),
-        ];
-        let bad = |name, value, expected| {
-            Err(FieldError::InvalidParam {
-                name,
-                value,
-                expected,
-            })
-        };
+        let caps = [("boundary_cap", self.boundary_cap), ("comfort_cap", self.comfort_cap)];
+        let bad = |name, value, expected| Err(FieldError::InvalidParam { name, value, expected });
         for (name, v) in nonneg {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(name, v, "finite and >= 0");
@@ -169,9 +160,7 @@ impl RiskFieldParams {
         let inv_two_sigma_sq = 1.0 / (2.0 * self.sigma_d_m * self.sigma_d_m);
         objects
             .iter()
-            .map(|o| {
-                (-o.obb.distance_sq_to_point(p) * inv_two_sigma_sq).exp() * self.object_gain(o, ego)
-            })
+            .map(|o| (-o.obb.distance_sq_to_point(p) * inv_two_sigma_sq).exp() * self.object_gain(o, ego))
             .fold(0.0, f64::max)
     }
 
@@ -204,27 +193,16 @@ impl RiskFieldParams {
         let j = ego.jerk_mps3 / self.jerk_ref_mps3;
         let a = ego.lateral_accel_mps2 / self.lateral_accel_ref_mps2;
         let r = j * j + a * a;
-        if r.is_finite() {
-            r.min(self.comfort_cap)
-        } else {
-            self.comfort_cap
-        }
+        if r.is_finite() { r.min(self.comfort_cap) } else { self.comfort_cap }
     }
 
     /// α_l·R_l + α_b·R_b: the static (road-only) part of the field at `p`.
     pub fn static_terms(&self, road: &Road, p: Vec2) -> f64 {
-        self.alpha_lane * self.lane_term(road, p)
-            + self.alpha_boundary * self.boundary_term(road, p)
+        self.alpha_lane * self.lane_term(road, p) + self.alpha_boundary * self.boundary_term(road, p)
     }
 
     /// The full field R(p, t), exactly (no cut-off, no table).
-    pub fn evaluate_point(
-        &self,
-        road: &Road,
-        objects: &[FieldObject],
-        ego: &EgoKinematics,
-        p: Vec2,
-    ) -> f64 {
+    pub fn evaluate_point(&self, road: &Road, objects: &[FieldObject], ego: &EgoKinematics, p: Vec2) -> f64 {
         self.alpha_obstacle * self.obstacle_term(objects, ego, p)
             + self.static_terms(road, p)
             + self.alpha_comfort * self.comfort_term(ego)
@@ -233,12 +211,7 @@ impl RiskFieldParams {
     /// R over the ego footprint: the maximum over nine sample points (centre, four corners,
     /// four edge midpoints). Max because risk reaching any part of the car counts; the corners
     /// and midpoints catch a Gaussian or an edge that touches only one side of the car.
-    pub fn evaluate_footprint(
-        &self,
-        road: &Road,
-        objects: &[FieldObject],
-        ego: &EgoKinematics,
-    ) -> f64 {
+    pub fn evaluate_footprint(&self, road: &Road, objects: &[FieldObject], ego: &EgoKinematics) -> f64 {
         footprint_max(ego, |p| self.evaluate_point(road, objects, ego, p))
     }
 
@@ -262,30 +235,15 @@ impl RiskFieldParams {
 
 /// The maximum of `eval` over the ego's footprint samples.
 pub(crate) fn footprint_max(ego: &EgoKinematics, eval: impl Fn(Vec2) -> f64) -> f64 {
-    footprint_samples(&ego.obb())
-        .iter()
-        .map(|p| eval(*p))
-        .fold(f64::NEG_INFINITY, f64::max)
+    footprint_samples(&ego.obb()).iter().map(|p| eval(*p)).fold(f64::NEG_INFINITY, f64::max)
 }
 
 /// The mean of `eval` over the ego moved to each pose; 0 for no poses.
-pub(crate) fn trajectory_mean(
-    ego: &EgoKinematics,
-    poses: &[Pose],
-    eval: impl Fn(&EgoKinematics) -> f64,
-) -> f64 {
+pub(crate) fn trajectory_mean(ego: &EgoKinematics, poses: &[Pose], eval: impl Fn(&EgoKinematics) -> f64) -> f64 {
     if poses.is_empty() {
         return 0.0;
     }
-    let sum: f64 = poses
-        .iter()
-        .map(|pose| {
-            eval(&EgoKinematics {
-                pose: *pose,
-                ..*ego
-            })
-        })
-        .sum();
+    let sum: f64 = poses.iter().map(|pose| eval(&EgoKinematics { pose: *pose, ..*ego })).sum();
     sum / poses.len() as f64
 }
 
@@ -320,48 +278,18 @@ mod tests {
     }
 
     fn car(x: f64, y: f64, vx: f64) -> FieldObject {
-        FieldObject {
-            obb: Obb::new(Pose::new(x, y, 0.0), Footprint::new(4.5, 1.8)),
-            velocity: Vec2::new(vx, 0.0),
-        }
+        FieldObject { obb: Obb::new(Pose::new(x, y, 0.0), Footprint::new(4.5, 1.8)), velocity: Vec2::new(vx, 0.0) }
     }
 
     #[test]
     fn validation_names_the_bad_parameter() {
         assert_eq!(RiskFieldParams::default().validate(), Ok(()));
-        let p = RiskFieldParams {
-            sigma_d_m: 0.0,
-            ..Default::default()
-        };
-        assert!(matches!(
-            p.validate(),
-            Err(FieldError::InvalidParam {
-                name: "sigma_d_m",
-                ..
-            })
-        ));
-        let p = RiskFieldParams {
-            cutoff_eps: 1.0,
-            ..Default::default()
-        };
-        assert!(matches!(
-            p.validate(),
-            Err(FieldError::InvalidParam {
-                name: "cutoff_eps",
-                ..
-            })
-        ));
-        let p = RiskFieldParams {
-            alpha_lane: f64::NAN,
-            ..Default::default()
-        };
-        assert!(matches!(
-            p.validate(),
-            Err(FieldError::InvalidParam {
-                name: "alpha_lane",
-                ..
-            })
-        ));
+        let p = RiskFieldParams { sigma_d_m: 0.0, ..Default::default() };
+        assert!(matches!(p.validate(), Err(FieldError::InvalidParam { name: "sigma_d_m", .. })));
+        let p = RiskFieldParams { cutoff_eps: 1.0, ..Default::default() };
+        assert!(matches!(p.validate(), Err(FieldError::InvalidParam { name: "cutoff_eps", .. })));
+        let p = RiskFieldParams { alpha_lane: f64::NAN, ..Default::default() };
+        assert!(matches!(p.validate(), Err(FieldError::InvalidParam { name: "alpha_lane", .. })));
     }
 
     #[test]
@@ -384,14 +312,8 @@ mod tests {
         let none = p.obstacle_term(&[], &ego, at);
         let g = (-2.75f64 * 2.75 / 8.0).exp();
         assert!((static_obj - g).abs() < 1e-12);
-        assert!(
-            (approaching - g * 2.0).abs() < 1e-12,
-            "Δv 10 m/s doubles: {approaching}"
-        );
-        assert!(
-            approaching > receding && receding > none,
-            "{approaching} {receding} {none}"
-        );
+        assert!((approaching - g * 2.0).abs() < 1e-12, "Δv 10 m/s doubles: {approaching}");
+        assert!(approaching > receding && receding > none, "{approaching} {receding} {none}");
         assert_eq!(receding, static_obj, "receding counts like static");
     }
 
@@ -404,15 +326,8 @@ mod tests {
         let at = Vec2::new(30.0, 2.5);
         let both = p.obstacle_term(&[a, b], &ego, at);
         let one = p.obstacle_term(&[a], &ego, at);
-        assert!(
-            (both - one).abs() < 1e-12,
-            "symmetric point: max equals each single value"
-        );
-        assert_eq!(
-            p.obstacle_term(&[a, a], &ego, at),
-            one,
-            "duplicates do not add up"
-        );
+        assert!((both - one).abs() < 1e-12, "symmetric point: max equals each single value");
+        assert_eq!(p.obstacle_term(&[a, a], &ego, at), one, "duplicates do not add up");
         // Inside a footprint the Gaussian factor is 1.
         assert_eq!(p.obstacle_term(&[a], &ego, Vec2::new(30.0, 0.0)), 1.0);
     }
@@ -424,35 +339,21 @@ mod tests {
         assert!(p.lane_term(&road, Vec2::new(50.0, 0.0)).abs() < 1e-12);
         assert!((p.lane_term(&road, Vec2::new(50.0, -1.75)) - 1.0).abs() < 1e-12);
         assert!((p.lane_term(&road, Vec2::new(50.0, 0.875)) - 0.25).abs() < 1e-12);
-        assert!(
-            p.lane_term(&road, Vec2::new(50.0, 3.5)).abs() < 1e-12,
-            "centre of lane 1"
-        );
-        assert_eq!(
-            p.lane_term(&road, Vec2::new(50.0, -9.0)),
-            1.0,
-            "clamped off the road"
-        );
+        assert!(p.lane_term(&road, Vec2::new(50.0, 3.5)).abs() < 1e-12, "centre of lane 1");
+        assert_eq!(p.lane_term(&road, Vec2::new(50.0, -9.0)), 1.0, "clamped off the road");
     }
 
     #[test]
     fn boundary_term_is_large_off_the_road() {
         let road = Road::straight(2, 3.5, 200.0, 30.0);
         let p = RiskFieldParams::default();
-        let on_road_max = (0..=70)
-            .map(|k| p.boundary_term(&road, Vec2::new(50.0, -1.75 + 0.1 * k as f64)))
-            .fold(0.0, f64::max);
-        assert!(
-            (on_road_max - 1.0).abs() < 1e-9,
-            "1 at the edge: {on_road_max}"
-        );
+        let on_road_max =
+            (0..=70).map(|k| p.boundary_term(&road, Vec2::new(50.0, -1.75 + 0.1 * k as f64))).fold(0.0, f64::max);
+        assert!((on_road_max - 1.0).abs() < 1e-9, "1 at the edge: {on_road_max}");
         let off = p.boundary_term(&road, Vec2::new(50.0, -2.0));
         assert!((off - 1.5).abs() < 1e-9, "0.25 m off: 1 + 0.25/0.5 = {off}");
         assert!(off > on_road_max);
-        assert_eq!(
-            p.boundary_term(&road, Vec2::new(50.0, -30.0)),
-            p.boundary_cap
-        );
+        assert_eq!(p.boundary_term(&road, Vec2::new(50.0, -30.0)), p.boundary_cap);
         // Centre of lane 0: 1.75 m from the right edge.
         assert!((p.boundary_term(&road, Vec2::new(50.0, 0.0)) - (-3.5f64).exp()).abs() < 1e-9);
     }
@@ -479,15 +380,8 @@ mod tests {
         let objs = [car(57.0, 0.0, 10.0)]; // 2.5 m bumper to bumper
         let fp = p.evaluate_footprint(&road, &objs, &ego);
         let expected_obstacle = (-2.5f64 * 2.5 / 8.0).exp(); // front corners/midpoint, same e_y
-        assert!(
-            fp >= expected_obstacle && fp < expected_obstacle + 1.0,
-            "{fp}"
-        );
-        let far = [EgoKinematics {
-            pose: Pose::new(20.0, 0.0, 0.0),
-            ..ego
-        }
-        .pose];
+        assert!(fp >= expected_obstacle && fp < expected_obstacle + 1.0, "{fp}");
+        let far = [EgoKinematics { pose: Pose::new(20.0, 0.0, 0.0), ..ego }.pose];
         let near = [ego.pose];
         let r_far = p.evaluate_trajectory(&road, &objs, &ego, &far);
         let r_near = p.evaluate_trajectory(&road, &objs, &ego, &near);

@@ -26,16 +26,10 @@ impl GaussTable {
         let eps = if eps > 0.0 && eps < 1.0 { eps } else { 1e-3 };
         let u_max = (1.0 / eps).ln();
         let h = u_max / GAUSS_TABLE_LEN as f64;
-        let mut values: Vec<f32> = (0..GAUSS_TABLE_LEN)
-            .map(|k| (-(k as f64 + 0.5) * h).exp() as f32)
-            .collect();
+        let mut values: Vec<f32> = (0..GAUSS_TABLE_LEN).map(|k| (-(k as f64 + 0.5) * h).exp() as f32).collect();
         values.push(0.0);
         let two_sigma_sq = 2.0 * sigma_m * sigma_m;
-        Self {
-            values,
-            index_per_m2: 1.0 / (two_sigma_sq * h),
-            max_error: eps.max(0.5 * h),
-        }
+        Self { values, index_per_m2: 1.0 / (two_sigma_sq * h), max_error: eps.max(0.5 * h) }
     }
 
     /// The factor for a squared distance `d_sq_m2` ≥ 0.

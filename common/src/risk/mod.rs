@@ -17,14 +17,11 @@ pub mod render;
 pub mod score;
 
 pub use bench::{BenchScene, bench_scene};
-pub use criticality::{
-    EgoLaneFrame, LaneState, PairMeasures, VehicleState, pair_measures, ttc_constant_accel_s,
-};
+pub use criticality::{EgoLaneFrame, LaneState, PairMeasures, VehicleState, pair_measures, ttc_constant_accel_s};
 pub use field::{EgoKinematics, FieldObject, RiskFieldParams};
 pub use kernel::GaussTable;
 pub use raster::{FieldError, GridEvaluator, RiskGrid, RoadRaster};
 pub use render::{RgbImage, render_heatmap};
 pub use score::{
-    PairExtremes, RiskAccumulator, RiskStep, RiskSummary, RiskTerms, RiskWeights, ScoreError,
-    ScoreReferences,
+    PairExtremes, RiskAccumulator, RiskStep, RiskSummary, RiskTerms, RiskWeights, ScoreError, ScoreReferences,
 };

@@ -21,38 +21,21 @@ pub const MAX_CELLS: usize = 16 << 20;
 /// Why a grid or raster could not be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FieldError {
-    #[error(
-        "invalid grid: resolution {resolution_m} m, {cols}×{rows} cells (need resolution > 0 and cells > 0)"
-    )]
-    InvalidGrid {
-        resolution_m: f64,
-        cols: usize,
-        rows: usize,
-    },
+    #[error("invalid grid: resolution {resolution_m} m, {cols}×{rows} cells (need resolution > 0 and cells > 0)")]
+    InvalidGrid { resolution_m: f64, cols: usize, rows: usize },
     #[error("grid of {cells} cells exceeds the limit of {max}")]
     TooLarge { cells: usize, max: usize },
     #[error("invalid risk-field parameter {name} = {value} (expected {expected})")]
-    InvalidParam {
-        name: &'static str,
-        value: f64,
-        expected: &'static str,
-    },
+    InvalidParam { name: &'static str, value: f64, expected: &'static str },
 }
 
 fn check_shape(resolution_m: f64, cols: usize, rows: usize) -> Result<usize, FieldError> {
     if !(resolution_m.is_finite() && resolution_m > 0.0) || cols == 0 || rows == 0 {
-        return Err(FieldError::InvalidGrid {
-            resolution_m,
-            cols,
-            rows,
-        });
+        return Err(FieldError::InvalidGrid { resolution_m, cols, rows });
     }
     let cells = cols.saturating_mul(rows);
     if cells > MAX_CELLS {
-        return Err(FieldError::TooLarge {
-            cells,
-            max: MAX_CELLS,
-        });
+        return Err(FieldError::TooLarge { cells, max: MAX_CELLS });
     }
     Ok(cells)
 }
@@ -70,29 +53,14 @@ pub struct RiskGrid {
 
 impl RiskGrid {
     /// A zeroed grid; the allocation is the only one its fills ever make.
-    pub fn new(
-        origin_m: Vec2,
-        resolution_m: f64,
-        cols: usize,
-        rows: usize,
-    ) -> Result<Self, FieldError> {
+    pub fn new(origin_m: Vec2, resolution_m: f64, cols: usize, rows: usize) -> Result<Self, FieldError> {
         let n = check_shape(resolution_m, cols, rows)?;
-        Ok(Self {
-            origin_m,
-            resolution_m,
-            cols,
-            rows,
-            cells: vec![0.0; n],
-        })
+        Ok(Self { origin_m, resolution_m, cols, rows, cells: vec![0.0; n] })
     }
 
     /// World position of the centre of cell (c, r).
     pub fn cell_centre(&self, col: usize, row: usize) -> Vec2 {
-        self.origin_m
-            + Vec2::new(
-                (col as f64 + 0.5) * self.resolution_m,
-                (row as f64 + 0.5) * self.resolution_m,
-            )
+        self.origin_m + Vec2::new((col as f64 + 0.5) * self.resolution_m, (row as f64 + 0.5) * self.resolution_m)
     }
 
     /// The cell containing `p`, if any.
@@ -130,47 +98,23 @@ pub struct RoadRaster {
 
 impl RoadRaster {
     /// Rasterises the road's bounds plus `margin_m` on each side at `resolution_m`.
-    pub fn new(
-        road: &Road,
-        params: &RiskFieldParams,
-        resolution_m: f64,
-        margin_m: f64,
-    ) -> Result<Self, FieldError> {
+    pub fn new(road: &Road, params: &RiskFieldParams, resolution_m: f64, margin_m: f64) -> Result<Self, FieldError> {
         let (lo, hi) = road.bounds();
-        let margin = if margin_m.is_finite() {
-            margin_m.max(0.0)
-        } else {
-            0.0
-        };
+        let margin = if margin_m.is_finite() { margin_m.max(0.0) } else { 0.0 };
         let size = hi - lo + Vec2::new(2.0 * margin, 2.0 * margin);
         let cols = (size.x / resolution_m).ceil();
         let rows = (size.y / resolution_m).ceil();
-        if !(cols.is_finite() && rows.is_finite())
-            || cols > MAX_CELLS as f64
-            || rows > MAX_CELLS as f64
-        {
-            return Err(FieldError::InvalidGrid {
-                resolution_m,
-                cols: 0,
-                rows: 0,
-            });
+        if !(cols.is_finite() && rows.is_finite()) || cols > MAX_CELLS as f64 || rows > MAX_CELLS as f64 {
+            return Err(FieldError::InvalidGrid { resolution_m, cols: 0, rows: 0 });
         }
-        let mut grid = RiskGrid::new(
-            lo - Vec2::new(margin, margin),
-            resolution_m,
-            cols as usize,
-            rows as usize,
-        )?;
+        let mut grid = RiskGrid::new(lo - Vec2::new(margin, margin), resolution_m, cols as usize, rows as usize)?;
         for r in 0..grid.rows {
             for c in 0..grid.cols {
                 let v = params.static_terms(road, grid.cell_centre(c, r));
                 grid.cells[r * grid.cols + c] = v as f32;
             }
         }
-        Ok(Self {
-            grid,
-            params: *params,
-        })
+        Ok(Self { grid, params: *params })
     }
 
     /// The raster itself (e.g. to render the road's static risk).
@@ -189,19 +133,13 @@ impl RoadRaster {
     pub fn static_at(&self, p: Vec2) -> Option<f64> {
         let g = &self.grid;
         let u = (p - g.origin_m) / g.resolution_m - Vec2::new(0.5, 0.5);
-        let inside =
-            u.x >= 0.0 && u.y >= 0.0 && u.x <= (g.cols - 1) as f64 && u.y <= (g.rows - 1) as f64;
+        let inside = u.x >= 0.0 && u.y >= 0.0 && u.x <= (g.cols - 1) as f64 && u.y <= (g.rows - 1) as f64;
         if !inside {
             return None;
         }
-        let (c, r) = (
-            (u.x as usize).min(g.cols.saturating_sub(2)),
-            (u.y as usize).min(g.rows.saturating_sub(2)),
-        );
+        let (c, r) = ((u.x as usize).min(g.cols.saturating_sub(2)), (u.y as usize).min(g.rows.saturating_sub(2)));
         let (fx, fy) = (u.x - c as f64, u.y - r as f64);
-        let at = |cc: usize, rr: usize| {
-            g.cells[(rr.min(g.rows - 1)) * g.cols + cc.min(g.cols - 1)] as f64
-        };
+        let at = |cc: usize, rr: usize| g.cells[(rr.min(g.rows - 1)) * g.cols + cc.min(g.cols - 1)] as f64;
         let bottom = at(c, r) * (1.0 - fx) + at(c + 1, r) * fx;
         let top = at(c, r + 1) * (1.0 - fx) + at(c + 1, r + 1) * fx;
         Some(bottom * (1.0 - fy) + top * fy)
@@ -209,29 +147,14 @@ impl RoadRaster {
 
     /// R(p, t) with the static terms from the raster (exact outside it) and the obstacle and
     /// comfort terms exact: the fast point evaluation for per-step rewards.
-    pub fn evaluate_point(
-        &self,
-        road: &Road,
-        objects: &[FieldObject],
-        ego: &EgoKinematics,
-        p: Vec2,
-    ) -> f64 {
+    pub fn evaluate_point(&self, road: &Road, objects: &[FieldObject], ego: &EgoKinematics, p: Vec2) -> f64 {
         let prm = &self.params;
-        let statics = self
-            .static_at(p)
-            .unwrap_or_else(|| prm.static_terms(road, p));
-        prm.alpha_obstacle * prm.obstacle_term(objects, ego, p)
-            + statics
-            + prm.alpha_comfort * prm.comfort_term(ego)
+        let statics = self.static_at(p).unwrap_or_else(|| prm.static_terms(road, p));
+        prm.alpha_obstacle * prm.obstacle_term(objects, ego, p) + statics + prm.alpha_comfort * prm.comfort_term(ego)
     }
 
     /// [`RiskFieldParams::evaluate_footprint`] with raster statics.
-    pub fn evaluate_footprint(
-        &self,
-        road: &Road,
-        objects: &[FieldObject],
-        ego: &EgoKinematics,
-    ) -> f64 {
+    pub fn evaluate_footprint(&self, road: &Road, objects: &[FieldObject], ego: &EgoKinematics) -> f64 {
         footprint_max(ego, |p| self.evaluate_point(road, objects, ego, p))
     }
 
@@ -251,18 +174,11 @@ impl RoadRaster {
     pub fn snap_origin(&self, p: Vec2) -> Vec2 {
         let res = self.grid.resolution_m;
         let o = self.grid.origin_m;
-        o + Vec2::new(
-            ((p.x - o.x) / res).round() * res,
-            ((p.y - o.y) / res).round() * res,
-        )
+        o + Vec2::new(((p.x - o.x) / res).round() * res, ((p.y - o.y) / res).round() * res)
     }
 
     /// The lattice offset (columns, rows) of `grid` in the raster, when it lies on the lattice.
-    pub(super) fn lattice_offset(
-        &self,
-        grid: &RiskGrid,
-        params: &RiskFieldParams,
-    ) -> Option<(i64, i64)> {
+    pub(super) fn lattice_offset(&self, grid: &RiskGrid, params: &RiskFieldParams) -> Option<(i64, i64)> {
         let same_static = params.alpha_lane == self.params.alpha_lane
             && params.alpha_boundary == self.params.alpha_boundary
             && params.boundary_scale_m == self.params.boundary_scale_m
@@ -290,11 +206,7 @@ pub struct GridEvaluator {
 impl GridEvaluator {
     /// An evaluator for `params`.
     pub fn new(params: RiskFieldParams) -> Self {
-        Self {
-            table: GaussTable::new(params.sigma_d_m, params.cutoff_eps),
-            params,
-            obstacle: Vec::new(),
-        }
+        Self { table: GaussTable::new(params.sigma_d_m, params.cutoff_eps), params, obstacle: Vec::new() }
     }
 
     /// The parameters it evaluates.
@@ -306,12 +218,8 @@ impl GridEvaluator {
     /// of `kernel`): α_o·max gain·max(ε, h/2) from the cut-off and the table, plus `f32`
     /// rounding of values up to `max_value`.
     pub fn error_bound(&self, objects: &[FieldObject], ego: &EgoKinematics, max_value: f64) -> f64 {
-        let gain = objects
-            .iter()
-            .map(|o| self.params.object_gain(o, ego))
-            .fold(1.0, f64::max);
-        self.params.alpha_obstacle * gain * self.table.max_error()
-            + 4.0 * f32::EPSILON as f64 * max_value.abs()
+        let gain = objects.iter().map(|o| self.params.object_gain(o, ego)).fold(1.0, f64::max);
+        self.params.alpha_obstacle * gain * self.table.max_error() + 4.0 * f32::EPSILON as f64 * max_value.abs()
     }
 
     /// Evaluates the whole field into `grid` in place.
@@ -330,14 +238,7 @@ impl GridEvaluator {
         self.obstacle.resize(n, 0.0);
         for o in objects {
             let gain = (self.params.alpha_obstacle * self.params.object_gain(o, ego)) as f32;
-            splat_max(
-                &mut self.obstacle,
-                grid,
-                o,
-                gain,
-                &self.table,
-                self.params.cutoff_radius_m(),
-            );
+            splat_max(&mut self.obstacle, grid, o, gain, &self.table, self.params.cutoff_radius_m());
         }
         let base = (self.params.alpha_comfort * self.params.comfort_term(ego)) as f32;
         self.fill_static(grid, raster, road);
@@ -370,10 +271,7 @@ impl GridEvaluator {
             for (c, v) in row.iter_mut().enumerate() {
                 if !covered.contains(&c) {
                     let p = grid.origin_m
-                        + Vec2::new(
-                            (c as f64 + 0.5) * grid.resolution_m,
-                            (r as f64 + 0.5) * grid.resolution_m,
-                        );
+                        + Vec2::new((c as f64 + 0.5) * grid.resolution_m, (r as f64 + 0.5) * grid.resolution_m);
                     *v = self.params.static_terms(road, p) as f32;
                 }
             }
@@ -384,19 +282,10 @@ impl GridEvaluator {
 /// Max-accumulates `gain`·exp(−d²/(2σ²)) of one object into the cells within `cutoff_m` of
 /// its footprint. d² to the box is kept in box coordinates (lx, ly), which step by constants
 /// along a row, so the inner loop is multiply-adds, two `abs`/`max` and a table lookup.
-fn splat_max(
-    layer: &mut [f32],
-    grid: &RiskGrid,
-    o: &FieldObject,
-    gain: f32,
-    table: &GaussTable,
-    cutoff_m: f64,
-) {
+fn splat_max(layer: &mut [f32], grid: &RiskGrid, o: &FieldObject, gain: f32, table: &GaussTable, cutoff_m: f64) {
     let obb = &o.obb;
     let (axis, normal) = (obb.axis, Vec2::new(-obb.axis.y, obb.axis.x));
-    let reach = obb.half_length_m * axis.abs()
-        + obb.half_width_m * normal.abs()
-        + Vec2::new(cutoff_m, cutoff_m);
+    let reach = obb.half_length_m * axis.abs() + obb.half_width_m * normal.abs() + Vec2::new(cutoff_m, cutoff_m);
     let lo = (obb.centre - reach - grid.origin_m) / grid.resolution_m;
     let hi = (obb.centre + reach - grid.origin_m) / grid.resolution_m;
     if !(lo.x.is_finite() && lo.y.is_finite() && hi.x.is_finite() && hi.y.is_finite()) {

@@ -69,10 +69,7 @@ struct View {
 
 impl View {
     fn to_px(&self, p: Vec2) -> (f64, f64) {
-        (
-            (p.x - self.origin.x) * self.px_per_m,
-            self.height - (p.y - self.origin.y) * self.px_per_m,
-        )
+        ((p.x - self.origin.x) * self.px_per_m, self.height - (p.y - self.origin.y) * self.px_per_m)
     }
 
     /// A line from a to b, sampled every half pixel.
@@ -90,49 +87,25 @@ impl View {
 /// Renders `grid` scaled to its maximum (cells ≤ 0 are the map's bottom colour), with road
 /// edges (solid), lane centrelines (dashed), `footprints` outlined in white and `ego` in red.
 /// Each cell becomes `pixels_per_cell`² pixels; image row 0 is the grid's top (max y).
-pub fn render_heatmap(
-    grid: &RiskGrid,
-    road: &Road,
-    footprints: &[Obb],
-    ego: &Obb,
-    pixels_per_cell: usize,
-) -> RgbImage {
+pub fn render_heatmap(grid: &RiskGrid, road: &Road, footprints: &[Obb], ego: &Obb, pixels_per_cell: usize) -> RgbImage {
     let cells = grid.cols * grid.rows;
     let mut ppc = pixels_per_cell.max(1);
     while ppc > 1 && cells.saturating_mul(ppc * ppc) > MAX_PIXELS {
         ppc -= 1;
     }
     let (width, height) = (grid.cols * ppc, grid.rows * ppc);
-    let mut img = RgbImage {
-        width,
-        height,
-        data: vec![0; 3 * width * height],
-    };
-    let max = grid
-        .cells
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(0.0f32, f32::max)
-        .max(1e-9);
+    let mut img = RgbImage { width, height, data: vec![0; 3 * width * height] };
+    let max = grid.cells.iter().copied().filter(|v| v.is_finite()).fold(0.0f32, f32::max).max(1e-9);
     for y in 0..height {
         let row = grid.rows - 1 - y / ppc;
         for x in 0..width {
             // `get`: the fields are public, a short `cells` renders as 0 instead of panicking.
-            let v = grid
-                .cells
-                .get(row * grid.cols + x / ppc)
-                .copied()
-                .unwrap_or(0.0);
+            let v = grid.cells.get(row * grid.cols + x / ppc).copied().unwrap_or(0.0);
             let i = 3 * (y * width + x);
             img.data[i..i + 3].copy_from_slice(&viridis((v / max) as f64));
         }
     }
-    let view = View {
-        origin: grid.origin_m,
-        px_per_m: ppc as f64 / grid.resolution_m,
-        height: height as f64,
-    };
+    let view = View { origin: grid.origin_m, px_per_m: ppc as f64 / grid.resolution_m, height: height as f64 };
     draw_road(&mut img, &view, road);
     for obb in footprints {
         draw_obb(&mut img, &view, obb, OBJECT_RGB);
@@ -162,9 +135,7 @@ fn draw_road(img: &mut RgbImage, view: &View, road: &Road) {
                 let (x, y) = view.to_px(p.position());
                 img.put(x, y, CENTRELINE_RGB);
             }
-            for (side, has_neighbour) in
-                [(half, lane.left.is_some()), (-half, lane.right.is_some())]
-            {
+            for (side, has_neighbour) in [(half, lane.left.is_some()), (-half, lane.right.is_some())] {
                 if !has_neighbour {
                     let (x, y) = view.to_px(lane.pose_at(s, side).position());
                     img.put(x, y, EDGE_RGB);
@@ -201,19 +172,12 @@ mod tests {
         let ego = Obb::new(Pose::new(20.0, 0.0, 0.0), Footprint::new(4.0, 2.0));
         let other = Obb::new(Pose::new(30.0, 3.5, 0.0), Footprint::new(4.0, 2.0));
         let img = render_heatmap(&grid, &road, &[other], &ego, 4);
-        assert_eq!(
-            (img.width, img.height, img.data.len()),
-            (160, 80, 160 * 80 * 3)
-        );
+        assert_eq!((img.width, img.height, img.data.len()), (160, 80, 160 * 80 * 3));
         assert_eq!(img.pixel(159, 0), VIRIDIS[8], "hot cell at the top right");
         assert_eq!(img.pixel(159, 79), VIRIDIS[0]);
         // Ego's rear edge at x = 18 m → px 72; its centre y = 0 → py = 80 − 10·4 = 40.
         assert_eq!(img.pixel(72, 40), EGO_RGB);
-        assert_eq!(
-            img.pixel(112, 26),
-            OBJECT_RGB,
-            "other's rear edge at x = 28 m, y = 3.5 m"
-        );
+        assert_eq!(img.pixel(112, 26), OBJECT_RGB, "other's rear edge at x = 28 m, y = 3.5 m");
         // Right road edge y = −1.75 m → py = 80 − 8.25·4 = 47.
         assert_eq!(img.pixel(4, 47), EDGE_RGB);
     }

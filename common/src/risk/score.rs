@@ -35,11 +35,7 @@ pub struct RiskWeights {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ScoreError {
     #[error("invalid risk-score parameter {name} = {value} (expected {expected})")]
-    InvalidParam {
-        name: &'static str,
-        value: f64,
-        expected: &'static str,
-    },
+    InvalidParam { name: &'static str, value: f64, expected: &'static str },
 }
 
 impl RiskWeights {
@@ -54,20 +50,12 @@ impl RiskWeights {
         ];
         for (name, value) in all {
             if !(value.is_finite() && value >= 0.0) {
-                return Err(ScoreError::InvalidParam {
-                    name,
-                    value,
-                    expected: "finite and >= 0",
-                });
+                return Err(ScoreError::InvalidParam { name, value, expected: "finite and >= 0" });
             }
         }
         let sum: f64 = all.iter().map(|(_, v)| v).sum();
         if (sum - 1.0).abs() > 1e-6 {
-            return Err(ScoreError::InvalidParam {
-                name: "sum of weights",
-                value: sum,
-                expected: "1",
-            });
+            return Err(ScoreError::InvalidParam { name: "sum of weights", value: sum, expected: "1" });
         }
         Ok(())
     }
@@ -84,20 +72,12 @@ impl ScoreReferences {
         ];
         for (name, value) in all {
             if !(value.is_finite() && value > 0.0) {
-                return Err(ScoreError::InvalidParam {
-                    name,
-                    value,
-                    expected: "finite and > 0",
-                });
+                return Err(ScoreError::InvalidParam { name, value, expected: "finite and > 0" });
             }
         }
         if self.jerk_max_mps3 <= self.jerk_comfort_mps3 {
             let value = self.jerk_max_mps3;
-            return Err(ScoreError::InvalidParam {
-                name: "jerk_max_mps3",
-                value,
-                expected: "> jerk_comfort_mps3",
-            });
+            return Err(ScoreError::InvalidParam { name: "jerk_max_mps3", value, expected: "> jerk_comfort_mps3" });
         }
         Ok(())
     }
@@ -105,13 +85,7 @@ impl ScoreReferences {
 
 impl Default for RiskWeights {
     fn default() -> Self {
-        Self {
-            ttc: 0.30,
-            dist: 0.25,
-            lane: 0.10,
-            jerk: 0.10,
-            collision: 0.25,
-        }
+        Self { ttc: 0.30, dist: 0.25, lane: 0.10, jerk: 0.10, collision: 0.25 }
     }
 }
 
@@ -133,12 +107,7 @@ pub struct ScoreReferences {
 
 impl Default for ScoreReferences {
     fn default() -> Self {
-        Self {
-            ttc_crit_s: 4.0,
-            dist_ref_m: 2.0,
-            jerk_comfort_mps3: 2.0,
-            jerk_max_mps3: 10.0,
-        }
+        Self { ttc_crit_s: 4.0, dist_ref_m: 2.0, jerk_comfort_mps3: 2.0, jerk_max_mps3: 10.0 }
     }
 }
 
@@ -164,9 +133,7 @@ impl RiskSummary {
     /// The normalised terms and S_risk. S_lane = min(ratio, 1)², the peak of the lane term
     /// R_l of the field (paper eq. for R_l); NaN inputs count as the worst case.
     pub fn terms(&self, weights: &RiskWeights, refs: &ScoreReferences) -> RiskTerms {
-        let ttc = self
-            .min_ttc_s
-            .map_or(0.0, |t| unit(1.0 - t / refs.ttc_crit_s));
+        let ttc = self.min_ttc_s.map_or(0.0, |t| unit(1.0 - t / refs.ttc_crit_s));
         let dist = unit(1.0 - self.min_distance_m / refs.dist_ref_m);
         let lane = unit(self.max_lane_ratio).powi(2);
         let span = (refs.jerk_max_mps3 - refs.jerk_comfort_mps3).max(f64::EPSILON);
@@ -177,14 +144,7 @@ impl RiskSummary {
             + weights.lane * lane
             + weights.jerk * jerk
             + weights.collision * collision;
-        RiskTerms {
-            score,
-            ttc,
-            dist,
-            lane,
-            jerk,
-            collision,
-        }
+        RiskTerms { score, ttc, dist, lane, jerk, collision }
     }
 }
 
@@ -251,23 +211,14 @@ impl RiskAccumulator {
             peak_jerk_mps3: 0.0,
             collision: false,
         };
-        Self {
-            weights,
-            refs,
-            summary,
-            pairs: Vec::new(),
-        }
+        Self { weights, refs, summary, pairs: Vec::new() }
     }
 
     /// Feeds one step.
     pub fn push(&mut self, road: &Road, step: &RiskStep<'_>) {
         let s = &mut self.summary;
         let half_w = 0.5 * step.lane_width_m;
-        let ratio = if half_w > 0.0 {
-            step.lane_offset_m.abs() / half_w
-        } else {
-            f64::INFINITY
-        };
+        let ratio = if half_w > 0.0 { step.lane_offset_m.abs() / half_w } else { f64::INFINITY };
         s.max_lane_ratio = max_nan_worst(s.max_lane_ratio, ratio);
         s.peak_jerk_mps3 = max_nan_worst(s.peak_jerk_mps3, step.jerk_mps3.abs());
         s.collision |= step.collision;
@@ -302,11 +253,7 @@ impl RiskAccumulator {
 
 /// max that lets NaN win: a NaN jerk or offset is bad data, scored as the worst case.
 fn max_nan_worst(acc: f64, x: f64) -> f64 {
-    if x.is_nan() {
-        f64::INFINITY
-    } else {
-        acc.max(x)
-    }
+    if x.is_nan() { f64::INFINITY } else { acc.max(x) }
 }
 
 #[cfg(test)]
@@ -325,11 +272,7 @@ mod tests {
     /// An ego at 20 m/s following a lead that starts 40 m ahead at `lead_mps` and brakes to a
     /// stop at `lead_brake_mps2`, while the ego brakes at `ego_brake_mps2` once the gap is below
     /// 25 m; 0.1 s steps for 10 s. Returns the score.
-    fn episode(
-        lead_mps: f64,
-        lead_brake_mps2: f64,
-        ego_brake_mps2: f64,
-    ) -> (RiskTerms, RiskSummary) {
+    fn episode(lead_mps: f64, lead_brake_mps2: f64, ego_brake_mps2: f64) -> (RiskTerms, RiskSummary) {
         let road = Road::straight(2, 3.5, 500.0, 30.0);
         let mut acc = RiskAccumulator::new(RiskWeights::default(), ScoreReferences::default());
         let (mut xe, mut ve, mut xl, mut vl) = (50.0, 20.0, 90.0, lead_mps);
@@ -337,11 +280,7 @@ mod tests {
         let mut ae_prev = 0.0;
         for _ in 0..100 {
             let gap = xl - xe - 4.0;
-            let ae = if gap < 25.0 && ve > 0.0 {
-                -ego_brake_mps2
-            } else {
-                0.0
-            };
+            let ae = if gap < 25.0 && ve > 0.0 { -ego_brake_mps2 } else { 0.0 };
             let al = if vl > 0.0 { -lead_brake_mps2 } else { 0.0 };
             let ego = car(xe, 0.0, ve, ae);
             let others = [car(xl, 0.0, vl, al)];
@@ -383,13 +322,7 @@ mod tests {
         assert_eq!(w.validate(), Ok(()));
         assert_eq!(ScoreReferences::default().validate(), Ok(()));
         let heavy = RiskWeights { ttc: 0.5, ..w };
-        assert!(matches!(
-            heavy.validate(),
-            Err(ScoreError::InvalidParam {
-                name: "sum of weights",
-                ..
-            })
-        ));
+        assert!(matches!(heavy.validate(), Err(ScoreError::InvalidParam { name: "sum of weights", .. })));
         let worst = RiskSummary {
             min_ttc_s: Some(0.0),
             min_distance_m: 0.0,
@@ -410,19 +343,10 @@ mod tests {
                 assert!((0.0..=1.0).contains(&v), "{t:?}");
             }
         }
-        assert!(
-            !bs.collision && !ns.collision && cs.collision,
-            "{bs:?} {ns:?} {cs:?}"
-        );
+        assert!(!bs.collision && !ns.collision && cs.collision, "{bs:?} {ns:?} {cs:?}");
         assert_eq!(bs.min_ttc_s, None, "constant gap never closes");
-        assert!(
-            ns.min_distance_m > 0.0 && ns.min_distance_m < 10.0,
-            "{ns:?}"
-        );
-        assert!(
-            crash.score > near.score && near.score > benign.score,
-            "{crash:?} {near:?} {benign:?}"
-        );
+        assert!(ns.min_distance_m > 0.0 && ns.min_distance_m < 10.0, "{ns:?}");
+        assert!(crash.score > near.score && near.score > benign.score, "{crash:?} {near:?} {benign:?}");
         assert_eq!(crash.collision, 1.0);
     }
 

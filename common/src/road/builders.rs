@@ -57,19 +57,19 @@ impl Road {
             .collect();
         let ids: Vec<usize> = (0..n).collect();
         link_neighbours(&mut lanes, &ids);
-        Road {
-            lanes,
-            crosswalks: Vec::new(),
-            friction_default: 0.9,
-            friction_patches: Vec::new(),
-            reference_lane: 0,
-        }
+        Road { lanes, crosswalks: Vec::new(), friction_default: 0.9, friction_patches: Vec::new(), reference_lane: 0 }
     }
 
     /// An urban crossing: a main road along +x of `length_m` with two eastbound lanes (0, 1)
     /// and one westbound lane (2); a two-lane cross road along y at `junction_x_m` (lane 3
     /// northbound, lane 4 southbound); and a crosswalk across the main road at `crosswalk_x_m`.
-    pub fn crossing(lane_width_m: f64, length_m: f64, junction_x_m: f64, crosswalk_x_m: f64, speed_limit_mps: f64) -> Road {
+    pub fn crossing(
+        lane_width_m: f64,
+        length_m: f64,
+        junction_x_m: f64,
+        crosswalk_x_m: f64,
+        speed_limit_mps: f64,
+    ) -> Road {
         let w = lane_width_m;
         let east = |y: f64| Lane::new(vec![Vec2::new(0.0, y), Vec2::new(length_m, y)], w, speed_limit_mps);
         let west = Lane::new(vec![Vec2::new(length_m, 2.0 * w), Vec2::new(0.0, 2.0 * w)], w, speed_limit_mps);

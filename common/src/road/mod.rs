@@ -143,10 +143,7 @@ impl Road {
             return self.friction_default;
         }
         let s = self.lanes[self.reference_lane].project(p).s_m;
-        self.friction_patches
-            .iter()
-            .find(|f| s >= f.s_start_m && s < f.s_end_m)
-            .map_or(self.friction_default, |f| f.mu)
+        self.friction_patches.iter().find(|f| s >= f.s_start_m && s < f.s_end_m).map_or(self.friction_default, |f| f.mu)
     }
 
     /// Axis-aligned bounds of all lane strips: (min corner, max corner).

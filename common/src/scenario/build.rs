@@ -10,7 +10,8 @@ use crate::traffic::{IdmParams, Manoeuvre, PedestrianWalk, Traffic, VehicleInit}
 use crate::vehicle::{GRAVITY_MPS2, ModelKind, Vehicle, VehicleParams};
 use crate::world::{Route, World};
 
-/// Every episode lasts at most this long, s.
+/// Episodes last this long unless their kind needs longer (emergency braking: until the lead
+/// has stopped), s.
 pub const HORIZON_S: f64 = 15.0;
 /// Time the ego may lose against its desired speed and still complete the route, s.
 const ROUTE_SLACK_S: f64 = 5.0;
@@ -38,7 +39,11 @@ pub fn build(spec: &ScenarioSpec) -> World {
     let p = |n: &str| spec.get(n);
     let mut traffic = Traffic::new();
     let mut pedestrians = Vec::new();
-    let mut sensor_params = SensorParams::default();
+    // An automated vehicle perceives all around (lidar + surround radar); only the occlusion
+    // kind degrades range and field of view.
+    let mut sensor_params = SensorParams { fov_rad: std::f64::consts::TAU, ..SensorParams::default() };
+    let mut horizon_s = HORIZON_S;
+    let mut route_end_s: Option<f64> = None;
     let (road, ego_lane, ego_speed) = match spec.kind {
         ScenarioKind::CutIn => {
             let v = p("ego_speed_mps");
@@ -60,11 +65,22 @@ pub fn build(spec: &ScenarioSpec) -> World {
             (road, 1, v)
         }
         ScenarioKind::EmergencyBraking => {
-            let v = p("ego_speed_mps");
-            let mut road = Road::straight(2, LANE_WIDTH_M, EGO_START_S_M + 40.0 * HORIZON_S + 300.0, 36.0);
-            road.friction_default = p("friction_mu");
-            let brake = Manoeuvre::Brake { start_time_s: p("brake_time_s"), decel_mps2: p("braking_decel_mps2") };
-            traffic.add(car(0, ahead_of_ego(p("initial_headway_m"), CAR), v, CAR, brake));
+            let (v, mu, t_brake) = (p("ego_speed_mps"), p("friction_mu"), p("brake_time_s"));
+            let mut road = Road::straight(2, LANE_WIDTH_M, EGO_START_S_M + 40.0 * 30.0 + 300.0, 36.0);
+            road.friction_default = mu;
+            let s_lead = ahead_of_ego(p("initial_headway_m"), CAR);
+            let decel = p("braking_decel_mps2");
+            traffic.add(car(0, s_lead, v, CAR, Manoeuvre::Brake { start_time_s: t_brake, decel_mps2: decel }));
+            // A steady column in the other lane: the ego cannot escape sideways, it must brake.
+            for k in 0..6 {
+                traffic.add(car(1, EGO_START_S_M - 50.0 + 22.0 * k as f64, v, CAR, Manoeuvre::None));
+            }
+            // The route ends where a safe stop behind the stopped lead lies, and the episode
+            // lasts until well after the lead has stopped.
+            let a_lead = decel.min(mu * GRAVITY_MPS2);
+            let s_stop = s_lead + v * t_brake + v * v / (2.0 * a_lead);
+            route_end_s = Some(s_stop - 0.5 * CAR.length_m - 0.5 * EGO.length_m - 4.0);
+            horizon_s = t_brake + v / a_lead + 8.0;
             (road, 0, v)
         }
         ScenarioKind::PedestrianCrossing => {
@@ -90,8 +106,10 @@ pub fn build(spec: &ScenarioSpec) -> World {
         ScenarioKind::SensorOcclusion => {
             let v = p("ego_speed_mps");
             let road = Road::straight(2, LANE_WIDTH_M, EGO_START_S_M + 40.0 * HORIZON_S + 300.0, 36.0);
-            // The truck swerves late: about one second before reaching the stopped car.
-            let swerve = Manoeuvre::Swerve { trigger_gap_m: (1.0 * v).max(8.0), duration_s: 2.0, target_lane: 1 };
+            // The truck swerves late, holding its speed: 1.6 s before it would reach the stopped
+            // car, the half-cosine move over 2 s has carried it clear of the car (≥ 2.2 m
+            // lateral) when its front gets there.
+            let swerve = Manoeuvre::Swerve { trigger_gap_m: 1.6 * v + 5.0, duration_s: 2.0, target_lane: 1 };
             traffic.add(car(0, ahead_of_ego(p("occluder_gap_m"), TRUCK), v, TRUCK, swerve));
             traffic.add(car(0, EGO_START_S_M + p("hidden_obstacle_distance_m"), 0.0, CAR, Manoeuvre::Parked));
             sensor_params.range_m = p("sensor_range_m");
@@ -125,6 +143,20 @@ pub fn build(spec: &ScenarioSpec) -> World {
     };
     let start = road.lane(ego_lane).pose_at(EGO_START_S_M, 0.0);
     let ego = Vehicle::new(VehicleParams::bmw_320i(), ModelKind::SingleTrack, start, ego_speed);
-    let route = Route { lane: ego_lane, start_s_m: EGO_START_S_M, length_m: ego_speed.max(5.0) * (HORIZON_S - ROUTE_SLACK_S) };
-    World::new(road, ego, traffic, pedestrians, Sensor::new(sensor_params).expect("scenario parameter ranges lie inside the sensor model's valid ranges"), route, ego_speed, HORIZON_S, spec.seed)
+    let length_m = match route_end_s {
+        Some(end) => (end - EGO_START_S_M).max(1.0),
+        None => ego_speed.max(5.0) * (horizon_s - ROUTE_SLACK_S),
+    };
+    let route = Route { lane: ego_lane, start_s_m: EGO_START_S_M, length_m };
+    World::new(
+        road,
+        ego,
+        traffic,
+        pedestrians,
+        Sensor::new(sensor_params).expect("scenario parameter ranges lie inside the sensor model's valid ranges"),
+        route,
+        ego_speed,
+        horizon_s,
+        spec.seed,
+    )
 }

@@ -54,13 +54,23 @@ const PEDESTRIAN_CROSSING: &[ParamDef] = &[
     p("crossing_distance_m", 15.0, 80.0, "distance from the ego front bumper to the crosswalk at t = 0, m"),
     p("pedestrian_speed_mps", 0.5, 3.0, "walking speed, m/s"),
     p("pedestrian_delay_s", 0.0, 4.0, "time at which the pedestrian steps onto the road, s"),
-    p("occlusion_level", 0.0, 1.0, "share of the kerb before the crosswalk lined with parked vehicles (0 none, 1 three cars)"),
+    p(
+        "occlusion_level",
+        0.0,
+        1.0,
+        "share of the kerb before the crosswalk lined with parked vehicles (0 none, 1 three cars)",
+    ),
 ];
 
 const SENSOR_OCCLUSION: &[ParamDef] = &[
     p("ego_speed_mps", 10.0, 30.0, "ego initial and desired speed, m/s"),
     p("occluder_gap_m", 8.0, 30.0, "gap to the lead truck that hides the road ahead, m"),
-    p("hidden_obstacle_distance_m", 30.0, 150.0, "distance from the ego to the stopped vehicle the truck swerves around, m"),
+    p(
+        "hidden_obstacle_distance_m",
+        30.0,
+        150.0,
+        "distance from the ego to the stopped vehicle the truck swerves around, m",
+    ),
     p("sensor_range_m", 20.0, 150.0, "degraded sensor range, m"),
     p("sensor_fov_deg", 20.0, 120.0, "degraded horizontal field of view, degrees"),
     p("dropout_rate", 0.0, 0.9, "probability that a detection is lost in a frame"),
@@ -118,7 +128,9 @@ impl fmt::Display for ScenarioKind {
 
 /// An unknown scenario kind name.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("unknown scenario kind '{0}' (expected one of cut-in, emergency-braking, pedestrian-crossing, sensor-occlusion, low-friction)")]
+#[error(
+    "unknown scenario kind '{0}' (expected one of cut-in, emergency-braking, pedestrian-crossing, sensor-occlusion, low-friction)"
+)]
 pub struct UnknownKind(pub String);
 
 impl FromStr for ScenarioKind {

@@ -39,11 +39,7 @@ impl MutateError {
 ///
 /// The child's parameters and seed come only from `rng`: the same parent and the same rng
 /// state give the same child.
-pub fn mutate(
-    parent: &ScenarioSpec,
-    radius: f64,
-    rng: &mut Rng,
-) -> Result<ScenarioSpec, MutateError> {
+pub fn mutate(parent: &ScenarioSpec, radius: f64, rng: &mut Rng) -> Result<ScenarioSpec, MutateError> {
     if !(0.0..=1.0).contains(&radius) {
         return Err(MutateError::InvalidRadius(radius));
     }
@@ -56,27 +52,17 @@ pub fn mutate(
             .iter()
             .map(|d| {
                 let step = radius * (d.max - d.min) * rng.normal();
-                (
-                    d.name.to_string(),
-                    (parent.get(d.name) + step).clamp(d.min, d.max),
-                )
+                (d.name.to_string(), (parent.get(d.name) + step).clamp(d.min, d.max))
             })
             .collect();
-        let child = ScenarioSpec {
-            kind: parent.kind,
-            seed: rng.next_u64(),
-            params,
-        };
+        let child = ScenarioSpec { kind: parent.kind, seed: rng.next_u64(), params };
         match check_feasible(&child) {
             Ok(()) => return Ok(child),
             Err(reason) => last = Some(reason),
         }
     }
     let last = last.expect("MAX_MUTATION_TRIES > 0, so at least one draw was rejected");
-    Err(MutateError::NoFeasibleChild {
-        tries: MAX_MUTATION_TRIES,
-        last,
-    })
+    Err(MutateError::NoFeasibleChild { tries: MAX_MUTATION_TRIES, last })
 }
 
 #[cfg(test)]
@@ -85,11 +71,8 @@ mod tests {
     use crate::scenario::{ScenarioKind, sample};
 
     fn mid_spec(kind: ScenarioKind, overrides: &[(&str, f64)]) -> ScenarioSpec {
-        let mut params: BTreeMap<String, f64> = kind
-            .params()
-            .iter()
-            .map(|d| (d.name.to_string(), 0.5 * (d.min + d.max)))
-            .collect();
+        let mut params: BTreeMap<String, f64> =
+            kind.params().iter().map(|d| (d.name.to_string(), 0.5 * (d.min + d.max))).collect();
         for (k, v) in overrides {
             params.insert(k.to_string(), *v);
         }
@@ -103,12 +86,8 @@ mod tests {
             let mut rng = Rng::new(11);
             for _ in 0..200 {
                 // A large radius pushes many draws against the range ends: clamping must hold.
-                let child = mutate(&parent, 0.5, &mut rng)
-                    .expect("mid-space parents have feasible children");
-                assert_eq!(
-                    ScenarioSpec::new(kind, child.seed, child.params.clone()).as_ref(),
-                    Ok(&child)
-                );
+                let child = mutate(&parent, 0.5, &mut rng).expect("mid-space parents have feasible children");
+                assert_eq!(ScenarioSpec::new(kind, child.seed, child.params.clone()).as_ref(), Ok(&child));
                 assert_eq!(check_feasible(&child), Ok(()));
             }
             let a = mutate(&parent, 0.1, &mut Rng::new(5));
@@ -135,10 +114,7 @@ mod tests {
         }
         let mean_share = share_sum / (n * kind.params().len()) as f64;
         let expected = 0.05 * (2.0 / std::f64::consts::PI).sqrt();
-        assert!(
-            (mean_share - expected).abs() < 0.003,
-            "mean |Δ|/range {mean_share}, expected {expected}"
-        );
+        assert!((mean_share - expected).abs() < 0.003, "mean |Δ|/range {mean_share}, expected {expected}");
     }
 
     #[test]
@@ -167,30 +143,12 @@ mod tests {
         let parent = mid_spec(kind, &[("friction_mu", 0.2), ("braking_decel_mps2", 10.0)]);
         // Radius 0: every draw is the parent itself, which brakes at 10 > 0.2·g m/s².
         let err = mutate(&parent, 0.0, &mut Rng::new(1)).unwrap_err();
-        assert!(matches!(
-            err,
-            MutateError::NoFeasibleChild {
-                tries: MAX_MUTATION_TRIES,
-                ..
-            }
-        ));
-        assert_eq!(
-            err.infeasible().map(Infeasible::code),
-            Some("braking-beyond-friction")
-        );
-        assert!(matches!(
-            mutate(&parent, f64::NAN, &mut Rng::new(1)),
-            Err(MutateError::InvalidRadius(_))
-        ));
-        assert!(matches!(
-            mutate(&parent, -0.1, &mut Rng::new(1)),
-            Err(MutateError::InvalidRadius(_))
-        ));
+        assert!(matches!(err, MutateError::NoFeasibleChild { tries: MAX_MUTATION_TRIES, .. }));
+        assert_eq!(err.infeasible().map(Infeasible::code), Some("braking-beyond-friction"));
+        assert!(matches!(mutate(&parent, f64::NAN, &mut Rng::new(1)), Err(MutateError::InvalidRadius(_))));
+        assert!(matches!(mutate(&parent, -0.1, &mut Rng::new(1)), Err(MutateError::InvalidRadius(_))));
         let mut broken = parent.clone();
         broken.params.remove("friction_mu");
-        assert!(matches!(
-            mutate(&broken, 0.1, &mut Rng::new(1)),
-            Err(MutateError::InvalidParent(_))
-        ));
+        assert!(matches!(mutate(&broken, 0.1, &mut Rng::new(1)), Err(MutateError::InvalidParent(_))));
     }
 }

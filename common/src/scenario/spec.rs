@@ -37,7 +37,12 @@ impl ScenarioSpec {
         for def in kind.params() {
             let value = *params.get(def.name).ok_or(SpecError::MissingParam { kind, name: def.name })?;
             if !(value >= def.min && value <= def.max) {
-                return Err(SpecError::ParamOutOfRange { name: def.name.to_string(), value, min: def.min, max: def.max });
+                return Err(SpecError::ParamOutOfRange {
+                    name: def.name.to_string(),
+                    value,
+                    min: def.min,
+                    max: def.max,
+                });
             }
         }
         Ok(Self { kind, seed, params })

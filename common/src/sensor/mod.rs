@@ -120,12 +120,7 @@ impl Default for SensorParams {
 pub enum SensorError {
     /// A parameter is non-finite or outside `[min, max]`.
     #[error("sensor parameter {name} = {value} is outside [{min}, {max}]")]
-    ParamOutOfRange {
-        name: &'static str,
-        value: f64,
-        min: f64,
-        max: f64,
-    },
+    ParamOutOfRange { name: &'static str, value: f64, min: f64, max: f64 },
 }
 
 impl SensorParams {
@@ -133,24 +128,9 @@ impl SensorParams {
     pub fn validate(&self) -> Result<(), SensorError> {
         let checks = [
             ("range_m", self.range_m, f64::MIN_POSITIVE, f64::MAX),
-            (
-                "fov_rad",
-                self.fov_rad,
-                f64::MIN_POSITIVE,
-                std::f64::consts::TAU,
-            ),
-            (
-                "position_noise_std_m",
-                self.position_noise_std_m,
-                0.0,
-                f64::MAX,
-            ),
-            (
-                "velocity_noise_std_mps",
-                self.velocity_noise_std_mps,
-                0.0,
-                f64::MAX,
-            ),
+            ("fov_rad", self.fov_rad, f64::MIN_POSITIVE, std::f64::consts::TAU),
+            ("position_noise_std_m", self.position_noise_std_m, 0.0, f64::MAX),
+            ("velocity_noise_std_mps", self.velocity_noise_std_mps, 0.0, f64::MAX),
             ("dropout_rate", self.dropout_rate, 0.0, 1.0),
             ("min_visible_fraction", self.min_visible_fraction, 0.0, 1.0),
             ("mount_forward_m", self.mount_forward_m, f64::MIN, f64::MAX),
@@ -158,12 +138,7 @@ impl SensorParams {
         for (name, value, min, max) in checks {
             // `contains` is false for NaN, and ±inf lies outside the finite bounds.
             if !(min..=max).contains(&value) {
-                return Err(SensorError::ParamOutOfRange {
-                    name,
-                    value,
-                    min,
-                    max,
-                });
+                return Err(SensorError::ParamOutOfRange { name, value, min, max });
             }
         }
         Ok(())
@@ -185,16 +160,9 @@ impl Sensor {
     pub fn new(params: SensorParams) -> Result<Self, SensorError> {
         params.validate()?;
         // A full circle sees straight back too, where rounding could put the cosine below −1.
-        let cos_half_fov = if params.fov_rad >= std::f64::consts::TAU {
-            f64::NEG_INFINITY
-        } else {
-            (0.5 * params.fov_rad).cos()
-        };
-        Ok(Self {
-            params,
-            cos_half_fov,
-            blockers: Blockers::default(),
-        })
+        let cos_half_fov =
+            if params.fov_rad >= std::f64::consts::TAU { f64::NEG_INFINITY } else { (0.5 * params.fov_rad).cos() };
+        Ok(Self { params, cos_half_fov, blockers: Blockers::default() })
     }
 
     /// The sensor's parameters.
@@ -211,13 +179,7 @@ impl Sensor {
     ///
     /// A non-finite ego pose yields an empty list; objects with non-finite or negative geometry
     /// or non-finite velocity are skipped (a valid footprint with a bad velocity still occludes).
-    pub fn perceive(
-        &mut self,
-        ego: Pose,
-        objects: &[SceneObject],
-        rng: &mut Rng,
-        out: &mut Vec<PerceivedObject>,
-    ) {
+    pub fn perceive(&mut self, ego: Pose, objects: &[SceneObject], rng: &mut Rng, out: &mut Vec<PerceivedObject>) {
         out.clear();
         if !(ego.x_m.is_finite() && ego.y_m.is_finite() && ego.heading_rad.is_finite()) {
             return;
@@ -226,8 +188,7 @@ impl Sensor {
         let origin = self.origin(ego);
         let forward = ego.forward();
         if p.occlusion {
-            self.blockers
-                .rebuild(objects.iter().map(|o| &o.obb), origin, p.range_m);
+            self.blockers.rebuild(objects.iter().map(|o| &o.obb), origin, p.range_m);
         }
         for (index, object) in objects.iter().enumerate() {
             if !obb_is_valid(&object.obb) || !object.velocity.iter().all(|v| v.is_finite()) {

@@ -49,19 +49,8 @@ impl Cone {
         let dist_m = to.norm();
         let all_round = radius_m >= dist_m;
         let sin_half = if all_round { 1.0 } else { radius_m / dist_m };
-        let dir = if dist_m > 0.0 {
-            to / dist_m
-        } else {
-            Vec2::new(1.0, 0.0)
-        };
-        Self {
-            dir,
-            dist_m,
-            radius_m,
-            cos_half: (1.0 - sin_half * sin_half).sqrt(),
-            sin_half,
-            all_round,
-        }
+        let dir = if dist_m > 0.0 { to / dist_m } else { Vec2::new(1.0, 0.0) };
+        Self { dir, dist_m, radius_m, cos_half: (1.0 - sin_half * sin_half).sqrt(), sin_half, all_round }
     }
 
     /// True when some ray from the origin into `target`'s circle may cross this circle first:
@@ -103,12 +92,7 @@ impl Blockers {
     /// Clears the cache and fills it with the valid footprints among `obbs` that could cut a ray
     /// from `origin` of length at most `reach_m`. A footprint containing `origin` is left out:
     /// it is the ego itself (or something the sensor sits inside), which sees out, not through.
-    pub(crate) fn rebuild<'a>(
-        &mut self,
-        obbs: impl Iterator<Item = &'a Obb>,
-        origin: Vec2,
-        reach_m: f64,
-    ) {
+    pub(crate) fn rebuild<'a>(&mut self, obbs: impl Iterator<Item = &'a Obb>, origin: Vec2, reach_m: f64) {
         self.items.clear();
         for (index, obb) in obbs.enumerate() {
             if !obb_is_valid(obb) || obb.distance_sq_to_point(origin) == 0.0 {
@@ -137,8 +121,7 @@ impl Blockers {
     #[cfg(test)]
     fn select_all(&mut self, target: usize) {
         self.selected.clear();
-        self.selected
-            .extend((0..self.items.len()).filter(|&i| self.items[i].index != target));
+        self.selected.extend((0..self.items.len()).filter(|&i| self.items[i].index != target));
     }
 
     /// Number of cached blockers and of those selected for the current target.
@@ -177,9 +160,7 @@ impl Blockers {
             if gap.norm_squared() > b.radius_m * b.radius_m {
                 return false;
             }
-            b.shape
-                .cast_ray(&b.pose, &ray, 1.0 - END_TOLERANCE, true)
-                .is_some()
+            b.shape.cast_ray(&b.pose, &ray, 1.0 - END_TOLERANCE, true).is_some()
         })
     }
 }
@@ -258,33 +239,22 @@ mod tests {
                     b.select(origin, obb.centre, radius_m, target);
                     let filtered = b.is_blocked(origin, point);
                     b.select_all(target);
-                    assert_eq!(
-                        filtered,
-                        b.is_blocked(origin, point),
-                        "target {target} point {point:?}"
-                    );
+                    assert_eq!(filtered, b.is_blocked(origin, point), "target {target} point {point:?}");
                     blocked_rays += usize::from(filtered);
                     rays += 1;
                 }
             }
         }
         // The scenes are dense enough that both verdicts occur often.
-        assert!(
-            blocked_rays > rays / 10 && blocked_rays < rays * 9 / 10,
-            "{blocked_rays} of {rays}"
-        );
+        assert!(blocked_rays > rays / 10 && blocked_rays < rays * 9 / 10, "{blocked_rays} of {rays}");
     }
 
     #[test]
     fn ego_footprint_and_far_or_invalid_boxes_are_not_cached() {
         let mut nan = boxed(5.0, 0.0, 0.0, 4.0, 2.0);
         nan.centre.x = f64::NAN;
-        let obbs = [
-            boxed(0.0, 0.0, 0.0, 4.0, 2.0),
-            boxed(500.0, 0.0, 0.0, 4.0, 2.0),
-            nan,
-            boxed(20.0, 0.0, 0.0, 4.0, 2.0),
-        ];
+        let obbs =
+            [boxed(0.0, 0.0, 0.0, 4.0, 2.0), boxed(500.0, 0.0, 0.0, 4.0, 2.0), nan, boxed(20.0, 0.0, 0.0, 4.0, 2.0)];
         let mut b = Blockers::default();
         b.rebuild(obbs.iter(), Vec2::new(1.0, 0.0), 150.0);
         assert_eq!(b.counts().0, 1);

@@ -16,12 +16,7 @@ fn exact() -> SensorParams {
 }
 
 fn object(id: u32, x: f64, y: f64, footprint: Footprint, kind: ObjectKind) -> SceneObject {
-    SceneObject {
-        id,
-        obb: Obb::new(Pose::new(x, y, 0.0), footprint),
-        velocity: Vec2::new(10.0, 0.0),
-        kind,
-    }
+    SceneObject { id, obb: Obb::new(Pose::new(x, y, 0.0), footprint), velocity: Vec2::new(10.0, 0.0), kind }
 }
 
 fn car(id: u32, x: f64, y: f64) -> SceneObject {
@@ -55,29 +50,13 @@ fn range_limits_detection() {
 fn field_of_view_limits_detection() {
     let ego = Pose::default();
     // 120° FOV: half-angle 60°. Bearing 55° is inside, 65° and 90° and behind are outside.
-    let at = |id, deg: f64| {
-        car(
-            id,
-            30.0 * deg.to_radians().cos(),
-            30.0 * deg.to_radians().sin(),
-        )
-    };
+    let at = |id, deg: f64| car(id, 30.0 * deg.to_radians().cos(), 30.0 * deg.to_radians().sin());
     let scene = [at(1, 55.0), at(2, 68.0), at(3, 90.0), at(4, 180.0)];
     assert_eq!(ids(&see(exact(), ego, &scene)), vec![1]);
     // The heading turns the cone: facing +y, bearings 55°, 68° and 90° are within 60° of it.
-    assert_eq!(
-        ids(&see(
-            exact(),
-            Pose::new(0.0, 0.0, std::f64::consts::FRAC_PI_2),
-            &scene
-        )),
-        vec![1, 2, 3]
-    );
+    assert_eq!(ids(&see(exact(), Pose::new(0.0, 0.0, std::f64::consts::FRAC_PI_2), &scene)), vec![1, 2, 3]);
     // A full circle sees all four.
-    let all_round = SensorParams {
-        fov_rad: std::f64::consts::TAU,
-        ..exact()
-    };
+    let all_round = SensorParams { fov_rad: std::f64::consts::TAU, ..exact() };
     assert_eq!(ids(&see(all_round, ego, &scene)), vec![1, 2, 3, 4]);
 }
 
@@ -102,36 +81,18 @@ fn truck_hides_car_until_it_moves_aside() {
     let out = see(exact(), ego, &[ego_box, truck, car(1, 40.0, 0.0)]);
     assert_eq!(ids(&out), vec![0, 9]);
     // Occlusion off: the hidden car is reported.
-    let no_occlusion = SensorParams {
-        occlusion: false,
-        ..exact()
-    };
-    assert_eq!(
-        ids(&see(no_occlusion, ego, &[truck, car(1, 40.0, 0.0)])),
-        vec![9, 1]
-    );
+    let no_occlusion = SensorParams { occlusion: false, ..exact() };
+    assert_eq!(ids(&see(no_occlusion, ego, &[truck, car(1, 40.0, 0.0)])), vec![9, 1]);
     // A stricter threshold drops the partly hidden car.
-    let strict = SensorParams {
-        min_visible_fraction: 0.5,
-        ..exact()
-    };
+    let strict = SensorParams { min_visible_fraction: 0.5, ..exact() };
     assert_eq!(ids(&see(strict, ego, &[truck, car(1, 40.0, 3.0)])), vec![9]);
 }
 
 #[test]
 fn pedestrian_behind_parked_car_is_hidden() {
     let parked = object(5, 15.0, 3.0, CAR, ObjectKind::Parked);
-    let pedestrian = object(
-        6,
-        25.0,
-        5.0,
-        Footprint::new(0.5, 0.5),
-        ObjectKind::Pedestrian,
-    );
-    assert_eq!(
-        ids(&see(exact(), Pose::default(), &[parked, pedestrian])),
-        vec![5]
-    );
+    let pedestrian = object(6, 25.0, 5.0, Footprint::new(0.5, 0.5), ObjectKind::Pedestrian);
+    assert_eq!(ids(&see(exact(), Pose::default(), &[parked, pedestrian])), vec![5]);
     // Without the parked car the pedestrian is seen.
     assert_eq!(ids(&see(exact(), Pose::default(), &[pedestrian])), vec![6]);
 }
@@ -140,11 +101,7 @@ fn pedestrian_behind_parked_car_is_hidden() {
 fn dropout_rate_is_honoured() {
     let frames = 4000;
     let count = |rate: f64| {
-        let mut sensor = Sensor::new(SensorParams {
-            dropout_rate: rate,
-            ..exact()
-        })
-        .expect("valid");
+        let mut sensor = Sensor::new(SensorParams { dropout_rate: rate, ..exact() }).expect("valid");
         let mut rng = Rng::new(3);
         let mut out = Vec::new();
         let mut seen = 0;
@@ -158,19 +115,12 @@ fn dropout_rate_is_honoured() {
     assert_eq!(count(1.0), 0);
     // Binomial(4000, 0.5): σ = √(4000·0.25) ≈ 31.6; allow 5σ.
     let half = count(0.5) as f64;
-    assert!(
-        (half - 2000.0).abs() < 5.0 * 31.6,
-        "kept {half} of {frames}"
-    );
+    assert!((half - 2000.0).abs() < 5.0 * 31.6, "kept {half} of {frames}");
 }
 
 #[test]
 fn noise_std_matches_configuration() {
-    let params = SensorParams {
-        position_noise_std_m: 0.3,
-        velocity_noise_std_mps: 0.5,
-        ..exact()
-    };
+    let params = SensorParams { position_noise_std_m: 0.3, velocity_noise_std_mps: 0.5, ..exact() };
     let mut sensor = Sensor::new(params).expect("valid");
     let mut rng = Rng::new(5);
     let mut out = Vec::new();
@@ -191,24 +141,15 @@ fn noise_std_matches_configuration() {
             s[1] += e * e;
         }
         // Size and heading are passed through untouched.
-        assert_eq!(
-            (o.obb.axis, o.obb.half_length_m, o.obb.half_width_m),
-            (truth.obb.axis, 2.0, 1.0)
-        );
+        assert_eq!((o.obb.axis, o.obb.half_length_m, o.obb.half_width_m), (truth.obb.axis, 2.0, 1.0));
     }
     for (channel, s) in sums.iter().enumerate() {
         let want = if channel < 2 { 0.3 } else { 0.5 };
         let mean = s[0] / n as f64;
         let std = (s[1] / n as f64 - mean * mean).sqrt();
         // Std of the sample std ≈ σ/√(2n) ≈ 0.5 % of σ; 3 % is > 5 of those.
-        assert!(
-            (std / want - 1.0).abs() < 0.03,
-            "channel {channel}: std {std}, want {want}"
-        );
-        assert!(
-            mean.abs() < 5.0 * want / (n as f64).sqrt(),
-            "channel {channel}: mean {mean}"
-        );
+        assert!((std / want - 1.0).abs() < 0.03, "channel {channel}: std {std}, want {want}");
+        assert!(mean.abs() < 5.0 * want / (n as f64).sqrt(), "channel {channel}: mean {mean}");
     }
 }
 
@@ -216,28 +157,15 @@ fn busy_scene(seed: u64, n: usize) -> Vec<SceneObject> {
     let mut rng = Rng::new(seed);
     (0..n)
         .map(|i| {
-            let kind = [
-                ObjectKind::Vehicle,
-                ObjectKind::Pedestrian,
-                ObjectKind::Parked,
-            ][i % 3];
+            let kind = [ObjectKind::Vehicle, ObjectKind::Pedestrian, ObjectKind::Parked][i % 3];
             let footprint = match kind {
                 ObjectKind::Pedestrian => Footprint::new(0.5, 0.5),
                 _ if i % 7 == 0 => TRUCK,
                 _ => CAR,
             };
-            let pose = Pose::new(
-                rng.uniform(5.0, 120.0),
-                rng.uniform(-15.0, 15.0),
-                rng.uniform(-0.3, 0.3),
-            );
+            let pose = Pose::new(rng.uniform(5.0, 120.0), rng.uniform(-15.0, 15.0), rng.uniform(-0.3, 0.3));
             let velocity = Vec2::new(rng.uniform(0.0, 30.0), rng.uniform(-1.0, 1.0));
-            SceneObject {
-                id: i as u32,
-                obb: Obb::new(pose, footprint),
-                velocity,
-                kind,
-            }
+            SceneObject { id: i as u32, obb: Obb::new(pose, footprint), velocity, kind }
         })
         .collect()
 }
@@ -246,11 +174,7 @@ fn busy_scene(seed: u64, n: usize) -> Vec<SceneObject> {
 fn same_seed_same_output() {
     let scene = busy_scene(42, 30);
     let run = |seed: u64| {
-        let mut sensor = Sensor::new(SensorParams {
-            dropout_rate: 0.2,
-            ..Default::default()
-        })
-        .expect("valid");
+        let mut sensor = Sensor::new(SensorParams { dropout_rate: 0.2, ..Default::default() }).expect("valid");
         let mut rng = Rng::new(seed);
         let mut out = Vec::new();
         let mut frames = Vec::new();
@@ -261,10 +185,7 @@ fn same_seed_same_output() {
         frames
     };
     let a = run(11);
-    assert!(
-        a.iter().map(Vec::len).sum::<usize>() > 20,
-        "scene should show objects"
-    );
+    assert!(a.iter().map(Vec::len).sum::<usize>() > 20, "scene should show objects");
     assert_eq!(a, run(11));
     assert_ne!(a, run(12));
 }
@@ -289,36 +210,15 @@ fn non_finite_inputs_are_skipped() {
 fn params_are_validated() {
     assert_eq!(SensorParams::default().validate(), Ok(()));
     let bad = [
-        SensorParams {
-            range_m: f64::NAN,
-            ..Default::default()
-        },
-        SensorParams {
-            range_m: 0.0,
-            ..Default::default()
-        },
-        SensorParams {
-            fov_rad: 7.0,
-            ..Default::default()
-        },
-        SensorParams {
-            dropout_rate: 1.5,
-            ..Default::default()
-        },
-        SensorParams {
-            position_noise_std_m: -0.1,
-            ..Default::default()
-        },
-        SensorParams {
-            mount_forward_m: f64::INFINITY,
-            ..Default::default()
-        },
+        SensorParams { range_m: f64::NAN, ..Default::default() },
+        SensorParams { range_m: 0.0, ..Default::default() },
+        SensorParams { fov_rad: 7.0, ..Default::default() },
+        SensorParams { dropout_rate: 1.5, ..Default::default() },
+        SensorParams { position_noise_std_m: -0.1, ..Default::default() },
+        SensorParams { mount_forward_m: f64::INFINITY, ..Default::default() },
     ];
     for p in bad {
-        assert!(
-            matches!(Sensor::new(p), Err(SensorError::ParamOutOfRange { .. })),
-            "{p:?}"
-        );
+        assert!(matches!(Sensor::new(p), Err(SensorError::ParamOutOfRange { .. })), "{p:?}");
     }
 }
 

@@ -287,8 +287,13 @@ impl Traffic {
                 }
             }
             Manoeuvre::Swerve { trigger_gap_m, duration_s, target_lane } => {
-                if !started && lead.gap_m < trigger_gap_m {
-                    change = Some((target_lane as u32, t, duration_s));
+                if !started {
+                    // It means to pass what stands ahead: it holds its speed until it swerves
+                    // (the late reveal of the sensor-occlusion kind).
+                    a_cmd = c.accel(v, f64::INFINITY, 0.0);
+                    if lead.gap_m < trigger_gap_m {
+                        change = Some((target_lane as u32, t, duration_s));
+                    }
                 }
             }
         }

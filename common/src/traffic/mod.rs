@@ -255,6 +255,11 @@ impl Traffic {
         self.cur.active[i]
     }
 
+    /// True for a parked vehicle (a static obstacle).
+    pub fn is_parked(&self, i: usize) -> bool {
+        self.manoeuvre[i] == Manoeuvre::Parked
+    }
+
     /// True while vehicle `i` is changing lanes.
     pub fn is_changing_lane(&self, i: usize) -> bool {
         self.cur.lane_change[i].active

@@ -28,11 +28,7 @@ fn clean(v: f64, lo: f64, hi: f64) -> f64 {
 impl Controls {
     /// A command with the given steering angle, throttle and brake.
     pub fn new(steer_rad: f64, throttle: f64, brake: f64) -> Self {
-        Self {
-            steer_rad,
-            throttle,
-            brake,
-        }
+        Self { steer_rad, throttle, brake }
     }
 
     /// The command with NaN replaced by 0 and every field clamped to its range.
@@ -64,19 +60,13 @@ pub fn accel_demand_mps2(p: &VehicleParams, c: &Controls, speed_mps: f64) -> f64
 
 /// Positive acceleration limit of CommonRoad's `acceleration_constraints`, m/s².
 pub fn drive_limit_mps2(p: &VehicleParams, speed_mps: f64) -> f64 {
-    if speed_mps > p.v_switch_mps {
-        p.a_max_mps2 * p.v_switch_mps / speed_mps
-    } else {
-        p.a_max_mps2
-    }
+    if speed_mps > p.v_switch_mps { p.a_max_mps2 * p.v_switch_mps / speed_mps } else { p.a_max_mps2 }
 }
 
 /// CommonRoad `acceleration_constraints(velocity, acceleration, p.longitudinal)`, verbatim.
 pub fn commonroad_accel_constraint(p: &VehicleParams, speed_mps: f64, accel_mps2: f64) -> f64 {
     let pos_limit = drive_limit_mps2(p, speed_mps);
-    if (speed_mps <= p.v_min_mps && accel_mps2 <= 0.0)
-        || (speed_mps >= p.v_max_mps && accel_mps2 >= 0.0)
-    {
+    if (speed_mps <= p.v_min_mps && accel_mps2 <= 0.0) || (speed_mps >= p.v_max_mps && accel_mps2 >= 0.0) {
         0.0
     } else if accel_mps2 <= -p.a_max_mps2 {
         -p.a_max_mps2
@@ -88,11 +78,7 @@ pub fn commonroad_accel_constraint(p: &VehicleParams, speed_mps: f64, accel_mps2
 }
 
 /// CommonRoad `steering_constraints(steering_angle, steering_velocity, p.steering)`, verbatim.
-pub fn commonroad_steering_constraint(
-    p: &VehicleParams,
-    steer_rad: f64,
-    steer_rate_radps: f64,
-) -> f64 {
+pub fn commonroad_steering_constraint(p: &VehicleParams, steer_rad: f64, steer_rate_radps: f64) -> f64 {
     if (steer_rad <= p.steer_min_rad && steer_rate_radps <= 0.0)
         || (steer_rad >= p.steer_max_rad && steer_rate_radps >= 0.0)
     {
@@ -136,14 +122,8 @@ mod tests {
         assert_eq!(accel_demand_mps2(&p, &full, 5.0), 11.5);
         // Above v_switch = 7.319 m/s: a ≤ a_max·v_switch/v = 11.5·7.319/20 = 4.208 m/s².
         assert!((accel_demand_mps2(&p, &full, 20.0) - 4.208425).abs() < 1e-6);
-        assert_eq!(
-            accel_demand_mps2(&p, &Controls::new(0.0, 0.0, 1.0), 20.0),
-            -11.0
-        );
-        assert_eq!(
-            commonroad_accel_constraint(&p, 20.0, 9.0),
-            accel_demand_mps2(&p, &full, 20.0)
-        );
+        assert_eq!(accel_demand_mps2(&p, &Controls::new(0.0, 0.0, 1.0), 20.0), -11.0);
+        assert_eq!(commonroad_accel_constraint(&p, 20.0, 9.0), accel_demand_mps2(&p, &full, 20.0));
         assert_eq!(commonroad_accel_constraint(&p, 60.0, 1.0), 0.0);
         assert_eq!(commonroad_steering_constraint(&p, 1.066, 0.1), 0.0);
         assert_eq!(commonroad_steering_constraint(&p, 0.0, -1.0), -0.4);

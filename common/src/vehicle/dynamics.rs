@@ -100,24 +100,14 @@ impl Vehicle {
             speed_mps: finite_or(speed_mps, 0.0).clamp(0.0, params.v_max_mps),
             ..VehicleState::default()
         };
-        Vehicle {
-            params,
-            model,
-            state,
-            actuator_accel_mps2: 0.0,
-            lateral_accel_mps2: 0.0,
-        }
+        Vehicle { params, model, state, actuator_accel_mps2: 0.0, lateral_accel_mps2: 0.0 }
     }
 
     /// Footprint-centre pose, heading wrapped into (−π, π].
     pub fn pose(&self) -> Pose {
         let s = &self.state;
         let off = self.params.centre_ahead_of_cog_m;
-        Pose::new(
-            s.x_m + off * s.heading_rad.cos(),
-            s.y_m + off * s.heading_rad.sin(),
-            wrap_angle(s.heading_rad),
-        )
+        Pose::new(s.x_m + off * s.heading_rad.cos(), s.y_m + off * s.heading_rad.sin(), wrap_angle(s.heading_rad))
     }
 
     /// The body's oriented box.
@@ -149,11 +139,7 @@ impl Vehicle {
         }
         let dt_s = dt_s.min(MAX_STEP_S);
         let p = self.params;
-        let mu = if mu.is_nan() {
-            MU_MIN
-        } else {
-            mu.clamp(MU_MIN, MU_MAX)
-        };
+        let mu = if mu.is_nan() { MU_MIN } else { mu.clamp(MU_MIN, MU_MAX) };
         let c = controls.sanitized(&p);
         let s = self.state;
         let steer_rate = steering_rate_radps(&p, s.steer_rad, c.steer_rad, dt_s);
@@ -221,14 +207,13 @@ impl Vehicle {
             accel_mps2: accel,
         };
         self.actuator_accel_mps2 = x[A_ACT];
-        self.lateral_accel_mps2 =
-            if self.model == ModelKind::SingleTrack && x[V] >= KINEMATIC_SWITCH_MPS {
-                let cr: CrState = std::array::from_fn(|i| x[i]);
-                let (fy_f, fy_r) = lateral_forces_n(p, mu, &cr, accel);
-                (fy_f + fy_r) / p.mass_kg
-            } else {
-                x[V] * x[YAW_RATE]
-            };
+        self.lateral_accel_mps2 = if self.model == ModelKind::SingleTrack && x[V] >= KINEMATIC_SWITCH_MPS {
+            let cr: CrState = std::array::from_fn(|i| x[i]);
+            let (fy_f, fy_r) = lateral_forces_n(p, mu, &cr, accel);
+            (fy_f + fy_r) / p.mass_kg
+        } else {
+            x[V] * x[YAW_RATE]
+        };
     }
 }
 
@@ -237,21 +222,10 @@ impl Vehicle {
 fn applied_accel_mps2(p: &VehicleParams, mu: f64, x: &SimState) -> f64 {
     let mu_g = mu * GRAVITY_MPS2;
     let a = x[A_ACT].clamp(-mu_g, mu_g);
-    if (x[V] <= 0.0 && a < 0.0) || (x[V] >= p.v_max_mps && a > 0.0) {
-        0.0
-    } else {
-        a
-    }
+    if (x[V] <= 0.0 && a < 0.0) || (x[V] >= p.v_max_mps && a > 0.0) { 0.0 } else { a }
 }
 
-fn sim_rhs(
-    p: &VehicleParams,
-    model: ModelKind,
-    mu: f64,
-    x: &SimState,
-    steer_rate: f64,
-    demand: f64,
-) -> SimState {
+fn sim_rhs(p: &VehicleParams, model: ModelKind, mu: f64, x: &SimState, steer_rate: f64, demand: f64) -> SimState {
     let a = applied_accel_mps2(p, mu, x);
     let cr: CrState = std::array::from_fn(|i| x[i]);
     let f = match model {

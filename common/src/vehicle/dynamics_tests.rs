@@ -6,12 +6,7 @@ use super::*;
 const DT_S: f64 = 0.01;
 
 fn car(model: ModelKind, speed_mps: f64) -> Vehicle {
-    Vehicle::new(
-        VehicleParams::bmw_320i(),
-        model,
-        Pose::new(0.0, 0.0, 0.0),
-        speed_mps,
-    )
+    Vehicle::new(VehicleParams::bmw_320i(), model, Pose::new(0.0, 0.0, 0.0), speed_mps)
 }
 
 /// Stopping distance under a brake step: the actuator output follows −B(1 − e^(−t/τ)) until it
@@ -74,10 +69,7 @@ fn stopped_car_stays_stopped() {
     for _ in 0..200 {
         v.step(Controls::new(0.2, 0.0, 1.0), 0.9, DT_S);
     }
-    assert_eq!(
-        (v.state.x_m, v.state.y_m, v.state.speed_mps),
-        (rest.x_m, rest.y_m, 0.0)
-    );
+    assert_eq!((v.state.x_m, v.state.y_m, v.state.speed_mps), (rest.x_m, rest.y_m, 0.0));
     assert_eq!(v.state.accel_mps2, 0.0, "no braking force at standstill");
     // Releasing the brake and pressing the throttle drives forward again.
     for _ in 0..100 {
@@ -95,10 +87,7 @@ fn ks_st_gap_m(speed_mps: f64) -> f64 {
         ks.step(c, 0.9, DT_S);
         st.step(c, 0.9, DT_S);
     }
-    assert!(
-        ks.state.y_m > 0.02 * speed_mps * speed_mps,
-        "the car turned"
-    );
+    assert!(ks.state.y_m > 0.02 * speed_mps * speed_mps, "the car turned");
     assert!((ks.state.heading_rad - st.state.heading_rad).abs() < 0.01);
     (ks.pose().position() - st.pose().position()).norm()
 }
@@ -107,9 +96,7 @@ fn ks_st_gap_m(speed_mps: f64) -> f64 {
 fn kinematic_and_single_track_agree_at_low_speed() {
     let gap_5 = ks_st_gap_m(5.0);
     let gap_2_5 = ks_st_gap_m(2.5);
-    eprintln!(
-        "δ=0.05 rad, 5 s: KS–ST position gap {gap_5:.4} m at 5 m/s (25 m path), {gap_2_5:.4} m at 2.5 m/s"
-    );
+    eprintln!("δ=0.05 rad, 5 s: KS–ST position gap {gap_5:.4} m at 5 m/s (25 m path), {gap_2_5:.4} m at 2.5 m/s");
     assert!(gap_5 < 0.2, "gap {gap_5}");
     // The ST slip angle departs from the kinematic one by ≈ v²/(μ·C_S·g·R) (tyre compliance):
     // halving the speed must shrink the gap (to about a quarter, over half the distance).
@@ -164,20 +151,11 @@ fn low_friction_cannot_hold_the_tight_circle() {
     );
     // Dry: the linear tyres hold the circle, near the kinematic radius (CommonRoad's equal
     // normalised stiffnesses make the car neutral-steering).
-    assert!(
-        (r_dry - r_kin).abs() < 0.05 * r_kin,
-        "dry radius {r_dry} vs {r_kin}"
-    );
+    assert!((r_dry - r_kin).abs() < 0.05 * r_kin, "dry radius {r_dry} vs {r_kin}");
     // Low μ: the tyres saturate, the path widens to at least v²/(μg).
     assert!(r_low > 1.5 * r_dry, "low-μ radius {r_low}");
-    assert!(
-        r_low > 0.97 * 144.0 / (0.3 * GRAVITY_MPS2),
-        "low-μ radius {r_low}"
-    );
-    assert!(
-        lat_low < 1.03 * 0.3 * GRAVITY_MPS2,
-        "lateral accel {lat_low}"
-    );
+    assert!(r_low > 0.97 * 144.0 / (0.3 * GRAVITY_MPS2), "low-μ radius {r_low}");
+    assert!(lat_low < 1.03 * 0.3 * GRAVITY_MPS2, "lateral accel {lat_low}");
     assert!(lat_dry > 0.5 * GRAVITY_MPS2, "dry lateral accel {lat_dry}");
 }
 
@@ -193,30 +171,18 @@ fn steering_rate_and_range_are_limited() {
             prev = v.state.steer_rad;
         }
         // One second at 0.4 rad/s.
-        assert!(
-            (v.state.steer_rad - 0.4).abs() < 1e-9,
-            "{}",
-            v.state.steer_rad
-        );
+        assert!((v.state.steer_rad - 0.4).abs() < 1e-9, "{}", v.state.steer_rad);
         for _ in 0..300 {
             v.step(Controls::new(2.0, 0.0, 0.0), 0.9, DT_S);
         }
-        assert!(
-            (v.state.steer_rad - p.steer_max_rad).abs() < 1e-9,
-            "held at the steering limit"
-        );
+        assert!((v.state.steer_rad - p.steer_max_rad).abs() < 1e-9, "held at the steering limit");
     }
 }
 
 #[test]
 fn bad_input_never_poisons_the_state() {
     for model in [ModelKind::Kinematic, ModelKind::SingleTrack] {
-        let mut v = Vehicle::new(
-            VehicleParams::bmw_320i(),
-            model,
-            Pose::new(f64::NAN, 1.0, f64::INFINITY),
-            f64::NAN,
-        );
+        let mut v = Vehicle::new(VehicleParams::bmw_320i(), model, Pose::new(f64::NAN, 1.0, f64::INFINITY), f64::NAN);
         let bad = [
             Controls::new(f64::NAN, f64::NAN, f64::NAN),
             Controls::new(f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY),
@@ -237,10 +203,7 @@ fn bad_input_never_poisons_the_state() {
                 s.steer_rad,
                 s.accel_mps2,
             ];
-            assert!(
-                all.iter().all(|x| x.is_finite()),
-                "{model:?} step {k}: {s:?}"
-            );
+            assert!(all.iter().all(|x| x.is_finite()), "{model:?} step {k}: {s:?}");
             assert!(v.lateral_accel_mps2().is_finite() && s.speed_mps >= 0.0);
         }
     }
@@ -249,12 +212,7 @@ fn bad_input_never_poisons_the_state() {
 #[test]
 fn pose_is_the_footprint_centre() {
     let p = VehicleParams::bmw_320i();
-    let v = Vehicle::new(
-        p,
-        ModelKind::SingleTrack,
-        Pose::new(10.0, 5.0, std::f64::consts::FRAC_PI_2),
-        8.0,
-    );
+    let v = Vehicle::new(p, ModelKind::SingleTrack, Pose::new(10.0, 5.0, std::f64::consts::FRAC_PI_2), 8.0);
     let pose = v.pose();
     assert!((pose.x_m - 10.0).abs() < 1e-12 && (pose.y_m - 5.0).abs() < 1e-12);
     // The CoG sits (l_r − l_f)/2 = 0.133 m ahead of the centre, here along +y.
@@ -280,15 +238,8 @@ fn crawling_single_track_is_stable_at_any_step() {
         // δ small enough that the ST small-angle form (v·δ/l) and the kinematic
         // v·cos β·tan δ/l agree to 0.1 %.
         let kin_yaw = kinematic_yaw_rate_radps(&p, 0.5, 0.1);
-        assert!(
-            (st.state.yaw_rate_radps - kin_yaw).abs() < 0.01 * kin_yaw,
-            "dt {dt}: {:?}",
-            st.state
-        );
-        assert!(
-            (st.pose().position() - ks.pose().position()).norm() < 0.01,
-            "dt {dt}"
-        );
+        assert!((st.state.yaw_rate_radps - kin_yaw).abs() < 0.01 * kin_yaw, "dt {dt}: {:?}", st.state);
+        assert!((st.pose().position() - ks.pose().position()).norm() < 0.01, "dt {dt}");
     }
 }
 
@@ -304,18 +255,11 @@ fn full_throttle_is_power_limited_above_v_switch() {
     let (a, speed) = (v.state.accel_mps2, v.state.speed_mps);
     let limit = p.a_max_mps2 * p.v_switch_mps / speed;
     let trail = p.accel_lag_s * limit * a / speed;
-    assert!(
-        a > limit && a - limit < 1.2 * trail,
-        "{a} vs {limit} (+{trail})"
-    );
+    assert!(a > limit && a - limit < 1.2 * trail, "{a} vs {limit} (+{trail})");
     // From rest, full throttle is capped by traction: μ·g, not a_max.
     let mut v = car(ModelKind::Kinematic, 0.0);
     for _ in 0..50 {
         v.step(Controls::new(0.0, 1.0, 0.0), 0.3, DT_S);
     }
-    assert!(
-        (v.state.accel_mps2 - 0.3 * GRAVITY_MPS2).abs() < 1e-9,
-        "{}",
-        v.state.accel_mps2
-    );
+    assert!((v.state.accel_mps2 - 0.3 * GRAVITY_MPS2).abs() < 1e-9, "{}", v.state.accel_mps2);
 }

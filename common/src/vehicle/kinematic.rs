@@ -22,12 +22,7 @@ pub fn kinematic_yaw_rate_radps(p: &VehicleParams, speed_mps: f64, steer_rad: f6
 /// Time derivative of the CommonRoad state `[x, y, δ, v, ψ, ψ', β]` under the kinematic model,
 /// for inputs already inside their constraints. The yaw-rate and slip entries are 0: in this
 /// model they are functions of (v, δ), set after each step.
-pub fn ks_cog_rhs(
-    p: &VehicleParams,
-    x: &CrState,
-    steer_rate_radps: f64,
-    accel_mps2: f64,
-) -> CrState {
+pub fn ks_cog_rhs(p: &VehicleParams, x: &CrState, steer_rate_radps: f64, accel_mps2: f64) -> CrState {
     let beta = kinematic_slip_rad(p, x[DELTA]);
     let v = x[V];
     [
@@ -54,10 +49,7 @@ mod tests {
         let v = 5.0;
         let beta = kinematic_slip_rad(&p, delta);
         let radius = v / kinematic_yaw_rate_radps(&p, v, delta);
-        assert!(
-            (radius - p.lr_m / beta.sin()).abs() < 1e-9,
-            "radius {radius}"
-        );
+        assert!((radius - p.lr_m / beta.sin()).abs() < 1e-9, "radius {radius}");
         // Rear-axle radius l / tan δ (CommonRoad KS, rear-axle reference).
         assert!((radius * beta.cos() - p.wheelbase_m() / delta.tan()).abs() < 1e-9);
     }

@@ -69,13 +69,7 @@ pub fn lateral_forces_n(p: &VehicleParams, mu: f64, x: &CrState, accel_mps2: f64
 
 /// Time derivative of the ST state for inputs already inside their constraints (steering
 /// velocity, rad/s; longitudinal acceleration, m/s²) on a road of friction `mu`.
-pub fn st_rhs(
-    p: &VehicleParams,
-    mu: f64,
-    x: &CrState,
-    steer_rate_radps: f64,
-    accel_mps2: f64,
-) -> CrState {
+pub fn st_rhs(p: &VehicleParams, mu: f64, x: &CrState, steer_rate_radps: f64, accel_mps2: f64) -> CrState {
     let v = x[V];
     if v.abs() < KINEMATIC_SWITCH_MPS {
         return low_speed_rhs(p, x, steer_rate_radps, accel_mps2);
@@ -95,12 +89,7 @@ pub fn st_rhs(
 
 /// CommonRoad's low-speed branch: kinematic motion of the centre of gravity, plus the time
 /// derivatives of the kinematic slip angle and yaw rate so that ψ' and β stay continuous.
-fn low_speed_rhs(
-    p: &VehicleParams,
-    x: &CrState,
-    steer_rate_radps: f64,
-    accel_mps2: f64,
-) -> CrState {
+fn low_speed_rhs(p: &VehicleParams, x: &CrState, steer_rate_radps: f64, accel_mps2: f64) -> CrState {
     let mut f = ks_cog_rhs(p, x, steer_rate_radps, accel_mps2);
     let l = p.wheelbase_m();
     let (delta, v, beta) = (x[DELTA], x[V], x[BETA]);
@@ -127,25 +116,13 @@ pub fn commonroad_st_rhs(p: &VehicleParams, mu: f64, x: &CrState, u: [f64; 2]) -
 
 /// One classic fourth-order Runge–Kutta step of [`commonroad_st_rhs`] with inputs held
 /// constant: the scheme of the reference trajectory in `tests/peers/vehicle_st_reference.py`.
-pub fn commonroad_st_rk4_step(
-    p: &VehicleParams,
-    mu: f64,
-    x: &CrState,
-    u: [f64; 2],
-    dt_s: f64,
-) -> CrState {
+pub fn commonroad_st_rk4_step(p: &VehicleParams, mu: f64, x: &CrState, u: [f64; 2], dt_s: f64) -> CrState {
     rk4(x, dt_s, |s| commonroad_st_rhs(p, mu, s, u))
 }
 
 /// Classic RK4 on a fixed-size state; no allocation.
-pub(crate) fn rk4<const N: usize>(
-    x: &[f64; N],
-    h: f64,
-    f: impl Fn(&[f64; N]) -> [f64; N],
-) -> [f64; N] {
-    let axpy = |a: &[f64; N], k: &[f64; N], s: f64| -> [f64; N] {
-        std::array::from_fn(|i| a[i] + s * k[i])
-    };
+pub(crate) fn rk4<const N: usize>(x: &[f64; N], h: f64, f: impl Fn(&[f64; N]) -> [f64; N]) -> [f64; N] {
+    let axpy = |a: &[f64; N], k: &[f64; N], s: f64| -> [f64; N] { std::array::from_fn(|i| a[i] + s * k[i]) };
     let k1 = f(x);
     let k2 = f(&axpy(x, &k1, 0.5 * h));
     let k3 = f(&axpy(x, &k2, 0.5 * h));
@@ -247,10 +224,7 @@ mod tests {
             let u = if k < 100 { [0.05, 1.0] } else { [-0.05, -2.0] };
             x = commonroad_st_rk4_step(&p, mu, &x, u, 0.01);
             let t = (k + 1) as f64 * 0.01;
-            for (t_ref, x_ref) in REFERENCE
-                .iter()
-                .filter(|(t_ref, _)| (t_ref - t).abs() < 1e-9)
-            {
+            for (t_ref, x_ref) in REFERENCE.iter().filter(|(t_ref, _)| (t_ref - t).abs() < 1e-9) {
                 for i in 0..7 {
                     assert!(
                         (x[i] - x_ref[i]).abs() < 1e-9,
@@ -271,10 +245,7 @@ mod tests {
         let weight_n = p.mass_kg * GRAVITY_MPS2;
         let (f, r) = axle_loads_n(&p, -5.0);
         assert!((f + r - weight_n).abs() < 1e-6, "loads sum to the weight");
-        assert!(
-            f > weight_n * p.lr_m / p.wheelbase_m(),
-            "braking loads the front axle"
-        );
+        assert!(f > weight_n * p.lr_m / p.wheelbase_m(), "braking loads the front axle");
         // A large slip angle saturates both axles at F_z·√(μ² − (a/g)²).
         let mu = 0.5;
         let a = -3.0;

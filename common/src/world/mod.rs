@@ -55,7 +55,17 @@ pub struct StepReport {
 impl World {
     /// A world at t = 0 (scenario builders fill it).
     #[allow(clippy::too_many_arguments)]
-    pub fn new(road: Road, ego: Vehicle, traffic: Traffic, pedestrians: Vec<PedestrianWalk>, sensor: Sensor, route: Route, desired_speed_mps: f64, horizon_s: f64, seed: u64) -> Self {
+    pub fn new(
+        road: Road,
+        ego: Vehicle,
+        traffic: Traffic,
+        pedestrians: Vec<PedestrianWalk>,
+        sensor: Sensor,
+        route: Route,
+        desired_speed_mps: f64,
+        horizon_s: f64,
+        seed: u64,
+    ) -> Self {
         Self {
             road,
             ego,
@@ -84,15 +94,25 @@ impl World {
     /// True state of every object other than the ego, refreshed into the scratch buffer.
     pub fn scene_objects(&mut self) -> &[SceneObject] {
         self.objects.clear();
-        for i in 0..self.traffic.len() {
+        for i in (0..self.traffic.len()).filter(|&i| self.traffic.is_active(i)) {
             let kind = if self.traffic.is_parked(i) { ObjectKind::Parked } else { ObjectKind::Vehicle };
-            self.objects.push(SceneObject { id: i as u32, obb: self.traffic.obb(i), velocity: self.traffic.velocity(i), kind });
+            self.objects.push(SceneObject {
+                id: i as u32,
+                obb: self.traffic.obb(i),
+                velocity: self.traffic.velocity(i),
+                kind,
+            });
         }
         let base = self.traffic.len() as u32;
         for (k, p) in self.pedestrians.iter().enumerate() {
             if let Some(pos) = p.position_at(self.time_s) {
                 let vel = p.velocity_at(self.time_s);
-                self.objects.push(SceneObject { id: base + k as u32, obb: Self::pedestrian_obb(pos, vel), velocity: vel, kind: ObjectKind::Pedestrian });
+                self.objects.push(SceneObject {
+                    id: base + k as u32,
+                    obb: Self::pedestrian_obb(pos, vel),
+                    velocity: vel,
+                    kind: ObjectKind::Pedestrian,
+                });
             }
         }
         &self.objects
@@ -133,13 +153,21 @@ impl World {
         self.ego.step(controls, mu, self.dt_s);
 
         self.external.clear();
-        self.external.push(ExternalAgent { pose: ego_pose, velocity: ego_velocity, footprint: self.ego.params.footprint() });
+        self.external.push(ExternalAgent {
+            pose: ego_pose,
+            velocity: ego_velocity,
+            footprint: self.ego.params.footprint(),
+        });
         for p in &self.pedestrians {
             if let Some(pos) = p.position_at(self.time_s) {
                 let d = 2.0 * cast::PEDESTRIAN_RADIUS_M;
                 let vel = p.velocity_at(self.time_s);
                 let heading = Self::pedestrian_obb(pos, vel).axis;
-                self.external.push(ExternalAgent { pose: Pose::new(pos.x, pos.y, heading.y.atan2(heading.x)), velocity: vel, footprint: Footprint::new(d, d) });
+                self.external.push(ExternalAgent {
+                    pose: Pose::new(pos.x, pos.y, heading.y.atan2(heading.x)),
+                    velocity: vel,
+                    footprint: Footprint::new(d, d),
+                });
             }
         }
         self.traffic.step(&self.road, self.time_s, self.dt_s, &self.external);

@@ -98,12 +98,23 @@ pub fn risk_field(args: BenchRiskFieldArgs) -> CliResult {
     if !checksum.is_finite() {
         return Err(CliError::runtime("risk field produced a non-finite value"));
     }
-    let report = FieldReport { fields_per_s: fields as f64 / wall_s, cells: args.cols * args.rows, agents: args.agents, fields, wall_s };
+    let report = FieldReport {
+        fields_per_s: fields as f64 / wall_s,
+        cells: args.cols * args.rows,
+        agents: args.agents,
+        fields,
+        wall_s,
+    };
     match args.format {
         Format::Json => print_json(&report),
         _ => print_table(
             &["agents", "cells", "fields_per_s", "wall_s"],
-            &[vec![report.agents.to_string(), report.cells.to_string(), csv_float(report.fields_per_s.round()), format!("{:.3}", report.wall_s)]],
+            &[vec![
+                report.agents.to_string(),
+                report.cells.to_string(),
+                csv_float(report.fields_per_s.round()),
+                format!("{:.3}", report.wall_s),
+            ]],
         ),
     }
 }

@@ -10,8 +10,8 @@ use crate::png_out::write_png;
 use risktwin_cloud::generate::{GenerateReport, evaluate_all, generate, reference_outcome, store};
 use risktwin_cloud::library::{RankedScenario, ScenarioLibrary, ScenarioRecord};
 use risktwin_common::episode::field_snapshot;
-use risktwin_common::rng::Rng;
 use risktwin_common::risk::render_heatmap;
+use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, mutate};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -39,7 +39,14 @@ pub struct RunConfig {
 
 impl Default for RunConfig {
     fn default() -> Self {
-        Self { count_per_kind: 60, iterations: 3, mutations_per_iteration: 20, mutation_radius: 0.1, top_k: 10, heatmaps: 3 }
+        Self {
+            count_per_kind: 60,
+            iterations: 3,
+            mutations_per_iteration: 20,
+            mutation_radius: 0.1,
+            top_k: 10,
+            heatmaps: 3,
+        }
     }
 }
 

@@ -26,7 +26,9 @@ pub fn generate(args: GenerateArgs) -> CliResult {
             let mut rows: Vec<Vec<String>> = report
                 .by_kind
                 .iter()
-                .map(|(k, r)| vec![k.to_string(), r.stored.to_string(), r.infeasible.to_string(), r.collisions.to_string()])
+                .map(|(k, r)| {
+                    vec![k.to_string(), r.stored.to_string(), r.infeasible.to_string(), r.collisions.to_string()]
+                })
                 .collect();
             rows.push(vec![
                 "total".into(),

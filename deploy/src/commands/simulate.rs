@@ -6,17 +6,50 @@ use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_common::episode;
 use risktwin_common::metrics::EpisodeMetrics;
+use risktwin_common::world::{StepReport, World};
 
 pub fn simulate(args: SimulateArgs) -> CliResult {
     if args.policy != "idm" {
         return Err(CliError::input(format!("unknown policy '{}' (available: idm)", args.policy)));
     }
     let spec = source::load(&args.source)?;
-    let result = episode::evaluate(&spec);
+    let result = match &args.trace {
+        None => episode::evaluate(&spec),
+        Some(path) => {
+            let mut rows = String::from(TRACE_HEADER);
+            let result = episode::evaluate_observed(&spec, &mut |w, r| trace_row(&mut rows, w, r));
+            std::fs::write(path, rows).map_err(|e| CliError::input(format!("cannot write {}: {e}", path.display())))?;
+            result
+        }
+    };
     match args.format {
         Format::Json => print_json(&result.metrics),
         Format::Table | Format::Csv => print_metrics(&result.metrics, args.format),
     }
+}
+
+const TRACE_HEADER: &str =
+    "time_s,x_m,y_m,heading_rad,speed_mps,accel_mps2,steer_rad,lane,perceived,min_distance_m,collision,offroad\n";
+
+fn trace_row(rows: &mut String, w: &World, r: &StepReport) {
+    use std::fmt::Write;
+    let p = w.ego.pose();
+    let lane = w.road.locate_heading(p.position(), p.heading_rad).lane;
+    let _ = writeln!(
+        rows,
+        "{:.2},{:.3},{:.3},{:.4},{:.3},{:.3},{:.4},{lane},{},{},{},{}",
+        w.time_s,
+        p.x_m,
+        p.y_m,
+        p.heading_rad,
+        w.ego.state.speed_mps,
+        w.ego.state.accel_mps2,
+        w.ego.state.steer_rad,
+        w.perceived().len(),
+        csv_float(r.contacts.min_distance_m),
+        r.contacts.collision,
+        r.contacts.offroad
+    );
 }
 
 fn print_metrics(m: &EpisodeMetrics, format: Format) -> CliResult {

@@ -23,7 +23,8 @@ pub fn read_spec_file(path: &Path) -> CliResult<ScenarioSpec> {
     let text = std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read spec {shown}: {e}")))?;
     let raw: SpecFile = serde_json::from_str(&text).map_err(|e| CliError::input(format!("spec {shown}: {e}")))?;
     let kind: ScenarioKind = raw.kind.parse().map_err(|e| CliError::input(format!("spec {shown}: {e}")))?;
-    let spec = ScenarioSpec::new(kind, raw.seed, raw.params).map_err(|e| CliError::input(format!("spec {shown}: {e}")))?;
+    let spec =
+        ScenarioSpec::new(kind, raw.seed, raw.params).map_err(|e| CliError::input(format!("spec {shown}: {e}")))?;
     check_feasible(&spec).map_err(|e| CliError::input(format!("spec {shown}: infeasible: {e}")))?;
     Ok(spec)
 }

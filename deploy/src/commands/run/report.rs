@@ -19,7 +19,10 @@ pub fn markdown(m: &RunMetrics) -> String {
         let _ = writeln!(s, "| {k} | {} | {} | {} |", r.stored, r.infeasible, r.collisions);
     }
     let _ = writeln!(s, "\n## Library by kind (after mutation)\n");
-    let _ = writeln!(s, "| kind | scenarios | collisions | collision rate | mean S_risk | max S_risk |\n|---|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| kind | scenarios | collisions | collision rate | mean S_risk | max S_risk |\n|---|---|---|---|---|---|"
+    );
     for (k, r) in &m.by_kind {
         let _ = writeln!(
             s,
@@ -37,7 +40,13 @@ pub fn markdown(m: &RunMetrics) -> String {
             let _ = writeln!(
                 s,
                 "| {} | {} | {} | {} | {:.3} | {:.3} | {} |",
-                r.round, r.parents, r.children, r.infeasible_children, r.parent_mean_risk, r.child_mean_risk, r.child_collisions
+                r.round,
+                r.parents,
+                r.children,
+                r.infeasible_children,
+                r.parent_mean_risk,
+                r.child_mean_risk,
+                r.child_collisions
             );
         }
         let _ = writeln!(
@@ -47,7 +56,10 @@ pub fn markdown(m: &RunMetrics) -> String {
         );
     }
     let _ = writeln!(s, "\n## Top scenarios\n");
-    let _ = writeln!(s, "| rank | id | kind | S_risk | TTC | dist | lane | jerk | collision | min TTC s | min dist m |\n|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| rank | id | kind | S_risk | TTC | dist | lane | jerk | collision | min TTC s | min dist m |\n|---|---|---|---|---|---|---|---|---|---|---|"
+    );
     for (i, r) in m.top.iter().enumerate() {
         let ttc = r.outcome.min_ttc_s.map_or("∞".to_string(), |t| format!("{t:.2}"));
         let _ = writeln!(

@@ -130,9 +130,15 @@ pub fn evaluate(spec: &ScenarioSpec) -> EpisodeResult {
 
 /// [`evaluate`], calling `observe` after every step.
 pub fn evaluate_observed(spec: &ScenarioSpec, observe: &mut dyn FnMut(&World, &StepReport)) -> EpisodeResult {
-    let mut world = build(spec);
-    let mut driver = ReferenceDriver::new(world.desired_speed_mps, world.ego.params.clone());
+    let (mut world, mut driver) = with_reference_driver(spec);
     run_observed(&mut world, &mut driver, &RewardWeights::default(), observe)
+}
+
+/// The scenario's world at t = 0 and the reference driver for its ego.
+pub fn with_reference_driver(spec: &ScenarioSpec) -> (World, ReferenceDriver) {
+    let world = build(spec);
+    let driver = ReferenceDriver::new(world.desired_speed_mps, world.ego.params);
+    (world, driver)
 }
 
 /// The risk field around the ego at one moment of a scenario, with what is needed to draw it.
@@ -164,8 +170,7 @@ pub fn field_snapshot(
     resolution_m: f64,
     cells: usize,
 ) -> Result<FieldSnapshot, FieldError> {
-    let mut world = build(spec);
-    let mut driver = ReferenceDriver::new(world.desired_speed_mps, world.ego.params.clone());
+    let (mut world, mut driver) = with_reference_driver(spec);
     while world.time_s + 1e-9 < time_s && !world.finished() {
         let report = world.step(&mut driver);
         if report.contacts.collision || report.contacts.offroad {

@@ -111,6 +111,7 @@ pub fn run_observed(
                 jerk_mps3: jerk,
                 others: &others,
                 collision,
+                offroad,
             },
         );
     }
@@ -137,7 +138,10 @@ pub fn evaluate_observed(spec: &ScenarioSpec, observe: &mut dyn FnMut(&World, &S
 /// The scenario's world at t = 0 and the reference driver for its ego.
 pub fn with_reference_driver(spec: &ScenarioSpec) -> (World, ReferenceDriver) {
     let world = build(spec);
-    let driver = ReferenceDriver::new(world.desired_speed_mps, world.ego.params);
+    let mut driver = ReferenceDriver::new(world.desired_speed_mps, world.ego.params);
+    if let Some(t) = world.driver_time_headway_s {
+        driver.idm.time_headway_s = t;
+    }
     (world, driver)
 }
 

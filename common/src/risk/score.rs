@@ -123,6 +123,8 @@ pub struct RiskSummary {
     /// Largest |jerk| of the ego (m/s³).
     pub peak_jerk_mps3: f64,
     pub collision: bool,
+    /// The ego left the road (a run-off-road crash).
+    pub offroad: bool,
 }
 
 fn unit(x: f64) -> f64 {
@@ -131,14 +133,18 @@ fn unit(x: f64) -> f64 {
 
 impl RiskSummary {
     /// The normalised terms and S_risk. S_lane = min(ratio, 1)², the peak of the lane term
-    /// R_l of the field (paper eq. for R_l); NaN inputs count as the worst case.
+    /// R_l of the field (paper eq. for R_l) — a lane change crosses a lane line and so reaches
+    /// 1 as well, which is why S_lane weighs little; NaN inputs count as the worst case.
     pub fn terms(&self, weights: &RiskWeights, refs: &ScoreReferences) -> RiskTerms {
         let ttc = self.min_ttc_s.map_or(0.0, |t| unit(1.0 - t / refs.ttc_crit_s));
         let dist = unit(1.0 - self.min_distance_m / refs.dist_ref_m);
         let lane = unit(self.max_lane_ratio).powi(2);
         let span = (refs.jerk_max_mps3 - refs.jerk_comfort_mps3).max(f64::EPSILON);
         let jerk = unit((self.peak_jerk_mps3 - refs.jerk_comfort_mps3) / span);
-        let collision = if self.collision { 1.0 } else { 0.0 };
+        // Leaving the road counts as a collision: run-off-road crashes are collisions with the
+        // roadside in crash statistics, and a scenario that ends in a ditch is as critical as
+        // one that ends in a rear-end crash.
+        let collision = if self.collision || self.offroad { 1.0 } else { 0.0 };
         let score = weights.ttc * ttc
             + weights.dist * dist
             + weights.lane * lane
@@ -159,6 +165,7 @@ pub struct RiskStep<'a> {
     /// The other objects, in a stable order (index i is the same object every step).
     pub others: &'a [VehicleState],
     pub collision: bool,
+    pub offroad: bool,
 }
 
 /// The worst values one (ego, other) pair reached in an episode.
@@ -210,6 +217,7 @@ impl RiskAccumulator {
             max_lane_ratio: 0.0,
             peak_jerk_mps3: 0.0,
             collision: false,
+            offroad: false,
         };
         Self { weights, refs, summary, pairs: Vec::new() }
     }
@@ -222,6 +230,7 @@ impl RiskAccumulator {
         s.max_lane_ratio = max_nan_worst(s.max_lane_ratio, ratio);
         s.peak_jerk_mps3 = max_nan_worst(s.peak_jerk_mps3, step.jerk_mps3.abs());
         s.collision |= step.collision;
+        s.offroad |= step.offroad;
         if self.pairs.len() < step.others.len() {
             self.pairs.resize(step.others.len(), PairExtremes::NONE);
         }
@@ -292,6 +301,7 @@ mod tests {
                 jerk_mps3: (ae - ae_prev) / dt,
                 others: &others,
                 collision,
+                offroad: false,
             };
             acc.push(&road, &step);
             ae_prev = ae;
@@ -313,6 +323,7 @@ mod tests {
             max_lane_ratio: 2.0,
             peak_jerk_mps3: 6.0,
             collision: false,
+            offroad: false,
         };
         let t = s.terms(&RiskWeights::default(), &ScoreReferences::default());
         assert!((t.ttc - 0.75).abs() < 1e-12 && (t.dist - 0.75).abs() < 1e-12);
@@ -329,8 +340,12 @@ mod tests {
             max_lane_ratio: f64::NAN,
             peak_jerk_mps3: 1e9,
             collision: true,
+            offroad: false,
         };
         assert!((worst.terms(&w, &ScoreReferences::default()).score - 1.0).abs() < 1e-12);
+        // Leaving the road is a run-off-road crash: S_col = 1 as for a collision.
+        let ditch = RiskSummary { collision: false, offroad: true, ..s };
+        assert_eq!(ditch.terms(&w, &ScoreReferences::default()).collision, 1.0);
     }
 
     #[test]
@@ -362,6 +377,7 @@ mod tests {
             jerk_mps3: 0.0,
             others: &others,
             collision: false,
+            offroad: false,
         };
         acc.push(&road, &step);
         let p = acc.pairs();

@@ -43,6 +43,7 @@ pub fn build(spec: &ScenarioSpec) -> World {
     // kind degrades range and field of view.
     let mut sensor_params = SensorParams { fov_rad: std::f64::consts::TAU, ..SensorParams::default() };
     let mut horizon_s = HORIZON_S;
+    let mut driver_time_headway_s = None;
     let mut route_end_s: Option<f64> = None;
     let (road, ego_lane, ego_speed) = match spec.kind {
         ScenarioKind::CutIn => {
@@ -81,6 +82,10 @@ pub fn build(spec: &ScenarioSpec) -> World {
             let s_stop = s_lead + v * t_brake + v * v / (2.0 * a_lead);
             route_end_s = Some(s_stop - 0.5 * CAR.length_m - 0.5 * EGO.length_m - 4.0);
             horizon_s = t_brake + v / a_lead + 8.0;
+            // The initial headway is how closely this ego follows: its driver keeps it as its
+            // IDM equilibrium gap, s0 + v·T (T clamped to 0.3–1.6 s), instead of braking away.
+            let s0 = IdmParams::default().min_gap_m;
+            driver_time_headway_s = Some(((p("initial_headway_m") - s0) / v).clamp(0.3, 1.6));
             (road, 0, v)
         }
         ScenarioKind::PedestrianCrossing => {
@@ -148,7 +153,7 @@ pub fn build(spec: &ScenarioSpec) -> World {
         None => ego_speed.max(5.0) * (horizon_s - ROUTE_SLACK_S),
     };
     let route = Route { lane: ego_lane, start_s_m: EGO_START_S_M, length_m };
-    World::new(
+    let mut world = World::new(
         road,
         ego,
         traffic,
@@ -158,5 +163,7 @@ pub fn build(spec: &ScenarioSpec) -> World {
         ego_speed,
         horizon_s,
         spec.seed,
-    )
+    );
+    world.driver_time_headway_s = driver_time_headway_s;
+    world
 }

@@ -35,6 +35,9 @@ pub struct World {
     pub sensor: Sensor,
     pub route: Route,
     pub desired_speed_mps: f64,
+    /// The time gap the ego's driver keeps when the scenario prescribes one (how closely it
+    /// follows), s; `None` for the driver's own default.
+    pub driver_time_headway_s: Option<f64>,
     pub time_s: f64,
     pub dt_s: f64,
     pub horizon_s: f64,
@@ -74,6 +77,7 @@ impl World {
             sensor,
             route,
             desired_speed_mps,
+            driver_time_headway_s: None,
             time_s: 0.0,
             dt_s: 0.05,
             horizon_s,

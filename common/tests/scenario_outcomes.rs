@@ -130,7 +130,12 @@ fn each_kind_has_a_crash_region_and_a_benign_corner() {
             assert!(!good.metrics.collision && !good.metrics.offroad, "{kind} benign, seed {seed}: {:?}", good.metrics);
             // A crash with a close approach scores ≈ 0.9; a run-off-road crash has no TTC or
             // distance terms and scores ≈ 0.4 — either way well above the benign corner.
-            assert!(good.risk.score < bad.risk.score - 0.25, "{kind}: benign {} vs critical {}", good.risk.score, bad.risk.score);
+            assert!(
+                good.risk.score < bad.risk.score - 0.25,
+                "{kind}: benign {} vs critical {}",
+                good.risk.score,
+                bad.risk.score
+            );
             // The stopped car blocks the occlusion kind's lane: the ego stops safely but cannot
             // finish the route in time; every other benign corner completes it.
             if kind != ScenarioKind::SensorOcclusion {

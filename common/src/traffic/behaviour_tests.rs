@@ -263,12 +263,15 @@ fn thread_count_does_not_change_a_bit() {
         .iter()
         .map(|&threads| {
             let (road, mut t) = bench_traffic(2_001, 3);
-            t.min_vehicles_per_thread = 1; // really split 2,001 vehicles over the threads
+            t.min_vehicles_per_task = 16; // really split 2,001 vehicles over the threads
             let mut collisions = 0;
-            for k in 0..300 {
-                t.step_threads(&road, k as f64 * 0.1, 0.1, &[], threads);
-                collisions += t.collisions().len() as u64;
-            }
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool");
+            pool.install(|| {
+                for k in 0..300 {
+                    t.step_threads(&road, k as f64 * 0.1, 0.1, &[], threads);
+                    collisions += t.collisions().len() as u64;
+                }
+            });
             let mut bits = vec![collisions];
             for i in 0..t.len() {
                 let p = t.pose(i);

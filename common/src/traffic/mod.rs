@@ -119,7 +119,7 @@ pub struct Traffic {
     step_count: u64,
     lane_changes_started: u64,
     /// Override of the smallest per-thread chunk (0: the default); tests force threads on.
-    min_vehicles_per_thread: usize,
+    min_vehicles_per_task: usize,
     /// False after `add`: the next step (or `prepare`) rebuilds poses and lane lists.
     ready: bool,
 }

@@ -12,8 +12,9 @@ use crate::road::Road;
 /// (highway-env likewise decides lane changes at its 1 Hz policy rate).
 const MOBIL_PERIOD_S: f64 = 1.0;
 
-/// Fewest vehicles worth a thread of their own (a thread start costs tens of µs).
-const MIN_VEHICLES_PER_THREAD: usize = 2048;
+/// Fewest vehicles worth a parallel task (a rayon join costs about a microsecond; 512 vehicles
+/// take about 30 µs).
+const MIN_VEHICLES_PER_TASK: usize = 512;
 
 impl Traffic {
     /// Advances every vehicle from `time_s` to `time_s + dt_s` on one thread.
@@ -21,8 +22,9 @@ impl Traffic {
         self.step_threads(road, time_s, dt_s, external, 1);
     }
 
-    /// Like [`Traffic::step`] with the per-vehicle work split over `threads` threads; the
-    /// result is bit-identical for every thread count.
+    /// Like [`Traffic::step`] with the per-vehicle work split over the current rayon pool when
+    /// `threads > 1` (run inside `ThreadPool::install` to choose its size); the result is
+    /// bit-identical for every thread count.
     pub fn step_threads(&mut self, road: &Road, time_s: f64, dt_s: f64, external: &[ExternalAgent], threads: usize) {
         // The road is expected to stay the same; a different one (checked by lane shape)
         // rebuilds the cached geometry and the lane lists.
@@ -46,33 +48,28 @@ impl Traffic {
         };
         let mut nxt = std::mem::take(&mut self.nxt);
         nxt.resize(n);
-        // Small chunks cost more in thread start-up than they save.
-        let min_chunk =
-            if self.min_vehicles_per_thread == 0 { MIN_VEHICLES_PER_THREAD } else { self.min_vehicles_per_thread };
-        let threads = threads.clamp(1, n.div_ceil(min_chunk).max(1));
-        if threads == 1 {
+        if threads <= 1 {
             self.fill(&inp, 0, nxt.view());
         } else {
-            let chunk = n.div_ceil(threads);
-            let this = &*self;
-            let inp = &inp;
-            std::thread::scope(|scope| {
-                let (first, mut rest) = nxt.view().split_at(chunk.min(n));
-                let mut offset = chunk;
-                while rest.len() > 0 {
-                    let take = chunk.min(rest.len());
-                    let (part, tail) = rest.split_at(take);
-                    let start = offset;
-                    scope.spawn(move || this.fill(inp, start, part));
-                    offset += chunk;
-                    rest = tail;
-                }
-                this.fill(inp, 0, first);
-            });
+            // Halves on rayon's pool (the caller's, or the global one): a worker descheduled
+            // by other load has its half stolen back instead of stalling the step.
+            let grain =
+                if self.min_vehicles_per_task == 0 { MIN_VEHICLES_PER_TASK } else { self.min_vehicles_per_task };
+            self.fill_split(&inp, 0, nxt.view(), grain);
         }
         self.commit(nxt);
         self.detect_collisions();
         self.step_count += 1;
+    }
+
+    fn fill_split(&self, inp: &StepInput, offset: usize, out: KinematicsMut, grain: usize) {
+        if out.len() <= grain {
+            self.fill(inp, offset, out);
+            return;
+        }
+        let mid = out.len() / 2;
+        let (a, b) = out.split_at(mid);
+        rayon::join(|| self.fill_split(inp, offset, a, grain), || self.fill_split(inp, offset + mid, b, grain));
     }
 
     fn fill(&self, inp: &StepInput, offset: usize, mut out: KinematicsMut) {

@@ -29,6 +29,11 @@ pub fn sim(args: BenchSimArgs) -> CliResult {
     if threads == 0 {
         return Err(CliError::input("--threads must be positive"));
     }
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(CliError::runtime)?;
+    pool.install(|| time_traffic(args, threads))
+}
+
+fn time_traffic(args: BenchSimArgs, threads: usize) -> CliResult {
     let (road, mut traffic) = bench_traffic(args.vehicles, args.seed);
     let dt_s = 0.05;
     // Warm-up: let the initial placement settle so the timed steps are steady-state traffic.

@@ -84,7 +84,11 @@ impl View {
     }
 }
 
-/// Renders `grid` scaled to its maximum (cells ≤ 0 are the map's bottom colour), with road
+/// Brightness kept for off-road cells, percent.
+const OFF_ROAD_DIM_PERCENT: u16 = 35;
+
+/// Renders `grid` scaled to its on-road maximum (cells ≤ 0 are the map's bottom colour; off-road
+/// cells dimmed), with road
 /// edges (solid), lane centrelines (dashed), `footprints` outlined in white and `ego` in red.
 /// Each cell becomes `pixels_per_cell`² pixels; image row 0 is the grid's top (max y).
 pub fn render_heatmap(grid: &RiskGrid, road: &Road, footprints: &[Obb], ego: &Obb, pixels_per_cell: usize) -> RgbImage {
@@ -95,14 +99,29 @@ pub fn render_heatmap(grid: &RiskGrid, road: &Road, footprints: &[Obb], ego: &Ob
     }
     let (width, height) = (grid.cols * ppc, grid.rows * ppc);
     let mut img = RgbImage { width, height, data: vec![0; 3 * width * height] };
-    let max = grid.cells.iter().copied().filter(|v| v.is_finite()).fold(0.0f32, f32::max).max(1e-9);
+    // Off the road the boundary term alone reaches an obstacle's peak; those cells are drawn
+    // dimmed and left out of the colour scale, so the risk on the road stays readable.
+    let on_road: Vec<bool> = (0..cells).map(|k| road.edge_distance_m(grid.cell_centre(k % grid.cols, k / grid.cols)) >= 0.0).collect();
+    let scale_max = |on_road_only: bool| {
+        grid.cells
+            .iter()
+            .zip(&on_road)
+            .filter(|(v, r)| v.is_finite() && (**r || !on_road_only))
+            .fold(0.0f32, |m, (v, _)| m.max(*v))
+    };
+    let max = if on_road.iter().any(|&r| r) { scale_max(true) } else { scale_max(false) }.max(1e-9);
     for y in 0..height {
         let row = grid.rows - 1 - y / ppc;
         for x in 0..width {
             // `get`: the fields are public, a short `cells` renders as 0 instead of panicking.
-            let v = grid.cells.get(row * grid.cols + x / ppc).copied().unwrap_or(0.0);
+            let k = row * grid.cols + x / ppc;
+            let v = grid.cells.get(k).copied().unwrap_or(0.0);
+            let mut rgb = viridis((v / max).min(1.0) as f64);
+            if !on_road.get(k).copied().unwrap_or(true) {
+                rgb = rgb.map(|c| (u16::from(c) * OFF_ROAD_DIM_PERCENT / 100) as u8);
+            }
             let i = 3 * (y * width + x);
-            img.data[i..i + 3].copy_from_slice(&viridis((v / max) as f64));
+            img.data[i..i + 3].copy_from_slice(&rgb);
         }
     }
     let view = View { origin: grid.origin_m, px_per_m: ppc as f64 / grid.resolution_m, height: height as f64 };

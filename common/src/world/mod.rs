@@ -69,6 +69,9 @@ impl World {
         horizon_s: f64,
         seed: u64,
     ) -> Self {
+        let mut traffic = traffic;
+        // Poses exist only after a step or `prepare`; the first perception needs them.
+        traffic.prepare(&road);
         Self {
             road,
             ego,

@@ -1,4 +1,13 @@
 //! Cross-process tests: the `risktwin` binary driven as a user would, checked against the
 //! contract in `shared/docs/cli.md`.
 
+mod bad_db;
+mod bad_run;
+mod bad_spec;
+mod bad_usage;
+mod contract_bench;
+mod contract_episode;
+mod contract_scenarios;
+mod determinism;
+mod same_scenario;
 mod support;

@@ -1,0 +1,64 @@
+//! `risktwin run` refusing bad configs and an already used report folder, before it writes
+//! anything.
+
+use crate::support::{assert_input_error, write_file};
+use tempfile::tempdir;
+
+#[test]
+fn config_with_unknown_field_is_refused_before_any_output() {
+    let dir = tempdir().unwrap();
+    write_file(dir.path(), "c.json", r#"{"count_per_kind": 5, "colour": "red"}"#);
+    let line = assert_input_error(dir.path(), &["run", "--config", "c.json", "--out", "out"], "colour");
+    assert!(line.contains("c.json"), "the error does not name the config file: {line}");
+    assert!(!dir.path().join("out").exists(), "a refused run created its report folder");
+}
+
+#[test]
+fn config_with_out_of_range_values_is_refused() {
+    let dir = tempdir().unwrap();
+    for (text, needle) in [
+        (r#"{"count_per_kind": 0}"#, "count_per_kind 0"),
+        (r#"{"mutation_radius": 2.5}"#, "mutation_radius 2.5"),
+        (r#"{"count_per_kind": -4}"#, "-4"),
+        (r#"{"heatmaps": 500}"#, "heatmaps"),
+    ] {
+        write_file(dir.path(), "c.json", text);
+        assert_input_error(dir.path(), &["run", "--config", "c.json", "--out", "out"], needle);
+        assert!(!dir.path().join("out").exists(), "a refused run created its report folder");
+    }
+}
+
+#[test]
+fn malformed_or_missing_config_names_the_file() {
+    let dir = tempdir().unwrap();
+    write_file(dir.path(), "broken.json", r#"{"count_per_kind": 5"#);
+    assert_input_error(dir.path(), &["run", "--config", "broken.json", "--out", "out"], "broken.json");
+    assert_input_error(dir.path(), &["run", "--config", "absent.json", "--out", "out"], "absent.json");
+}
+
+#[test]
+fn too_many_iterations_flag_is_refused() {
+    let dir = tempdir().unwrap();
+    assert_input_error(dir.path(), &["run", "--quick", "--iterations", "5000", "--out", "out"], "iterations");
+    assert!(!dir.path().join("out").exists());
+}
+
+#[test]
+fn out_folder_with_a_library_is_refused_and_left_alone() {
+    let dir = tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("used")).unwrap();
+    let db = write_file(&dir.path().join("used"), "library.db", "the previous run's library");
+    let line = assert_input_error(dir.path(), &["run", "--quick", "--out", "used"], "library.db");
+    assert!(line.contains("used"), "{line}");
+    assert_eq!(std::fs::read_to_string(db).unwrap(), "the previous run's library");
+    assert!(!dir.path().join("used/metrics.json").exists(), "a refused run wrote metrics.json");
+}
+
+#[test]
+#[ignore = "bug: an out-of-range value in a --config file is reported without the file \
+            ('error: count_per_kind 0 is out of range [1, 100000]'), unlike a syntax error in it"]
+fn config_range_error_names_the_file() {
+    let dir = tempdir().unwrap();
+    write_file(dir.path(), "range.json", r#"{"count_per_kind": 0}"#);
+    assert_input_error(dir.path(), &["run", "--config", "range.json", "--out", "out"], "range.json");
+}

@@ -1,0 +1,33 @@
+//! `bench sim` and `bench risk-field` with tiny sizes: the fields cli.md promises and sane rates.
+
+use crate::support::{keys, num, ok_json, uint};
+use tempfile::tempdir;
+
+#[test]
+fn bench_sim_json() {
+    let dir = tempdir().unwrap();
+    let b = ok_json(
+        dir.path(),
+        &["bench", "sim", "--vehicles", "40", "--steps", "20", "--threads", "1", "--format", "json"],
+    );
+    let present = keys(&b);
+    for key in ["vehicles", "steps", "vehicle_steps_per_s", "threads"] {
+        assert!(present.contains(&key), "bench sim JSON lacks {key}: {b}");
+    }
+    assert_eq!((uint(&b, "vehicles"), uint(&b, "steps"), uint(&b, "threads")), (40, 20, 1), "echoes its flags");
+    assert!(num(&b, "vehicle_steps_per_s") > 0.0);
+}
+
+#[test]
+fn bench_risk_field_json() {
+    let dir = tempdir().unwrap();
+    let args =
+        ["bench", "risk-field", "--agents", "3", "--cols", "16", "--rows", "8", "--seconds", "0.2", "--format", "json"];
+    let b = ok_json(dir.path(), &args);
+    let present = keys(&b);
+    for key in ["fields_per_s", "cells", "agents"] {
+        assert!(present.contains(&key), "bench risk-field JSON lacks {key}: {b}");
+    }
+    assert_eq!((uint(&b, "cells"), uint(&b, "agents")), (16 * 8, 3));
+    assert!(num(&b, "fields_per_s") > 0.0);
+}

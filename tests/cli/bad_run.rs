@@ -55,8 +55,6 @@ fn out_folder_with_a_library_is_refused_and_left_alone() {
 }
 
 #[test]
-#[ignore = "bug: an out-of-range value in a --config file is reported without the file \
-            ('error: count_per_kind 0 is out of range [1, 100000]'), unlike a syntax error in it"]
 fn config_range_error_names_the_file() {
     let dir = tempdir().unwrap();
     write_file(dir.path(), "range.json", r#"{"count_per_kind": 0}"#);

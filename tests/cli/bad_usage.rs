@@ -148,8 +148,6 @@ fn unknown_flag_is_named() {
 }
 
 #[test]
-#[ignore = "bug: a missing required flag prints 'error: the following required arguments were not provided:' \
-            and the names of the missing flags are cut off (they are on clap's next lines)"]
 fn missing_required_flag_is_named() {
     let dir = tempdir().unwrap();
     assert_input_error(dir.path(), &["scenarios", "generate", "--kind", "all", "--db", "x.db"], "--count");
@@ -157,8 +155,6 @@ fn missing_required_flag_is_named() {
 }
 
 #[test]
-#[ignore = "bug: a missing subcommand prints the command's about text as the error \
-            ('error: Closed-loop digital twin for ...') instead of saying a subcommand is missing"]
 fn missing_subcommand_is_named() {
     let dir = tempdir().unwrap();
     assert_input_error(dir.path(), &[], "subcommand");

@@ -119,7 +119,10 @@ fn load_config(args: &RunArgs) -> CliResult<RunConfig> {
     if let Some(n) = args.iterations {
         config.iterations = n;
     }
-    config.validate().map_err(CliError::input)?;
+    config.validate().map_err(|e| match &args.config {
+        Some(path) => CliError::input(format!("config {}: {e}", path.display())),
+        None => CliError::input(e),
+    })?;
     Ok(config)
 }
 

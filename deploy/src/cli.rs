@@ -61,9 +61,9 @@ pub struct GenerateArgs {
     #[arg(long)]
     pub kind: String,
     /// Candidates to sample per kind.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub count: u64,
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
     #[arg(long)]
     pub db: PathBuf,
@@ -115,8 +115,8 @@ pub struct SimulateArgs {
 pub struct RiskFieldArgs {
     #[command(flatten)]
     pub source: ScenarioSource,
-    /// Simulation time at which to evaluate, s.
-    #[arg(long, default_value_t = 0.0)]
+    /// Simulation time at which to evaluate, s (the episode's end if it ends earlier).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub time: f64,
     /// Cell size, m.
     #[arg(long, default_value_t = 0.5)]

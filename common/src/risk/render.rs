@@ -101,7 +101,8 @@ pub fn render_heatmap(grid: &RiskGrid, road: &Road, footprints: &[Obb], ego: &Ob
     let mut img = RgbImage { width, height, data: vec![0; 3 * width * height] };
     // Off the road the boundary term alone reaches an obstacle's peak; those cells are drawn
     // dimmed and left out of the colour scale, so the risk on the road stays readable.
-    let on_road: Vec<bool> = (0..cells).map(|k| road.edge_distance_m(grid.cell_centre(k % grid.cols, k / grid.cols)) >= 0.0).collect();
+    let on_road: Vec<bool> =
+        (0..cells).map(|k| road.edge_distance_m(grid.cell_centre(k % grid.cols, k / grid.cols)) >= 0.0).collect();
     let scale_max = |on_road_only: bool| {
         grid.cells
             .iter()

@@ -13,8 +13,11 @@ fn spec(kind: ScenarioKind, seed: u64, params: &[(&str, f64)]) -> ScenarioSpec {
     spec
 }
 
+/// Parameter values by name.
+type Params = Vec<(&'static str, f64)>;
+
 /// (kind, critical parameters, benign parameters)
-fn cases() -> Vec<(ScenarioKind, Vec<(&'static str, f64)>, Vec<(&'static str, f64)>)> {
+fn cases() -> Vec<(ScenarioKind, Params, Params)> {
     use ScenarioKind::*;
     vec![
         (

@@ -187,18 +187,32 @@ mod tests {
     #[test]
     fn top_row_is_max_y_and_overlays_are_drawn() {
         let road = Road::straight(2, 3.5, 100.0, 30.0);
-        let mut grid = RiskGrid::new(Vec2::new(0.0, -10.0), 1.0, 40, 20).expect("valid grid");
-        grid.cells[19 * 40 + 39] = 1.0; // top-right cell (max x, max y)
+        // y from −1.5 to 4.5 m: every cell is on the road (edges at −1.75 and 5.25 m).
+        let mut grid = RiskGrid::new(Vec2::new(0.0, -1.5), 1.0, 40, 6).expect("valid grid");
+        grid.cells[5 * 40 + 39] = 1.0; // top-right cell (max x, max y)
         let ego = Obb::new(Pose::new(20.0, 0.0, 0.0), Footprint::new(4.0, 2.0));
         let other = Obb::new(Pose::new(30.0, 3.5, 0.0), Footprint::new(4.0, 2.0));
         let img = render_heatmap(&grid, &road, &[other], &ego, 4);
-        assert_eq!((img.width, img.height, img.data.len()), (160, 80, 160 * 80 * 3));
+        assert_eq!((img.width, img.height, img.data.len()), (160, 24, 160 * 24 * 3));
         assert_eq!(img.pixel(159, 0), VIRIDIS[8], "hot cell at the top right");
-        assert_eq!(img.pixel(159, 79), VIRIDIS[0]);
-        // Ego's rear edge at x = 18 m → px 72; its centre y = 0 → py = 80 − 10·4 = 40.
-        assert_eq!(img.pixel(72, 40), EGO_RGB);
-        assert_eq!(img.pixel(112, 26), OBJECT_RGB, "other's rear edge at x = 28 m, y = 3.5 m");
-        // Right road edge y = −1.75 m → py = 80 − 8.25·4 = 47.
-        assert_eq!(img.pixel(4, 47), EDGE_RGB);
+        assert_eq!(img.pixel(159, 23), VIRIDIS[0]);
+        // Ego's rear edge at x = 18 m → px 72; its centre y = 0 → py = 24 − 1.5·4 = 18.
+        assert_eq!(img.pixel(72, 18), EGO_RGB);
+        assert_eq!(img.pixel(112, 4), OBJECT_RGB, "other's rear edge at x = 28 m, y = 3.5 m");
+    }
+
+    #[test]
+    fn off_road_cells_are_dimmed_and_left_out_of_the_scale() {
+        let road = Road::straight(1, 3.5, 100.0, 30.0);
+        // One row at y ∈ [−1, 0) on the road, one at y ∈ [5, 6) off it (edge at 1.75 m).
+        let mut grid = RiskGrid::new(Vec2::new(0.0, -1.0), 1.0, 10, 1).expect("valid grid");
+        grid.cells[3] = 0.5;
+        let on = render_heatmap(&grid, &road, &[], &Obb::new(Pose::new(-50.0, 0.0, 0.0), Footprint::new(1.0, 1.0)), 1);
+        assert_eq!(on.pixel(3, 0), VIRIDIS[8], "the on-road maximum is the top of the scale");
+        let mut off = RiskGrid::new(Vec2::new(0.0, 5.0), 1.0, 10, 1).expect("valid grid");
+        off.cells[3] = 2.0;
+        let img = render_heatmap(&off, &road, &[], &Obb::new(Pose::new(-50.0, 0.0, 0.0), Footprint::new(1.0, 1.0)), 1);
+        let dim = VIRIDIS[8].map(|c| (u16::from(c) * OFF_ROAD_DIM_PERCENT / 100) as u8);
+        assert_eq!(img.pixel(3, 0), dim);
     }
 }

@@ -17,6 +17,9 @@ use crate::sensor::{ObjectKind, PerceivedObject, SceneObject, Sensor};
 use crate::traffic::{ExternalAgent, PedestrianWalk, Traffic};
 use crate::vehicle::{Controls, Vehicle};
 
+/// The twin's fixed step, s (20 Hz: the ego dynamics sub-step inside it).
+pub const STEP_S: f64 = 0.05;
+
 /// The stretch of lane the ego is asked to drive.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Route {
@@ -82,7 +85,7 @@ impl World {
             desired_speed_mps,
             driver_time_headway_s: None,
             time_s: 0.0,
-            dt_s: 0.05,
+            dt_s: STEP_S,
             horizon_s,
             sensor_rng: Rng::derive(seed, 0x5E45),
             objects: Vec::new(),

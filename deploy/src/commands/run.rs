@@ -13,6 +13,7 @@ use risktwin_common::episode::field_snapshot;
 use risktwin_common::risk::render_heatmap;
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, mutate};
+use risktwin_common::world::STEP_S;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -40,9 +41,9 @@ pub struct RunConfig {
 impl Default for RunConfig {
     fn default() -> Self {
         Self {
-            count_per_kind: 60,
-            iterations: 3,
-            mutations_per_iteration: 20,
+            count_per_kind: 200,
+            iterations: 4,
+            mutations_per_iteration: 40,
             mutation_radius: 0.1,
             top_k: 10,
             heatmaps: 3,
@@ -237,7 +238,7 @@ pub fn run(args: RunArgs) -> CliResult {
         let Some(spec) = spec else { continue };
         let result = risktwin_common::episode::evaluate(&spec);
         // The moment just before the end: the collision, the closest approach or the finish.
-        let t = (result.metrics.steps as f64 * 0.05 - 1.0).max(0.0);
+        let t = (result.metrics.steps as f64 * STEP_S - 1.0).max(0.0);
         let snap = field_snapshot(&spec, t, 0.5, 160).map_err(CliError::runtime)?;
         let name = format!("risk_field_{}_{}.png", i + 1, r.kind);
         write_png(&out.join(&name), &render_heatmap(&snap.grid, &snap.road, &snap.others, &snap.ego, 4))?;

@@ -14,6 +14,7 @@
 //! - [`scenario`]: the five kinds, sampling, feasibility, building a world.
 //! - [`world`], [`driver`], [`episode`], [`metrics`]: one episode, its reference driver, its metrics.
 
+pub mod align;
 pub mod driver;
 pub mod episode;
 pub mod geometry;

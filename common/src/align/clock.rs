@@ -1,0 +1,242 @@
+//! Per-source clock offset and drift, estimated from one-way messages.
+//!
+//! Each message carries the source's capture time `c` (its own clock: offset, drift, jitter)
+//! and the cloud's receive time `r`. With the source clock mapped onto the cloud clock as
+//! `cloud(c) = c + θ(c)`, `r − c = θ(c) + d` where the network delay `d ≥ 0`. So the lower
+//! envelope of `r − c` over time traces `θ(c) + d_min`, and its slope is the relative drift.
+//! This is the minimum-filter approach of Paxson ("On calibrating measurements of packet transit
+//! times", SIGMETRICS 1998) and Moon, Skelly & Towsley ("Estimation and removal of clock skew
+//! from network delay measurements", INFOCOM 1999), in its simple "min filter + least squares"
+//! form:
+//! 1. receive time is cut into buckets (default 1 s); each bucket keeps its minimum `r − c` and
+//!    the capture time where it occurred;
+//! 2. over the last K closed buckets (default 32), a least-squares line through the minima gives
+//!    the drift; the line is then lowered to pass through the lowest residual, so it supports the
+//!    points from below (a lower envelope, less biased than the mean of the minima).
+//!
+//! With one-way messages only, the offset and the minimum delay `d_min` cannot be told apart
+//! (NTP needs round trips for that): the estimate maps a capture onto the earliest cloud time it
+//! could have been received, i.e. true time + `d_min`. For alignment this is a constant per
+//! source of the size of the fastest network path (≈ 0.1–2 ms on a LAN).
+//!
+//! Determinism: the mapping only uses messages received strictly earlier (closed buckets, or the
+//! running minimum of earlier receive times while warming up), so messages that share a receive
+//! time map the same whatever their order.
+
+/// How the estimator is set up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClockConfig {
+    /// Width of one minimum-filter bucket, in receive time.
+    pub bucket_ns: i64,
+    /// How many closed buckets the fit spans (the sliding window).
+    pub buckets: usize,
+    /// Closed buckets needed before the drift is fitted; before that the offset is the minimum.
+    pub min_fit_buckets: usize,
+}
+
+impl Default for ClockConfig {
+    fn default() -> Self {
+        Self { bucket_ns: 1_000_000_000, buckets: 32, min_fit_buckets: 4 }
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Bucket {
+    min_delta_ns: i64,
+    at_capture_ns: i64,
+}
+
+/// `θ(c) = offset_ns + slope · (c − ref_ns)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Line {
+    ref_ns: i64,
+    offset_ns: f64,
+    slope: f64,
+}
+
+/// One source's clock estimate; fixed memory after construction.
+#[derive(Debug, Clone)]
+pub struct ClockEstimator {
+    cfg: ClockConfig,
+    ring: Vec<Bucket>,
+    ring_next: usize,
+    open: Option<(i64, Bucket)>,
+    last_receive_ns: Option<i64>,
+    /// Minimum `r − c` over messages received before `last_receive_ns`.
+    committed_min_ns: Option<i64>,
+    /// Minimum `r − c` over messages received at `last_receive_ns`.
+    tie_min_ns: Option<i64>,
+    line: Option<Line>,
+    latest_capture_ns: Option<i64>,
+    samples: u64,
+}
+
+impl ClockEstimator {
+    /// An estimator that knows nothing yet.
+    pub fn new(cfg: ClockConfig) -> Self {
+        let cfg = ClockConfig {
+            bucket_ns: cfg.bucket_ns.max(1),
+            buckets: cfg.buckets.max(2),
+            min_fit_buckets: cfg.min_fit_buckets.max(2),
+        };
+        Self {
+            cfg,
+            ring: Vec::with_capacity(cfg.buckets),
+            ring_next: 0,
+            open: None,
+            last_receive_ns: None,
+            committed_min_ns: None,
+            tie_min_ns: None,
+            line: None,
+            latest_capture_ns: None,
+            samples: 0,
+        }
+    }
+
+    /// Forgets everything (e.g. after the source's clock stepped), keeping the memory.
+    pub fn reset(&mut self) {
+        self.ring.clear();
+        self.ring_next = 0;
+        self.open = None;
+        self.last_receive_ns = None;
+        self.committed_min_ns = None;
+        self.tie_min_ns = None;
+        self.line = None;
+        self.latest_capture_ns = None;
+        self.samples = 0;
+    }
+
+    /// Takes in one message: [`roll_to`](Self::roll_to) its receive time, then records it.
+    pub fn observe(&mut self, capture_ns: i64, receive_ns: i64) {
+        self.roll_to(receive_ns);
+        self.record(capture_ns, receive_ns);
+    }
+
+    /// Moves the estimator's notion of "now" to `receive_ns`, closing buckets that ended and
+    /// refitting; idempotent. Call it before [`to_cloud_ns`](Self::to_cloud_ns) for a message so
+    /// that messages sharing a receive time map alike.
+    pub fn roll_to(&mut self, receive_ns: i64) {
+        if self.last_receive_ns.is_some_and(|last| receive_ns <= last) {
+            return;
+        }
+        self.last_receive_ns = Some(receive_ns);
+        self.committed_min_ns = min_opt(self.committed_min_ns, self.tie_min_ns.take());
+        let id = receive_ns.div_euclid(self.cfg.bucket_ns);
+        match self.open {
+            Some((open_id, bucket)) if id > open_id => {
+                self.push_closed(bucket);
+                self.open = None;
+                self.refit();
+            }
+            _ => {}
+        }
+    }
+
+    /// Records one message at the current receive time without rolling.
+    fn record(&mut self, capture_ns: i64, receive_ns: i64) {
+        let delta_ns = receive_ns.saturating_sub(capture_ns);
+        self.samples += 1;
+        self.latest_capture_ns = Some(self.latest_capture_ns.map_or(capture_ns, |l| l.max(capture_ns)));
+        self.tie_min_ns = Some(self.tie_min_ns.map_or(delta_ns, |m| m.min(delta_ns)));
+        let id = receive_ns.div_euclid(self.cfg.bucket_ns);
+        match &mut self.open {
+            Some((_, b)) => {
+                // A receive time that went backwards is folded into the open bucket.
+                if delta_ns < b.min_delta_ns {
+                    *b = Bucket { min_delta_ns: delta_ns, at_capture_ns: capture_ns };
+                }
+            }
+            None => self.open = Some((id, Bucket { min_delta_ns: delta_ns, at_capture_ns: capture_ns })),
+        }
+    }
+
+    fn push_closed(&mut self, b: Bucket) {
+        if self.ring.len() < self.cfg.buckets {
+            self.ring.push(b);
+        } else {
+            self.ring[self.ring_next] = b;
+        }
+        self.ring_next = (self.ring_next + 1) % self.cfg.buckets;
+    }
+
+    fn refit(&mut self) {
+        if self.ring.len() < self.cfg.min_fit_buckets {
+            self.line = None;
+            return;
+        }
+        let ref_ns = self.ring.iter().map(|b| b.at_capture_ns).min().unwrap_or(0);
+        let n = self.ring.len() as f64;
+        let (mut sx, mut sy) = (0.0, 0.0);
+        for b in &self.ring {
+            sx += (b.at_capture_ns - ref_ns) as f64;
+            sy += b.min_delta_ns as f64;
+        }
+        let (mx, my) = (sx / n, sy / n);
+        let (mut sxx, mut sxy) = (0.0, 0.0);
+        for b in &self.ring {
+            let dx = (b.at_capture_ns - ref_ns) as f64 - mx;
+            sxx += dx * dx;
+            sxy += dx * (b.min_delta_ns as f64 - my);
+        }
+        // All minima at one capture time (a stalled source clock): no slope to fit.
+        let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+        // Lower the line onto the lowest point: it becomes a support line from below.
+        let offset_ns = self
+            .ring
+            .iter()
+            .map(|b| b.min_delta_ns as f64 - slope * (b.at_capture_ns - ref_ns) as f64)
+            .fold(f64::INFINITY, f64::min);
+        self.line = Some(Line { ref_ns, offset_ns, slope });
+    }
+
+    /// `θ(c)`: what to add to a capture time to get cloud time; `None` before any message was
+    /// received strictly earlier than the current receive time.
+    pub fn offset_at_ns(&self, capture_ns: i64) -> Option<i64> {
+        match self.line {
+            Some(l) => {
+                let dx = capture_ns.saturating_sub(l.ref_ns) as f64;
+                Some((l.offset_ns + l.slope * dx).round() as i64)
+            }
+            None => self.committed_min_ns,
+        }
+    }
+
+    /// A capture time of this source on the cloud clock; `None` while nothing is known.
+    pub fn to_cloud_ns(&self, capture_ns: i64) -> Option<i64> {
+        self.offset_at_ns(capture_ns).map(|o| capture_ns.saturating_add(o))
+    }
+
+    /// The current offset (cloud − source) at the latest capture time seen, in ns.
+    pub fn offset_ns(&self) -> Option<i64> {
+        self.latest_capture_ns.and_then(|c| self.offset_at_ns(c))
+    }
+
+    /// The source clock's rate error against the cloud clock, in parts per million
+    /// (positive: the source clock runs fast); 0 until the drift is fitted.
+    pub fn drift_ppm(&self) -> f64 {
+        // cloud = c + θ(c), dcloud/dc = 1 + slope, so the source runs at 1/(1 + slope).
+        self.line.map_or(0.0, |l| (1.0 / (1.0 + l.slope) - 1.0) * 1e6)
+    }
+
+    /// Whether the drift has been fitted (enough closed buckets).
+    pub fn is_fitted(&self) -> bool {
+        self.line.is_some()
+    }
+
+    /// Messages observed since construction or the last reset.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+}
+
+fn min_opt(a: Option<i64>, b: Option<i64>) -> Option<i64> {
+    match (a, b) {
+        (Some(x), Some(y)) => Some(x.min(y)),
+        (x, None) => x,
+        (None, y) => y,
+    }
+}
+
+#[cfg(test)]
+#[path = "clock_tests.rs"]
+mod tests;

@@ -1,0 +1,115 @@
+//! Synthetic-clock tests of the estimator: known offset, drift and delay distributions.
+
+use super::*;
+use crate::rng::Rng;
+
+/// A realistic epoch-scale start (2024), so precision at 1.7e18 ns is exercised.
+const T0_NS: i64 = 1_700_000_000_000_000_000;
+const MS: i64 = 1_000_000;
+
+/// A source clock ahead of the cloud by `offset_ns` and running fast by `drift_ppm`.
+fn source_clock(t_ns: i64, offset_ns: i64, drift_ppm: f64) -> i64 {
+    t_ns + offset_ns + ((t_ns - T0_NS) as f64 * drift_ppm * 1e-6).round() as i64
+}
+
+enum Jitter {
+    Exponential { mean_ns: f64 },
+    Uniform { max_ns: f64 },
+}
+
+impl Jitter {
+    fn sample(&self, rng: &mut Rng) -> i64 {
+        match *self {
+            Jitter::Exponential { mean_ns } => (-mean_ns * (1.0 - rng.unit()).ln()).round() as i64,
+            Jitter::Uniform { max_ns } => rng.uniform(0.0, max_ns).round() as i64,
+        }
+    }
+}
+
+/// Feeds `seconds` of a `rate_hz` stream; returns the worst mapping error over the last 10 s
+/// (estimate vs true capture time + base delay, mapped before each message is observed).
+fn run(
+    est: &mut ClockEstimator,
+    offset_ns: i64,
+    drift_ppm: f64,
+    base_ns: i64,
+    jitter: Jitter,
+    rate_hz: i64,
+    seconds: i64,
+) -> i64 {
+    let mut rng = Rng::new(11);
+    let period_ns = 1_000_000_000 / rate_hz;
+    let n = rate_hz * seconds;
+    let mut worst = 0;
+    for k in 0..n {
+        let t = T0_NS + k * period_ns;
+        let capture = source_clock(t, offset_ns, drift_ppm);
+        let receive = t + base_ns + jitter.sample(&mut rng);
+        est.roll_to(receive);
+        if k >= n - 10 * rate_hz {
+            let mapped = est.to_cloud_ns(capture).expect("warmed up");
+            worst = worst.max((mapped - (t + base_ns)).abs());
+        }
+        est.observe(capture, receive);
+    }
+    worst
+}
+
+#[test]
+fn offset_250ms_drift_50ppm_exponential_jitter() {
+    // Documented tolerance: after 60 s at 50 Hz with 2 ms base delay and exponential jitter of
+    // mean 3 ms, the mapping is within 0.3 ms of (true time + base delay) and the drift within
+    // 5 ppm (the 1σ slope error of 32 bucket minima is ≈ 1 ppm here).
+    let mut est = ClockEstimator::new(ClockConfig::default());
+    let worst = run(&mut est, 250 * MS, 50.0, 2 * MS, Jitter::Exponential { mean_ns: 3e6 }, 50, 60);
+    assert!(est.is_fitted());
+    assert!(worst <= 300_000, "worst mapping error {worst} ns");
+    assert!((est.drift_ppm() - 50.0).abs() <= 5.0, "drift {} ppm", est.drift_ppm());
+    // θ at the last capture: −250 ms − 50 ppm · 60 s + 2 ms = −250.997 ms.
+    let expected = -250 * MS - 3 * MS + 2 * MS;
+    let got = est.offset_ns().expect("fitted");
+    assert!((got - expected).abs() <= 300_000, "offset {got} vs {expected}");
+    assert_eq!(est.samples(), 3000);
+}
+
+#[test]
+fn negative_offset_negative_drift_uniform_jitter_at_10hz() {
+    // 10 Hz, uniform 0–20 ms jitter: with 2 s buckets, 20 samples a bucket, each minimum lies
+    // ≈ 1 ms above the floor (σ ≈ 1 ms), so over 32 buckets the slope's 1σ error is ≈ 9 ppm.
+    // Tolerance: 2 ms on the mapping, 25 ppm on the drift after 120 s. Slow, jittery sources
+    // want longer buckets; the mapping error, not the drift figure, is what alignment feels.
+    let mut est = ClockEstimator::new(ClockConfig { bucket_ns: 2_000_000_000, ..ClockConfig::default() });
+    let worst = run(&mut est, -1_500 * MS, -100.0, MS, Jitter::Uniform { max_ns: 20e6 }, 10, 120);
+    assert!(worst <= 2 * MS, "worst mapping error {worst} ns");
+    assert!((est.drift_ppm() + 100.0).abs() <= 25.0, "drift {} ppm", est.drift_ppm());
+}
+
+#[test]
+fn without_drift_fitting_a_drifting_clock_would_be_off() {
+    // A source running 50 ppm slow, mapped by the running minimum alone (no fit), drifts away by
+    // milliseconds (the minimum holds on to old, lower values): the fit is what keeps it small.
+    let mut est = ClockEstimator::new(ClockConfig { min_fit_buckets: 1000, buckets: 1000, ..ClockConfig::default() });
+    let worst = run(&mut est, 250 * MS, -50.0, 2 * MS, Jitter::Exponential { mean_ns: 3e6 }, 50, 60);
+    assert!(!est.is_fitted());
+    assert!(worst >= 2 * MS, "worst {worst} ns");
+}
+
+#[test]
+fn warm_up_uses_only_earlier_receive_times() {
+    let mut est = ClockEstimator::new(ClockConfig::default());
+    assert_eq!(est.to_cloud_ns(0), None);
+    // Two messages at the same receive time map alike, whichever comes first.
+    est.roll_to(1_000);
+    assert_eq!(est.to_cloud_ns(100), None);
+    est.observe(100, 1_000); // delta 900
+    est.roll_to(1_000);
+    assert_eq!(est.to_cloud_ns(500), None, "a tie does not see its partner");
+    est.observe(500, 1_000); // delta 500
+    est.roll_to(2_000);
+    assert_eq!(est.offset_at_ns(0), Some(500), "the lowest earlier delta");
+    assert_eq!(est.to_cloud_ns(1_600), Some(2_100));
+    assert_eq!(est.drift_ppm(), 0.0);
+    est.reset();
+    assert_eq!(est.to_cloud_ns(0), None);
+    assert_eq!(est.samples(), 0);
+}

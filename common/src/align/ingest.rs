@@ -1,0 +1,214 @@
+//! The ingest core in the order a cloud worker applies it to each decoded message.
+//!
+//! For a message `(source, stream, seq, capture_ns, receive_ns, payload)`:
+//! 1. the aligner's clock moves to `receive_ns`, emitting every tick now due (so a tick holds
+//!    exactly the messages received before `tick + lateness`, see [`super::aligner`]);
+//! 2. an unknown stream or a source beyond the limit is refused (`unknown-stream`,
+//!    `too-many-sources`), before any sequence accounting;
+//! 3. exactly-once: a duplicate or a number older than the reorder window is refused
+//!    (`duplicate`, `too-old`);
+//! 4. the capture time is mapped onto the cloud clock with the source's clock estimate (built
+//!    from earlier messages only); a mapping later than `receive + future_tolerance` is refused
+//!    (`future-timestamp`) and not fed to the estimator, whose minimum filter one bad timestamp
+//!    would otherwise wreck. A source that sends `clock_reset_after` future timestamps in a row
+//!    has had its clock stepped forward: its estimate is reset and re-anchored;
+//! 5. the estimator takes the message in, and the payload goes to the aligner at its cloud time.
+//!
+//! Accounting: every message ends in exactly one of accepted or one drop reason, and per
+//! sequence scope `fresh + presumed_lost = highest − first + 1` (see [`super::dedupe`]), where
+//! `fresh = accepted + future-timestamp drops`. So, summed over sources,
+//! `accepted + dropped(future-timestamp) + presumed_lost = sent (unique numbers)`.
+
+use super::aligner::{AlignConfig, Aligner, PushOutcome, StreamSpec};
+use super::clock::{ClockConfig, ClockEstimator};
+use super::dedupe::{DedupConfig, Deduper};
+use super::interp::Interpolate;
+use super::reason::{DropCounts, DropReason};
+use super::snapshot::{Snapshot, StreamIndex};
+use super::source::SourceIndex;
+
+/// What a sequence number counts: all messages of a source, or each stream separately.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SequenceScope {
+    /// One counter per source across its streams.
+    PerSource,
+    /// One counter per (source, stream).
+    PerStream,
+}
+
+/// How the ingest core is set up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct IngestConfig {
+    pub dedup: DedupConfig,
+    pub clock: ClockConfig,
+    pub align: AlignConfig,
+    pub sequence_scope: SequenceScope,
+    /// How far after its receive time a mapped capture time may lie before it is "from the
+    /// future"; covers the estimator's error while it warms up on a few samples.
+    pub future_tolerance_ns: i64,
+    /// Consecutive future timestamps after which a source's clock estimate is reset.
+    pub clock_reset_after: u32,
+}
+
+impl Default for IngestConfig {
+    fn default() -> Self {
+        Self {
+            dedup: DedupConfig::default(),
+            clock: ClockConfig::default(),
+            align: AlignConfig::default(),
+            sequence_scope: SequenceScope::PerStream,
+            future_tolerance_ns: 100_000_000,
+            clock_reset_after: 50,
+        }
+    }
+}
+
+/// One decoded message as the ingest core needs it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Incoming<T> {
+    pub source: SourceIndex,
+    pub stream: StreamIndex,
+    pub seq: u64,
+    /// Capture time on the source's own clock.
+    pub capture_ns: i64,
+    /// Receive time on the cloud clock.
+    pub receive_ns: i64,
+    pub payload: T,
+}
+
+/// A message taken in: its time on the cloud clock and what the aligner made of it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Accepted {
+    pub cloud_ns: i64,
+    pub push: PushOutcome,
+}
+
+/// Validation, exactly-once, clock estimation and alignment for a fleet of sources.
+#[derive(Debug, Clone)]
+pub struct IngestCore<T> {
+    cfg: IngestConfig,
+    dedup: Deduper,
+    clocks: Vec<ClockEstimator>,
+    future_streak: Vec<u32>,
+    aligner: Aligner<T>,
+    drops: DropCounts,
+    accepted: u64,
+    clock_resets: u64,
+}
+
+impl<T: Clone + Interpolate> IngestCore<T> {
+    /// An ingest core for `streams` of an interpolable payload.
+    pub fn new(cfg: IngestConfig, streams: &[StreamSpec]) -> Self {
+        Self::with_aligner(cfg, Aligner::new(cfg.align, streams))
+    }
+}
+
+impl<T: Clone> IngestCore<T> {
+    /// An ingest core around an aligner built by the caller (e.g. [`Aligner::as_of`]).
+    pub fn with_aligner(cfg: IngestConfig, aligner: Aligner<T>) -> Self {
+        let cfg = IngestConfig { align: *aligner.config(), ..cfg };
+        Self {
+            cfg,
+            dedup: Deduper::new(cfg.dedup),
+            clocks: Vec::new(),
+            future_streak: Vec::new(),
+            aligner,
+            drops: DropCounts::default(),
+            accepted: 0,
+            clock_resets: 0,
+        }
+    }
+
+    /// Takes in one message; emits due snapshots through `on_snapshot` first.
+    pub fn ingest(&mut self, msg: Incoming<T>, on_snapshot: impl FnMut(&Snapshot<T>)) -> Result<Accepted, DropReason> {
+        self.aligner.advance(msg.receive_ns, on_snapshot);
+        let r = self.take(msg);
+        match r {
+            Ok(_) => self.accepted += 1,
+            Err(reason) => self.drops.add(reason),
+        }
+        r
+    }
+
+    fn take(&mut self, msg: Incoming<T>) -> Result<Accepted, DropReason> {
+        let streams = self.aligner.streams();
+        if msg.stream.as_usize() >= streams {
+            return Err(DropReason::UnknownStream);
+        }
+        let s = msg.source.as_usize();
+        if s >= self.cfg.align.max_sources {
+            return Err(DropReason::TooManySources);
+        }
+        let key = match self.cfg.sequence_scope {
+            SequenceScope::PerSource => msg.source,
+            SequenceScope::PerStream => {
+                let key = s.saturating_mul(streams).saturating_add(msg.stream.as_usize());
+                SourceIndex(u32::try_from(key).map_err(|_| DropReason::TooManySources)?)
+            }
+        };
+        if let Some(reason) = self.dedup.accept(key, msg.seq).drop_reason() {
+            return Err(reason);
+        }
+        if s >= self.clocks.len() {
+            self.clocks.resize_with(s + 1, || ClockEstimator::new(self.cfg.clock));
+            self.future_streak.resize(s + 1, 0);
+        }
+        let clock = &mut self.clocks[s];
+        clock.roll_to(msg.receive_ns);
+        let mut mapped = clock.to_cloud_ns(msg.capture_ns);
+        if mapped.is_some_and(|m| m > msg.receive_ns.saturating_add(self.cfg.future_tolerance_ns)) {
+            self.future_streak[s] += 1;
+            if self.future_streak[s] < self.cfg.clock_reset_after {
+                return Err(DropReason::FutureTimestamp);
+            }
+            clock.reset();
+            self.clock_resets += 1;
+            mapped = None;
+        }
+        self.future_streak[s] = 0;
+        clock.observe(msg.capture_ns, msg.receive_ns);
+        // The first message of a source (or after a reset) anchors it at its receive time.
+        let cloud_ns = mapped.unwrap_or(msg.receive_ns);
+        let push = self.aligner.push(msg.source, msg.stream, cloud_ns, msg.payload)?;
+        Ok(Accepted { cloud_ns, push })
+    }
+
+    /// Moves the cloud clock without a message (a timer while idle), emitting due snapshots.
+    pub fn advance(&mut self, now_ns: i64, on_snapshot: impl FnMut(&Snapshot<T>)) -> u64 {
+        self.aligner.advance(now_ns, on_snapshot)
+    }
+
+    /// Drops so far, by reason.
+    pub fn drops(&self) -> &DropCounts {
+        &self.drops
+    }
+
+    /// Messages accepted so far.
+    pub fn accepted(&self) -> u64 {
+        self.accepted
+    }
+
+    /// Clock estimates reset after a run of future timestamps.
+    pub fn clock_resets(&self) -> u64 {
+        self.clock_resets
+    }
+
+    /// The deduplicator (per-key sequence counters, presumed losses).
+    pub fn dedup(&self) -> &Deduper {
+        &self.dedup
+    }
+
+    /// The clock estimate of `source`, once it has sent an accepted message.
+    pub fn clock(&self, source: SourceIndex) -> Option<&ClockEstimator> {
+        self.clocks.get(source.as_usize())
+    }
+
+    /// The aligner (counts of late, stale, overflow; the last emitted tick).
+    pub fn aligner(&self) -> &Aligner<T> {
+        &self.aligner
+    }
+}
+
+#[cfg(test)]
+#[path = "ingest_tests.rs"]
+mod tests;

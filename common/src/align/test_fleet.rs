@@ -27,7 +27,7 @@ pub fn fleet_streams() -> [StreamSpec; 2] {
 pub struct Network {
     pub base_delay_ns: i64,
     pub jitter_mean_ns: f64,
-    /// Probability of a 150–400 ms delay spike (makes late data).
+    /// Probability of a 50–400 ms delay spike (makes late data around the lateness bound).
     pub spike: f64,
     pub loss: f64,
     pub duplicate: f64,
@@ -67,7 +67,7 @@ pub fn fleet(vehicles: u32, seconds: i64, seed: u64, net: Network) -> (Vec<Sent>
                 for _ in 0..copies {
                     let mut delay = net.base_delay_ns + (-net.jitter_mean_ns * (1.0 - rng.unit()).ln()) as i64;
                     if rng.chance(net.spike) {
-                        delay += rng.uniform(150e6, 400e6) as i64;
+                        delay += rng.uniform(50e6, 400e6) as i64;
                     }
                     let q = net.receive_quantum_ns.max(1);
                     let receive_ns = (t + delay).div_euclid(q) * q;

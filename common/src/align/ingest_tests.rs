@@ -124,12 +124,12 @@ fn run(msgs: &[&Incoming<TestPose>], timer_seed: Option<u64>) -> (Vec<Snapshot<T
     let mut rng = timer_seed.map(crate::rng::Rng::new);
     for (i, m) in msgs.iter().enumerate() {
         let _ = c.ingest((*m).clone(), |s| snaps.push(s.clone()));
-        if let (Some(rng), Some(next)) = (rng.as_mut(), msgs.get(i + 1)) {
-            if rng.chance(0.05) {
-                // A timer firing somewhere before the next message arrives.
-                let w = m.receive_ns + rng.below((next.receive_ns - m.receive_ns + 1) as u64) as i64;
-                c.advance(w, |s| snaps.push(s.clone()));
-            }
+        if let (Some(rng), Some(next)) = (rng.as_mut(), msgs.get(i + 1))
+            && rng.chance(0.05)
+        {
+            // A timer firing somewhere before the next message arrives.
+            let w = m.receive_ns + rng.below((next.receive_ns - m.receive_ns + 1) as u64) as i64;
+            c.advance(w, |s| snaps.push(s.clone()));
         }
     }
     (snaps, c)

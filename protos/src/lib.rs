@@ -4,7 +4,8 @@
 //!
 //! Code outside the transport layer should never see a generated type: it calls
 //! [`encode`]/[`decode`] on `risktwin_common::telemetry` types. The generated modules are public
-//! for the transport and recording code (`FILE_DESCRIPTOR_SET` feeds MCAP schema records).
+//! for the transport and recording code (`FILE_DESCRIPTOR_SET` feeds MCAP schema records);
+//! [`convert::foxglove`] builds the Foxglove visualisation messages from domain types.
 
 pub mod convert;
 
@@ -25,4 +26,4 @@ pub mod foxglove {
 /// protobuf channel: a reader finds the channel's message by its full name in the set.
 pub const FILE_DESCRIPTOR_SET: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/file_descriptor_set.bin"));
 
-pub use convert::{ConvertError, DecodeError, WireMessage, decode, encode};
+pub use convert::{ConvertError, DecodeError, WireMessage, decode, encode, encode_into};

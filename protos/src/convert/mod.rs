@@ -9,6 +9,7 @@
 //! Numbers survive a round trip bit for bit, with one exception: `-0.0` arrives as `+0.0`, since
 //! proto3 does not send a field equal to its default and prost compares floats with `== 0.0`.
 
+pub mod foxglove;
 mod geometry;
 mod map;
 mod perception;
@@ -17,7 +18,7 @@ mod scenario;
 mod vehicle;
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
 use prost::Message;
 use risktwin_common::telemetry;

@@ -24,6 +24,7 @@ pub mod rng;
 pub mod road;
 pub mod scenario;
 pub mod sensor;
+pub mod telemetry;
 pub mod traffic;
 pub mod vehicle;
 pub mod world;

@@ -1,0 +1,123 @@
+//! The road map. Lanes travel as centreline vertices; arc lengths are recomputed on arrival,
+//! so a map cannot carry arc lengths inconsistent with its vertices.
+
+use super::geometry::{header, vec_from, vec_to};
+use super::{ConvertError, finite, invalid, non_negative, positive};
+use crate::v1;
+use risktwin_common::road::{Crosswalk, FrictionPatch, Lane, Road};
+use risktwin_common::telemetry::RoadMap;
+
+impl From<&RoadMap> for v1::RoadMap {
+    fn from(m: &RoadMap) -> Self {
+        let r = &m.road;
+        Self {
+            header: Some((&m.header).into()),
+            lanes: r
+                .lanes
+                .iter()
+                .map(|l| v1::Lane {
+                    centre_m: l.centre.iter().map(vec_to).collect(),
+                    width_m: l.width_m,
+                    left: l.left.map(|i| i as u32),
+                    right: l.right.map(|i| i as u32),
+                    speed_limit_mps: l.speed_limit_mps,
+                })
+                .collect(),
+            crosswalks: r
+                .crosswalks
+                .iter()
+                .map(|c| v1::Crosswalk {
+                    start_m: Some(vec_to(&c.start)),
+                    heading_rad: c.heading_rad,
+                    length_m: c.length_m,
+                    width_m: c.width_m,
+                })
+                .collect(),
+            friction_default: r.friction_default,
+            friction_patches: r
+                .friction_patches
+                .iter()
+                .map(|p| v1::FrictionPatch { s_start_m: p.s_start_m, s_end_m: p.s_end_m, mu: p.mu })
+                .collect(),
+            reference_lane: r.reference_lane as u32,
+        }
+    }
+}
+
+/// A lane index that names another lane of the map.
+fn lane_ref(field: &'static str, own: usize, index: Option<u32>, lanes: usize) -> Result<Option<usize>, ConvertError> {
+    match index.map(|i| i as usize) {
+        Some(i) if i >= lanes || i == own => {
+            Err(invalid("Lane", field, format!("lane {own} names neighbour {i}, the map has {lanes} lanes")))
+        }
+        other => Ok(other),
+    }
+}
+
+fn lane(own: usize, l: v1::Lane, lanes: usize) -> Result<Lane, ConvertError> {
+    const M: &str = "Lane";
+    if l.centre_m.len() < 2 {
+        return Err(invalid(M, "centre_m", format!("lane {own} has {} vertices, needs at least 2", l.centre_m.len())));
+    }
+    let centre = l.centre_m.into_iter().map(|v| vec_from(M, "centre_m", Some(v))).collect::<Result<Vec<_>, _>>()?;
+    if let Some(i) = centre.windows(2).position(|w| w[0] == w[1]) {
+        return Err(invalid(M, "centre_m", format!("lane {own} repeats vertex {} (zero-length segment)", i + 1)));
+    }
+    let mut lane =
+        Lane::new(centre, positive(M, "width_m", l.width_m)?, non_negative(M, "speed_limit_mps", l.speed_limit_mps)?);
+    lane.left = lane_ref("left", own, l.left, lanes)?;
+    lane.right = lane_ref("right", own, l.right, lanes)?;
+    Ok(lane)
+}
+
+impl TryFrom<v1::RoadMap> for RoadMap {
+    type Error = ConvertError;
+    fn try_from(m: v1::RoadMap) -> Result<Self, ConvertError> {
+        const M: &str = "RoadMap";
+        let n = m.lanes.len();
+        if n == 0 {
+            return Err(ConvertError::MissingField { message: M, field: "lanes" });
+        }
+        let reference_lane = m.reference_lane as usize;
+        if reference_lane >= n {
+            return Err(invalid(M, "reference_lane", format!("{reference_lane}, the map has {n} lanes")));
+        }
+        let lanes = m.lanes.into_iter().enumerate().map(|(i, l)| lane(i, l, n)).collect::<Result<Vec<_>, _>>()?;
+        let crosswalks = m
+            .crosswalks
+            .into_iter()
+            .map(|c| {
+                const C: &str = "Crosswalk";
+                Ok(Crosswalk {
+                    start: vec_from(C, "start_m", c.start_m)?,
+                    heading_rad: finite(C, "heading_rad", c.heading_rad)?,
+                    length_m: positive(C, "length_m", c.length_m)?,
+                    width_m: positive(C, "width_m", c.width_m)?,
+                })
+            })
+            .collect::<Result<Vec<_>, ConvertError>>()?;
+        let friction_patches = m
+            .friction_patches
+            .into_iter()
+            .map(|p| {
+                const P: &str = "FrictionPatch";
+                let s_start_m = finite(P, "s_start_m", p.s_start_m)?;
+                let s_end_m = finite(P, "s_end_m", p.s_end_m)?;
+                if s_end_m < s_start_m {
+                    return Err(invalid(P, "s_end_m", format!("{s_end_m} is before s_start_m {s_start_m}")));
+                }
+                Ok(FrictionPatch { s_start_m, s_end_m, mu: positive(P, "mu", p.mu)? })
+            })
+            .collect::<Result<Vec<_>, ConvertError>>()?;
+        Ok(Self {
+            header: header(M, m.header)?,
+            road: Road {
+                lanes,
+                crosswalks,
+                friction_default: positive(M, "friction_default", m.friction_default)?,
+                friction_patches,
+                reference_lane,
+            },
+        })
+    }
+}

@@ -1,0 +1,183 @@
+//! Conversions between the generated wire types and the `common::telemetry` domain types, and the
+//! [`encode`]/[`decode`] entry points that keep prost out of every caller.
+//!
+//! `From<&domain>` builds the wire message (infallible); `TryFrom<wire>` validates it and is where
+//! the cloud's ingest rejects bad input: missing required sub-messages, NaN/±inf numbers (except
+//! where `+inf` has a documented meaning), negative sizes, out-of-range values and enum values that
+//! are unknown or `*_UNSPECIFIED`. One file per message family.
+//!
+//! Numbers survive a round trip bit for bit, with one exception: `-0.0` arrives as `+0.0`, since
+//! proto3 does not send a field equal to its default and prost compares floats with `== 0.0`.
+
+pub mod foxglove;
+mod geometry;
+mod map;
+mod perception;
+mod risk;
+mod scenario;
+mod vehicle;
+
+#[cfg(test)]
+pub(crate) mod tests;
+
+use prost::Message;
+use risktwin_common::telemetry;
+
+/// Why a wire message is not a valid domain value.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConvertError {
+    #[error("{message}.{field} is missing")]
+    MissingField { message: &'static str, field: &'static str },
+    #[error("{message}.{field} is invalid: {reason}")]
+    InvalidField { message: &'static str, field: &'static str, reason: String },
+}
+
+/// Why bytes did not decode to a domain value.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DecodeError {
+    #[error("malformed protobuf: {0}")]
+    Malformed(#[from] prost::DecodeError),
+    #[error(transparent)]
+    Invalid(#[from] ConvertError),
+}
+
+impl DecodeError {
+    /// A short, stable label for counting rejections by reason (`malformed`, `missing_field`,
+    /// `invalid_field`).
+    pub fn reason(&self) -> &'static str {
+        match self {
+            DecodeError::Malformed(_) => "malformed",
+            DecodeError::Invalid(ConvertError::MissingField { .. }) => "missing_field",
+            DecodeError::Invalid(ConvertError::InvalidField { .. }) => "invalid_field",
+        }
+    }
+}
+
+/// A domain type with a wire form.
+pub trait WireMessage: Sized {
+    /// The generated message type.
+    type Proto: Message + Default;
+    /// Full protobuf name of the wire message (the MCAP schema name), e.g. `risktwin.v1.VehicleState`.
+    const PROTO_NAME: &'static str;
+    /// The wire form.
+    fn to_proto(&self) -> Self::Proto;
+    /// The validated domain value.
+    fn from_proto(proto: Self::Proto) -> Result<Self, ConvertError>;
+}
+
+/// Encodes a domain value to protobuf bytes.
+pub fn encode<T: WireMessage>(msg: &T) -> Vec<u8> {
+    msg.to_proto().encode_to_vec()
+}
+
+/// Encodes a domain value, appending to `buf` (reuse one buffer to avoid an allocation per message).
+pub fn encode_into<T: WireMessage>(msg: &T, buf: &mut Vec<u8>) {
+    let proto = msg.to_proto();
+    buf.reserve(proto.encoded_len());
+    // Encoding into a Vec cannot run out of space: it grows.
+    proto.encode(buf).expect("a Vec<u8> grows to fit any message");
+}
+
+/// Decodes and validates protobuf bytes as a domain value.
+pub fn decode<T: WireMessage>(bytes: &[u8]) -> Result<T, DecodeError> {
+    let proto = T::Proto::decode(bytes)?;
+    Ok(T::from_proto(proto)?)
+}
+
+/// Implements [`WireMessage`] from a `From<&Domain> for Proto` and a `TryFrom<Proto> for Domain`.
+macro_rules! wire_message {
+    ($domain:ty, $proto:ty, $name:literal) => {
+        impl $crate::convert::WireMessage for $domain {
+            type Proto = $proto;
+            const PROTO_NAME: &'static str = $name;
+            fn to_proto(&self) -> Self::Proto {
+                self.into()
+            }
+            fn from_proto(proto: Self::Proto) -> Result<Self, $crate::convert::ConvertError> {
+                proto.try_into()
+            }
+        }
+    };
+}
+
+wire_message!(telemetry::VehicleStateSample, crate::v1::VehicleState, "risktwin.v1.VehicleState");
+wire_message!(telemetry::CanFrame, crate::v1::CanFrame, "risktwin.v1.CanFrame");
+wire_message!(telemetry::ObjectList, crate::v1::ObjectList, "risktwin.v1.ObjectList");
+wire_message!(telemetry::RsuObservation, crate::v1::RsuObservation, "risktwin.v1.RsuObservation");
+wire_message!(telemetry::SignalPhase, crate::v1::SignalPhase, "risktwin.v1.SignalPhase");
+wire_message!(telemetry::RoadMap, crate::v1::RoadMap, "risktwin.v1.RoadMap");
+wire_message!(telemetry::RiskField, crate::v1::RiskGrid, "risktwin.v1.RiskGrid");
+wire_message!(telemetry::RiskReport, crate::v1::RiskReport, "risktwin.v1.RiskReport");
+wire_message!(telemetry::ControlCommand, crate::v1::ControlCommand, "risktwin.v1.ControlCommand");
+wire_message!(telemetry::PolicyUpdate, crate::v1::PolicyUpdate, "risktwin.v1.PolicyUpdate");
+wire_message!(telemetry::ScenarioPush, crate::v1::ScenarioPush, "risktwin.v1.ScenarioPush");
+wire_message!(telemetry::ScenarioResult, crate::v1::ScenarioResult, "risktwin.v1.ScenarioResult");
+
+// Validation helpers shared by the per-family files.
+
+/// A required sub-message.
+pub(crate) fn required<T>(message: &'static str, field: &'static str, v: Option<T>) -> Result<T, ConvertError> {
+    v.ok_or(ConvertError::MissingField { message, field })
+}
+
+pub(crate) fn invalid(message: &'static str, field: &'static str, reason: impl Into<String>) -> ConvertError {
+    ConvertError::InvalidField { message, field, reason: reason.into() }
+}
+
+/// A finite number.
+pub(crate) fn finite(message: &'static str, field: &'static str, v: f64) -> Result<f64, ConvertError> {
+    if v.is_finite() { Ok(v) } else { Err(invalid(message, field, format!("{v} is not finite"))) }
+}
+
+/// A finite number within `[lo, hi]`.
+pub(crate) fn in_range(
+    message: &'static str,
+    field: &'static str,
+    v: f64,
+    lo: f64,
+    hi: f64,
+) -> Result<f64, ConvertError> {
+    if v >= lo && v <= hi { Ok(v) } else { Err(invalid(message, field, format!("{v} is outside [{lo}, {hi}]"))) }
+}
+
+/// A finite number ≥ 0.
+pub(crate) fn non_negative(message: &'static str, field: &'static str, v: f64) -> Result<f64, ConvertError> {
+    if v >= 0.0 && v.is_finite() {
+        Ok(v)
+    } else {
+        Err(invalid(message, field, format!("{v} is not a finite number ≥ 0")))
+    }
+}
+
+/// A finite number > 0.
+pub(crate) fn positive(message: &'static str, field: &'static str, v: f64) -> Result<f64, ConvertError> {
+    if v > 0.0 && v.is_finite() {
+        Ok(v)
+    } else {
+        Err(invalid(message, field, format!("{v} is not a finite number > 0")))
+    }
+}
+
+/// A distance that may be `+inf` (nothing there) but not NaN or negative.
+pub(crate) fn distance_or_inf(message: &'static str, field: &'static str, v: f64) -> Result<f64, ConvertError> {
+    if v >= 0.0 { Ok(v) } else { Err(invalid(message, field, format!("{v} is not ≥ 0 or +inf"))) }
+}
+
+/// A non-empty string.
+pub(crate) fn non_empty(message: &'static str, field: &'static str, v: String) -> Result<String, ConvertError> {
+    if v.is_empty() { Err(ConvertError::MissingField { message, field }) } else { Ok(v) }
+}
+
+/// A known enum value (callers reject `*_UNSPECIFIED` with [`unspecified`]).
+pub(crate) fn enum_value<E: TryFrom<i32>>(
+    message: &'static str,
+    field: &'static str,
+    v: i32,
+) -> Result<E, ConvertError> {
+    E::try_from(v).map_err(|_| invalid(message, field, format!("unknown enum value {v}")))
+}
+
+/// The error for a required enum left at `*_UNSPECIFIED` (wire value 0).
+pub(crate) fn unspecified(message: &'static str, field: &'static str) -> ConvertError {
+    invalid(message, field, "value is UNSPECIFIED (0)")
+}

@@ -8,6 +8,7 @@
 //! [`convert::foxglove`] builds the Foxglove visualisation messages from domain types.
 
 pub mod convert;
+pub mod recording;
 
 /// Generated types of package `risktwin.v1`.
 #[allow(clippy::all, missing_docs)]

@@ -1,4 +1,5 @@
 //! Cloud roles. The scenario library (SQLite) lives in `library`.
 
+pub mod episode_recording;
 pub mod generate;
 pub mod library;

@@ -9,6 +9,8 @@
 use std::collections::BTreeMap;
 use std::collections::HashMap;
 use crate::WireMessage;
+use crate::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE, risk_grid, vehicle_boxes};
+use risktwin_common::telemetry::{RiskField, VehicleStateSample};
 use std::io::{Seek, Write};
 
 /// Why a recording could not be written or read.
@@ -77,6 +79,19 @@ impl<W: Write + Seek> Recorder<W> {
         self.write(channel, log_time_ns, log_time_ns, &bytes)
     }
 
+    /// Appends a `foxglove.SceneUpdate` with a box per vehicle (what Foxglove's 3D panel draws).
+    pub fn record_scene(&mut self, topic: &str, time_ns: u64, vehicles: &[VehicleStateSample]) -> Result<(), RecordingError> {
+        let channel = self.channel(topic, FOXGLOVE_SCENE_UPDATE)?;
+        let update = vehicle_boxes(time_ns as i64, vehicles);
+        self.write(channel, time_ns, time_ns, &prost::Message::encode_to_vec(&update))
+    }
+
+    /// Appends a risk field as a `foxglove.Grid` (one FLOAT32 field `risk`).
+    pub fn record_risk_grid(&mut self, topic: &str, time_ns: u64, field: &RiskField) -> Result<(), RecordingError> {
+        let channel = self.channel(topic, FOXGLOVE_GRID)?;
+        self.write(channel, time_ns, time_ns, &prost::Message::encode_to_vec(&risk_grid(field)))
+    }
+
     /// Writes the summary and footer: after this the file is complete and indexed.
     pub fn finish(mut self) -> Result<(), RecordingError> {
         self.writer.finish()?;
@@ -115,7 +130,7 @@ mod tests {
     use super::*;
     use crate::decode;
     use risktwin_common::geometry::{Footprint, Pose, Vec2};
-    use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
+    use risktwin_common::telemetry::{Frame, Header};
 
     fn state(seq: u64) -> VehicleStateSample {
         VehicleStateSample {

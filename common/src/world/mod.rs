@@ -5,6 +5,7 @@
 //! perceive → policy acts → ego dynamics → traffic (seeing the ego and pedestrians) → contacts.
 
 mod contact;
+mod samples;
 
 pub use contact::Contacts;
 

@@ -19,6 +19,42 @@ use risktwin_edge::shm::{
     ShmPublisher, ShmQos, ShmSubscriber, ShmVehicleState,
 };
 
+/// Counts heap allocations per thread, so that a test can check a hot path allocates nothing while
+/// other tests run in parallel threads.
+struct CountingAlloc;
+
+thread_local! {
+    static ALLOCATIONS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+// SAFETY: forwards to the system allocator; the counter is a const-initialised thread local, so
+// touching it never allocates (no recursion).
+unsafe impl std::alloc::GlobalAlloc for CountingAlloc {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { std::alloc::System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, new_size: usize) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { std::alloc::System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAlloc = CountingAlloc;
+
+fn allocations_on_this_thread() -> u64 {
+    ALLOCATIONS.with(std::cell::Cell::get)
+}
+
 const CHILD_ENV: &str = "RISKTWIN_SHM_CHILD";
 /// Longest wait for one sample; generous for a loaded CI machine, never reached when it works.
 const RECEIVE_TIMEOUT: Duration = Duration::from_secs(10);
@@ -289,6 +325,43 @@ fn a_failed_in_place_fill_sends_nothing() {
         .expect("publish");
     let sample = subscriber.receive_timeout(RECEIVE_TIMEOUT).expect("receive").expect("arrives");
     assert_eq!((sample.seq, sample.payload()), (6, &[1u8, 2][..]));
+}
+
+/// iceoryx2 0.10 itself allocates one small `Rc` per loan (its chunk's shared state); the
+/// wrapper must add nothing on top, and receiving must not allocate at all.
+#[test]
+fn the_wrapper_adds_no_heap_allocation_per_sample() {
+    const ROUNDS: u64 = 1_000;
+    const ICEORYX2_ALLOCATIONS_PER_LOAN: u64 = 1;
+    let vehicle = vehicle_id("alloc");
+    let subscriber = ShmSubscriber::<ShmObjectList>::new(&vehicle, QOS).expect("subscriber");
+    let publisher = ShmPublisher::<ShmObjectList>::new(&vehicle, QOS).expect("publisher");
+    let list = expected_objects(40);
+    // The first round trip builds the connection (that allocates); the steady state is measured.
+    publisher.publish(&list).expect("publish");
+    assert!(subscriber.receive_timeout(RECEIVE_TIMEOUT).expect("receive").is_some());
+    let (mut publishing, mut receiving) = (0, 0);
+    for seq in 0..ROUNDS {
+        let mut next = list;
+        next.seq = seq;
+        let before = allocations_on_this_thread();
+        publisher.publish(&next).expect("publish");
+        publisher
+            .publish_with(|slot| {
+                *slot = next;
+                Ok(())
+            })
+            .expect("publish in place");
+        let between = allocations_on_this_thread();
+        for _ in 0..2 {
+            let sample = subscriber.receive_timeout(RECEIVE_TIMEOUT).expect("receive").expect("arrives");
+            assert_eq!((sample.seq, sample.count), (seq, 40));
+        }
+        publishing += between - before;
+        receiving += allocations_on_this_thread() - between;
+    }
+    assert_eq!(publishing, 2 * ROUNDS * ICEORYX2_ALLOCATIONS_PER_LOAN, "allocations while publishing");
+    assert_eq!(receiving, 0, "allocations while receiving");
 }
 
 /// Publishes what the named role prescribes, then waits for the parent to close stdin.

@@ -42,7 +42,9 @@ pub enum Delivery {
     /// subscriber does on its first poll or wake-up after the publisher appeared; a subscriber
     /// whose queue fills before that misses samples, and the send reports it as
     /// [`ShmError::Undelivered`]. Producers that must not lose the start wait for a first
-    /// sample to be acknowledged (see the cross-process tests).
+    /// sample to be acknowledged (see the cross-process tests). A subscriber process that died
+    /// with a full queue holds every send for `max_wait` until iceoryx2 cleans up its node, so
+    /// keep `max_wait` short next to the producer's period.
     Lossless {
         /// Longest a send may wait for a full subscriber.
         max_wait: Duration,

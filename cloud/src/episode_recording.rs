@@ -2,7 +2,9 @@
 //! Foxglove boxes, and the risk field around the ego as a Foxglove grid at 2 Hz — the same
 //! topics the distributed pipeline records, so Foxglove layouts work for both.
 
-use risktwin_common::risk::{EgoKinematics, FieldError, FieldObject, GridEvaluator, RiskFieldParams, RiskGrid, RoadRaster};
+use risktwin_common::risk::{
+    EgoKinematics, FieldError, FieldObject, GridEvaluator, RiskFieldParams, RiskGrid, RoadRaster,
+};
 use risktwin_common::telemetry::{Frame, Header, RiskField, VehicleStateSample};
 use risktwin_common::world::World;
 use risktwin_protos::recording::{Recorder, RecordingError};
@@ -81,14 +83,21 @@ impl<W: Write + Seek> EpisodeRecorder<W> {
             footprint: world.ego.params.footprint(),
         };
         self.objects.clear();
-        self.objects.extend(
-            self.samples.iter().skip(1).map(|s| FieldObject { obb: risktwin_common::geometry::Obb::new(s.pose, s.footprint), velocity: s.velocity }),
-        );
+        self.objects.extend(self.samples.iter().skip(1).map(|s| FieldObject {
+            obb: risktwin_common::geometry::Obb::new(s.pose, s.footprint),
+            velocity: s.velocity,
+        }));
         let half_m = 0.5 * GRID_RESOLUTION_M * GRID_CELLS as f64;
         let centre = ego.pose.position();
         self.grid.origin_m = self.raster.snap_origin(centre - risktwin_common::geometry::Vec2::new(half_m, half_m));
         self.evaluator.fill(&mut self.grid, &self.raster, &world.road, &self.objects, &ego);
-        let header = Header { source: "ego".into(), seq: self.steps, capture_time_ns: time_ns as i64, publish_time_ns: time_ns as i64, frame: Frame::World };
+        let header = Header {
+            source: "ego".into(),
+            seq: self.steps,
+            capture_time_ns: time_ns as i64,
+            publish_time_ns: time_ns as i64,
+            frame: Frame::World,
+        };
         let field = RiskField { header, grid: self.grid.clone() };
         self.recorder.record_risk_grid("/twin/risk_field", time_ns, &field)?;
         Ok(())

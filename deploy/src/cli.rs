@@ -107,6 +107,9 @@ pub struct SimulateArgs {
     /// Write a per-step CSV trace of the ego and its nearest object here.
     #[arg(long)]
     pub trace: Option<PathBuf>,
+    /// Record the episode as MCAP (vehicle states, Foxglove scene boxes, risk grid at 2 Hz).
+    #[arg(long)]
+    pub record: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

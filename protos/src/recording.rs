@@ -6,11 +6,11 @@
 //! The recorder stores bytes as they arrived (the cloud records what it accepted, unchanged);
 //! [`Recorder::record`] encodes a domain message first.
 
-use std::collections::BTreeMap;
-use std::collections::HashMap;
 use crate::WireMessage;
 use crate::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE, risk_grid, vehicle_boxes};
 use risktwin_common::telemetry::{RiskField, VehicleStateSample};
+use std::collections::BTreeMap;
+use std::collections::HashMap;
 use std::io::{Seek, Write};
 
 /// Why a recording could not be written or read.
@@ -34,19 +34,18 @@ impl<W: Write + Seek> Recorder<W> {
     /// A recorder over `w`.
     pub fn new(w: W) -> Result<Self, RecordingError> {
         let options = mcap::WriteOptions::new().profile("").library(concat!("risktwin ", env!("CARGO_PKG_VERSION")));
-        Ok(Self {
-            writer: options.create(w)?,
-            schemas: HashMap::new(),
-            channels: HashMap::new(),
-            sequence: 0,
-        })
+        Ok(Self { writer: options.create(w)?, schemas: HashMap::new(), channels: HashMap::new(), sequence: 0 })
     }
 
     /// The channel id of `topic` carrying messages of `schema_name` (e.g. `risktwin.v1.VehicleState`).
     pub fn channel(&mut self, topic: &str, schema_name: &'static str) -> Result<u16, RecordingError> {
         if let Some(&(id, first)) = self.channels.get(topic) {
             if first != schema_name {
-                return Err(RecordingError::SchemaChanged { topic: topic.into(), first: first.into(), now: schema_name.into() });
+                return Err(RecordingError::SchemaChanged {
+                    topic: topic.into(),
+                    first: first.into(),
+                    now: schema_name.into(),
+                });
             }
             return Ok(id);
         }
@@ -65,8 +64,19 @@ impl<W: Write + Seek> Recorder<W> {
 
     /// Appends one encoded message. `log_time_ns` orders the recording (the cloud's receive
     /// time); `publish_time_ns` is the source's publish stamp.
-    pub fn write(&mut self, channel: u16, log_time_ns: u64, publish_time_ns: u64, data: &[u8]) -> Result<(), RecordingError> {
-        let header = mcap::records::MessageHeader { channel_id: channel, sequence: self.sequence, log_time: log_time_ns, publish_time: publish_time_ns };
+    pub fn write(
+        &mut self,
+        channel: u16,
+        log_time_ns: u64,
+        publish_time_ns: u64,
+        data: &[u8],
+    ) -> Result<(), RecordingError> {
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: self.sequence,
+            log_time: log_time_ns,
+            publish_time: publish_time_ns,
+        };
         self.sequence = self.sequence.wrapping_add(1);
         self.writer.write_to_known_channel(&header, data)?;
         Ok(())
@@ -80,7 +90,12 @@ impl<W: Write + Seek> Recorder<W> {
     }
 
     /// Appends a `foxglove.SceneUpdate` with a box per vehicle (what Foxglove's 3D panel draws).
-    pub fn record_scene(&mut self, topic: &str, time_ns: u64, vehicles: &[VehicleStateSample]) -> Result<(), RecordingError> {
+    pub fn record_scene(
+        &mut self,
+        topic: &str,
+        time_ns: u64,
+        vehicles: &[VehicleStateSample],
+    ) -> Result<(), RecordingError> {
         let channel = self.channel(topic, FOXGLOVE_SCENE_UPDATE)?;
         let update = vehicle_boxes(time_ns as i64, vehicles);
         self.write(channel, time_ns, time_ns, &prost::Message::encode_to_vec(&update))
@@ -134,7 +149,13 @@ mod tests {
 
     fn state(seq: u64) -> VehicleStateSample {
         VehicleStateSample {
-            header: Header { source: "veh-1".into(), seq, capture_time_ns: 1_000 * seq as i64, publish_time_ns: 1_001 * seq as i64, frame: Frame::World },
+            header: Header {
+                source: "veh-1".into(),
+                seq,
+                capture_time_ns: 1_000 * seq as i64,
+                publish_time_ns: 1_001 * seq as i64,
+                frame: Frame::World,
+            },
             pose: Pose::new(seq as f64, 2.0, 0.1),
             velocity: Vec2::new(20.0, 0.0),
             speed_mps: 20.0,
@@ -149,11 +170,15 @@ mod tests {
     fn round_trip_through_a_file_and_schema_mismatch_is_refused() {
         let dir = tempfile::tempdir().expect("temp dir");
         let path = dir.path().join("r.mcap");
-        let mut rec = Recorder::new(std::io::BufWriter::new(std::fs::File::create(&path).expect("create"))).expect("recorder");
+        let mut rec =
+            Recorder::new(std::io::BufWriter::new(std::fs::File::create(&path).expect("create"))).expect("recorder");
         for seq in 0..100 {
             rec.record("risktwin/v1/site/veh-1/state", 10 * seq, &state(seq)).expect("record");
         }
-        assert!(matches!(rec.channel("risktwin/v1/site/veh-1/state", "risktwin.v1.CanFrame"), Err(RecordingError::SchemaChanged { .. })));
+        assert!(matches!(
+            rec.channel("risktwin/v1/site/veh-1/state", "risktwin.v1.CanFrame"),
+            Err(RecordingError::SchemaChanged { .. })
+        ));
         rec.finish().expect("finish");
         let bytes = std::fs::read(&path).expect("read");
         let msgs = read_messages(&bytes).expect("valid recording");

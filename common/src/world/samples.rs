@@ -11,7 +11,13 @@ impl World {
     pub fn state_samples(&self, seq: u64, out: &mut Vec<VehicleStateSample>) {
         out.clear();
         let time_ns = (self.time_s * 1e9).round() as i64;
-        let header = |source: String| Header { source, seq, capture_time_ns: time_ns, publish_time_ns: time_ns, frame: Frame::World };
+        let header = |source: String| Header {
+            source,
+            seq,
+            capture_time_ns: time_ns,
+            publish_time_ns: time_ns,
+            frame: Frame::World,
+        };
         let ego = &self.ego;
         out.push(VehicleStateSample {
             header: header("ego".into()),

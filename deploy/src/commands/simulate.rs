@@ -4,8 +4,9 @@ use super::source;
 use crate::cli::SimulateArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
+use risktwin_cloud::episode_recording::EpisodeRecorder;
 use risktwin_common::episode;
-use risktwin_common::metrics::EpisodeMetrics;
+use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
 use risktwin_common::world::{StepReport, World};
 
 pub fn simulate(args: SimulateArgs) -> CliResult {
@@ -13,15 +14,36 @@ pub fn simulate(args: SimulateArgs) -> CliResult {
         return Err(CliError::input(format!("unknown policy '{}' (available: idm)", args.policy)));
     }
     let spec = source::load(&args.source)?;
-    let result = match &args.trace {
-        None => episode::evaluate(&spec),
+    let mut trace = args.trace.as_ref().map(|_| String::from(TRACE_HEADER));
+    let (mut world, mut driver) = episode::with_reference_driver(&spec);
+    let mut recorder = match &args.record {
+        None => None,
         Some(path) => {
-            let mut rows = String::from(TRACE_HEADER);
-            let result = episode::evaluate_observed(&spec, &mut |w, r| trace_row(&mut rows, w, r));
-            std::fs::write(path, rows).map_err(|e| CliError::input(format!("cannot write {}: {e}", path.display())))?;
-            result
+            let file = std::fs::File::create(path)
+                .map_err(|e| CliError::input(format!("cannot create {}: {e}", path.display())))?;
+            let mut rec = EpisodeRecorder::new(std::io::BufWriter::new(file), &world).map_err(CliError::runtime)?;
+            rec.record(&world).map_err(CliError::runtime)?;
+            Some(rec)
         }
     };
+    let mut record_error = None;
+    let result = episode::run_observed(&mut world, &mut driver, &RewardWeights::default(), &mut |w, r| {
+        if let Some(rows) = trace.as_mut() {
+            trace_row(rows, w, r);
+        }
+        if let (Some(rec), None) = (recorder.as_mut(), &record_error) {
+            record_error = rec.record(w).err();
+        }
+    });
+    if let Some(e) = record_error {
+        return Err(CliError::runtime(e));
+    }
+    if let Some(rec) = recorder {
+        rec.finish().map_err(CliError::runtime)?;
+    }
+    if let (Some(path), Some(rows)) = (&args.trace, trace) {
+        std::fs::write(path, rows).map_err(|e| CliError::input(format!("cannot write {}: {e}", path.display())))?;
+    }
     match args.format {
         Format::Json => print_json(&result.metrics),
         Format::Table | Format::Csv => print_metrics(&result.metrics, args.format),

@@ -2,4 +2,5 @@
 
 pub mod episode_recording;
 pub mod generate;
+pub mod ingest;
 pub mod library;

@@ -108,9 +108,14 @@ impl<W: Write + Seek> Recorder<W> {
     }
 
     /// Writes the summary and footer: after this the file is complete and indexed.
-    pub fn finish(mut self) -> Result<(), RecordingError> {
+    pub fn finish(self) -> Result<(), RecordingError> {
+        self.finish_into_inner().map(|_| ())
+    }
+
+    /// [`Recorder::finish`], handing back the underlying writer.
+    pub fn finish_into_inner(mut self) -> Result<W, RecordingError> {
         self.writer.finish()?;
-        Ok(())
+        Ok(self.writer.into_inner())
     }
 }
 

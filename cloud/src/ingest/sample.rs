@@ -1,0 +1,64 @@
+//! What the aligner holds per source and stream: the decoded content the twin needs.
+
+use risktwin_common::align::{Interpolate, lerp_angle};
+use risktwin_common::geometry::{Footprint, Pose, Vec2};
+use risktwin_common::telemetry::{DetectedObject, Phase};
+use std::sync::Arc;
+
+/// Kinematic state of a vehicle, interpolated between samples.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Kinematics {
+    pub pose: Pose,
+    pub velocity: Vec2,
+    pub speed_mps: f64,
+    pub accel_mps2: f64,
+    pub footprint: Footprint,
+}
+
+/// One aligned value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TwinSample {
+    State(Kinematics),
+    /// Decoded CAN signals by frame id: (can_id, raw payload).
+    Can {
+        can_id: u32,
+        data: [u8; 8],
+    },
+    /// Objects seen by a vehicle or an RSU (shared: snapshots copy them often).
+    Objects(Arc<[DetectedObject]>),
+    Signal {
+        signal_id: u32,
+        phase: Phase,
+    },
+}
+
+fn lerp(a: f64, b: f64, t: f64) -> f64 {
+    a + (b - a) * t
+}
+
+impl Interpolate for TwinSample {
+    /// States interpolate (heading the short way round); every other stream is as-of and never
+    /// interpolated — the nearer sample is kept should the aligner ask.
+    fn lerp(a: &Self, b: &Self, t: f64) -> Self {
+        match (a, b) {
+            (TwinSample::State(x), TwinSample::State(y)) => TwinSample::State(Kinematics {
+                pose: Pose::new(
+                    lerp(x.pose.x_m, y.pose.x_m, t),
+                    lerp(x.pose.y_m, y.pose.y_m, t),
+                    lerp_angle(x.pose.heading_rad, y.pose.heading_rad, t),
+                ),
+                velocity: x.velocity + (y.velocity - x.velocity) * t,
+                speed_mps: lerp(x.speed_mps, y.speed_mps, t),
+                accel_mps2: lerp(x.accel_mps2, y.accel_mps2, t),
+                footprint: y.footprint,
+            }),
+            _ => {
+                if t < 0.5 {
+                    a.clone()
+                } else {
+                    b.clone()
+                }
+            }
+        }
+    }
+}

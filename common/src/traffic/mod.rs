@@ -35,6 +35,7 @@ mod lane_index;
 mod manoeuvre;
 mod mobil;
 mod pedestrian;
+mod signal;
 mod sim;
 mod state;
 mod track;
@@ -44,6 +45,7 @@ pub use idm::{IdmParams, MIN_GAP_M, idm_accel};
 pub use manoeuvre::{MOBIL_LANE_CHANGE_S, Manoeuvre};
 pub use mobil::{MobilAccels, MobilParams, mobil_incentive, mobil_safe, mobil_should_change};
 pub use pedestrian::PedestrianWalk;
+pub use signal::FixedTimeSignal;
 
 use crate::geometry::{Footprint, Obb, Pose, Vec2};
 pub use crate::road::LaneId;

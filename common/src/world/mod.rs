@@ -5,9 +5,11 @@
 //! perceive → policy acts → ego dynamics → traffic (seeing the ego and pedestrians) → contacts.
 
 mod contact;
+mod roadside;
 mod samples;
 
 pub use contact::Contacts;
+pub use roadside::EGO_OBJECT_ID;
 
 use crate::driver::{DriverView, Policy};
 use crate::geometry::{Footprint, Obb, Pose, Vec2};

@@ -1,0 +1,160 @@
+//! Typed publishing and subscribing on the key scheme: the payload stays opaque bytes here.
+
+use crate::keyexpr::{self, EdgeStream, SiteId, SourceId};
+use crate::session::TransportError;
+use crate::shutdown::Shutdown;
+use std::time::Duration;
+use zenoh::bytes::ZBytes;
+use zenoh::liveliness::LivelinessToken;
+use zenoh::pubsub::{Publisher, Subscriber};
+use zenoh::qos::CongestionControl;
+use zenoh::sample::{Sample, SampleKind};
+use zenoh::Session;
+
+/// A publisher bound to one edge→cloud stream of one source.
+///
+/// Reliable and blocking under congestion: a slow subscriber slows the edge down instead of
+/// losing messages, so that every message sent can be accounted for downstream.
+pub struct StreamPublisher {
+    stream: EdgeStream,
+    publisher: Publisher<'static>,
+}
+
+impl StreamPublisher {
+    /// Declares the publisher of `stream` for `source` at `site`.
+    pub async fn declare(
+        session: &Session,
+        site: &SiteId,
+        source: &SourceId,
+        stream: EdgeStream,
+    ) -> Result<Self, TransportError> {
+        let key = keyexpr::edge_stream(site, source, stream);
+        let publisher = session
+            .declare_publisher(key.clone())
+            .congestion_control(CongestionControl::Block)
+            .await
+            .map_err(|e| TransportError::Declare { what: "publisher", key, reason: e.to_string() })?;
+        Ok(StreamPublisher { stream, publisher })
+    }
+
+    /// The stream this publishes.
+    pub fn stream(&self) -> EdgeStream {
+        self.stream
+    }
+
+    /// The key this publishes on.
+    pub fn key(&self) -> &str {
+        self.publisher.key_expr().as_str()
+    }
+
+    /// Publishes one payload.
+    pub async fn put(&self, payload: impl Into<ZBytes>) -> Result<(), TransportError> {
+        self.publisher
+            .put(payload)
+            .await
+            .map_err(|e| TransportError::Put { key: self.key().to_owned(), reason: e.to_string() })
+    }
+
+    /// Waits until some subscriber matches this stream: `Ok(true)` once one does, `Ok(false)` if
+    /// `timeout` passes or `shutdown` fires first. Publishing before that point would be lost.
+    pub async fn wait_for_subscriber(&self, timeout: Duration, mut shutdown: Shutdown) -> Result<bool, TransportError> {
+        let declare_err = |e: zenoh::Error| TransportError::Declare {
+            what: "matching listener",
+            key: self.key().to_owned(),
+            reason: e.to_string(),
+        };
+        let listener = self.publisher.matching_listener().await.map_err(declare_err)?;
+        // Read the status after the listener exists so that no change falls between the two.
+        if self.publisher.matching_status().await.map_err(declare_err)?.matching() {
+            return Ok(true);
+        }
+        let wait = async {
+            while let Ok(status) = listener.recv_async().await {
+                if status.matching() {
+                    return true;
+                }
+            }
+            false
+        };
+        tokio::select! {
+            matched = tokio::time::timeout(timeout, wait) => Ok(matched.unwrap_or(false)),
+            _ = shutdown.wait() => Ok(false),
+        }
+    }
+
+    /// Undeclares the publisher.
+    pub async fn undeclare(self) -> Result<(), TransportError> {
+        let key = self.key().to_owned();
+        self.publisher.undeclare().await.map_err(|e| TransportError::Declare { what: "undeclare", key, reason: e.to_string() })
+    }
+}
+
+/// Declares the liveliness token of `source`: the cloud sees the edge as alive while it exists.
+pub async fn declare_alive(session: &Session, site: &SiteId, source: &SourceId) -> Result<LivelinessToken, TransportError> {
+    let key = keyexpr::liveliness_token(site, source);
+    session
+        .liveliness()
+        .declare_token(key.clone())
+        .await
+        .map_err(|e| TransportError::Declare { what: "liveliness token", key, reason: e.to_string() })
+}
+
+/// One subscriber per edge→cloud stream of every source at `site` (every site if `None`);
+/// `on_sample(stream, sample)` runs on Zenoh's receive path, so it must be quick.
+pub async fn subscribe_edge_streams<F>(
+    session: &Session,
+    site: Option<&SiteId>,
+    on_sample: F,
+) -> Result<Vec<Subscriber<()>>, TransportError>
+where
+    F: Fn(EdgeStream, &Sample) + Clone + Send + Sync + 'static,
+{
+    let mut subscribers = Vec::with_capacity(EdgeStream::ALL.len());
+    for stream in EdgeStream::ALL {
+        let key = keyexpr::edge_stream_all(site, stream);
+        let on_sample = on_sample.clone();
+        let subscriber = session
+            .declare_subscriber(key.clone())
+            .callback(move |sample| on_sample(stream, &sample))
+            .await
+            .map_err(|e| TransportError::Declare { what: "subscriber", key, reason: e.to_string() })?;
+        subscribers.push(subscriber);
+    }
+    Ok(subscribers)
+}
+
+/// An edge appearing or disappearing, as told by its liveliness token.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Liveness {
+    /// The site chunk of the token.
+    pub site: String,
+    /// The edge's source id.
+    pub source: String,
+    /// True when it joined, false when it left.
+    pub alive: bool,
+}
+
+/// Watches every edge's liveliness token at `site` (every site if `None`), including the edges
+/// already alive when the watch starts.
+pub async fn watch_liveliness<F>(
+    session: &Session,
+    site: Option<&SiteId>,
+    on_change: F,
+) -> Result<Subscriber<()>, TransportError>
+where
+    F: Fn(Liveness) + Send + Sync + 'static,
+{
+    let key = keyexpr::liveliness_all(site);
+    session
+        .liveliness()
+        .declare_subscriber(key.clone())
+        .history(true)
+        .callback(move |sample| {
+            if let Some((site, source)) = keyexpr::parse_liveliness_key(sample.key_expr().as_str()) {
+                let alive = sample.kind() == SampleKind::Put;
+                on_change(Liveness { site: site.to_owned(), source: source.to_owned(), alive });
+            }
+        })
+        .await
+        .map_err(|e| TransportError::Declare { what: "liveliness subscriber", key, reason: e.to_string() })
+}

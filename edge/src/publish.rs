@@ -77,7 +77,11 @@ struct Lane {
 
 /// Runs `plans` for `config` until every stream has sent `count`, `duration` has passed or
 /// `shutdown` fires; then undeclares, closes the session and reports what was sent.
-pub async fn run_streams(config: &EdgeConfig, plans: &[StreamPlan], shutdown: Shutdown) -> Result<SentSummary, EdgeError> {
+pub async fn run_streams(
+    config: &EdgeConfig,
+    plans: &[StreamPlan],
+    shutdown: Shutdown,
+) -> Result<SentSummary, EdgeError> {
     config.check(plans)?;
     let mut stop = shutdown.clone();
     let session = tokio::select! {
@@ -109,7 +113,8 @@ pub async fn run_streams(config: &EdgeConfig, plans: &[StreamPlan], shutdown: Sh
             sent: 0,
         })
         .collect();
-    let done = |lane: &Lane| config.count.is_some_and(|n| lane.sent >= n) || deadline.is_some_and(|d| lane.next_due > d);
+    let done =
+        |lane: &Lane| config.count.is_some_and(|n| lane.sent >= n) || deadline.is_some_and(|d| lane.next_due > d);
 
     // The first round goes out before the shutdown is looked at, so that "publishing" (which
     // tests wait for) always means something was sent.

@@ -39,7 +39,11 @@ fn assert_all_accounted(sent: &[Value], summary: &Value) {
         for (stream, n) in streams {
             let n = n.as_u64().expect("a count");
             assert!(n > 0, "{source} sent nothing on {stream}");
-            assert_eq!(summary["received"][source][stream].as_u64(), Some(n), "{source}/{stream}: sent {n}, cloud: {summary}");
+            assert_eq!(
+                summary["received"][source][stream].as_u64(),
+                Some(n),
+                "{source}/{stream}: sent {n}, cloud: {summary}"
+            );
             total_sent += n;
         }
         let name = format!("track/{source}");
@@ -62,10 +66,25 @@ fn vehicles_and_rsu_through_a_router_lose_nothing() {
         .enumerate()
         .map(|(i, id)| {
             let offset = format!("{}", (i as i64 - 1) * 5_000_000);
-            edge("vehicle", id, &locator, &[
-                "--rate-hz", "200", "--count", "40", "--clock-offset-ns", &offset, "--clock-drift-ppm", "50",
-                "--clock-jitter-ns", "100000", "--seed", &i.to_string(),
-            ])
+            edge(
+                "vehicle",
+                id,
+                &locator,
+                &[
+                    "--rate-hz",
+                    "200",
+                    "--count",
+                    "40",
+                    "--clock-offset-ns",
+                    &offset,
+                    "--clock-drift-ppm",
+                    "50",
+                    "--clock-jitter-ns",
+                    "100000",
+                    "--seed",
+                    &i.to_string(),
+                ],
+            )
         })
         .collect();
     edges.push(edge("rsu", "rsu-0", &locator, &["--rate-hz", "50", "--count", "30"]));

@@ -61,8 +61,12 @@ impl Proc {
                         return line;
                     }
                 }
-                Err(RecvTimeoutError::Timeout) => panic!("{}: no matching stderr line in {timeout:?}:\n{}", self.name, self.stderr_seen.join("\n")),
-                Err(RecvTimeoutError::Disconnected) => panic!("{}: exited without the expected stderr line:\n{}", self.name, self.stderr_seen.join("\n")),
+                Err(RecvTimeoutError::Timeout) => {
+                    panic!("{}: no matching stderr line in {timeout:?}:\n{}", self.name, self.stderr_seen.join("\n"))
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    panic!("{}: exited without the expected stderr line:\n{}", self.name, self.stderr_seen.join("\n"))
+                }
             }
         }
     }

@@ -197,6 +197,12 @@ pub fn edge_stream_all(site: Option<&SiteId>, stream: EdgeStream) -> String {
     format!("{ROOT}/{}/*/{}", site_or_star(site), stream.as_str())
 }
 
+/// `risktwin/v1/<site|*>/*/*`: every edge→cloud stream of every source (the subscriber also
+/// sees other keys of that shape; [`parse_edge_key`] tells them apart).
+pub fn edge_streams_all(site: Option<&SiteId>) -> String {
+    format!("{ROOT}/{}/*/*", site_or_star(site))
+}
+
 /// `risktwin/v1/<site>/<source>/<push>`: what the cloud sends to one edge.
 pub fn cloud_to_edge(site: &SiteId, source: &SourceId, push: CloudToEdge) -> String {
     format!("{ROOT}/{site}/{source}/{}", push.as_str())
@@ -295,6 +301,7 @@ mod tests {
         assert_eq!(edge_stream(&site, &src, EdgeStream::Can), "risktwin/v1/track-1/veh_0.a/can");
         assert_eq!(edge_stream_all(None, EdgeStream::State), "risktwin/v1/*/*/state");
         assert_eq!(edge_stream_all(Some(&site), EdgeStream::Rsu), "risktwin/v1/track-1/*/rsu");
+        assert_eq!(edge_streams_all(None), "risktwin/v1/*/*/*");
         assert_eq!(cloud_to_edge(&site, &src, CloudToEdge::Policy), "risktwin/v1/track-1/veh_0.a/policy");
         assert_eq!(cloud_output(&site, CloudOutput::RiskField), "risktwin/v1/track-1/cloud/risk_field");
         assert_eq!(library_queryable(&site), "risktwin/v1/track-1/cloud/library/**");
@@ -321,10 +328,7 @@ mod tests {
         ] {
             assert_eq!(parse_edge_key(bad), None, "{bad}");
         }
-        assert_eq!(
-            try_parse_edge_key("x/y"),
-            Err(KeyError::NotEdgeStream { key: "x/y".into() })
-        );
+        assert_eq!(try_parse_edge_key("x/y"), Err(KeyError::NotEdgeStream { key: "x/y".into() }));
         assert_eq!(parse_liveliness_key(&liveliness_token(&site, &src)), Some(("track-1", "veh_0.a")));
         assert_eq!(parse_liveliness_key("risktwin/v1/track-1/veh/state"), None);
     }

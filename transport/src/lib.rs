@@ -17,6 +17,8 @@ pub mod stream;
 pub use keyexpr::{EdgeStream, KeyError, SiteId, SourceId};
 pub use session::{Mode, TransportConfig, TransportError, close, connect, listening_locators};
 pub use shutdown::{Shutdown, ShutdownTrigger};
-pub use stream::{Liveness, StreamPublisher, declare_alive, subscribe_edge_streams, watch_liveliness};
+pub use stream::{
+    Liveness, StreamPublisher, declare_alive, declare_edge_keys, subscribe_edge_streams, watch_liveliness,
+};
 /// Re-exported so that roles name zenoh types without their own dependency line.
 pub use zenoh;

@@ -65,10 +65,8 @@ impl StandIn<'_> {
         let source_len = u8::try_from(source.len()).map_err(|_| StandInError::SourceTooLong { len: source.len() })?;
         let bare_len = MIN_LEN + source.len();
         let filler_len = total_len.saturating_sub(bare_len);
-        let filler_len_u32 = u32::try_from(filler_len).map_err(|_| StandInError::LengthMismatch {
-            declared: total_len,
-            actual: bare_len,
-        })?;
+        let filler_len_u32 = u32::try_from(filler_len)
+            .map_err(|_| StandInError::LengthMismatch { declared: total_len, actual: bare_len })?;
         out.reserve(bare_len + filler_len);
         out.extend_from_slice(&MAGIC);
         out.extend_from_slice(&self.seq.to_le_bytes());
@@ -149,10 +147,7 @@ mod tests {
         not_utf8[FIXED_LEN] = 0xFF;
         assert_eq!(decode(&not_utf8), Err(StandInError::SourceNotUtf8));
         let long = "x".repeat(300);
-        assert_eq!(
-            StandIn { source: &long, ..REC }.encode(0),
-            Err(StandInError::SourceTooLong { len: 300 })
-        );
+        assert_eq!(StandIn { source: &long, ..REC }.encode(0), Err(StandInError::SourceTooLong { len: 300 }));
         // Garbage of any length never panics.
         for len in 0..80 {
             let junk: Vec<u8> = (0..len).map(|i| (i * 37 % 251) as u8).collect();

@@ -4,12 +4,12 @@ use crate::keyexpr::{self, EdgeStream, SiteId, SourceId};
 use crate::session::TransportError;
 use crate::shutdown::Shutdown;
 use std::time::Duration;
+use zenoh::Session;
 use zenoh::bytes::ZBytes;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::CongestionControl;
-use zenoh::sample::{Sample, SampleKind};
-use zenoh::Session;
+use zenoh::sample::{Locality, Sample, SampleKind};
 
 /// A publisher bound to one edge→cloud stream of one source.
 ///
@@ -29,8 +29,16 @@ impl StreamPublisher {
         stream: EdgeStream,
     ) -> Result<Self, TransportError> {
         let key = keyexpr::edge_stream(site, source, stream);
+        // A declared key expression travels as a small numeric id, and both ends keep its
+        // routes cached; otherwise every sample is matched against the (wildcard) subscriptions
+        // again, which measured at a third of raw Zenoh's throughput.
+        let declared = session.declare_keyexpr(key.clone()).await.map_err(|e| TransportError::Declare {
+            what: "key expression",
+            key: key.clone(),
+            reason: e.to_string(),
+        })?;
         let publisher = session
-            .declare_publisher(key.clone())
+            .declare_publisher(declared)
             .congestion_control(CongestionControl::Block)
             .await
             .map_err(|e| TransportError::Declare { what: "publisher", key, reason: e.to_string() })?;
@@ -85,42 +93,55 @@ impl StreamPublisher {
     /// Undeclares the publisher.
     pub async fn undeclare(self) -> Result<(), TransportError> {
         let key = self.key().to_owned();
-        self.publisher.undeclare().await.map_err(|e| TransportError::Declare { what: "undeclare", key, reason: e.to_string() })
+        self.publisher.undeclare().await.map_err(|e| TransportError::Declare {
+            what: "undeclare",
+            key,
+            reason: e.to_string(),
+        })
     }
 }
 
 /// Declares the liveliness token of `source`: the cloud sees the edge as alive while it exists.
-pub async fn declare_alive(session: &Session, site: &SiteId, source: &SourceId) -> Result<LivelinessToken, TransportError> {
+pub async fn declare_alive(
+    session: &Session,
+    site: &SiteId,
+    source: &SourceId,
+) -> Result<LivelinessToken, TransportError> {
     let key = keyexpr::liveliness_token(site, source);
-    session
-        .liveliness()
-        .declare_token(key.clone())
-        .await
-        .map_err(|e| TransportError::Declare { what: "liveliness token", key, reason: e.to_string() })
+    session.liveliness().declare_token(key.clone()).await.map_err(|e| TransportError::Declare {
+        what: "liveliness token",
+        key,
+        reason: e.to_string(),
+    })
 }
 
-/// One subscriber per edge→cloud stream of every source at `site` (every site if `None`);
+/// Subscribes to every edge→cloud stream of every source at `site` (every site if `None`);
 /// `on_sample(stream, sample)` runs on Zenoh's receive path, so it must be quick.
+///
+/// One subscriber on `risktwin/v1/<site>/*/*` rather than one per stream: Zenoh matches every
+/// sample against every wildcard subscription of the session, and five of them measured at
+/// about half the throughput of one. The price is that keys of the same shape that are not edge
+/// streams (another cloud's outputs, pushes to edges) also arrive; they are recognised by the
+/// key parser and skipped. Samples published by this same session are not received at all.
 pub async fn subscribe_edge_streams<F>(
     session: &Session,
     site: Option<&SiteId>,
     on_sample: F,
-) -> Result<Vec<Subscriber<()>>, TransportError>
+) -> Result<Subscriber<()>, TransportError>
 where
-    F: Fn(EdgeStream, &Sample) + Clone + Send + Sync + 'static,
+    F: Fn(EdgeStream, &Sample) + Send + Sync + 'static,
 {
-    let mut subscribers = Vec::with_capacity(EdgeStream::ALL.len());
-    for stream in EdgeStream::ALL {
-        let key = keyexpr::edge_stream_all(site, stream);
-        let on_sample = on_sample.clone();
-        let subscriber = session
-            .declare_subscriber(key.clone())
-            .callback(move |sample| on_sample(stream, &sample))
-            .await
-            .map_err(|e| TransportError::Declare { what: "subscriber", key, reason: e.to_string() })?;
-        subscribers.push(subscriber);
-    }
-    Ok(subscribers)
+    let key = keyexpr::edge_streams_all(site);
+    session
+        .declare_subscriber(key.clone())
+        .allowed_origin(Locality::Remote)
+        .callback(move |sample| {
+            if let Some(parsed) = keyexpr::parse_edge_key(sample.key_expr().as_str()) {
+                on_sample(parsed.stream, &sample);
+            }
+        })
+        .await
+        .map_err(|e| TransportError::Declare { what: "subscriber", key, reason: e.to_string() })
 }
 
 /// An edge appearing or disappearing, as told by its liveliness token.
@@ -157,4 +178,26 @@ where
         })
         .await
         .map_err(|e| TransportError::Declare { what: "liveliness subscriber", key, reason: e.to_string() })
+}
+
+/// Declares the key expression of every edge→cloud stream of `source` on the receiving
+/// `session`. Zenoh then caches the routes of these keys; without it a wildcard subscriber
+/// makes it match every sample again (measured: about half the throughput of an exact-key
+/// subscriber, and 0.87 of it with the keys declared). Keep the returned keys alive.
+pub async fn declare_edge_keys(
+    session: &Session,
+    site: &SiteId,
+    source: &SourceId,
+) -> Result<Vec<zenoh::key_expr::KeyExpr<'static>>, TransportError> {
+    let mut keys = Vec::with_capacity(EdgeStream::ALL.len());
+    for stream in EdgeStream::ALL {
+        let key = keyexpr::edge_stream(site, source, stream);
+        let declared = session.declare_keyexpr(key.clone()).await.map_err(|e| TransportError::Declare {
+            what: "key expression",
+            key,
+            reason: e.to_string(),
+        })?;
+        keys.push(declared);
+    }
+    Ok(keys)
 }

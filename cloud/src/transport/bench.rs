@@ -4,7 +4,10 @@
 //! `tcp/127.0.0.1:0`, the other connects to the port it got), reliable and blocking under
 //! congestion, and push the same number of payloads of the same size:
 //! - raw: a plain zenoh publisher puts a prebuilt payload (copied per put, as a real producer
-//!   would hand over fresh data), a plain subscriber counts samples;
+//!   would hand over fresh data), a plain subscriber on the exact key counts samples;
+//! - raw, wildcard: the same with the subscriber on `risktwin/bench/*`, the shape a cloud that
+//!   listens to every source needs (Zenoh then matches every sample against the subscription
+//!   again: its route cache does not help here, as profiling showed);
 //! - ours: the edge's [`StreamPublisher`] puts a freshly encoded stand-in record, the cloud's
 //!   ingest callback decodes, validates and counts it per source and stream.
 //!
@@ -18,7 +21,7 @@ use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::zenoh::{Session, Wait};
 use risktwin_transport::{
     EdgeStream, Mode, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, TransportError, connect,
-    listening_locators, subscribe_edge_streams,
+    declare_alive, listening_locators, subscribe_edge_streams,
 };
 use serde::Serialize;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -46,33 +49,45 @@ pub struct BenchReport {
     pub payload_bytes: usize,
     /// Every raw measurement.
     pub raw_msgs_per_s: Vec<f64>,
+    /// Every raw measurement with a wildcard subscriber.
+    pub raw_wildcard_msgs_per_s: Vec<f64>,
     /// Every measurement of ours.
     pub ours_msgs_per_s: Vec<f64>,
     /// Median raw.
     pub raw_median_msgs_per_s: f64,
+    /// Median raw with a wildcard subscriber.
+    pub raw_wildcard_median_msgs_per_s: f64,
     /// Median ours.
     pub ours_median_msgs_per_s: f64,
     /// ours / raw, medians.
     pub ratio: f64,
+    /// ours / raw with a wildcard subscriber, medians.
+    pub ratio_vs_wildcard: f64,
 }
 
 /// Runs the benchmark.
 pub async fn throughput(config: BenchConfig) -> Result<BenchReport, CloudError> {
     let mut raw = Vec::with_capacity(config.rounds);
+    let mut wild = Vec::with_capacity(config.rounds);
     let mut ours = Vec::with_capacity(config.rounds);
     for _ in 0..config.rounds {
-        raw.push(raw_round(config).await?);
+        raw.push(raw_round(config, "risktwin/bench/raw").await?);
+        wild.push(raw_round(config, "risktwin/bench/*").await?);
         ours.push(our_round(config).await?);
     }
-    let (raw_median, ours_median) = (median(&raw), median(&ours));
+    let (raw_median, wild_median, ours_median) = (median(&raw), median(&wild), median(&ours));
+    let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { 0.0 };
     Ok(BenchReport {
         messages: config.messages,
         payload_bytes: config.payload_bytes,
         raw_msgs_per_s: raw,
+        raw_wildcard_msgs_per_s: wild,
         ours_msgs_per_s: ours,
         raw_median_msgs_per_s: raw_median,
+        raw_wildcard_median_msgs_per_s: wild_median,
         ours_median_msgs_per_s: ours_median,
-        ratio: if raw_median > 0.0 { ours_median / raw_median } else { 0.0 },
+        ratio: ratio(ours_median, raw_median),
+        ratio_vs_wildcard: ratio(ours_median, wild_median),
     })
 }
 
@@ -87,7 +102,12 @@ async fn peer_pair() -> Result<(Session, Session), CloudError> {
     let listen = TransportConfig { mode: Mode::Peer, listen: vec!["tcp/127.0.0.1:0".into()], ..Default::default() };
     let sub_side = connect(&listen).await?;
     let locators = listening_locators(&sub_side).await;
-    let connect_to = TransportConfig { mode: Mode::Peer, connect: locators, listen: vec!["tcp/127.0.0.1:0".into()], ..Default::default() };
+    let connect_to = TransportConfig {
+        mode: Mode::Peer,
+        connect: locators,
+        listen: vec!["tcp/127.0.0.1:0".into()],
+        ..Default::default()
+    };
     let pub_side = connect(&connect_to).await?;
     Ok((sub_side, pub_side))
 }
@@ -114,7 +134,12 @@ impl Finish {
             }
         })
         .await;
-        waited.map_err(|_| bench_error(format!("only {} of {target} messages arrived in {deadline:?}", self.seen.load(Ordering::Relaxed))))
+        waited.map_err(|_| {
+            bench_error(format!(
+                "only {} of {target} messages arrived in {deadline:?}",
+                self.seen.load(Ordering::Relaxed)
+            ))
+        })
     }
 }
 
@@ -122,14 +147,15 @@ fn bench_error(reason: String) -> CloudError {
     CloudError::Transport(TransportError::Put { key: "bench".into(), reason })
 }
 
-async fn raw_round(config: BenchConfig) -> Result<f64, CloudError> {
+/// One raw measurement, the subscriber on `subscribe_key` (which must match the published key).
+async fn raw_round(config: BenchConfig, subscribe_key: &str) -> Result<f64, CloudError> {
     let (sub_side, pub_side) = peer_pair().await?;
     let key = "risktwin/bench/raw";
     let finish = Arc::new(Finish::default());
     let hit = Arc::clone(&finish);
     let n = config.messages;
     let subscriber = sub_side
-        .declare_subscriber(key)
+        .declare_subscriber(subscribe_key)
         .callback(move |sample| {
             std::hint::black_box(sample.payload().to_bytes().len());
             hit.hit(n);
@@ -163,12 +189,20 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     let finish = Arc::new(Finish::default());
     let hit = Arc::clone(&finish);
     let n = config.messages;
-    let subscribers = subscribe_edge_streams(&sub_side, Some(&site), move |stream, sample| {
+    let subscriber = subscribe_edge_streams(&sub_side, Some(&site), move |stream, sample| {
         sink(stream, sample);
         hit.hit(n);
     })
     .await?;
+    // As in the cloud: the edge's liveliness token makes the cloud declare its stream keys.
+    let liveness = Arc::new(Mutex::new(super::liveliness::LivenessLog::default()));
+    let mut edges = super::edges::watch_edges(&sub_side, Some(&site), liveness).await?;
+    let token = declare_alive(&pub_side, &site, &source).await?;
     let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State).await?;
+    tokio::time::timeout(Duration::from_secs(10), edges.declared.wait_for(|n| *n >= 1))
+        .await
+        .map_err(|_| bench_error("the edge's keys were not declared in 10 s".into()))?
+        .map_err(|e| bench_error(e.to_string()))?;
     let (_never_fired, shutdown): (_, Shutdown) = risktwin_transport::shutdown::channel();
     if !publisher.wait_for_subscriber(Duration::from_secs(10), shutdown).await? {
         return Err(bench_error("no subscriber matched in 10 s".into()));
@@ -183,9 +217,13 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     let rate = n as f64 / start.elapsed().as_secs_f64();
     let summary = counters.lock().map(|c| c.summary()).unwrap_or_default();
     if summary.total_received != n {
-        return Err(bench_error(format!("ingest accepted {} of {n} ({:?} dropped)", summary.total_received, summary.dropped)));
+        return Err(bench_error(format!(
+            "ingest accepted {} of {n} ({:?} dropped)",
+            summary.total_received, summary.dropped
+        )));
     }
-    drop((subscribers, publisher));
+    drop((subscriber, publisher, token, edges.subscriber));
+    let _ = edges.declarer.await;
     let _ = tokio::join!(pub_side.close(), sub_side.close());
     Ok(rate)
 }

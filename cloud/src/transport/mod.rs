@@ -3,6 +3,7 @@
 //! twin, risk, library and trainer join it as they are built.
 
 pub mod bench;
+mod edges;
 pub mod ingest;
 mod liveliness;
 #[cfg(test)]
@@ -99,7 +100,11 @@ pub struct CloudSummary {
 
 /// Runs the cloud roles until `shutdown` fires; `on_ready` is called once every subscription
 /// is declared (edges started after that lose nothing).
-pub async fn run(config: &CloudConfig, mut shutdown: Shutdown, on_ready: impl FnOnce()) -> Result<CloudSummary, CloudError> {
+pub async fn run(
+    config: &CloudConfig,
+    mut shutdown: Shutdown,
+    on_ready: impl FnOnce(),
+) -> Result<CloudSummary, CloudError> {
     if config.roles.is_empty() {
         return Err(CloudError::NoRole);
     }
@@ -111,24 +116,20 @@ pub async fn run(config: &CloudConfig, mut shutdown: Shutdown, on_ready: impl Fn
         _ = shutdown.wait() => return Ok(CloudSummary { ingest: IngestSummary::default(), liveliness: Default::default() }),
     };
     let counters = Arc::new(Mutex::new(IngestCounters::default()));
-    let subscribers =
+    let subscriber =
         risktwin_transport::subscribe_edge_streams(&session, config.site.as_ref(), ingest_sink(Arc::clone(&counters)))
             .await?;
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
-    let log = Arc::clone(&liveness);
-    let watcher = risktwin_transport::watch_liveliness(&session, config.site.as_ref(), move |change| {
-        log.lock().unwrap_or_else(PoisonError::into_inner).record(&change);
-    })
-    .await?;
+    let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness)).await?;
     on_ready();
 
     shutdown.wait().await;
     drain(&counters, config.drain_quiet, config.drain_max).await;
 
-    for subscriber in subscribers {
-        subscriber.undeclare().await.map_err(|e| undeclare_error("subscriber", e))?;
-    }
-    watcher.undeclare().await.map_err(|e| undeclare_error("liveliness subscriber", e))?;
+    subscriber.undeclare().await.map_err(|e| undeclare_error("subscriber", e))?;
+    edges.subscriber.undeclare().await.map_err(|e| undeclare_error("liveliness subscriber", e))?;
+    // With the subscriber gone its callback (and channel) is dropped, so the task ends.
+    let _ = edges.declarer.await;
     close(session).await?;
     let ingest = counters.lock().unwrap_or_else(PoisonError::into_inner).summary();
     let liveliness = liveness.lock().unwrap_or_else(PoisonError::into_inner).summary();
@@ -138,7 +139,7 @@ pub async fn run(config: &CloudConfig, mut shutdown: Shutdown, on_ready: impl Fn
 /// The subscriber callback of the ingest role: runs on Zenoh's receive path.
 pub(crate) fn ingest_sink(
     counters: Arc<Mutex<IngestCounters>>,
-) -> impl Fn(risktwin_transport::EdgeStream, &Sample) + Clone + Send + Sync + 'static {
+) -> impl Fn(risktwin_transport::EdgeStream, &Sample) + Send + Sync + 'static {
     move |_, sample| {
         // Contiguous payloads (the common case) are borrowed, not copied.
         let payload = sample.payload().to_bytes();

@@ -35,9 +35,12 @@ async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
     let (cloud_stop, cloud_shutdown) = shutdown::channel();
     let (ready_tx, ready_rx) = oneshot::channel();
     let cloud_config = CloudConfig::new(client.clone());
-    let cloud = tokio::spawn(async move { run(&cloud_config, cloud_shutdown, || {
-        let _ = ready_tx.send(());
-    }).await });
+    let cloud = tokio::spawn(async move {
+        run(&cloud_config, cloud_shutdown, || {
+            let _ = ready_tx.send(());
+        })
+        .await
+    });
     timeout(STEP, ready_rx).await.unwrap().unwrap();
 
     let sender = connect(&client).await.unwrap();
@@ -54,11 +57,11 @@ async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
         record("veh-1", 0),
         b"\x00garbage".to_vec(),
         record("veh-1", 1),
-        record("veh-1", 1),                  // duplicate
-        record("veh-1", 0),                  // reordered, late
-        record("veh-9", 2),                  // another source than the key says
+        record("veh-1", 1), // duplicate
+        record("veh-1", 0), // reordered, late
+        record("veh-9", 2), // another source than the key says
         [&b"XXXX"[..], &record("veh-1", 2)[4..]].concat(),
-        record("veh-1", 2)[..60].to_vec(),   // truncated
+        record("veh-1", 2)[..60].to_vec(), // truncated
         record("veh-1", 2),
     ];
     for payload in wire {

@@ -11,7 +11,8 @@ use risktwin_cloud::transport::{CloudConfig, Role, run};
 use risktwin_transport::SiteId;
 
 pub fn cloud(args: CloudArgs) -> CliResult {
-    let roles = args.roles.iter().map(|r| r.trim().parse::<Role>()).collect::<Result<Vec<_>, _>>().map_err(CliError::input)?;
+    let roles =
+        args.roles.iter().map(|r| r.trim().parse::<Role>()).collect::<Result<Vec<_>, _>>().map_err(CliError::input)?;
     let mut config = CloudConfig::new(transport_config(args.zenoh)?);
     config.roles = roles;
     config.site = args.site.map(SiteId::new).transpose().map_err(CliError::input)?;
@@ -36,9 +37,23 @@ pub fn bench_zenoh(args: BenchZenohArgs) -> CliResult {
         _ => print_table(
             &["side", "msgs_per_s (median)", "all rounds"],
             &[
-                vec!["raw zenoh".into(), format!("{:.0}", report.raw_median_msgs_per_s), format!("{:.0?}", report.raw_msgs_per_s)],
-                vec!["risktwin".into(), format!("{:.0}", report.ours_median_msgs_per_s), format!("{:.0?}", report.ours_msgs_per_s)],
-                vec!["ratio".into(), format!("{:.3}", report.ratio), String::new()],
+                vec![
+                    "raw zenoh".into(),
+                    format!("{:.0}", report.raw_median_msgs_per_s),
+                    format!("{:.0?}", report.raw_msgs_per_s),
+                ],
+                vec![
+                    "raw zenoh, wildcard sub".into(),
+                    format!("{:.0}", report.raw_wildcard_median_msgs_per_s),
+                    format!("{:.0?}", report.raw_wildcard_msgs_per_s),
+                ],
+                vec![
+                    "risktwin".into(),
+                    format!("{:.0}", report.ours_median_msgs_per_s),
+                    format!("{:.0?}", report.ours_msgs_per_s),
+                ],
+                vec!["ratio ours/raw".into(), format!("{:.3}", report.ratio), String::new()],
+                vec!["ratio ours/raw wildcard".into(), format!("{:.3}", report.ratio_vs_wildcard), String::new()],
             ],
         ),
     }

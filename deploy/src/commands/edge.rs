@@ -11,7 +11,8 @@ use std::time::Duration;
 
 pub fn vehicle(args: EdgeArgs) -> CliResult {
     let config = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ)?;
-    let summary = with_signals(|shutdown| async move { vehicle::run(&config, shutdown).await.map_err(CliError::runtime) })?;
+    let summary =
+        with_signals(|shutdown| async move { vehicle::run(&config, shutdown).await.map_err(CliError::runtime) })?;
     print_json(&summary)
 }
 
@@ -29,7 +30,8 @@ fn edge_config(args: EdgeArgs, default_rate_hz: f64) -> CliResult<EdgeConfig> {
         return Err(CliError::input(format!("--rate-hz {rate_hz} must be a positive number")));
     }
     let seconds = |flag: &str, s: f64| {
-        Duration::try_from_secs_f64(s).map_err(|_| CliError::input(format!("{flag} {s} must be a non-negative number of seconds")))
+        Duration::try_from_secs_f64(s)
+            .map_err(|_| CliError::input(format!("{flag} {s} must be a non-negative number of seconds")))
     };
     let duration = args.duration.map(|s| seconds("--duration", s)).transpose()?;
     if !args.clock_drift_ppm.is_finite() {

@@ -3,8 +3,8 @@
 mod bench;
 mod cloud;
 mod edge;
-mod router;
 mod risk_field;
+mod router;
 mod run;
 mod scenarios;
 mod simulate;

@@ -4,3 +4,4 @@ pub mod episode_recording;
 pub mod generate;
 pub mod ingest;
 pub mod library;
+pub mod transport;

@@ -25,6 +25,13 @@ pub enum Command {
     /// Throughput benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// A Zenoh router (our binary in router mode).
+    Router(RouterArgs),
+    /// Edge roles: a simulated vehicle or roadside unit publishing to the cloud.
+    #[command(subcommand)]
+    Edge(EdgeCommand),
+    /// Cloud roles: ingest of the edge streams (twin, risk, library, trainer to come).
+    Cloud(CloudArgs),
 }
 
 #[derive(Debug, Args)]
@@ -140,6 +147,8 @@ pub enum BenchCommand {
     Sim(BenchSimArgs),
     /// Risk-field evaluation throughput on one core.
     RiskField(BenchRiskFieldArgs),
+    /// Edge→cloud Zenoh throughput, ours against a raw publisher→subscriber pair.
+    Zenoh(BenchZenohArgs),
 }
 
 #[derive(Debug, Args)]
@@ -168,6 +177,105 @@ pub struct BenchRiskFieldArgs {
     /// Minimum measuring time, s.
     #[arg(long, default_value_t = 2.0)]
     pub seconds: f64,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+/// How a distributed role joins the Zenoh network.
+#[derive(Debug, Args)]
+pub struct ZenohArgs {
+    /// Zenoh locator to connect to (`tcp/127.0.0.1:7447`); repeatable.
+    #[arg(long = "connect", value_name = "ENDPOINT")]
+    pub connect: Vec<String>,
+    /// Zenoh locator to listen on; repeatable.
+    #[arg(long = "listen", value_name = "ENDPOINT")]
+    pub listen: Vec<String>,
+    /// `peer` or `client`.
+    #[arg(long, default_value = "peer")]
+    pub mode: String,
+    /// Turn on UDP multicast scouting (off by default, see docs/keyexpr.md).
+    #[arg(long)]
+    pub multicast_scouting: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct RouterArgs {
+    /// Zenoh locator to listen on (`tcp/127.0.0.1:0` picks a free port); repeatable.
+    #[arg(long = "listen", value_name = "ENDPOINT")]
+    pub listen: Vec<String>,
+    /// Another router to connect to; repeatable.
+    #[arg(long = "connect", value_name = "ENDPOINT")]
+    pub connect: Vec<String>,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum EdgeCommand {
+    /// A vehicle: state at the rate, CAN at twice it, perception at a fifth of it.
+    Vehicle(EdgeArgs),
+    /// A roadside unit: object lists and signal phases at the rate.
+    Rsu(EdgeArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct EdgeArgs {
+    #[arg(long)]
+    pub id: String,
+    #[arg(long, default_value = "default")]
+    pub site: String,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// Base rate, Hz (default: 50 for a vehicle's state, 10 for an RSU).
+    #[arg(long)]
+    pub rate_hz: Option<f64>,
+    /// Stop after this many seconds.
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Stop each stream after this many messages.
+    #[arg(long)]
+    pub count: Option<u64>,
+    /// Edge clock offset, ns.
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    pub clock_offset_ns: i64,
+    /// Edge clock drift, parts per million.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub clock_drift_ppm: f64,
+    /// Capture-stamp jitter, ± ns.
+    #[arg(long, default_value_t = 0)]
+    pub clock_jitter_ns: u32,
+    /// Seed of the jitter.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Payload size, bytes.
+    #[arg(long, default_value_t = 64)]
+    pub payload_bytes: usize,
+    /// Seconds to wait for a subscriber before publishing anyway.
+    #[arg(long, default_value_t = 10.0)]
+    pub wait_for_cloud_s: f64,
+}
+
+#[derive(Debug, Args)]
+pub struct CloudArgs {
+    /// Comma-separated roles: ingest (twin, risk, library, trainer to come).
+    #[arg(long, default_value = "ingest", value_delimiter = ',')]
+    pub roles: Vec<String>,
+    /// Serve one site only (default: every site).
+    #[arg(long)]
+    pub site: Option<String>,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+}
+
+#[derive(Debug, Args)]
+pub struct BenchZenohArgs {
+    /// Messages per measurement.
+    #[arg(long, default_value_t = 200_000)]
+    pub messages: u64,
+    /// Payload size, bytes.
+    #[arg(long, default_value_t = 1024)]
+    pub payload_bytes: usize,
+    /// Measurements per side, alternating; medians are compared.
+    #[arg(long, default_value_t = 3)]
+    pub rounds: usize,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

@@ -1,4 +1,57 @@
-//! Edge roles (vehicle, RSU, replay) land with the edge–cloud pipeline.
-//! - [`shm`]: zero-copy iceoryx2 exchange between a vehicle's sensor producer and its gateway.
+//! Edge roles: processes that mimic vehicles and roadside units and publish their streams to
+//! the cloud over Zenoh (key scheme in `risktwin_transport::keyexpr`).
+//!
+//! Each role has a `run(config, shutdown)` function; the `risktwin` binary only parses
+//! arguments. Payloads are the transport's STAND-IN record until `risktwin-protos` lands.
+//! [`shm`] is the zero-copy iceoryx2 exchange between a vehicle's sensor producer and its
+//! gateway on one host.
 
+pub mod clock;
+pub mod publish;
+pub mod rsu;
 pub mod shm;
+pub mod vehicle;
+
+pub use clock::{ClockModel, EdgeClock};
+pub use publish::{EdgeConfig, StreamPlan};
+
+use risktwin_transport::standin::StandInError;
+use risktwin_transport::{EdgeStream, TransportError};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use thiserror::Error;
+
+/// Why an edge role stopped with an error.
+#[derive(Debug, Error)]
+pub enum EdgeError {
+    #[error("rate of stream {stream} is {rate_hz} Hz; it must be finite, positive and at most 1 MHz")]
+    BadRate { stream: &'static str, rate_hz: f64 },
+    #[error(transparent)]
+    Transport(#[from] TransportError),
+    #[error("encoding a payload: {0}")]
+    Encode(#[from] StandInError),
+    #[error("shutting down: {reason}")]
+    Shutdown { reason: String },
+}
+
+/// What an edge sent, per stream: printed as JSON on exit so that tests can check
+/// sent = received + counted drops.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct SentSummary {
+    /// The edge's site.
+    pub site: String,
+    /// The edge's id.
+    pub source: String,
+    /// Messages sent per stream name.
+    pub sent: BTreeMap<String, u64>,
+}
+
+impl SentSummary {
+    fn new(config: &EdgeConfig, sent: impl IntoIterator<Item = (EdgeStream, u64)>) -> Self {
+        SentSummary {
+            site: config.site.to_string(),
+            source: config.id.to_string(),
+            sent: sent.into_iter().map(|(s, n)| (s.as_str().to_owned(), n)).collect(),
+        }
+    }
+}

@@ -28,7 +28,7 @@ impl FixedTimeSignal {
     /// The phase at `time_s` and the time until it changes.
     pub fn phase_at(&self, time_s: f64) -> (Phase, f64) {
         let cycle = self.cycle_s();
-        if !(cycle > 0.0) || !time_s.is_finite() {
+        if cycle.is_nan() || cycle <= 0.0 || !time_s.is_finite() {
             return (Phase::Red, 0.0);
         }
         let t = (time_s + self.offset_s).rem_euclid(cycle);

@@ -1,13 +1,16 @@
 //! One module per subcommand; each turns parsed arguments into library calls and output.
 
 mod bench;
+mod cloud;
+mod edge;
 mod risk_field;
+mod router;
 mod run;
 mod scenarios;
 mod simulate;
 mod source;
 
-use crate::cli::{BenchCommand, Cli, Command, ScenariosCommand};
+use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ScenariosCommand};
 use crate::error::CliResult;
 
 pub fn dispatch(cli: Cli) -> CliResult {
@@ -19,5 +22,10 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::RiskField(a) => risk_field::risk_field(a),
         Command::Bench(BenchCommand::Sim(a)) => bench::sim(a),
         Command::Bench(BenchCommand::RiskField(a)) => bench::risk_field(a),
+        Command::Bench(BenchCommand::Zenoh(a)) => cloud::bench_zenoh(a),
+        Command::Router(a) => router::router(a),
+        Command::Edge(EdgeCommand::Vehicle(a)) => edge::vehicle(a),
+        Command::Edge(EdgeCommand::Rsu(a)) => edge::rsu(a),
+        Command::Cloud(a) => cloud::cloud(a),
     }
 }

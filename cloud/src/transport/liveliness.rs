@@ -1,0 +1,40 @@
+//! Which edges the cloud has seen alive, from their liveliness tokens; joins and leaves are
+//! logged on stderr as they happen (tests wait on those lines).
+
+use risktwin_transport::Liveness;
+use serde::Serialize;
+use std::collections::BTreeSet;
+
+/// Edges seen joining and leaving, by `site/source`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Default)]
+pub struct LivenessSummary {
+    /// Every edge seen alive at some point.
+    pub joined: BTreeSet<String>,
+    /// Every edge seen leaving.
+    pub left: BTreeSet<String>,
+    /// Edges alive at shutdown.
+    pub alive: BTreeSet<String>,
+}
+
+/// The running record.
+#[derive(Debug, Default)]
+pub(crate) struct LivenessLog(LivenessSummary);
+
+impl LivenessLog {
+    pub(crate) fn record(&mut self, change: &Liveness) {
+        let name = format!("{}/{}", change.site, change.source);
+        if change.alive {
+            eprintln!("edge joined: {name}");
+            self.0.joined.insert(name.clone());
+            self.0.alive.insert(name);
+        } else {
+            eprintln!("edge left: {name}");
+            self.0.alive.remove(&name);
+            self.0.left.insert(name);
+        }
+    }
+
+    pub(crate) fn summary(&self) -> LivenessSummary {
+        self.0.clone()
+    }
+}

@@ -1,0 +1,53 @@
+//! `risktwin edge vehicle|rsu`: parse, run the role until its count, duration or a signal, and
+//! print what it sent per stream as JSON on stdout.
+
+use super::router::{transport_config, with_signals};
+use crate::cli::EdgeArgs;
+use crate::error::{CliError, CliResult};
+use crate::output::print_json;
+use risktwin_edge::{ClockModel, EdgeConfig, rsu, vehicle};
+use risktwin_transport::{SiteId, SourceId};
+use std::time::Duration;
+
+pub fn vehicle(args: EdgeArgs) -> CliResult {
+    let config = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ)?;
+    let summary =
+        with_signals(|shutdown| async move { vehicle::run(&config, shutdown).await.map_err(CliError::runtime) })?;
+    print_json(&summary)
+}
+
+pub fn rsu(args: EdgeArgs) -> CliResult {
+    let config = edge_config(args, rsu::DEFAULT_RATE_HZ)?;
+    let summary = with_signals(|shutdown| async move { rsu::run(&config, shutdown).await.map_err(CliError::runtime) })?;
+    print_json(&summary)
+}
+
+fn edge_config(args: EdgeArgs, default_rate_hz: f64) -> CliResult<EdgeConfig> {
+    let site = SiteId::new(args.site).map_err(CliError::input)?;
+    let id = SourceId::new(args.id).map_err(CliError::input)?;
+    let rate_hz = args.rate_hz.unwrap_or(default_rate_hz);
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        return Err(CliError::input(format!("--rate-hz {rate_hz} must be a positive number")));
+    }
+    let seconds = |flag: &str, s: f64| {
+        Duration::try_from_secs_f64(s)
+            .map_err(|_| CliError::input(format!("{flag} {s} must be a non-negative number of seconds")))
+    };
+    let duration = args.duration.map(|s| seconds("--duration", s)).transpose()?;
+    if !args.clock_drift_ppm.is_finite() {
+        return Err(CliError::input(format!("--clock-drift-ppm {} must be finite", args.clock_drift_ppm)));
+    }
+    let mut config = EdgeConfig::new(site, id, rate_hz);
+    config.transport = transport_config(args.zenoh)?;
+    config.count = args.count;
+    config.duration = duration;
+    config.clock = ClockModel {
+        offset_ns: args.clock_offset_ns,
+        drift_ppm: args.clock_drift_ppm,
+        jitter_ns: i64::from(args.clock_jitter_ns),
+        seed: args.seed,
+    };
+    config.payload_bytes = args.payload_bytes;
+    config.wait_for_cloud = seconds("--wait-for-cloud-s", args.wait_for_cloud_s)?;
+    Ok(config)
+}

@@ -1,0 +1,135 @@
+//! N vehicles + M RSUs + one cloud around one router.
+
+use crate::support::{Proc, start_router};
+use serde_json::Value;
+use std::time::Duration;
+
+const STEP: Duration = Duration::from_secs(60);
+
+fn edge(kind: &str, id: &str, router: &str, extra: &[&str]) -> Proc {
+    let mut args = vec!["edge", kind, "--id", id, "--site", "track", "--connect", router];
+    args.extend_from_slice(extra);
+    Proc::spawn(id, &args)
+}
+
+fn start_cloud(router: &str) -> Proc {
+    let mut cloud = Proc::spawn("cloud", &["cloud", "--roles", "ingest", "--connect", router]);
+    cloud.wait_line(STEP, |l| l == "ready");
+    cloud
+}
+
+/// Waits for the cloud to see each edge leave, SIGTERMs it and returns its summary.
+fn stop_cloud(mut cloud: Proc, ids: &[&str]) -> Value {
+    for id in ids {
+        let left = format!("edge left: track/{id}");
+        cloud.wait_line(STEP, |l| l == left);
+    }
+    cloud.terminate();
+    cloud.exit_json(STEP)
+}
+
+/// Every stream of every edge: the cloud received exactly what the edge sent, nothing dropped.
+fn assert_all_accounted(sent: &[Value], summary: &Value) {
+    assert_eq!(summary["total_dropped"], 0, "drops: {}", summary["dropped"]);
+    let mut total_sent = 0;
+    for edge in sent {
+        let source = edge["source"].as_str().expect("source in the edge summary");
+        let streams = edge["sent"].as_object().expect("sent per stream");
+        assert!(!streams.is_empty());
+        for (stream, n) in streams {
+            let n = n.as_u64().expect("a count");
+            assert!(n > 0, "{source} sent nothing on {stream}");
+            assert_eq!(
+                summary["received"][source][stream].as_u64(),
+                Some(n),
+                "{source}/{stream}: sent {n}, cloud: {summary}"
+            );
+            total_sent += n;
+        }
+        let name = format!("track/{source}");
+        for set in ["joined", "left"] {
+            let seen = summary["liveliness"][set].as_array().expect("liveliness sets");
+            assert!(seen.iter().any(|v| v == name.as_str()), "{name} not in liveliness {set}: {seen:?}");
+        }
+    }
+    assert_eq!(summary["total_received"].as_u64(), Some(total_sent));
+    assert_eq!(summary["gaps"], serde_json::json!({}));
+}
+
+#[test]
+fn vehicles_and_rsu_through_a_router_lose_nothing() {
+    let (mut router, locator) = start_router();
+    let cloud = start_cloud(&locator);
+    let vehicles: Vec<String> = (0..3).map(|i| format!("veh-{i}")).collect();
+    let mut edges: Vec<Proc> = vehicles
+        .iter()
+        .enumerate()
+        .map(|(i, id)| {
+            let offset = format!("{}", (i as i64 - 1) * 5_000_000);
+            edge(
+                "vehicle",
+                id,
+                &locator,
+                &[
+                    "--rate-hz",
+                    "200",
+                    "--count",
+                    "40",
+                    "--clock-offset-ns",
+                    &offset,
+                    "--clock-drift-ppm",
+                    "50",
+                    "--clock-jitter-ns",
+                    "100000",
+                    "--seed",
+                    &i.to_string(),
+                ],
+            )
+        })
+        .collect();
+    edges.push(edge("rsu", "rsu-0", &locator, &["--rate-hz", "50", "--count", "30"]));
+
+    let sent: Vec<Value> = edges.iter_mut().map(|e| e.exit_json(STEP)).collect();
+    for (summary, id) in sent.iter().zip(vehicles.iter()) {
+        assert_eq!(summary["sent"], serde_json::json!({"state": 40, "can": 40, "perception": 40}), "{id}");
+    }
+    assert_eq!(sent[3]["sent"], serde_json::json!({"rsu": 30, "signal": 30}));
+
+    let ids: Vec<&str> = sent.iter().map(|s| s["source"].as_str().expect("source")).collect();
+    let summary = stop_cloud(cloud, &ids);
+    assert_all_accounted(&sent, &summary);
+
+    router.terminate();
+    let (status, _) = router.wait_exit(STEP);
+    assert_eq!(status.code(), Some(0), "the router stops cleanly on SIGTERM");
+}
+
+#[test]
+fn sigterm_stops_an_edge_cleanly_and_what_it_sent_arrives() {
+    let (_router, locator) = start_router();
+    let mut cloud = start_cloud(&locator);
+    // No --count, no --duration: only the signal stops it.
+    let mut vehicle = edge("vehicle", "veh-sig", &locator, &["--rate-hz", "100"]);
+    cloud.wait_line(STEP, |l| l == "edge joined: track/veh-sig");
+    vehicle.wait_line(STEP, |l| l == "edge veh-sig: publishing");
+    vehicle.terminate();
+    let sent = vehicle.exit_json(STEP);
+    let summary = stop_cloud(cloud, &["veh-sig"]);
+    assert_all_accounted(&[sent], &summary);
+}
+
+#[test]
+fn bad_ids_and_endpoints_are_refused_with_exit_2() {
+    for args in [
+        &["edge", "vehicle", "--id", "a/b"][..],
+        &["edge", "vehicle", "--id", "cloud"],
+        &["edge", "rsu", "--id", "r", "--site", "*"],
+        &["edge", "vehicle", "--id", "v", "--connect", "not-a-locator"],
+        &["cloud", "--roles", "ingest,nonsense"],
+    ] {
+        let mut p = Proc::spawn("bad", args);
+        let (status, stdout) = p.wait_exit(STEP);
+        assert_eq!(status.code(), Some(2), "{args:?}: stdout {stdout}");
+        assert!(stdout.is_empty(), "{args:?} printed on stdout: {stdout}");
+    }
+}

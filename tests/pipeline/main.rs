@@ -1,0 +1,10 @@
+//! The edge–cloud pipeline as separate processes: a real router on a free port, vehicles and a
+//! roadside unit, and a cloud ingest worker, all `risktwin` processes. Every message sent must
+//! be accounted for at the cloud (reliable mode: received = sent, no drops).
+//!
+//! Readiness is waited on, never slept for: the router's `listening on` line, the cloud's
+//! `ready` line, edges waiting for a matching subscriber before publishing, the cloud's
+//! `edge left` lines (liveliness) before it is sent SIGTERM.
+
+mod fleet;
+mod support;

@@ -1,0 +1,128 @@
+//! Child processes of the `risktwin` binary with their output read on threads, so that a test
+//! can wait for a line or for the exit with a timeout instead of sleeping.
+
+use serde_json::Value;
+use std::io::{BufRead, BufReader, Read};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
+use std::time::{Duration, Instant};
+
+/// A running `risktwin` process.
+pub struct Proc {
+    pub name: String,
+    child: Child,
+    stderr_lines: Receiver<String>,
+    stderr_seen: Vec<String>,
+    stdout: Receiver<String>,
+}
+
+impl Proc {
+    /// Starts `risktwin args…`.
+    pub fn spawn(name: &str, args: &[&str]) -> Proc {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_risktwin"))
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("the risktwin binary starts");
+        let (line_tx, stderr_lines) = channel();
+        let stderr = child.stderr.take().expect("stderr is piped");
+        std::thread::spawn(move || {
+            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                if line_tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        let (out_tx, stdout) = channel();
+        let mut out = child.stdout.take().expect("stdout is piped");
+        // stdout is read to its end, which comes when the process exits: that is the exit signal.
+        std::thread::spawn(move || {
+            let mut text = String::new();
+            let _ = out.read_to_string(&mut text);
+            let _ = out_tx.send(text);
+        });
+        Proc { name: name.to_owned(), child, stderr_lines, stderr_seen: Vec::new(), stdout }
+    }
+
+    /// The first stderr line (seen before or arriving within `timeout`) that `matches`.
+    pub fn wait_line(&mut self, timeout: Duration, matches: impl Fn(&str) -> bool) -> String {
+        if let Some(line) = self.stderr_seen.iter().find(|l| matches(l)) {
+            return line.clone();
+        }
+        let deadline = Instant::now() + timeout;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.stderr_lines.recv_timeout(left) {
+                Ok(line) => {
+                    self.stderr_seen.push(line.clone());
+                    if matches(&line) {
+                        return line;
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    panic!("{}: no matching stderr line in {timeout:?}:\n{}", self.name, self.stderr_seen.join("\n"))
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    panic!("{}: exited without the expected stderr line:\n{}", self.name, self.stderr_seen.join("\n"))
+                }
+            }
+        }
+    }
+
+    /// Sends SIGTERM (through the `kill` command, which keeps the tests free of a libc binding).
+    pub fn terminate(&self) {
+        let status = Command::new("kill").args(["-TERM", &self.child.id().to_string()]).status().expect("kill runs");
+        assert!(status.success(), "{}: kill -TERM failed", self.name);
+    }
+
+    /// Waits up to `timeout` for the exit; returns the status and stdout.
+    pub fn wait_exit(&mut self, timeout: Duration) -> (ExitStatus, String) {
+        let stdout = match self.stdout.recv_timeout(timeout) {
+            Ok(text) => text,
+            Err(_) => {
+                let stderr = self.drain_stderr();
+                panic!("{}: still running after {timeout:?}:\n{stderr}", self.name)
+            }
+        };
+        let status = self.child.wait().expect("the child is waited for");
+        (status, stdout)
+    }
+
+    /// Waits for a clean exit (status 0) and parses stdout as one JSON document.
+    pub fn exit_json(&mut self, timeout: Duration) -> Value {
+        let (status, stdout) = self.wait_exit(timeout);
+        let stderr = self.drain_stderr();
+        assert_eq!(status.code(), Some(0), "{} failed:\nstdout:\n{stdout}\nstderr:\n{stderr}", self.name);
+        assert!(!stderr.contains("panicked"), "{} panicked:\n{stderr}", self.name);
+        serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("{}: stdout is not JSON ({e}):\n{stdout}", self.name))
+    }
+
+    /// Everything on stderr so far.
+    fn drain_stderr(&mut self) -> String {
+        while let Ok(line) = self.stderr_lines.try_recv() {
+            self.stderr_seen.push(line);
+        }
+        self.stderr_seen.join("\n")
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        // A failed test must not leave processes behind.
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// Starts a router on a free port and returns it with the locator it listens on.
+pub fn start_router() -> (Proc, String) {
+    let mut router = Proc::spawn("router", &["router", "--listen", "tcp/127.0.0.1:0"]);
+    let line = router.wait_line(Duration::from_secs(30), |l| l.starts_with("listening on tcp/127.0.0.1:"));
+    let locator = line.trim_start_matches("listening on ").to_owned();
+    assert!(!locator.ends_with(":0"), "the router reported port 0: {line}");
+    (router, locator)
+}

@@ -1,0 +1,335 @@
+//! The one place where RiskTwin's Zenoh key expressions are spelled (see `docs/keyexpr.md`).
+//!
+//! Every key starts with `risktwin/v1/<site>/` and is named by direction:
+//! - edge→cloud streams: `risktwin/v1/<site>/<source_id>/{state,can,perception,rsu,signal}`
+//! - cloud→edge pushes: `risktwin/v1/<site>/<source_id>/{scenario,policy,control}`
+//! - cloud outputs: `risktwin/v1/<site>/cloud/{risk_field,risk_report,snapshot}`
+//! - library queryables: `risktwin/v1/<site>/cloud/library/**`
+//! - liveliness tokens: `risktwin/v1/<site>/alive/<source_id>`
+//!
+//! Ids are validated once, into [`SiteId`] and [`SourceId`], so that a key built from them is
+//! always a valid, wildcard-free key expression.
+
+use std::fmt;
+use thiserror::Error;
+
+/// The scheme's root and version: a breaking change of the payloads bumps `v1`.
+pub const ROOT: &str = "risktwin/v1";
+/// The id chunk under which the cloud publishes; reserved, no edge may use it.
+pub const CLOUD_CHUNK: &str = "cloud";
+/// The chunk under which liveliness tokens live; reserved, no edge may use it.
+pub const ALIVE_CHUNK: &str = "alive";
+/// Longest accepted id, in bytes (keeps keys short on the wire).
+pub const MAX_ID_LEN: usize = 64;
+
+/// Why an id or a key expression was rejected.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum KeyError {
+    #[error("{what} id is empty")]
+    EmptyId { what: &'static str },
+    #[error("{what} id {id:?} is {len} bytes long, at most {MAX_ID_LEN} allowed")]
+    IdTooLong { what: &'static str, id: String, len: usize },
+    #[error("{what} id {id:?} contains {ch:?}; allowed are ASCII letters, digits, '-', '_' and '.'")]
+    ForbiddenChar { what: &'static str, id: String, ch: char },
+    #[error("{what} id {id:?} is reserved by the key-expression scheme")]
+    ReservedId { what: &'static str, id: String },
+    #[error("key {key:?} is not a RiskTwin edge→cloud stream (risktwin/v1/<site>/<source>/<stream>)")]
+    NotEdgeStream { key: String },
+}
+
+/// Checks one id chunk: non-empty, short, and made only of `[A-Za-z0-9_.-]`, which excludes
+/// `/`, the wildcards `*` and `$`, and Zenoh's forbidden `?` and `#`.
+fn validate_id(what: &'static str, id: &str) -> Result<(), KeyError> {
+    if id.is_empty() {
+        return Err(KeyError::EmptyId { what });
+    }
+    if id.len() > MAX_ID_LEN {
+        return Err(KeyError::IdTooLong { what, id: id.to_owned(), len: id.len() });
+    }
+    if let Some(ch) = id.chars().find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))) {
+        return Err(KeyError::ForbiddenChar { what, id: id.to_owned(), ch });
+    }
+    Ok(())
+}
+
+/// A deployment site (a test track, a city): the second level of every key.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct SiteId(String);
+
+impl SiteId {
+    /// Validates `id` as a site id.
+    pub fn new(id: impl Into<String>) -> Result<Self, KeyError> {
+        let id = id.into();
+        validate_id("site", &id)?;
+        Ok(SiteId(id))
+    }
+    /// The id as text.
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+}
+
+/// An edge source (a vehicle or an RSU); `cloud` and `alive` are reserved.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct SourceId(String);
+
+impl SourceId {
+    /// Validates `id` as an edge source id.
+    pub fn new(id: impl Into<String>) -> Result<Self, KeyError> {
+        let id = id.into();
+        validate_id("source", &id)?;
+        if id == CLOUD_CHUNK || id == ALIVE_CHUNK {
+            return Err(KeyError::ReservedId { what: "source", id });
+        }
+        Ok(SourceId(id))
+    }
+    /// The id as text.
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+}
+
+impl fmt::Display for SiteId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl fmt::Display for SourceId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// Streams an edge publishes towards the cloud.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum EdgeStream {
+    /// Vehicle state (pose, speed), 50 Hz.
+    State,
+    /// CAN-like signal frames, 100 Hz.
+    Can,
+    /// The vehicle's perceived object list, 10 Hz.
+    Perception,
+    /// An RSU's object list, 10 Hz.
+    Rsu,
+    /// Traffic-light phases, from an RSU.
+    Signal,
+}
+
+impl EdgeStream {
+    /// Every edge→cloud stream, in a fixed order (the index of [`EdgeStream::index`]).
+    pub const ALL: [EdgeStream; 5] =
+        [EdgeStream::State, EdgeStream::Can, EdgeStream::Perception, EdgeStream::Rsu, EdgeStream::Signal];
+
+    /// The last chunk of the key.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            EdgeStream::State => "state",
+            EdgeStream::Can => "can",
+            EdgeStream::Perception => "perception",
+            EdgeStream::Rsu => "rsu",
+            EdgeStream::Signal => "signal",
+        }
+    }
+
+    /// Position in [`EdgeStream::ALL`], for per-stream counters held in arrays.
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The stream named by a key's last chunk.
+    pub fn from_chunk(chunk: &str) -> Option<Self> {
+        EdgeStream::ALL.into_iter().find(|s| s.as_str() == chunk)
+    }
+}
+
+/// Pushes the cloud sends to one edge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum CloudToEdge {
+    /// A scenario for the edge to execute.
+    Scenario,
+    /// New policy weights.
+    Policy,
+    /// A control command.
+    Control,
+}
+
+impl CloudToEdge {
+    /// The last chunk of the key.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            CloudToEdge::Scenario => "scenario",
+            CloudToEdge::Policy => "policy",
+            CloudToEdge::Control => "control",
+        }
+    }
+}
+
+/// What the cloud publishes for everyone at a site.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum CloudOutput {
+    /// The risk field grid (`foxglove.Grid`).
+    RiskField,
+    /// The risk report.
+    RiskReport,
+    /// A twin snapshot.
+    Snapshot,
+}
+
+impl CloudOutput {
+    /// The last chunk of the key.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            CloudOutput::RiskField => "risk_field",
+            CloudOutput::RiskReport => "risk_report",
+            CloudOutput::Snapshot => "snapshot",
+        }
+    }
+}
+
+/// `risktwin/v1/<site>/<source>/<stream>`: where `source` publishes `stream`.
+pub fn edge_stream(site: &SiteId, source: &SourceId, stream: EdgeStream) -> String {
+    format!("{ROOT}/{site}/{source}/{}", stream.as_str())
+}
+
+/// `risktwin/v1/<site|*>/*/<stream>`: one stream from every source at one site (or every site).
+pub fn edge_stream_all(site: Option<&SiteId>, stream: EdgeStream) -> String {
+    format!("{ROOT}/{}/*/{}", site_or_star(site), stream.as_str())
+}
+
+/// `risktwin/v1/<site|*>/*/*`: every edge→cloud stream of every source (the subscriber also
+/// sees other keys of that shape; [`parse_edge_key`] tells them apart).
+pub fn edge_streams_all(site: Option<&SiteId>) -> String {
+    format!("{ROOT}/{}/*/*", site_or_star(site))
+}
+
+/// `risktwin/v1/<site>/<source>/<push>`: what the cloud sends to one edge.
+pub fn cloud_to_edge(site: &SiteId, source: &SourceId, push: CloudToEdge) -> String {
+    format!("{ROOT}/{site}/{source}/{}", push.as_str())
+}
+
+/// `risktwin/v1/<site>/cloud/<output>`.
+pub fn cloud_output(site: &SiteId, output: CloudOutput) -> String {
+    format!("{ROOT}/{site}/{CLOUD_CHUNK}/{}", output.as_str())
+}
+
+/// `risktwin/v1/<site>/cloud/library/**`: what the library queryable answers.
+pub fn library_queryable(site: &SiteId) -> String {
+    format!("{ROOT}/{site}/{CLOUD_CHUNK}/library/**")
+}
+
+/// `risktwin/v1/<site>/alive/<source>`: the liveliness token of one edge.
+pub fn liveliness_token(site: &SiteId, source: &SourceId) -> String {
+    format!("{ROOT}/{site}/{ALIVE_CHUNK}/{source}")
+}
+
+/// `risktwin/v1/<site|*>/alive/*`: every edge's liveliness token.
+pub fn liveliness_all(site: Option<&SiteId>) -> String {
+    format!("{ROOT}/{}/{ALIVE_CHUNK}/*", site_or_star(site))
+}
+
+fn site_or_star(site: Option<&SiteId>) -> &str {
+    site.map_or("*", SiteId::as_str)
+}
+
+/// A parsed edge→cloud key, borrowing from the key text (parsing allocates nothing).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EdgeKey<'a> {
+    /// The site chunk.
+    pub site: &'a str,
+    /// The source chunk.
+    pub source: &'a str,
+    /// The stream.
+    pub stream: EdgeStream,
+}
+
+/// Splits `risktwin/v1/<site>/<source>/<stream>`; `None` for anything else.
+pub fn parse_edge_key(key: &str) -> Option<EdgeKey<'_>> {
+    let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
+    let mut chunks = rest.split('/');
+    let (site, source, stream) = (chunks.next()?, chunks.next()?, chunks.next()?);
+    if chunks.next().is_some() || site.is_empty() || source.is_empty() {
+        return None;
+    }
+    if source == CLOUD_CHUNK || source == ALIVE_CHUNK {
+        return None;
+    }
+    Some(EdgeKey { site, source, stream: EdgeStream::from_chunk(stream)? })
+}
+
+/// Like [`parse_edge_key`], with a typed error naming the key.
+pub fn try_parse_edge_key(key: &str) -> Result<EdgeKey<'_>, KeyError> {
+    parse_edge_key(key).ok_or_else(|| KeyError::NotEdgeStream { key: key.to_owned() })
+}
+
+/// The source id of a liveliness token key `risktwin/v1/<site>/alive/<source>`.
+pub fn parse_liveliness_key(key: &str) -> Option<(&str, &str)> {
+    let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
+    let mut chunks = rest.split('/');
+    let (site, alive, source) = (chunks.next()?, chunks.next()?, chunks.next()?);
+    (alive == ALIVE_CHUNK && chunks.next().is_none() && !source.is_empty()).then_some((site, source))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ids() -> (SiteId, SourceId) {
+        (SiteId::new("track-1").unwrap(), SourceId::new("veh_0.a").unwrap())
+    }
+
+    #[test]
+    fn ids_reject_separators_wildcards_and_empty() {
+        assert_eq!(SourceId::new(""), Err(KeyError::EmptyId { what: "source" }));
+        for (bad, ch) in [("a/b", '/'), ("a*", '*'), ("$x", '$'), ("a?b", '?'), ("a#", '#'), ("a b", ' ')] {
+            assert_eq!(
+                SourceId::new(bad),
+                Err(KeyError::ForbiddenChar { what: "source", id: bad.into(), ch }),
+                "{bad}"
+            );
+        }
+        assert!(matches!(SiteId::new("x".repeat(65)), Err(KeyError::IdTooLong { len: 65, .. })));
+        assert_eq!(SourceId::new("cloud"), Err(KeyError::ReservedId { what: "source", id: "cloud".into() }));
+        assert_eq!(SourceId::new("alive"), Err(KeyError::ReservedId { what: "source", id: "alive".into() }));
+        // A site may be called "cloud": it sits at another level.
+        assert!(SiteId::new("cloud").is_ok());
+    }
+
+    #[test]
+    fn keys_are_spelled_by_direction() {
+        let (site, src) = ids();
+        assert_eq!(edge_stream(&site, &src, EdgeStream::Can), "risktwin/v1/track-1/veh_0.a/can");
+        assert_eq!(edge_stream_all(None, EdgeStream::State), "risktwin/v1/*/*/state");
+        assert_eq!(edge_stream_all(Some(&site), EdgeStream::Rsu), "risktwin/v1/track-1/*/rsu");
+        assert_eq!(edge_streams_all(None), "risktwin/v1/*/*/*");
+        assert_eq!(cloud_to_edge(&site, &src, CloudToEdge::Policy), "risktwin/v1/track-1/veh_0.a/policy");
+        assert_eq!(cloud_output(&site, CloudOutput::RiskField), "risktwin/v1/track-1/cloud/risk_field");
+        assert_eq!(library_queryable(&site), "risktwin/v1/track-1/cloud/library/**");
+        assert_eq!(liveliness_token(&site, &src), "risktwin/v1/track-1/alive/veh_0.a");
+        assert_eq!(liveliness_all(None), "risktwin/v1/*/alive/*");
+    }
+
+    #[test]
+    fn edge_keys_round_trip_and_others_are_refused() {
+        let (site, src) = ids();
+        for stream in EdgeStream::ALL {
+            let key = edge_stream(&site, &src, stream);
+            assert_eq!(parse_edge_key(&key), Some(EdgeKey { site: "track-1", source: "veh_0.a", stream }));
+            assert_eq!(EdgeStream::ALL[stream.index()], stream);
+        }
+        for bad in [
+            "risktwin/v1/track-1/veh/scenario",
+            "risktwin/v1/track-1/cloud/snapshot",
+            "risktwin/v1/track-1/alive/state",
+            "risktwin/v1/track-1/veh/state/extra",
+            "risktwin/v2/track-1/veh/state",
+            "risktwin/v1/track-1/state",
+            "risktwin/v1//veh/state",
+        ] {
+            assert_eq!(parse_edge_key(bad), None, "{bad}");
+        }
+        assert_eq!(try_parse_edge_key("x/y"), Err(KeyError::NotEdgeStream { key: "x/y".into() }));
+        assert_eq!(parse_liveliness_key(&liveliness_token(&site, &src)), Some(("track-1", "veh_0.a")));
+        assert_eq!(parse_liveliness_key("risktwin/v1/track-1/veh/state"), None);
+    }
+}

@@ -1,0 +1,24 @@
+//! Zenoh glue shared by the edge and cloud roles (and the benchmarks): the key-expression
+//! scheme, sessions built from a typed config, typed publishers and subscribers on the scheme,
+//! liveliness, and the shutdown signal every role obeys.
+//!
+//! Boundary: this crate moves opaque payload bytes on typed keys. It knows nothing of what a
+//! vehicle or the twin is; message encoding belongs to `risktwin-protos` (until it lands, the
+//! [`standin`] payload is used end to end). The edge and cloud crates depend on it; `common`
+//! never does (it stays free of async and network code).
+
+pub mod keyexpr;
+pub mod router;
+pub mod session;
+pub mod shutdown;
+pub mod standin;
+pub mod stream;
+
+pub use keyexpr::{EdgeStream, KeyError, SiteId, SourceId};
+pub use session::{Mode, TransportConfig, TransportError, close, connect, listening_locators};
+pub use shutdown::{Shutdown, ShutdownTrigger};
+pub use stream::{
+    Liveness, StreamPublisher, declare_alive, declare_edge_keys, subscribe_edge_streams, watch_liveliness,
+};
+/// Re-exported so that roles name zenoh types without their own dependency line.
+pub use zenoh;

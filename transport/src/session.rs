@@ -1,0 +1,192 @@
+//! Opening a Zenoh session from a small, typed [`TransportConfig`] instead of a JSON5 file.
+//!
+//! The config is built programmatically so that every role (router, edge, cloud, benchmarks,
+//! tests) states exactly what it relies on. Multicast scouting is OFF by default: sessions find
+//! each other only through the endpoints they are given, which keeps tests deterministic and
+//! stops a test run from joining whatever Zenoh network happens to share the LAN. Gossip
+//! scouting (peers learning about each other through the router) keeps Zenoh's default.
+
+use std::time::Duration;
+use thiserror::Error;
+use zenoh::{Config, Session};
+
+/// The Zenoh role of a session.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Mode {
+    /// Talks to routers and, through gossip, directly to other peers (the default).
+    #[default]
+    Peer,
+    /// Talks only to the one router it connects to.
+    Client,
+    /// Routes between clients, peers and other routers.
+    Router,
+}
+
+impl std::str::FromStr for Mode {
+    type Err = TransportError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "peer" => Ok(Mode::Peer),
+            "client" => Ok(Mode::Client),
+            "router" => Ok(Mode::Router),
+            other => Err(TransportError::BadMode { mode: other.to_owned() }),
+        }
+    }
+}
+
+/// Everything a role needs to join the Zenoh network.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TransportConfig {
+    /// Peer, client or router.
+    pub mode: Mode,
+    /// Locators to connect to (`tcp/127.0.0.1:7447`).
+    pub connect: Vec<String>,
+    /// Locators to listen on; empty keeps Zenoh's default for the mode.
+    pub listen: Vec<String>,
+    /// Multicast scouting on UDP 224.0.0.224:7446; off unless asked for.
+    pub multicast_scouting: bool,
+    /// How long opening the session may wait for the `connect` endpoints.
+    pub connect_timeout: Duration,
+}
+
+impl Default for TransportConfig {
+    fn default() -> Self {
+        TransportConfig {
+            mode: Mode::Peer,
+            connect: Vec::new(),
+            listen: Vec::new(),
+            multicast_scouting: false,
+            connect_timeout: Duration::from_secs(10),
+        }
+    }
+}
+
+/// Why a session could not be configured, opened or used.
+#[derive(Debug, Error)]
+pub enum TransportError {
+    #[error("mode {mode:?} is not one of peer, client, router")]
+    BadMode { mode: String },
+    #[error("endpoint {endpoint:?} is not a Zenoh locator like tcp/127.0.0.1:7447: {reason}")]
+    BadEndpoint { endpoint: String, reason: String },
+    #[error("zenoh config key {key} = {value}: {reason}")]
+    Config { key: &'static str, value: String, reason: String },
+    #[error("opening the zenoh session (connect {connect:?}, listen {listen:?}) failed: {reason}")]
+    Open { connect: Vec<String>, listen: Vec<String>, reason: String },
+    #[error("{what} on {key:?} failed: {reason}")]
+    Declare { what: &'static str, key: String, reason: String },
+    #[error("publishing on {key:?} failed: {reason}")]
+    Put { key: String, reason: String },
+    #[error("closing the zenoh session failed: {reason}")]
+    Close { reason: String },
+}
+
+impl TransportConfig {
+    /// The zenoh configuration this stands for.
+    pub fn to_zenoh(&self) -> Result<Config, TransportError> {
+        let mut config = Config::default();
+        for endpoint in self.connect.iter().chain(&self.listen) {
+            check_endpoint(endpoint)?;
+        }
+        set(&mut config, "mode", json_str(self.mode_str()))?;
+        set(&mut config, "scouting/multicast/enabled", self.multicast_scouting.to_string())?;
+        if !self.connect.is_empty() {
+            set(&mut config, "connect/endpoints", json_list(&self.connect))?;
+            let timeout_ms = i64::try_from(self.connect_timeout.as_millis()).unwrap_or(i64::MAX);
+            set(&mut config, "connect/timeout_ms", timeout_ms.to_string())?;
+            // A role that cannot reach its router should say so and stop, not wait forever.
+            set(&mut config, "connect/exit_on_failure", "true".to_owned())?;
+        }
+        if !self.listen.is_empty() {
+            set(&mut config, "listen/endpoints", json_list(&self.listen))?;
+        }
+        Ok(config)
+    }
+
+    fn mode_str(&self) -> &'static str {
+        match self.mode {
+            Mode::Peer => "peer",
+            Mode::Client => "client",
+            Mode::Router => "router",
+        }
+    }
+}
+
+/// A locator must look like `<protocol>/<address>`; zenoh checks the rest when it opens.
+fn check_endpoint(endpoint: &str) -> Result<(), TransportError> {
+    let bad = |reason: &str| TransportError::BadEndpoint { endpoint: endpoint.to_owned(), reason: reason.to_owned() };
+    let (proto, addr) = endpoint.split_once('/').ok_or_else(|| bad("no '/' between protocol and address"))?;
+    if proto.is_empty() || addr.is_empty() {
+        return Err(bad("empty protocol or address"));
+    }
+    if endpoint.contains(['"', '\\']) {
+        return Err(bad("quotes and backslashes are not allowed"));
+    }
+    endpoint.parse::<zenoh::config::EndPoint>().map_err(|e| bad(&e.to_string()))?;
+    Ok(())
+}
+
+fn set(config: &mut Config, key: &'static str, value: String) -> Result<(), TransportError> {
+    config.insert_json5(key, &value).map_err(|e| TransportError::Config { key, value, reason: e.to_string() })
+}
+
+fn json_str(s: &str) -> String {
+    serde_json::Value::from(s).to_string()
+}
+
+fn json_list(items: &[String]) -> String {
+    serde_json::Value::from(items.to_vec()).to_string()
+}
+
+/// Opens a session as `config` says.
+pub async fn connect(config: &TransportConfig) -> Result<Session, TransportError> {
+    let zconfig = config.to_zenoh()?;
+    zenoh::open(zconfig).await.map_err(|e| TransportError::Open {
+        connect: config.connect.clone(),
+        listen: config.listen.clone(),
+        reason: e.to_string(),
+    })
+}
+
+/// The locators `session` listens on, with the ports the OS picked for `:0`.
+pub async fn listening_locators(session: &Session) -> Vec<String> {
+    // `SessionInfo::locators` is behind zenoh's `unstable` feature in 1.10 (hence that feature).
+    session.info().locators().await.iter().map(ToString::to_string).collect()
+}
+
+/// Closes `session`, flushing what its transports still hold.
+pub async fn close(session: Session) -> Result<(), TransportError> {
+    session.close().await.map_err(|e| TransportError::Close { reason: e.to_string() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_carries_mode_endpoints_and_no_multicast() {
+        let cfg = TransportConfig {
+            mode: Mode::Client,
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            listen: vec!["tcp/127.0.0.1:0".into()],
+            ..TransportConfig::default()
+        };
+        let z = cfg.to_zenoh().unwrap();
+        assert_eq!(z.get_json("mode").unwrap(), "\"client\"");
+        assert_eq!(z.get_json("scouting/multicast/enabled").unwrap(), "false");
+        assert_eq!(z.get_json("connect/endpoints").unwrap(), "[\"tcp/127.0.0.1:7447\"]");
+        assert_eq!(z.get_json("listen/endpoints").unwrap(), "[\"tcp/127.0.0.1:0\"]");
+    }
+
+    #[test]
+    fn bad_endpoints_and_modes_are_typed_errors() {
+        for bad in ["127.0.0.1:7447", "tcp/", "tcp/\"x"] {
+            let cfg = TransportConfig { connect: vec![bad.into()], ..TransportConfig::default() };
+            assert!(
+                matches!(cfg.to_zenoh(), Err(TransportError::BadEndpoint { ref endpoint, .. }) if endpoint == bad),
+                "{bad}"
+            );
+        }
+        assert!(matches!("bridge".parse::<Mode>(), Err(TransportError::BadMode { mode }) if mode == "bridge"));
+        assert_eq!("router".parse::<Mode>().unwrap(), Mode::Router);
+    }
+}

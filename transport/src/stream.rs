@@ -1,0 +1,203 @@
+//! Typed publishing and subscribing on the key scheme: the payload stays opaque bytes here.
+
+use crate::keyexpr::{self, EdgeStream, SiteId, SourceId};
+use crate::session::TransportError;
+use crate::shutdown::Shutdown;
+use std::time::Duration;
+use zenoh::Session;
+use zenoh::bytes::ZBytes;
+use zenoh::liveliness::LivelinessToken;
+use zenoh::pubsub::{Publisher, Subscriber};
+use zenoh::qos::CongestionControl;
+use zenoh::sample::{Locality, Sample, SampleKind};
+
+/// A publisher bound to one edge→cloud stream of one source.
+///
+/// Reliable and blocking under congestion: a slow subscriber slows the edge down instead of
+/// losing messages, so that every message sent can be accounted for downstream.
+pub struct StreamPublisher {
+    stream: EdgeStream,
+    publisher: Publisher<'static>,
+}
+
+impl StreamPublisher {
+    /// Declares the publisher of `stream` for `source` at `site`.
+    pub async fn declare(
+        session: &Session,
+        site: &SiteId,
+        source: &SourceId,
+        stream: EdgeStream,
+    ) -> Result<Self, TransportError> {
+        let key = keyexpr::edge_stream(site, source, stream);
+        // A declared key expression travels as a small numeric id, and both ends keep its
+        // routes cached; otherwise every sample is matched against the (wildcard) subscriptions
+        // again, which measured at a third of raw Zenoh's throughput.
+        let declared = session.declare_keyexpr(key.clone()).await.map_err(|e| TransportError::Declare {
+            what: "key expression",
+            key: key.clone(),
+            reason: e.to_string(),
+        })?;
+        let publisher = session
+            .declare_publisher(declared)
+            .congestion_control(CongestionControl::Block)
+            .await
+            .map_err(|e| TransportError::Declare { what: "publisher", key, reason: e.to_string() })?;
+        Ok(StreamPublisher { stream, publisher })
+    }
+
+    /// The stream this publishes.
+    pub fn stream(&self) -> EdgeStream {
+        self.stream
+    }
+
+    /// The key this publishes on.
+    pub fn key(&self) -> &str {
+        self.publisher.key_expr().as_str()
+    }
+
+    /// Publishes one payload.
+    pub async fn put(&self, payload: impl Into<ZBytes>) -> Result<(), TransportError> {
+        self.publisher
+            .put(payload)
+            .await
+            .map_err(|e| TransportError::Put { key: self.key().to_owned(), reason: e.to_string() })
+    }
+
+    /// Waits until some subscriber matches this stream: `Ok(true)` once one does, `Ok(false)` if
+    /// `timeout` passes or `shutdown` fires first. Publishing before that point would be lost.
+    pub async fn wait_for_subscriber(&self, timeout: Duration, mut shutdown: Shutdown) -> Result<bool, TransportError> {
+        let declare_err = |e: zenoh::Error| TransportError::Declare {
+            what: "matching listener",
+            key: self.key().to_owned(),
+            reason: e.to_string(),
+        };
+        let listener = self.publisher.matching_listener().await.map_err(declare_err)?;
+        // Read the status after the listener exists so that no change falls between the two.
+        if self.publisher.matching_status().await.map_err(declare_err)?.matching() {
+            return Ok(true);
+        }
+        let wait = async {
+            while let Ok(status) = listener.recv_async().await {
+                if status.matching() {
+                    return true;
+                }
+            }
+            false
+        };
+        tokio::select! {
+            matched = tokio::time::timeout(timeout, wait) => Ok(matched.unwrap_or(false)),
+            _ = shutdown.wait() => Ok(false),
+        }
+    }
+
+    /// Undeclares the publisher.
+    pub async fn undeclare(self) -> Result<(), TransportError> {
+        let key = self.key().to_owned();
+        self.publisher.undeclare().await.map_err(|e| TransportError::Declare {
+            what: "undeclare",
+            key,
+            reason: e.to_string(),
+        })
+    }
+}
+
+/// Declares the liveliness token of `source`: the cloud sees the edge as alive while it exists.
+pub async fn declare_alive(
+    session: &Session,
+    site: &SiteId,
+    source: &SourceId,
+) -> Result<LivelinessToken, TransportError> {
+    let key = keyexpr::liveliness_token(site, source);
+    session.liveliness().declare_token(key.clone()).await.map_err(|e| TransportError::Declare {
+        what: "liveliness token",
+        key,
+        reason: e.to_string(),
+    })
+}
+
+/// Subscribes to every edge→cloud stream of every source at `site` (every site if `None`);
+/// `on_sample(stream, sample)` runs on Zenoh's receive path, so it must be quick.
+///
+/// One subscriber on `risktwin/v1/<site>/*/*` rather than one per stream: Zenoh matches every
+/// sample against every wildcard subscription of the session, and five of them measured at
+/// about 0.3 M msg/s where one reached 0.46 M (1 KiB, TCP loopback). The price is that keys of
+/// the same shape that are not edge streams (another cloud's outputs, pushes to edges) also
+/// arrive; they are recognised by the key parser and skipped. Samples published by this same session are not received at all.
+pub async fn subscribe_edge_streams<F>(
+    session: &Session,
+    site: Option<&SiteId>,
+    on_sample: F,
+) -> Result<Subscriber<()>, TransportError>
+where
+    F: Fn(EdgeStream, &Sample) + Send + Sync + 'static,
+{
+    let key = keyexpr::edge_streams_all(site);
+    session
+        .declare_subscriber(key.clone())
+        .allowed_origin(Locality::Remote)
+        .callback(move |sample| {
+            if let Some(parsed) = keyexpr::parse_edge_key(sample.key_expr().as_str()) {
+                on_sample(parsed.stream, &sample);
+            }
+        })
+        .await
+        .map_err(|e| TransportError::Declare { what: "subscriber", key, reason: e.to_string() })
+}
+
+/// An edge appearing or disappearing, as told by its liveliness token.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Liveness {
+    /// The site chunk of the token.
+    pub site: String,
+    /// The edge's source id.
+    pub source: String,
+    /// True when it joined, false when it left.
+    pub alive: bool,
+}
+
+/// Watches every edge's liveliness token at `site` (every site if `None`), including the edges
+/// already alive when the watch starts.
+pub async fn watch_liveliness<F>(
+    session: &Session,
+    site: Option<&SiteId>,
+    on_change: F,
+) -> Result<Subscriber<()>, TransportError>
+where
+    F: Fn(Liveness) + Send + Sync + 'static,
+{
+    let key = keyexpr::liveliness_all(site);
+    session
+        .liveliness()
+        .declare_subscriber(key.clone())
+        .history(true)
+        .callback(move |sample| {
+            if let Some((site, source)) = keyexpr::parse_liveliness_key(sample.key_expr().as_str()) {
+                let alive = sample.kind() == SampleKind::Put;
+                on_change(Liveness { site: site.to_owned(), source: source.to_owned(), alive });
+            }
+        })
+        .await
+        .map_err(|e| TransportError::Declare { what: "liveliness subscriber", key, reason: e.to_string() })
+}
+
+/// Declares the key expression of every edge→cloud stream of `source` on the receiving
+/// `session`. Zenoh then caches the routes of these keys; without it a wildcard subscriber
+/// makes it match every sample again (measured: about half the throughput of an exact-key
+/// subscriber, and 0.88–0.96 of it with the keys declared). Keep the returned keys alive.
+pub async fn declare_edge_keys(
+    session: &Session,
+    site: &SiteId,
+    source: &SourceId,
+) -> Result<Vec<zenoh::key_expr::KeyExpr<'static>>, TransportError> {
+    let mut keys = Vec::with_capacity(EdgeStream::ALL.len());
+    for stream in EdgeStream::ALL {
+        let key = keyexpr::edge_stream(site, source, stream);
+        let declared = session.declare_keyexpr(key.clone()).await.map_err(|e| TransportError::Declare {
+            what: "key expression",
+            key,
+            reason: e.to_string(),
+        })?;
+        keys.push(declared);
+    }
+    Ok(keys)
+}

@@ -1,0 +1,74 @@
+//! Two real peer sessions over TCP loopback (one listens on a free port, the other connects):
+//! typed publishers reach the typed subscribers on the right stream, and liveliness reports an
+//! edge joining and leaving.
+
+use risktwin_transport::{
+    EdgeStream, Liveness, Mode, SiteId, SourceId, StreamPublisher, TransportConfig, connect, declare_alive,
+    listening_locators, shutdown, subscribe_edge_streams, watch_liveliness,
+};
+use std::time::Duration;
+use tokio::sync::mpsc;
+use tokio::time::timeout;
+
+const STEP: Duration = Duration::from_secs(30);
+
+async fn peer_pair() -> (risktwin_transport::zenoh::Session, risktwin_transport::zenoh::Session) {
+    let listen = TransportConfig { mode: Mode::Peer, listen: vec!["tcp/127.0.0.1:0".into()], ..Default::default() };
+    let a = connect(&listen).await.unwrap();
+    let locators = listening_locators(&a).await;
+    assert!(locators.iter().any(|l| l.starts_with("tcp/127.0.0.1:") && !l.ends_with(":0")), "{locators:?}");
+    let b = connect(&TransportConfig { mode: Mode::Peer, connect: locators, ..Default::default() }).await.unwrap();
+    (a, b)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn streams_arrive_on_their_subscriber_and_liveliness_tracks_the_edge() {
+    let (cloud, edge) = peer_pair().await;
+    let site = SiteId::new("s1").unwrap();
+    let source = SourceId::new("veh-7").unwrap();
+
+    let (sample_tx, mut samples) = mpsc::unbounded_channel();
+    let _subs = subscribe_edge_streams(&cloud, Some(&site), move |stream, sample| {
+        let _ = sample_tx.send((stream, sample.key_expr().to_string(), sample.payload().to_bytes().into_owned()));
+    })
+    .await
+    .unwrap();
+    let (live_tx, mut lives) = mpsc::unbounded_channel();
+    let _watch = watch_liveliness(&cloud, Some(&site), move |change| drop(live_tx.send(change))).await.unwrap();
+
+    let token = declare_alive(&edge, &site, &source).await.unwrap();
+    let joined = timeout(STEP, lives.recv()).await.unwrap().unwrap();
+    assert_eq!(joined, Liveness { site: "s1".into(), source: "veh-7".into(), alive: true });
+
+    let (_trigger, shutdown) = shutdown::channel();
+    for (i, stream) in [EdgeStream::Can, EdgeStream::Signal].into_iter().enumerate() {
+        let publisher = StreamPublisher::declare(&edge, &site, &source, stream).await.unwrap();
+        assert!(publisher.wait_for_subscriber(STEP, shutdown.clone()).await.unwrap());
+        publisher.put(vec![i as u8; 3]).await.unwrap();
+        let (got_stream, key, payload) = timeout(STEP, samples.recv()).await.unwrap().unwrap();
+        assert_eq!((got_stream, key.as_str(), payload), (stream, publisher.key(), vec![i as u8; 3]));
+        assert_eq!(key, format!("risktwin/v1/s1/veh-7/{}", stream.as_str()));
+    }
+
+    // A stream of another site is not ours.
+    let other = SiteId::new("s2").unwrap();
+    let stranger = StreamPublisher::declare(&edge, &other, &source, EdgeStream::State).await.unwrap();
+    let (_t, quick) = shutdown::channel();
+    assert!(!stranger.wait_for_subscriber(Duration::from_millis(300), quick).await.unwrap());
+
+    token.undeclare().await.unwrap();
+    let left = timeout(STEP, lives.recv()).await.unwrap().unwrap();
+    assert_eq!(left, Liveness { site: "s1".into(), source: "veh-7".into(), alive: false });
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn waiting_for_a_subscriber_ends_on_shutdown() {
+    let (_a, edge) = peer_pair().await;
+    let site = SiteId::new("s1").unwrap();
+    let source = SourceId::new("lonely").unwrap();
+    let publisher = StreamPublisher::declare(&edge, &site, &source, EdgeStream::State).await.unwrap();
+    let (trigger, shutdown) = shutdown::channel();
+    let wait = tokio::spawn(async move { publisher.wait_for_subscriber(Duration::from_secs(3600), shutdown).await });
+    trigger.fire();
+    assert!(!timeout(STEP, wait).await.unwrap().unwrap().unwrap());
+}

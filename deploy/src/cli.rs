@@ -242,12 +242,12 @@ pub struct EdgeArgs {
     /// Capture-stamp jitter, ± ns.
     #[arg(long, default_value_t = 0)]
     pub clock_jitter_ns: u32,
-    /// Seed of the jitter.
+    /// Seed of the scenario sample (and of the clock jitter).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Payload size, bytes.
-    #[arg(long, default_value_t = 64)]
-    pub payload_bytes: usize,
+    /// Scenario kind the edge's world is sampled from.
+    #[arg(long, default_value = "cut-in")]
+    pub kind: String,
     /// Seconds to wait for a subscriber before publishing anyway.
     #[arg(long, default_value_t = 10.0)]
     pub wait_for_cloud_s: f64,
@@ -261,6 +261,9 @@ pub struct CloudArgs {
     /// Serve one site only (default: every site).
     #[arg(long)]
     pub site: Option<String>,
+    /// Record every accepted message into this MCAP file (closed cleanly on SIGINT/SIGTERM).
+    #[arg(long)]
+    pub record: Option<std::path::PathBuf>,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
 }

@@ -2,20 +2,21 @@
 //! the cloud over Zenoh (key scheme in `risktwin_transport::keyexpr`).
 //!
 //! Each role has a `run(config, shutdown)` function; the `risktwin` binary only parses
-//! arguments. Payloads are the transport's STAND-IN record until `risktwin-protos` lands.
+//! arguments. Each role simulates its own scenario world ([`scene`]) and publishes real
+//! `common::telemetry` messages encoded by `risktwin-protos`.
 //! [`shm`] is the zero-copy iceoryx2 exchange between a vehicle's sensor producer and its
 //! gateway on one host.
 
 pub mod clock;
 pub mod publish;
 pub mod rsu;
+pub mod scene;
 pub mod shm;
 pub mod vehicle;
 
 pub use clock::{ClockModel, EdgeClock};
-pub use publish::{EdgeConfig, StreamPlan};
+pub use publish::{EdgeConfig, Producer, Stamper};
 
-use risktwin_transport::standin::StandInError;
 use risktwin_transport::{EdgeStream, TransportError};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -24,12 +25,14 @@ use thiserror::Error;
 /// Why an edge role stopped with an error.
 #[derive(Debug, Error)]
 pub enum EdgeError {
-    #[error("rate of stream {stream} is {rate_hz} Hz; it must be finite, positive and at most 1 MHz")]
+    #[error("rate of stream {stream} is {rate_hz} Hz; it must be finite, positive and at most 100 kHz")]
     BadRate { stream: &'static str, rate_hz: f64 },
     #[error(transparent)]
     Transport(#[from] TransportError),
-    #[error("encoding a payload: {0}")]
-    Encode(#[from] StandInError),
+    #[error("no feasible {kind} scenario for seed {seed} among the first {tried} candidates")]
+    NoFeasibleScenario { kind: &'static str, seed: u64, tried: u64 },
+    #[error("roadside sensor: {reason}")]
+    Sensor { reason: String },
     #[error("shutting down: {reason}")]
     Shutdown { reason: String },
 }

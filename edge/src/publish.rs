@@ -1,22 +1,15 @@
-//! The publishing loop shared by every edge role: a few streams at fixed rates, numbered per
-//! stream, stamped by the edge clock, until a count, a duration or the shutdown ends it.
+//! The publishing loop shared by every edge role: a role's [`Producer`] is ticked at a fixed
+//! wall-clock rate and hands back encoded messages per stream; the loop numbers them per
+//! stream, stamps them with the edge clock and publishes them until a count, a duration or the
+//! shutdown ends it.
 
 use crate::clock::{ClockModel, EdgeClock};
 use crate::{EdgeError, SentSummary};
-use risktwin_transport::standin::StandIn;
+use risktwin_common::telemetry::{Frame, Header};
 use risktwin_transport::{
     EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect, declare_alive,
 };
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-
-/// One stream and its rate.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StreamPlan {
-    /// Which stream.
-    pub stream: EdgeStream,
-    /// Messages per second.
-    pub rate_hz: f64,
-}
 
 /// What every edge role is configured with.
 #[derive(Debug, Clone)]
@@ -27,18 +20,22 @@ pub struct EdgeConfig {
     pub id: SourceId,
     /// How to join the Zenoh network.
     pub transport: TransportConfig,
-    /// Base rate, Hz (a vehicle's state rate; an RSU's object-list rate).
+    /// Base rate, Hz of wall time: a vehicle's simulation steps (state messages) per second,
+    /// an RSU's observations per second. The simulation itself always steps 20 ms, so a rate
+    /// above 50 Hz runs a vehicle faster than real time.
     pub rate_hz: f64,
-    /// Stop each stream after this many messages.
+    /// Stop after this many messages on the base stream (vehicle: `state`; RSU: each stream).
     pub count: Option<u64>,
     /// Stop after this long.
     pub duration: Option<Duration>,
     /// How the edge clock differs from true time.
     pub clock: ClockModel,
-    /// Payload size, bytes (the stand-in record is padded up to it).
-    pub payload_bytes: usize,
     /// How long to wait for a subscriber (the cloud) before publishing anyway.
     pub wait_for_cloud: Duration,
+    /// The scenario the edge's world is sampled from.
+    pub kind: risktwin_common::scenario::ScenarioKind,
+    /// Run seed of the scenario sample.
+    pub scenario_seed: u64,
 }
 
 impl EdgeConfig {
@@ -52,46 +49,67 @@ impl EdgeConfig {
             count: None,
             duration: None,
             clock: ClockModel::default(),
-            payload_bytes: 64,
             wait_for_cloud: Duration::from_secs(10),
+            kind: risktwin_common::scenario::ScenarioKind::CutIn,
+            scenario_seed: 0,
         }
-    }
-
-    fn check(&self, plans: &[StreamPlan]) -> Result<(), EdgeError> {
-        for plan in plans {
-            if !(plan.rate_hz.is_finite() && plan.rate_hz > 0.0 && plan.rate_hz <= 1e6) {
-                return Err(EdgeError::BadRate { stream: plan.stream.as_str(), rate_hz: plan.rate_hz });
-            }
-        }
-        Ok(())
     }
 }
 
-/// Per-stream progress of the loop.
-struct Lane {
-    publisher: StreamPublisher,
-    period: Duration,
-    next_due: Instant,
-    sent: u64,
+/// Hands out headers: per-stream sequence numbers and the edge clock's stamps of this tick.
+pub struct Stamper<'a> {
+    source: &'a str,
+    seq: &'a mut [u64; EdgeStream::ALL.len()],
+    capture_time_ns: i64,
+    publish_time_ns: i64,
 }
 
-/// Runs `plans` for `config` until every stream has sent `count`, `duration` has passed or
-/// `shutdown` fires; then undeclares, closes the session and reports what was sent.
-pub async fn run_streams(
+impl Stamper<'_> {
+    /// The header of the next message on `stream` (its sequence number is taken).
+    pub fn header(&mut self, stream: EdgeStream) -> Header {
+        let seq = &mut self.seq[stream.index()];
+        let header = Header {
+            source: self.source.to_owned(),
+            seq: *seq,
+            capture_time_ns: self.capture_time_ns,
+            publish_time_ns: self.publish_time_ns,
+            frame: Frame::World,
+        };
+        *seq += 1;
+        header
+    }
+}
+
+/// A role's message source, ticked by [`run_producer`].
+pub trait Producer {
+    /// The streams it publishes; the first is the base stream `count` applies to.
+    fn streams(&self) -> &[EdgeStream];
+    /// Ticks per base-stream message (a vehicle ticks at 100 Hz for CAN, twice per state).
+    fn ticks_per_base(&self) -> u32;
+    /// Tick number `tick`: append the encoded messages due, in publishing order.
+    fn tick(&mut self, tick: u64, stamper: &mut Stamper<'_>, out: &mut Vec<(EdgeStream, Vec<u8>)>);
+}
+
+/// Runs `producer` for `config` until the base stream has sent `count`, `duration` has passed
+/// or `shutdown` fires; then undeclares, closes the session and reports what was sent.
+pub async fn run_producer(
     config: &EdgeConfig,
-    plans: &[StreamPlan],
+    producer: &mut dyn Producer,
     shutdown: Shutdown,
 ) -> Result<SentSummary, EdgeError> {
-    config.check(plans)?;
+    if !(config.rate_hz.is_finite() && config.rate_hz > 0.0 && config.rate_hz <= 1e5) {
+        return Err(EdgeError::BadRate { stream: producer.streams()[0].as_str(), rate_hz: config.rate_hz });
+    }
+    let streams = producer.streams().to_vec();
     let mut stop = shutdown.clone();
     let session = tokio::select! {
         opened = connect(&config.transport) => opened?,
-        _ = stop.wait() => return Ok(SentSummary::new(config, plans.iter().map(|p| (p.stream, 0)))),
+        _ = stop.wait() => return Ok(SentSummary::new(config, streams.iter().map(|s| (*s, 0)))),
     };
     let token = declare_alive(&session, &config.site, &config.id).await?;
-    let mut publishers = Vec::with_capacity(plans.len());
-    for plan in plans {
-        publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, plan.stream).await?);
+    let mut publishers = Vec::with_capacity(streams.len());
+    for stream in &streams {
+        publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, *stream).await?);
     }
     for publisher in &publishers {
         if !publisher.wait_for_subscriber(config.wait_for_cloud, shutdown.clone()).await? && !shutdown.is_fired() {
@@ -99,71 +117,64 @@ pub async fn run_streams(
         }
     }
 
+    let tick_period = Duration::from_secs_f64(1.0 / (config.rate_hz * f64::from(producer.ticks_per_base())));
     let start = Instant::now();
     let deadline = config.duration.map(|d| start + d);
     let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
     let mut clock = EdgeClock::new(config.clock, epoch_ns);
-    let mut lanes: Vec<Lane> = publishers
-        .into_iter()
-        .zip(plans)
-        .map(|(publisher, plan)| Lane {
-            publisher,
-            period: Duration::from_secs_f64(1.0 / plan.rate_hz),
-            next_due: start,
-            sent: 0,
-        })
-        .collect();
-    let done =
-        |lane: &Lane| config.count.is_some_and(|n| lane.sent >= n) || deadline.is_some_and(|d| lane.next_due > d);
-
-    // The first round goes out before the shutdown is looked at, so that "publishing" (which
-    // tests wait for) always means something was sent.
-    let mut result = publish_due(config, &mut lanes, &mut clock, start, start, &done).await;
-    if result.is_ok() {
-        eprintln!("edge {}: publishing", config.id);
-    }
-    while result.is_ok() {
-        let Some(next) = lanes.iter().filter(|l| !done(l)).map(|l| l.next_due).min() else { break };
-        tokio::select! {
-            _ = tokio::time::sleep_until(next.into()) => {}
-            _ = stop.wait() => break,
+    let mut seq = [0u64; EdgeStream::ALL.len()];
+    let mut sent = [0u64; EdgeStream::ALL.len()];
+    let base = streams[0].index();
+    let mut out = Vec::new();
+    let mut result = Ok(());
+    let mut tick = 0u64;
+    loop {
+        let due = start + tick_period * u32::try_from(tick).unwrap_or(u32::MAX);
+        // A base message's ticks are finished before the count stops the loop (a vehicle's
+        // second CAN tick after its last state).
+        let whole = tick.is_multiple_of(u64::from(producer.ticks_per_base()));
+        if (whole && config.count.is_some_and(|n| sent[base] >= n)) || deadline.is_some_and(|d| due > d) {
+            break;
         }
-        result = publish_due(config, &mut lanes, &mut clock, start, Instant::now(), &done).await;
+        // The first tick goes out before the shutdown is looked at, so that "publishing"
+        // (which tests wait for) always means something was sent.
+        if tick > 0 {
+            tokio::select! {
+                _ = tokio::time::sleep_until(due.into()) => {}
+                _ = stop.wait() => break,
+            }
+        }
+        let elapsed = Instant::now().duration_since(start);
+        let mut stamper = Stamper {
+            source: config.id.as_str(),
+            seq: &mut seq,
+            capture_time_ns: clock.capture_ns(elapsed),
+            publish_time_ns: clock.now_ns(elapsed),
+        };
+        out.clear();
+        producer.tick(tick, &mut stamper, &mut out);
+        for (stream, payload) in out.drain(..) {
+            let Some(publisher) = publishers.iter().find(|p| p.stream() == stream) else { continue };
+            if let Err(e) = publisher.put(payload).await {
+                result = Err(e.into());
+                break;
+            }
+            sent[stream.index()] += 1;
+        }
+        if result.is_err() {
+            break;
+        }
+        if tick == 0 {
+            eprintln!("edge {}: publishing", config.id);
+        }
+        tick += 1;
     }
 
-    let summary = SentSummary::new(config, lanes.iter().map(|l| (l.publisher.stream(), l.sent)));
-    for lane in lanes {
-        lane.publisher.undeclare().await?;
+    let summary = SentSummary::new(config, streams.iter().map(|s| (*s, sent[s.index()])));
+    for publisher in publishers {
+        publisher.undeclare().await?;
     }
     token.undeclare().await.map_err(|e| EdgeError::Shutdown { reason: e.to_string() })?;
     close(session).await?;
     result.map(|()| summary)
-}
-
-/// Publishes one message on every lane that is due at `now`.
-async fn publish_due(
-    config: &EdgeConfig,
-    lanes: &mut [Lane],
-    clock: &mut EdgeClock,
-    start: Instant,
-    now: Instant,
-    done: &impl Fn(&Lane) -> bool,
-) -> Result<(), EdgeError> {
-    for lane in lanes.iter_mut() {
-        if done(lane) || lane.next_due > now {
-            continue;
-        }
-        let elapsed = now.duration_since(start);
-        let record = StandIn {
-            source: config.id.as_str(),
-            seq: lane.sent,
-            capture_time_ns: clock.capture_ns(elapsed),
-            publish_time_ns: clock.now_ns(elapsed),
-        };
-        let payload = record.encode(config.payload_bytes)?;
-        lane.publisher.put(payload).await?;
-        lane.sent += 1;
-        lane.next_due += lane.period;
-    }
-    Ok(())
 }

@@ -1,7 +1,7 @@
 //! The worker against planted bad input, and replay of its own recording.
 
 use super::*;
-use risktwin_common::align::{IngestConfig, Snapshot};
+use risktwin_common::align::IngestConfig;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
 use risktwin_protos::encode;
@@ -25,17 +25,6 @@ fn state(source: &str, seq: u64, t_ns: i64) -> VehicleStateSample {
         yaw_rate_radps: 0.0,
         steer_rad: 0.0,
         footprint: Footprint::new(4.5, 1.8),
-    }
-}
-
-/// Digest of a snapshot: tick, and every value's status and pose bits.
-fn digest(s: &Snapshot<TwinSample>, out: &mut Vec<u64>) {
-    out.push(s.tick_ns as u64);
-    for a in s.values() {
-        out.push(a.status as u64);
-        if let Some(TwinSample::State(k)) = &a.value {
-            out.extend([k.pose.x_m.to_bits(), k.pose.y_m.to_bits(), k.pose.heading_rad.to_bits()]);
-        }
     }
 }
 
@@ -99,9 +88,9 @@ fn bad_input_is_counted_by_reason_and_the_worker_goes_on() {
 fn replaying_the_recording_reproduces_the_snapshots() {
     let recorder = Recorder::new(Cursor::new(Vec::new())).expect("recorder");
     let mut live: IngestWorker<Cursor<Vec<u8>>> = IngestWorker::new(IngestConfig::default(), Some(recorder));
-    let mut live_digest = Vec::new();
+    let mut live_digest = SnapshotDigest::default();
     for (source, stream, topic, bytes, receive) in fleet() {
-        live.handle(&source, stream, &topic, &bytes, receive, |s| digest(s, &mut live_digest)).expect("record");
+        live.handle(&source, stream, &topic, &bytes, receive, |s| live_digest.add(s)).expect("record");
     }
     let (stats, writer) = live.finish().expect("recording closes");
     assert_eq!(stats.recorded, stats.accepted);
@@ -110,15 +99,16 @@ fn replaying_the_recording_reproduces_the_snapshots() {
     assert_eq!(recorded.len(), 600, "only accepted messages are recorded");
 
     let mut replay: IngestWorker<Cursor<Vec<u8>>> = IngestWorker::new(IngestConfig::default(), None);
-    let mut replay_digest = Vec::new();
+    let mut replay_digest = SnapshotDigest::default();
     for m in &recorded {
         let mut parts = m.topic.rsplit('/');
         let stream = parts.next().and_then(Stream::from_name).expect("known stream");
         let source = parts.next().expect("source segment");
         replay
-            .handle(source, stream, &m.topic, &m.data, m.log_time_ns as i64, |s| digest(s, &mut replay_digest))
+            .handle(source, stream, &m.topic, &m.data, m.log_time_ns as i64, |s| replay_digest.add(s))
             .expect("no I/O");
     }
-    assert!(!live_digest.is_empty());
+    assert!(live_digest.count() > 70, "snapshots: {}", live_digest.count());
+    assert_eq!(live_digest.count(), stats.snapshots);
     assert_eq!(live_digest, replay_digest, "replay yields the live snapshots");
 }

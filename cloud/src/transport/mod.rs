@@ -1,19 +1,23 @@
 //! The cloud's side of the Zenoh pipeline: the `risktwin cloud` role. Today it runs the
-//! `ingest` role (subscribe to every edge→cloud stream, validate, count, watch liveliness);
-//! twin, risk, library and trainer join it as they are built.
+//! `ingest` role (subscribe to every edge→cloud stream, run each sample through the
+//! [`crate::ingest::IngestWorker`], optionally record what was accepted to MCAP, watch
+//! liveliness); twin, risk, library and trainer join it as they are built.
 
 pub mod bench;
 mod edges;
 pub mod ingest;
+mod live;
 mod liveliness;
 #[cfg(test)]
 mod wire_tests;
 
-use ingest::{IngestCounters, IngestSummary};
+use live::LiveIngest;
+pub use live::{IngestSummary, RecordError};
 use liveliness::LivenessLog;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Shutdown, SiteId, TransportConfig, TransportError, close, connect};
 use serde::Serialize;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 use thiserror::Error;
@@ -58,6 +62,8 @@ pub enum CloudError {
     NoRole,
     #[error(transparent)]
     Transport(#[from] TransportError),
+    #[error(transparent)]
+    Record(#[from] RecordError),
 }
 
 /// What the cloud runs and how it joins the network.
@@ -73,6 +79,8 @@ pub struct CloudConfig {
     pub drain_quiet: Duration,
     /// ...but no longer than this.
     pub drain_max: Duration,
+    /// Record every accepted message into this MCAP file (closed properly on shutdown).
+    pub record: Option<PathBuf>,
 }
 
 impl CloudConfig {
@@ -84,6 +92,7 @@ impl CloudConfig {
             transport,
             drain_quiet: Duration::from_millis(200),
             drain_max: Duration::from_secs(2),
+            record: None,
         }
     }
 }
@@ -115,45 +124,54 @@ pub async fn run(
         opened = connect(&config.transport) => opened?,
         _ = shutdown.wait() => return Ok(CloudSummary { ingest: IngestSummary::default(), liveliness: Default::default() }),
     };
-    let counters = Arc::new(Mutex::new(IngestCounters::default()));
+    let ingest = Arc::new(Mutex::new(LiveIngest::new(config.record.as_deref())?));
     let subscriber =
-        risktwin_transport::subscribe_edge_streams(&session, config.site.as_ref(), ingest_sink(Arc::clone(&counters)))
+        risktwin_transport::subscribe_edge_streams(&session, config.site.as_ref(), ingest_sink(Arc::clone(&ingest)))
             .await?;
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
     let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness)).await?;
     on_ready();
 
     shutdown.wait().await;
-    drain(&counters, config.drain_quiet, config.drain_max).await;
+    drain(&ingest, config.drain_quiet, config.drain_max).await;
 
     subscriber.undeclare().await.map_err(|e| undeclare_error("subscriber", e))?;
     edges.subscriber.undeclare().await.map_err(|e| undeclare_error("liveliness subscriber", e))?;
     // With the subscriber gone its callback (and channel) is dropped, so the task ends.
     let _ = edges.declarer.await;
     close(session).await?;
-    let ingest = counters.lock().unwrap_or_else(PoisonError::into_inner).summary();
+    // The subscriber is undeclared, so its callback (the other owner) is gone by now; should a
+    // straggler still hold it, the summary waits for nothing and the error says so.
+    let ingest = Arc::try_unwrap(ingest)
+        .map_err(|_| CloudError::Transport(TransportError::Close { reason: "ingest still in use".to_owned() }))?
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner)
+        .finish()?;
     let liveliness = liveness.lock().unwrap_or_else(PoisonError::into_inner).summary();
     Ok(CloudSummary { ingest, liveliness })
 }
 
 /// The subscriber callback of the ingest role: runs on Zenoh's receive path.
-pub(crate) fn ingest_sink(
-    counters: Arc<Mutex<IngestCounters>>,
+fn ingest_sink(
+    ingest: Arc<Mutex<LiveIngest>>,
 ) -> impl Fn(risktwin_transport::EdgeStream, &Sample) + Send + Sync + 'static {
     move |_, sample| {
         // Contiguous payloads (the common case) are borrowed, not copied.
         let payload = sample.payload().to_bytes();
-        let mut counters = counters.lock().unwrap_or_else(PoisonError::into_inner);
-        // A drop is counted inside `accept`; the worker carries on either way.
-        let _ = counters.accept(sample.key_expr().as_str(), &payload, Instant::now());
+        let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
+        // Drops are counted inside; only a failing recording comes back, and the receive path
+        // cannot stop for it: say so and go on counting.
+        if let Err(e) = ingest.handle(sample.key_expr().as_str(), &payload) {
+            eprintln!("cloud: {e}");
+        }
     }
 }
 
 /// Lets samples already on their way arrive: waits until none came for `quiet`, at most `max`.
-async fn drain(counters: &Mutex<IngestCounters>, quiet: Duration, max: Duration) {
+async fn drain(ingest: &Mutex<LiveIngest>, quiet: Duration, max: Duration) {
     let start = Instant::now();
     loop {
-        let last = counters.lock().unwrap_or_else(PoisonError::into_inner).last_sample();
+        let last = ingest.lock().unwrap_or_else(PoisonError::into_inner).last_sample();
         let quiet_since = last.map_or(start, |t| t.max(start));
         let until = (quiet_since + quiet).min(start + max);
         if Instant::now() >= until {

@@ -1,5 +1,6 @@
 //! `risktwin cloud`: run the cloud roles until SIGINT/SIGTERM, then print the JSON summary
-//! (received per source and stream, drops by reason, liveliness). `ready` on stderr says the
+//! (received per source and stream, drops by reason, snapshots and their digest, liveliness;
+//! `--record FILE.mcap` records what was accepted). `ready` on stderr says the
 //! subscriptions are in place. Also `risktwin bench zenoh`.
 
 use super::router::{transport_config, with_signals};
@@ -16,9 +17,11 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     let mut config = CloudConfig::new(transport_config(args.zenoh)?);
     config.roles = roles;
     config.site = args.site.map(SiteId::new).transpose().map_err(CliError::input)?;
+    config.record = args.record;
     let summary = with_signals(|shutdown| async move {
         run(&config, shutdown, || eprintln!("ready")).await.map_err(|e| match e {
             risktwin_cloud::transport::CloudError::Transport(t) => CliError::runtime(t),
+            risktwin_cloud::transport::CloudError::Record(r) => CliError::runtime(r),
             other => CliError::input(other),
         })
     })?;

@@ -1,5 +1,6 @@
-//! `risktwin edge vehicle|rsu`: parse, run the role until its count, duration or a signal, and
-//! print what it sent per stream as JSON on stdout.
+//! `risktwin edge vehicle|rsu`: parse, run the role (a simulated `--kind`/`--seed` scenario
+//! publishing real telemetry) until its count, duration or a signal, and print what it sent per
+//! stream as JSON on stdout.
 
 use super::router::{transport_config, with_signals};
 use crate::cli::EdgeArgs;
@@ -47,7 +48,8 @@ fn edge_config(args: EdgeArgs, default_rate_hz: f64) -> CliResult<EdgeConfig> {
         jitter_ns: i64::from(args.clock_jitter_ns),
         seed: args.seed,
     };
-    config.payload_bytes = args.payload_bytes;
+    config.kind = args.kind.parse().map_err(CliError::input)?;
+    config.scenario_seed = args.seed;
     config.wait_for_cloud = seconds("--wait-for-cloud-s", args.wait_for_cloud_s)?;
     Ok(config)
 }

@@ -3,8 +3,8 @@
 //! liveliness, and the shutdown signal every role obeys.
 //!
 //! Boundary: this crate moves opaque payload bytes on typed keys. It knows nothing of what a
-//! vehicle or the twin is; message encoding belongs to `risktwin-protos` (until it lands, the
-//! [`standin`] payload is used end to end). The edge and cloud crates depend on it; `common`
+//! vehicle or the twin is; message encoding belongs to `risktwin-protos` (the [`standin`] record
+//! is only the payload of the transport benchmark). The edge and cloud crates depend on it; `common`
 //! never does (it stays free of async and network code).
 
 pub mod keyexpr;

@@ -1,9 +1,6 @@
-//! A STAND-IN payload until the protobuf messages (`risktwin-protos`, `common::telemetry`) land:
-//! a hand-encoded, header-like record so that the pipeline can be built and tested end to end.
-//!
-//! The transport itself moves opaque bytes; only the edge (encode) and the cloud ingest (decode)
-//! know this format, and both will switch to `common::telemetry::*` + `encode`/`decode` by
-//! replacing the calls to this module.
+//! The payload of the transport benchmark (`risktwin bench zenoh`): a hand-encoded, header-like
+//! record of fixed layout, so the benchmark measures Zenoh and our wrapper without the protobuf
+//! codec. The roles themselves send `risktwin-protos` messages.
 //!
 //! Layout, little-endian: magic `RTS1` (4 B), seq (u64), capture_time_ns (i64),
 //! publish_time_ns (i64), source length (u8) and bytes (UTF-8), filler length (u32) and filler.

@@ -7,4 +7,5 @@
 //! `edge left` lines (liveliness) before it is sent SIGTERM.
 
 mod fleet;
+mod python_zenoh;
 mod support;

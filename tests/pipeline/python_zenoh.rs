@@ -1,0 +1,58 @@
+//! Interop: a Python `eclipse-zenoh` subscriber (the reference binding, same Zenoh version as
+//! ours) connects to our router and decodes our edge's stream with protobuf classes built from
+//! the FileDescriptorSet our recordings store.
+
+use crate::support::{Proc, start_router};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+#[path = "../interop/peer_python.rs"]
+mod peer_python;
+
+#[test]
+fn a_python_zenoh_subscriber_decodes_our_stream() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    // Any recording carries the schemas; a short episode makes one.
+    let spec = dir.path().join("spec.json");
+    std::fs::write(
+        &spec,
+        r#"{"kind": "emergency-braking", "seed": 1, "params": {"ego_speed_mps": 20, "initial_headway_m": 30,
+            "braking_decel_mps2": 5, "brake_time_s": 1, "friction_mu": 0.9}}"#,
+    )
+    .expect("write spec");
+    let schemas = dir.path().join("schemas.mcap");
+    let status = Command::new(env!("CARGO_BIN_EXE_risktwin"))
+        .args(["simulate", "--format", "json", "--spec"])
+        .arg(&spec)
+        .arg("--record")
+        .arg(&schemas)
+        .stdout(Stdio::null())
+        .status()
+        .expect("risktwin runs");
+    assert!(status.success());
+
+    let python = peer_python::python(&["eclipse-zenoh==1.10.2", "mcap==1.6.0", "mcap-protobuf-support==0.6.0"]);
+    let (router, locator) = start_router();
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/pipeline/python_subscriber.py");
+    // 20 states at 50 Hz bring 80 CAN frames (two ids at 100 Hz) and 4 object lists.
+    let expected = 20 + 80 + 4;
+    let subscriber = Command::new(python)
+        .arg(script)
+        .arg(&locator)
+        .arg(&schemas)
+        .arg(expected.to_string())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("python starts");
+    // The edge waits for a matching subscriber before it publishes.
+    let mut edge = Proc::spawn("edge", &["edge", "vehicle", "--id", "veh-py", "--connect", &locator, "--count", "20"]);
+    let sent = edge.exit_json(Duration::from_secs(60));
+    let out = subscriber.wait_with_output().expect("python ends (it waits at most 30 s)");
+    router.terminate();
+    assert!(out.status.success(), "python subscriber failed");
+    let got: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON line from python");
+    for stream in ["state", "can", "perception"] {
+        assert_eq!(got["counts"][stream], sent["sent"][stream], "{stream}: python saw {got}, edge sent {sent}");
+    }
+    assert_eq!(got["source_mismatch"], 0);
+}

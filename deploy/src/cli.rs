@@ -214,6 +214,22 @@ pub enum EdgeCommand {
     Vehicle(EdgeArgs),
     /// A roadside unit: object lists and signal phases at the rate.
     Rsu(EdgeArgs),
+    /// Republish a recording's edge streams (fleet data) on their recorded keys.
+    Replay(ReplayArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    /// An MCAP recording (e.g. from `risktwin cloud --record`).
+    pub recording: PathBuf,
+    /// Replay speed relative to the recording; 0 replays as fast as the transport allows.
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// Seconds to wait for a subscriber before publishing anyway.
+    #[arg(long, default_value_t = 10.0)]
+    pub wait_for_cloud_s: f64,
 }
 
 #[derive(Debug, Args)]

@@ -9,6 +9,7 @@
 
 pub mod clock;
 pub mod publish;
+pub mod replay;
 pub mod rsu;
 pub mod scene;
 pub mod shm;
@@ -35,6 +36,8 @@ pub enum EdgeError {
     Sensor { reason: String },
     #[error("shutting down: {reason}")]
     Shutdown { reason: String },
+    #[error("recording: {reason}")]
+    Recording { reason: String },
 }
 
 /// What an edge sent, per stream: printed as JSON on exit so that tests can check

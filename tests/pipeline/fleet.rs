@@ -164,3 +164,27 @@ fn bad_ids_and_endpoints_are_refused_with_exit_2() {
         assert!(stdout.is_empty(), "{args:?} printed on stdout: {stdout}");
     }
 }
+
+#[test]
+fn edge_replay_streams_a_recording_into_a_second_cloud() {
+    let (router, locator) = start_router();
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let recording = dir.path().join("live.mcap");
+    let cloud = start_cloud(&locator, &["--record", recording.to_str().expect("a UTF-8 path")]);
+    let mut vehicle = edge("vehicle", "veh-r", &locator, &["--rate-hz", "200", "--count", "40"]);
+    vehicle.exit_json(STEP);
+    let live = stop_cloud(cloud, &["veh-r"]);
+
+    // Fleet data: the recording streamed unpaced into a fresh cloud.
+    let mut replayed_cloud = start_cloud(&locator, &[]);
+    let path = recording.to_str().expect("a UTF-8 path");
+    let mut replay = Proc::spawn("replay", &["edge", "replay", path, "--speed", "0", "--connect", &locator]);
+    let published = replay.exit_json(STEP);
+    assert_eq!(published["published"], live["total_received"], "every recorded message is republished");
+    assert_eq!(published["skipped"], 0);
+    replayed_cloud.terminate();
+    let replayed = replayed_cloud.exit_json(STEP);
+    router.terminate();
+    assert_eq!(replayed["total_dropped"], 0, "{replayed}");
+    assert_eq!(replayed["received"], live["received"], "the replayed cloud sees what the live one accepted");
+}

@@ -3,10 +3,11 @@
 //! stream as JSON on stdout.
 
 use super::router::{transport_config, with_signals};
-use crate::cli::EdgeArgs;
+use crate::cli::{EdgeArgs, ReplayArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::print_json;
-use risktwin_edge::{ClockModel, EdgeConfig, rsu, vehicle};
+use risktwin_edge::replay::{self, ReplayConfig};
+use risktwin_edge::{ClockModel, EdgeConfig, EdgeError, rsu, vehicle};
 use risktwin_transport::{SiteId, SourceId};
 use std::time::Duration;
 
@@ -20,6 +21,24 @@ pub fn vehicle(args: EdgeArgs) -> CliResult {
 pub fn rsu(args: EdgeArgs) -> CliResult {
     let config = edge_config(args, rsu::DEFAULT_RATE_HZ)?;
     let summary = with_signals(|shutdown| async move { rsu::run(&config, shutdown).await.map_err(CliError::runtime) })?;
+    print_json(&summary)
+}
+
+pub fn replay(args: ReplayArgs) -> CliResult {
+    if !(args.speed.is_finite() && args.speed >= 0.0) {
+        return Err(CliError::input(format!("--speed {} must be a non-negative number (0: unpaced)", args.speed)));
+    }
+    let wait_for_cloud = Duration::try_from_secs_f64(args.wait_for_cloud_s)
+        .map_err(|_| CliError::input(format!("--wait-for-cloud-s {} must be non-negative", args.wait_for_cloud_s)))?;
+    let bytes = std::fs::read(&args.recording)
+        .map_err(|e| CliError::input(format!("cannot read {}: {e}", args.recording.display())))?;
+    let config = ReplayConfig { transport: transport_config(args.zenoh)?, speed: args.speed, wait_for_cloud };
+    let summary = with_signals(|shutdown| async move {
+        replay::run(&bytes, &config, shutdown).await.map_err(|e| match e {
+            EdgeError::Recording { .. } => CliError::input(format!("{}: {e}", args.recording.display())),
+            other => CliError::runtime(other),
+        })
+    })?;
     print_json(&summary)
 }
 

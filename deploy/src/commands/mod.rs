@@ -26,6 +26,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Router(a) => router::router(a),
         Command::Edge(EdgeCommand::Vehicle(a)) => edge::vehicle(a),
         Command::Edge(EdgeCommand::Rsu(a)) => edge::rsu(a),
+        Command::Edge(EdgeCommand::Replay(a)) => edge::replay(a),
         Command::Cloud(a) => cloud::cloud(a),
     }
 }

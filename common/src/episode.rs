@@ -18,10 +18,10 @@ pub struct EpisodeResult {
     pub risk: RiskTerms,
 }
 
-/// Field inputs for the ego and everything around it, refreshed into `objects`.
-fn field_inputs(world: &mut World, jerk_mps3: f64, objects: &mut Vec<FieldObject>) -> EgoKinematics {
+/// Field inputs for the ego and everything around it (the world's current scene) into `objects`.
+fn field_inputs(world: &World, jerk_mps3: f64, objects: &mut Vec<FieldObject>) -> EgoKinematics {
     objects.clear();
-    objects.extend(world.scene_objects().iter().map(|o| FieldObject { obb: o.obb, velocity: o.velocity }));
+    objects.extend(world.scene().iter().map(|o| FieldObject { obb: o.obb, velocity: o.velocity }));
     EgoKinematics {
         pose: world.ego.pose(),
         velocity: world.ego.velocity(),
@@ -73,6 +73,7 @@ pub fn run_observed(
         offroad = report.contacts.offroad;
         observe(world, &report);
         let jerk = metrics.jerk_of(world.ego.state.accel_mps2, world.dt_s);
+        // `step` left the post-step scene in the world: no second rebuild.
         let ego = field_inputs(world, jerk, &mut objects);
         let ego_risk = field.evaluate_footprint(&world.road, &objects, &ego);
         let lane_pos = world.road.locate_heading(ego.pose.position(), ego.pose.heading_rad);
@@ -185,7 +186,8 @@ pub fn field_snapshot(
     let half_extent_m = 0.5 * resolution_m * cells as f64;
     let raster = RoadRaster::new(&world.road, &params, resolution_m, half_extent_m + 10.0)?;
     let mut objects = Vec::new();
-    let ego = field_inputs(&mut world, 0.0, &mut objects);
+    world.scene_objects(); // the snapshot may come before any step
+    let ego = field_inputs(&world, 0.0, &mut objects);
     let origin = raster.snap_origin(ego.pose.position() - Vec2::new(half_extent_m, half_extent_m));
     let mut grid = RiskGrid::new(origin, resolution_m, cells, cells)?;
     GridEvaluator::new(params).fill(&mut grid, &raster, &world.road, &objects, &ego);

@@ -131,6 +131,11 @@ impl World {
         &self.objects
     }
 
+    /// The scene as of the last [`World::step`] or [`World::scene_objects`] refresh.
+    pub fn scene(&self) -> &[SceneObject] {
+        &self.objects
+    }
+
     /// Progress along the route, m.
     pub fn progress_m(&self) -> f64 {
         self.road.lane(self.route.lane).project(self.ego.pose().position()).s_m - self.route.start_s_m

@@ -1,15 +1,10 @@
 //! Interoperability with the reference implementations of our formats: recordings must decode
 //! with the official Python `mcap` reader and `mcap-protobuf-support` decoder.
 
+mod episode;
 mod peer_python;
 
-use std::path::Path;
 use std::process::Command;
-
-fn risktwin(dir: &Path, args: &[&str]) {
-    let out = Command::new(env!("CARGO_BIN_EXE_risktwin")).args(args).current_dir(dir).output().expect("risktwin runs");
-    assert!(out.status.success(), "risktwin {args:?}: {}", String::from_utf8_lossy(&out.stderr));
-}
 
 const DECODE_ALL: &str = r#"
 import json, struct, sys
@@ -33,17 +28,9 @@ print(json.dumps({"counts": counts, "grids_consistent": all(grid_bytes)}))
 #[test]
 fn python_mcap_reader_decodes_every_message_of_a_recording() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let spec = dir.path().join("spec.json");
-    std::fs::write(
-        &spec,
-        r#"{"kind": "emergency-braking", "seed": 3, "params": {"ego_speed_mps": 20, "initial_headway_m": 30,
-            "braking_decel_mps2": 5, "brake_time_s": 1, "friction_mu": 0.9}}"#,
-    )
-    .expect("write spec");
-    risktwin(dir.path(), &["simulate", "--spec", "spec.json", "--record", "ep.mcap", "--format", "json"]);
+    let recording = episode::record(dir.path(), 3, "ep.mcap");
     let python = peer_python::python(&["mcap==1.6.0", "mcap-protobuf-support==0.6.0"]);
-    let out =
-        Command::new(python).arg("-c").arg(DECODE_ALL).arg(dir.path().join("ep.mcap")).output().expect("python runs");
+    let out = Command::new(python).arg("-c").arg(DECODE_ALL).arg(&recording).output().expect("python runs");
     assert!(out.status.success(), "python reader failed: {}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON line");
     let counts = report["counts"].as_object().expect("counts");

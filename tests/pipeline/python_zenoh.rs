@@ -6,6 +6,8 @@ use crate::support::{Proc, start_router};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
+#[path = "../interop/episode.rs"]
+mod episode;
 #[path = "../interop/peer_python.rs"]
 mod peer_python;
 
@@ -13,23 +15,7 @@ mod peer_python;
 fn a_python_zenoh_subscriber_decodes_our_stream() {
     let dir = tempfile::tempdir().expect("temp dir");
     // Any recording carries the schemas; a short episode makes one.
-    let spec = dir.path().join("spec.json");
-    std::fs::write(
-        &spec,
-        r#"{"kind": "emergency-braking", "seed": 1, "params": {"ego_speed_mps": 20, "initial_headway_m": 30,
-            "braking_decel_mps2": 5, "brake_time_s": 1, "friction_mu": 0.9}}"#,
-    )
-    .expect("write spec");
-    let schemas = dir.path().join("schemas.mcap");
-    let status = Command::new(env!("CARGO_BIN_EXE_risktwin"))
-        .args(["simulate", "--format", "json", "--spec"])
-        .arg(&spec)
-        .arg("--record")
-        .arg(&schemas)
-        .stdout(Stdio::null())
-        .status()
-        .expect("risktwin runs");
-    assert!(status.success());
+    let schemas = episode::record(dir.path(), 1, "schemas.mcap");
 
     let python = peer_python::python(&["eclipse-zenoh==1.10.2", "mcap==1.6.0", "mcap-protobuf-support==0.6.0"]);
     let (router, locator) = start_router();

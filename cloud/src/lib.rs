@@ -4,4 +4,6 @@ pub mod episode_recording;
 pub mod generate;
 pub mod ingest;
 pub mod library;
+#[cfg(test)]
+mod test_fixtures;
 pub mod transport;

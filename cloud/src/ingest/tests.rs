@@ -1,32 +1,11 @@
 //! The worker against planted bad input, and replay of its own recording.
 
 use super::*;
+use crate::test_fixtures::state;
 use risktwin_common::align::IngestConfig;
-use risktwin_common::geometry::{Footprint, Pose, Vec2};
-use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
 use risktwin_protos::encode;
 use risktwin_protos::recording::{Recorder, read_messages};
 use std::io::Cursor;
-
-fn state(source: &str, seq: u64, t_ns: i64) -> VehicleStateSample {
-    let x = 20.0 * t_ns as f64 * 1e-9;
-    VehicleStateSample {
-        header: Header {
-            source: source.into(),
-            seq,
-            capture_time_ns: t_ns,
-            publish_time_ns: t_ns,
-            frame: Frame::World,
-        },
-        pose: Pose::new(x, 0.0, 0.0),
-        velocity: Vec2::new(20.0, 0.0),
-        speed_mps: 20.0,
-        accel_mps2: 0.0,
-        yaw_rate_radps: 0.0,
-        steer_rad: 0.0,
-        footprint: Footprint::new(4.5, 1.8),
-    }
-}
 
 type Message = (String, Stream, String, Vec<u8>, i64);
 

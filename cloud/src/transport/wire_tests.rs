@@ -2,8 +2,7 @@
 //! cloud recording to MCAP, and a raw session that sends real encodings mixed with bad input.
 
 use super::{CloudConfig, run};
-use risktwin_common::geometry::{Footprint, Pose, Vec2};
-use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
+use risktwin_common::telemetry::VehicleStateSample;
 use risktwin_protos::encode;
 use risktwin_protos::recording::read_messages;
 use risktwin_transport::router::{RouterConfig, run as run_router};
@@ -16,24 +15,9 @@ use tokio::time::timeout;
 
 const STEP: Duration = Duration::from_secs(30);
 
+/// The `seq`-th state of a 50 Hz stream starting at `epoch_ns`.
 fn state(source: &str, seq: u64, epoch_ns: i64) -> VehicleStateSample {
-    let t_ns = epoch_ns + seq as i64 * 20_000_000;
-    VehicleStateSample {
-        header: Header {
-            source: source.into(),
-            seq,
-            capture_time_ns: t_ns,
-            publish_time_ns: t_ns,
-            frame: Frame::World,
-        },
-        pose: Pose::new(seq as f64 * 0.4, 0.0, 0.0),
-        velocity: Vec2::new(20.0, 0.0),
-        speed_mps: 20.0,
-        accel_mps2: 0.0,
-        yaw_rate_radps: 0.0,
-        steer_rad: 0.0,
-        footprint: Footprint::new(4.5, 1.8),
-    }
+    crate::test_fixtures::state(source, seq, epoch_ns + seq as i64 * 20_000_000)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

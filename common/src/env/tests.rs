@@ -146,3 +146,30 @@ fn variants_parse_and_base_has_no_risk_weight() {
     assert_eq!(Variant::Base.weights().risk, 0.0);
     assert!(Variant::Full.weights().risk > 0.0);
 }
+
+/// Throughput of the environment alone: `cargo test --release -p risktwin-common env_throughput -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn env_throughput() {
+    let n = 64;
+    let mut env = VecEnv::new(n, ScenarioSource::all_kinds(1), Variant::Full.weights()).expect("source");
+    let mut actions = vec![0.0f32; n * ACT_DIM];
+    let mut rng = crate::rng::Rng::new(5);
+    let steps = 400;
+    let t0 = std::time::Instant::now();
+    for _ in 0..steps {
+        for (a, o) in actions.chunks_mut(ACT_DIM).zip(env.obs().chunks(OBS_DIM)) {
+            let mut k = keep_lane(o.try_into().expect("row"));
+            k[0] += 0.3 * rng.normal() as f32;
+            a.copy_from_slice(&k);
+        }
+        env.step(&actions).expect("step");
+    }
+    let dt = t0.elapsed().as_secs_f64();
+    println!(
+        "{} env steps in {dt:.3} s: {:.0} steps/s ({} threads)",
+        n * steps,
+        (n * steps) as f64 / dt,
+        rayon::current_num_threads()
+    );
+}

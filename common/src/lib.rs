@@ -13,9 +13,11 @@
 //! - [`risk`]: the driving risk field, criticality measures and the scenario risk score.
 //! - [`scenario`]: the five kinds, sampling, feasibility, building a world.
 //! - [`world`], [`driver`], [`episode`], [`metrics`]: one episode, its reference driver, its metrics.
+//! - [`env`]: the driving environment for reinforcement learning (observation, action, reward, VecEnv).
 
 pub mod align;
 pub mod driver;
+pub mod env;
 pub mod episode;
 pub mod geometry;
 pub mod metrics;

@@ -20,6 +20,8 @@ pub enum Command {
     Scenarios(ScenariosCommand),
     /// Simulate one episode with the reference driver.
     Simulate(SimulateArgs),
+    /// Train a driving policy (PPO, recurrent PPO or SAC) on the twin.
+    Train(TrainArgs),
     /// Evaluate the driving risk field around the ego.
     RiskField(RiskFieldArgs),
     /// Throughput benchmarks.
@@ -102,6 +104,29 @@ pub struct ScenarioSource {
     /// A JSON spec file: {"kind", "seed", "params"}.
     #[arg(long)]
     pub spec: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// `ppo`, `ppo-gru` (recurrent baseline) or `sac`.
+    #[arg(long, default_value = "ppo")]
+    pub algo: String,
+    /// `base`, `risk-only` or `full`.
+    #[arg(long, default_value = "full")]
+    pub variant: String,
+    /// Environment steps to train for.
+    #[arg(long, default_value_t = 200_000)]
+    pub steps: u64,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Folder for the policy (policy.safetensors) and curves (curves.csv).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Benign scenarios whose success is measured during training (0: none).
+    #[arg(long, default_value_t = 0)]
+    pub benign: usize,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
 }
 
 #[derive(Debug, Args)]

@@ -11,3 +11,4 @@ mod contract_scenarios;
 mod determinism;
 mod same_scenario;
 mod support;
+mod train;

@@ -9,6 +9,7 @@ mod run;
 mod scenarios;
 mod simulate;
 mod source;
+mod train;
 
 use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ScenariosCommand};
 use crate::error::CliResult;
@@ -19,6 +20,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Scenarios(ScenariosCommand::Generate(a)) => scenarios::generate(a),
         Command::Scenarios(ScenariosCommand::Rank(a)) => scenarios::rank(a),
         Command::Simulate(a) => simulate::simulate(a),
+        Command::Train(a) => train::train(a),
         Command::RiskField(a) => risk_field::risk_field(a),
         Command::Bench(BenchCommand::Sim(a)) => bench::sim(a),
         Command::Bench(BenchCommand::RiskField(a)) => bench::risk_field(a),

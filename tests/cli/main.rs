@@ -6,6 +6,7 @@ mod bad_run;
 mod bad_spec;
 mod bad_usage;
 mod contract_bench;
+mod criticality;
 mod contract_episode;
 mod contract_scenarios;
 mod determinism;

@@ -2,6 +2,7 @@
 
 mod bench;
 mod cloud;
+mod criticality;
 mod edge;
 mod risk_field;
 mod router;
@@ -20,6 +21,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Scenarios(ScenariosCommand::Rank(a)) => scenarios::rank(a),
         Command::Simulate(a) => simulate::simulate(a),
         Command::RiskField(a) => risk_field::risk_field(a),
+        Command::Criticality(a) => criticality::criticality(a),
         Command::Bench(BenchCommand::Sim(a)) => bench::sim(a),
         Command::Bench(BenchCommand::RiskField(a)) => bench::risk_field(a),
         Command::Bench(BenchCommand::Zenoh(a)) => cloud::bench_zenoh(a),

@@ -86,8 +86,8 @@ fn csv_header_cells_and_determinism() {
     assert_eq!(first, ok_stdout(dir.path(), &args), "same file, same bytes");
     let (header, rows) = parse_csv(&first);
     assert_eq!(header, "time_step,other_id,hw,thw,ttc,a_long_req");
-    // The default ego is the planning problem's id (3); the one other (4) shares its 1 + 150 steps.
-    assert_eq!(rows.len(), 151);
+    // The default ego is the planning problem's id (3); the one other (4) shares 100 of its steps.
+    assert_eq!(rows.len(), 100);
     assert!(rows.keys().all(|&(_, other)| other == 4));
     assert!(first.contains(",inf,"), "infinities are spelled 'inf'");
 }
@@ -105,7 +105,7 @@ fn json_carries_pet_and_minimum_distance() {
     assert!(min_d >= 0.0 && min_d < 20.0, "{min_d}");
     assert!(pair.get("pet_s").is_some(), "PET present (null when infinite)");
     let cells = doc["cells"].as_array().expect("cells");
-    assert_eq!(cells.len(), 151);
+    assert_eq!(cells.len(), 100);
     // Non-finite values are null in JSON.
     assert!(cells.iter().any(|c| c["ttc_s"].is_null()));
 }

@@ -27,12 +27,12 @@ import subprocess
 import sys
 
 MEASURES = [("hw", 0.5), ("thw", 0.1), ("ttc", 0.1), ("a_long_req", 0.1)]
-OURS_KEY = {"hw": "hw_m", "thw": "thw_s", "ttc": "ttc_s", "a_long_req": "a_long_req_mps2"}
+OURS_KEY = {"hw": "hw", "thw": "thw", "ttc": "ttc", "a_long_req": "a_long_req"}
 PLUS_X_RAD = 0.1
 
 
 def num(x):
-    return math.nan if x is None else float(x)
+    return math.nan if x is None else float(x)  # float() reads "inf" and "nan" too
 
 
 def agree(ours, ref, tol):
@@ -60,6 +60,8 @@ def main():
     summary = []
     for name in sorted(f[:-4] for f in os.listdir(ref_dir) if f.endswith(".csv")):
         ego = ego_id(os.path.join(sce_dir, name + ".yaml"))
+        if ego is None:
+            continue
         xml = os.path.join(sce_dir, name + ".xml")
         run = subprocess.run(
             [binary, "criticality", "--commonroad", xml, "--ego", str(ego), "--format", "json"],
@@ -71,7 +73,12 @@ def main():
         doc = json.loads(run.stdout)
         heading = num(doc["ego_lane_heading_rad"])
         plus_x = not math.isnan(heading) and abs(math.atan2(math.sin(heading), math.cos(heading))) <= PLUS_X_RAD
-        ours = {(c["time_step"], c["other_id"]): c for c in doc["cells"]}
+        # JSON writes inf and NaN alike as null: the values come from the CSV.
+        run = subprocess.run(
+            [binary, "criticality", "--commonroad", xml, "--ego", str(ego), "--format", "csv"],
+            capture_output=True, text=True, check=True,
+        )
+        ours = {(int(r["time_step"]), int(r["other_id"])): r for r in csv.DictReader(run.stdout.splitlines())}
         with open(os.path.join(ref_dir, name + ".csv")) as f:
             ref = {(int(r["time_step"]), int(r["other_id"])): r for r in csv.DictReader(f)}
         keys = sorted(set(ours) | set(ref))

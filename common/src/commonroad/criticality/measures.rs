@@ -5,7 +5,10 @@
 use super::path::ReferencePath;
 use super::tracks::Track;
 use crate::commonroad::model::{DynamicObstacle, Scenario};
-use crate::risk::{LaneState, pair_measures};
+use crate::risk::{LaneState, pair_measures, ttc_jansson_s};
+
+/// CriMe's constant-velocity band for TTC, m/s² (see [`ttc_jansson_s`]).
+const TTC_CV_BAND_MPS2: f64 = 0.1;
 use serde::Serialize;
 
 /// The measures of one (time step, other) cell. Non-finite values are meaningful (inf: no
@@ -126,7 +129,12 @@ fn cell(ego: &Track, i: usize, o: &Track, j: usize, dt: f64) -> CellMeasures {
     } else {
         let m = pair_measures(&ego_ls, &other_ls);
         c.hw_m = m.hw_m;
-        c.ttc_s = m.ttc_s;
+        c.ttc_s = if m.hw_m.is_finite() {
+            let (dv, da) = (other_ls.speed_mps - ego_ls.speed_mps, other_ls.accel_mps2 - ego_ls.accel_mps2);
+            ttc_jansson_s(m.hw_m, dv, da, TTC_CV_BAND_MPS2)
+        } else {
+            m.ttc_s
+        };
         c.a_long_req_mps2 = m.a_long_req_mps2;
     }
     if !ego.in_lanelet[i] {

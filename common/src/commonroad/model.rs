@@ -68,10 +68,17 @@ pub struct ObstacleState {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Shape {
     /// `length_m` along the orientation.
-    Rectangle { length_m: f64, width_m: f64 },
-    Circle { radius_m: f64 },
+    Rectangle {
+        length_m: f64,
+        width_m: f64,
+    },
+    Circle {
+        radius_m: f64,
+    },
     /// Vertices in the obstacle's frame (for static obstacles, usually the world frame).
-    Polygon { vertices: Vec<Vec2> },
+    Polygon {
+        vertices: Vec<Vec2>,
+    },
 }
 
 impl Shape {

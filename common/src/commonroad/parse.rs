@@ -177,8 +177,7 @@ fn dynamic_obstacle(el: &El) -> Result<DynamicObstacle, CommonRoadError> {
     let initial_state = state(&el.req("initialState")?)?;
     let mut trajectory = Vec::new();
     if let Some(tr) = el.opt("trajectory") {
-        let mut expected = initial_state.time_step + 1;
-        for s in tr.children("state") {
+        for (expected, s) in (initial_state.time_step + 1..).zip(tr.children("state")) {
             let st = state(&s)?;
             if st.time_step != expected {
                 return Err(s.invalid(format!(
@@ -186,7 +185,6 @@ fn dynamic_obstacle(el: &El) -> Result<DynamicObstacle, CommonRoadError> {
                     st.time_step
                 )));
             }
-            expected += 1;
             trajectory.push(st);
         }
     }
@@ -256,7 +254,9 @@ mod tests {
     }
 
     fn doc(body: &str) -> String {
-        format!(r#"<?xml version="1.0"?><commonRoad timeStepSize="0.1" commonRoadVersion="2020a" benchmarkID="T-1">{body}</commonRoad>"#)
+        format!(
+            r#"<?xml version="1.0"?><commonRoad timeStepSize="0.1" commonRoadVersion="2020a" benchmarkID="T-1">{body}</commonRoad>"#
+        )
     }
 
     fn car(id: u64, states: &[(i64, f64)]) -> String {
@@ -269,7 +269,8 @@ mod tests {
 
     #[test]
     fn reads_lanelets_obstacles_and_planning_problem() {
-        let pp = format!(r#"<planningProblem id="7">{}<goalState/></planningProblem>"#, state("initialState", 0, 5.0, 9.0));
+        let pp =
+            format!(r#"<planningProblem id="7">{}<goalState/></planningProblem>"#, state("initialState", 0, 5.0, 9.0));
         let text = doc(&format!(
             "<scenarioTags><interstate/></scenarioTags>{LANELET}{}{}{pp}",
             car(7, &[(0, 5.0), (1, 6.0), (2, 7.0)]),

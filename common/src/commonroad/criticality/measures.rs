@@ -188,7 +188,12 @@ fn pair_summary(ego: &Track, o: &Track, dt: f64) -> PairSummary {
             }
         }
     }
-    PairSummary { other_id: o.id, pet_s: pet_steps(ego, o).map_or(f64::INFINITY, |k| k as f64 * dt), min_distance_m, min_distance_time_step }
+    PairSummary {
+        other_id: o.id,
+        pet_s: pet_steps(ego, o).map_or(f64::INFINITY, |k| k as f64 * dt),
+        min_distance_m,
+        min_distance_time_step,
+    }
 }
 
 /// The smallest |t_ego − t_other| (in steps) over states whose outlines overlap.

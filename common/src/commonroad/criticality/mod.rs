@@ -23,8 +23,8 @@
 //!   common point; 0 for a collision, inf when the swept paths never meet).
 //! - Accelerations are d/dt of the recorded speed (numpy.gradient, CriMe §1), not the XML field.
 
-pub mod path;
 mod measures;
+pub mod path;
 pub mod tracks;
 
 use crate::commonroad::model::Scenario;
@@ -58,9 +58,11 @@ pub fn ego_initial_lanelet(scenario: &Scenario, ego_id: u64) -> Option<u64> {
     };
     let containing: Vec<u64> = scenario.lanelets.containing(p).map(|i| scenario.lanelets.lanelets[i].id).collect();
     let pick = |ids: &mut dyn Iterator<Item = u64>, by_heading: bool| {
-        ids.filter_map(|id| scenario.lanelets.get(id).and_then(score).map(|(d, a)| (id, if by_heading { a } else { d })))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(id, _)| id)
+        ids.filter_map(|id| {
+            scenario.lanelets.get(id).and_then(score).map(|(d, a)| (id, if by_heading { a } else { d }))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(id, _)| id)
     };
     if containing.is_empty() {
         pick(&mut scenario.lanelets.lanelets.iter().map(|l| l.id), false)

@@ -23,10 +23,11 @@ impl Body {
             Shape::Rectangle { length_m, width_m } => Body::Box(Obb::new(pose, Footprint::new(*length_m, *width_m))),
             Shape::Circle { radius_m } => Body::Disc { centre: position, radius_m: *radius_m },
             Shape::Polygon { vertices } => {
-                let (lo, hi) = vertices.iter().fold(
-                    (Vec2::repeat(f64::INFINITY), Vec2::repeat(f64::NEG_INFINITY)),
-                    |(lo, hi), v| (lo.inf(v), hi.sup(v)),
-                );
+                let (lo, hi) = vertices
+                    .iter()
+                    .fold((Vec2::repeat(f64::INFINITY), Vec2::repeat(f64::NEG_INFINITY)), |(lo, hi), v| {
+                        (lo.inf(v), hi.sup(v))
+                    });
                 let mut obb = Obb::new(pose, Footprint::new(hi.x - lo.x, hi.y - lo.y));
                 let mid = 0.5 * (lo + hi);
                 obb.centre += obb.axis * mid.x + Vec2::new(-obb.axis.y, obb.axis.x) * mid.y;
@@ -109,6 +110,11 @@ impl Track {
     /// Number of steps with a state.
     pub fn len(&self) -> usize {
         self.s_m.len()
+    }
+
+    /// True when the track has no state.
+    pub fn is_empty(&self) -> bool {
+        self.s_m.is_empty()
     }
 
     /// Index of `time_step` in the arrays, if the vehicle has a state then.

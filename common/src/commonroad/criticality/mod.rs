@@ -89,3 +89,85 @@ pub fn scenario_criticality(scenario: &Scenario, ego_id: Option<u64>) -> Result<
         .ok_or_else(|| no_path(&format!("lanelet {lanelet} has a degenerate centreline")))?;
     Ok(measures::compute(scenario, ego, lanelet, &path))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::commonroad::parse_scenario;
+
+    /// A 200 m lanelet along +x; ego (id 1) at x = 10 m, 20 m/s; other (id 2) at x = 40 m,
+    /// 10 m/s; both 4 m long, 21 steps of 0.1 s.
+    fn two_cars() -> Scenario {
+        let car = |id: u64, x0: f64, v: f64| {
+            let st = |tag: &str, k: i64| {
+                format!(
+                    "<{tag}><position><point><x>{}</x><y>1.5</y></point></position><orientation><exact>0</exact></orientation>\
+                     <time><exact>{k}</exact></time><velocity><exact>{v}</exact></velocity></{tag}>",
+                    x0 + v * 0.1 * k as f64
+                )
+            };
+            let traj: String = (1..=20).map(|k| st("state", k)).collect();
+            format!(
+                r#"<dynamicObstacle id="{id}"><type>car</type><shape><rectangle><length>4</length><width>2</width></rectangle></shape>{}<trajectory>{traj}</trajectory></dynamicObstacle>"#,
+                st("initialState", 0)
+            )
+        };
+        let lanelet = r#"<lanelet id="1"><leftBound><point><x>0</x><y>3</y></point><point><x>200</x><y>3</y></point></leftBound>
+            <rightBound><point><x>0</x><y>0</y></point><point><x>200</x><y>0</y></point></rightBound></lanelet>"#;
+        let text = format!(
+            r#"<commonRoad timeStepSize="0.1">{lanelet}{}{}</commonRoad>"#,
+            car(1, 10.0, 20.0),
+            car(2, 40.0, 10.0)
+        );
+        parse_scenario(&text).unwrap()
+    }
+
+    #[test]
+    fn measures_of_a_closing_pair() {
+        let m = scenario_criticality(&two_cars(), Some(1)).unwrap();
+        assert_eq!((m.ego_lanelet_id, m.cells.len()), (1, 21));
+        let c = m.cells[0];
+        // Bumper gap 40 − 2 − (10 + 2) = 26 m, closing at 10 m/s.
+        assert!((c.hw_m - 26.0).abs() < 1e-9 && (c.ttc_s - 2.6).abs() < 1e-9, "{c:?}");
+        // The ego's front (12 + 2k m) first passes the other's rear at 38 m after k = 14 steps.
+        assert!((c.thw_s - 1.4).abs() < 1e-9, "{c:?}");
+        assert!((c.a_long_req_mps2 + 100.0 / 52.0).abs() < 1e-9 && (c.distance_m - 26.0).abs() < 1e-9);
+        // After 2.0 s the gap is 6 m; the ego's recorded future ends before it passes: THW inf.
+        let last = m.cells[20];
+        assert!((last.hw_m - 6.0).abs() < 1e-9 && last.thw_s == f64::INFINITY);
+        // Never overlapping at the same time, but the swept outlines meet: the ego's front at
+        // step 20 (52 m) reaches where the other's rear was at step 13 (51 m) or, touching, 14
+        // (52 m): PET 0.7 s (0.6 s if the touch survives rounding). Minimum distance 6 m at the end.
+        let p = m.pairs[0];
+        assert!((p.pet_s - 0.7).abs() < 1e-9 || (p.pet_s - 0.6).abs() < 1e-9, "{p:?}");
+        assert_eq!(p.min_distance_time_step, Some(20));
+        // Seen from the other, the ego is behind: no headway.
+        let back = scenario_criticality(&two_cars(), Some(2)).unwrap();
+        assert_eq!(back.cells[0].hw_m, f64::INFINITY);
+        assert!(scenario_criticality(&two_cars(), Some(9)).unwrap_err().to_string().contains("ego id 9"));
+    }
+}
+
+/// Whole-scenario cost in-process (parse + all pairs, all steps), without the process start-up
+/// `deploy/bench/criticality-vs-crime.sh` includes. Run with
+/// `cargo test --release -p risktwin-common -- --ignored --nocapture criticality_timing`.
+#[cfg(test)]
+mod timing {
+    #[test]
+    #[ignore = "benchmark: prints timings"]
+    fn criticality_timing() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/crime");
+        for (name, ego) in [("OSC_CutIn-1_2_T-1", 3), ("BEL_Putte-8_2_T-1", 33), ("HRV_Pula-27_3_T-1", 34)] {
+            let text = std::fs::read_to_string(dir.join(format!("{name}.xml"))).expect("fixture");
+            let runs = 20;
+            let t0 = std::time::Instant::now();
+            let mut cells = 0;
+            for _ in 0..runs {
+                let s = crate::commonroad::parse_scenario(&text).expect("parses");
+                cells = super::scenario_criticality(&s, Some(ego)).expect("computes").cells.len();
+            }
+            let per_run = t0.elapsed().as_secs_f64() / runs as f64;
+            println!("{name}: parse + criticality {:.2} ms per scenario ({cells} cells)", per_run * 1e3);
+        }
+    }
+}

@@ -24,6 +24,8 @@ pub enum Command {
     Train(TrainArgs),
     /// Evaluate the driving risk field around the ego.
     RiskField(RiskFieldArgs),
+    /// Criticality measures (HW, THW, TTC, a_long,req; PET) of a CommonRoad scenario's ego.
+    Criticality(CriticalityArgs),
     /// Throughput benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -162,6 +164,18 @@ pub struct RiskFieldArgs {
     /// Write a heatmap PNG here.
     #[arg(long)]
     pub png: Option<PathBuf>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
+pub struct CriticalityArgs {
+    /// A CommonRoad XML scenario (2020a).
+    #[arg(long)]
+    pub commonroad: PathBuf,
+    /// The ego's dynamic-obstacle id (default: the planning problem's id, else the first obstacle).
+    #[arg(long)]
+    pub ego: Option<u64>,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

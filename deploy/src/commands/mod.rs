@@ -2,6 +2,7 @@
 
 mod bench;
 mod cloud;
+mod criticality;
 mod edge;
 mod risk_field;
 mod router;
@@ -22,6 +23,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Simulate(a) => simulate::simulate(a),
         Command::Train(a) => train::train(a),
         Command::RiskField(a) => risk_field::risk_field(a),
+        Command::Criticality(a) => criticality::criticality(a),
         Command::Bench(BenchCommand::Sim(a)) => bench::sim(a),
         Command::Bench(BenchCommand::RiskField(a)) => bench::risk_field(a),
         Command::Bench(BenchCommand::Zenoh(a)) => cloud::bench_zenoh(a),

@@ -188,6 +188,10 @@ pub enum BenchCommand {
     RiskField(BenchRiskFieldArgs),
     /// Edge→cloud Zenoh throughput, ours against a raw publisher→subscriber pair.
     Zenoh(BenchZenohArgs),
+    /// Unpaced MCAP replay into ingest, in-process, against the raw `mcap` reader.
+    Replay(crate::commands::bench_replay::BenchReplayArgs),
+    /// A paced fleet (2,000 vehicles at 50 Hz) into the cloud ingest over Zenoh: loss and CPU.
+    Ingest(crate::commands::bench_ingest::BenchIngestArgs),
 }
 
 #[derive(Debug, Args)]
@@ -319,6 +323,10 @@ pub struct CloudArgs {
     /// Record every accepted message into this MCAP file (closed cleanly on SIGINT/SIGTERM).
     #[arg(long)]
     pub record: Option<std::path::PathBuf>,
+    /// Ingest `risktwin edge replay` output at the recorded receive times it attaches, instead
+    /// of this cloud's clock (messages without one are dropped as `no-replay-time`).
+    #[arg(long)]
+    pub replay_time: bool,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
 }

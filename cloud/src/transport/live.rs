@@ -59,11 +59,14 @@ pub(crate) struct LiveIngest {
     digest: SnapshotDigest,
     last_receive_ns: i64,
     last_sample: Option<Instant>,
+    replay_time: bool,
+    no_replay_time: u64,
 }
 
 impl LiveIngest {
     /// A worker recording into a new file at `record` when given.
-    pub(crate) fn new(record: Option<&Path>) -> Result<Self, RecordError> {
+    /// With `replay_time`, receive times come from the messages' replay-time attachments.
+    pub(crate) fn new(record: Option<&Path>, replay_time: bool) -> Result<Self, RecordError> {
         let recorder = match record {
             Some(path) => {
                 let file = File::create(path)
@@ -79,15 +82,26 @@ impl LiveIngest {
             digest: SnapshotDigest::default(),
             last_receive_ns: i64::MIN,
             last_sample: None,
+            replay_time,
+            no_replay_time: 0,
         })
     }
 
     /// Handles one sample received on `key`; the receive time is read here, once, from the
     /// system clock and never goes backwards (the aligner needs non-decreasing receive times).
-    pub(crate) fn handle(&mut self, key: &str, payload: &[u8]) -> Result<(), RecordingError> {
+    /// `replay_ns` is the message's replay-time attachment, used instead of the clock in
+    /// replay-time mode (and required there).
+    pub(crate) fn handle(&mut self, key: &str, payload: &[u8], replay_ns: Option<i64>) -> Result<(), RecordingError> {
         let now = Instant::now();
         self.last_sample = Some(now);
-        let wall_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+        let wall_ns = match (self.replay_time, replay_ns) {
+            (false, _) => SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64),
+            (true, Some(t)) => t,
+            (true, None) => {
+                self.no_replay_time += 1;
+                return Ok(());
+            }
+        };
         let receive_ns = wall_ns.max(self.last_receive_ns);
         self.last_receive_ns = receive_ns;
         let Some(parsed) = parse_edge_key(key) else {
@@ -126,7 +140,12 @@ impl LiveIngest {
         if let Some(mut w) = writer {
             w.flush().map_err(RecordError::Flush)?;
         }
-        Ok(summarize(&stats, &self.received, self.bad_key, &self.digest))
+        let mut summary = summarize(&stats, &self.received, self.bad_key, &self.digest);
+        if self.no_replay_time > 0 {
+            summary.dropped.insert("no-replay-time".to_owned(), self.no_replay_time);
+            summary.total_dropped += self.no_replay_time;
+        }
+        Ok(summary)
     }
 }
 

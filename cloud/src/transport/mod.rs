@@ -14,6 +14,7 @@ mod wire_tests;
 use live::LiveIngest;
 pub use live::{IngestSummary, RecordError};
 use liveliness::LivenessLog;
+use risktwin_protos::recording::decode_replay_time;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Shutdown, SiteId, TransportConfig, TransportError, close, connect};
 use serde::Serialize;
@@ -81,6 +82,11 @@ pub struct CloudConfig {
     pub drain_max: Duration,
     /// Record every accepted message into this MCAP file (closed properly on shutdown).
     pub record: Option<PathBuf>,
+    /// Replay-ingest mode: take each message's receive time from its replay-time attachment
+    /// (put there by `risktwin edge replay`) instead of the cloud's clock, so that a replayed
+    /// recording rebuilds the live run's snapshots; a message without one is dropped as
+    /// `no-replay-time`. Off, attachments are ignored (a live edge cannot set the cloud's clock).
+    pub replay_time: bool,
 }
 
 impl CloudConfig {
@@ -93,6 +99,7 @@ impl CloudConfig {
             drain_quiet: Duration::from_millis(200),
             drain_max: Duration::from_secs(2),
             record: None,
+            replay_time: false,
         }
     }
 }
@@ -124,7 +131,7 @@ pub async fn run(
         opened = connect(&config.transport) => opened?,
         _ = shutdown.wait() => return Ok(CloudSummary { ingest: IngestSummary::default(), liveliness: Default::default() }),
     };
-    let ingest = Arc::new(Mutex::new(LiveIngest::new(config.record.as_deref())?));
+    let ingest = Arc::new(Mutex::new(LiveIngest::new(config.record.as_deref(), config.replay_time)?));
     let subscriber =
         risktwin_transport::subscribe_edge_streams(&session, config.site.as_ref(), ingest_sink(Arc::clone(&ingest)))
             .await?;
@@ -158,10 +165,11 @@ fn ingest_sink(
     move |_, sample| {
         // Contiguous payloads (the common case) are borrowed, not copied.
         let payload = sample.payload().to_bytes();
+        let replay_ns = sample.attachment().and_then(|a| decode_replay_time(&a.to_bytes()));
         let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
         // Drops are counted inside; only a failing recording comes back, and the receive path
         // cannot stop for it: say so and go on counting.
-        if let Err(e) = ingest.handle(sample.key_expr().as_str(), &payload) {
+        if let Err(e) = ingest.handle(sample.key_expr().as_str(), &payload, replay_ns) {
             eprintln!("cloud: {e}");
         }
     }

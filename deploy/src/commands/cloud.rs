@@ -18,6 +18,7 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     config.roles = roles;
     config.site = args.site.map(SiteId::new).transpose().map_err(CliError::input)?;
     config.record = args.record;
+    config.replay_time = args.replay_time;
     let summary = with_signals(|shutdown| async move {
         run(&config, shutdown, || eprintln!("ready")).await.map_err(|e| match e {
             risktwin_cloud::transport::CloudError::Transport(t) => CliError::runtime(t),

@@ -1,6 +1,8 @@
 //! One module per subcommand; each turns parsed arguments into library calls and output.
 
 mod bench;
+pub(crate) mod bench_ingest;
+pub(crate) mod bench_replay;
 mod cloud;
 mod criticality;
 mod edge;
@@ -27,6 +29,8 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Bench(BenchCommand::Sim(a)) => bench::sim(a),
         Command::Bench(BenchCommand::RiskField(a)) => bench::risk_field(a),
         Command::Bench(BenchCommand::Zenoh(a)) => cloud::bench_zenoh(a),
+        Command::Bench(BenchCommand::Replay(a)) => bench_replay::replay(a),
+        Command::Bench(BenchCommand::Ingest(a)) => bench_ingest::ingest(a),
         Command::Router(a) => router::router(a),
         Command::Edge(EdgeCommand::Vehicle(a)) => edge::vehicle(a),
         Command::Edge(EdgeCommand::Rsu(a)) => edge::rsu(a),

@@ -30,8 +30,11 @@ pub enum Command {
     /// Edge roles: a simulated vehicle or roadside unit publishing to the cloud.
     #[command(subcommand)]
     Edge(EdgeCommand),
-    /// Cloud roles: ingest of the edge streams (twin, risk, library, trainer to come).
+    /// Cloud roles: ingest of the edge streams, the live twin, risk on it, the library queryable.
     Cloud(CloudArgs),
+    /// Cloud→edge pushes: a scenario to run or a policy update, to one edge vehicle.
+    #[command(subcommand)]
+    Push(crate::commands::push::PushCommand),
 }
 
 #[derive(Debug, Args)]
@@ -149,6 +152,8 @@ pub enum BenchCommand {
     RiskField(BenchRiskFieldArgs),
     /// Edge→cloud Zenoh throughput, ours against a raw publisher→subscriber pair.
     Zenoh(BenchZenohArgs),
+    /// Edge publish → twin snapshot latency, ours against a raw Zenoh one-way hop.
+    Latency(crate::commands::cloud::BenchLatencyArgs),
 }
 
 #[derive(Debug, Args)]
@@ -271,15 +276,22 @@ pub struct EdgeArgs {
 
 #[derive(Debug, Args)]
 pub struct CloudArgs {
-    /// Comma-separated roles: ingest (twin, risk, library, trainer to come).
+    /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db).
     #[arg(long, default_value = "ingest", value_delimiter = ',')]
     pub roles: Vec<String>,
     /// Serve one site only (default: every site).
     #[arg(long)]
     pub site: Option<String>,
-    /// Record every accepted message into this MCAP file (closed cleanly on SIGINT/SIGTERM).
+    /// Record every accepted message (and the twin's scene and risk outputs) into this MCAP
+    /// file (closed cleanly on SIGINT/SIGTERM).
     #[arg(long)]
     pub record: Option<std::path::PathBuf>,
+    /// The scenario library the library role serves.
+    #[arg(long)]
+    pub db: Option<PathBuf>,
+    /// The risk role evaluates on the road of this scenario kind (the edges' `--kind`).
+    #[arg(long, default_value = "cut-in")]
+    pub road: String,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
 }

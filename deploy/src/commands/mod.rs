@@ -1,8 +1,9 @@
 //! One module per subcommand; each turns parsed arguments into library calls and output.
 
 mod bench;
-mod cloud;
+pub mod cloud;
 mod edge;
+pub mod push;
 mod risk_field;
 mod router;
 mod run;
@@ -28,5 +29,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Edge(EdgeCommand::Rsu(a)) => edge::rsu(a),
         Command::Edge(EdgeCommand::Replay(a)) => edge::replay(a),
         Command::Cloud(a) => cloud::cloud(a),
+        Command::Push(c) => push::push(c),
+        Command::Bench(BenchCommand::Latency(a)) => cloud::bench_latency(a),
     }
 }

@@ -3,8 +3,10 @@
 //! `common::telemetry`.
 //!
 //! A scenario pushed by the cloud is executed as one episode with `common::episode` (so its
-//! outcome is measured exactly as `risktwin simulate` measures it, stopping at the first
-//! collision), recorded step by step into a [`Tape`] that the vehicle then plays out on its
+//! outcome is measured as `risktwin simulate` measures it, stopping at the first collision —
+//! but at the edge's 20 ms step, which the vehicle's 50 Hz streams need, where the library's
+//! outcomes use the world's own step; discretisation makes the two differ slightly), recorded
+//! step by step into a [`Tape`] that the vehicle then plays out on its
 //! streams in real time; the outcome is reported when the tape has been played.
 
 use crate::EdgeError;
@@ -158,8 +160,11 @@ mod tests {
     fn a_tape_holds_every_step_of_the_episode_and_its_outcome() {
         let spec = feasible_spec(3, ScenarioKind::CutIn).expect("a feasible cut-in");
         let mut tape = Tape::record(&spec);
-        let expected = risktwin_common::episode::evaluate(&spec);
-        assert_eq!(tape.result, expected, "the same outcome as `simulate`");
+        // `simulate` measured at the edge's step (the library's outcomes use the world's own).
+        let (mut world, mut driver) = with_reference_driver(&spec);
+        world.dt_s = STEP_S;
+        let expected = risktwin_common::episode::run(&mut world, &mut driver, &RewardWeights::default());
+        assert_eq!(tape.result, expected, "the outcome `common::episode` measures");
         assert_eq!(tape.steps.len() as u64, expected.metrics.steps);
         let x0 = tape.steps[0].state.pose.x_m;
         let n = tape.steps.len();

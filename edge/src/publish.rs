@@ -133,7 +133,6 @@ async fn report_publisher(
         .map_err(|e| TransportError::Declare { what: "publisher", key, reason: e.to_string() })
 }
 
-
 /// Runs `producer` for `config` until the base stream has sent `count`, `duration` has passed
 /// or `shutdown` fires; then undeclares, closes the session and reports what was sent.
 pub async fn run_producer(
@@ -158,10 +157,11 @@ pub async fn run_producer(
     let mut push_subscribers = Vec::new();
     for push in producer.pushes().to_vec() {
         let key = cloud_to_edge(&config.site, &config.id, push);
-        let subscriber = session
-            .declare_subscriber(key.clone())
-            .await
-            .map_err(|e| TransportError::Declare { what: "subscriber", key, reason: e.to_string() })?;
+        let subscriber = session.declare_subscriber(key.clone()).await.map_err(|e| TransportError::Declare {
+            what: "subscriber",
+            key,
+            reason: e.to_string(),
+        })?;
         push_subscribers.push((push, subscriber));
     }
     let mut report_publishers: Vec<(EdgeReport, Publisher<'static>)> = Vec::new();
@@ -225,7 +225,8 @@ pub async fn run_producer(
             };
             let publisher = &report_publishers[index].1;
             if let Err(e) = publisher.put(payload).await {
-                result = Err(TransportError::Put { key: publisher.key_expr().to_string(), reason: e.to_string() }.into());
+                result =
+                    Err(TransportError::Put { key: publisher.key_expr().to_string(), reason: e.to_string() }.into());
                 break;
             }
         }

@@ -12,8 +12,8 @@
 use crate::EdgeError;
 use risktwin_common::driver::{Policy, ReferenceDriver};
 use risktwin_common::episode::{EpisodeResult, run_observed, with_reference_driver};
-use risktwin_common::metrics::RewardWeights;
 use risktwin_common::geometry::{Footprint, Pose};
+use risktwin_common::metrics::RewardWeights;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, check_feasible, sample};
 use risktwin_common::sensor::PerceivedObject;
 use risktwin_common::telemetry::{DetectedObject, VehicleStateSample};

@@ -51,8 +51,10 @@ fn twin_and_risk_publish_and_record_grid_report_and_scene() {
         Proc::spawn("cloud", &["cloud", "--roles", "ingest,twin,risk", "--record", path, "--connect", &locator]);
     cloud.wait_line(STEP, |l| l == "ready");
     // 3 s of a cut-in at 50 Hz: the risk role assesses at 2 Hz of twin time.
-    let mut vehicle =
-        Proc::spawn("veh", &["edge", "vehicle", "--id", "veh-t", "--site", "track", "--connect", &locator, "--count", "150"]);
+    let mut vehicle = Proc::spawn(
+        "veh",
+        &["edge", "vehicle", "--id", "veh-t", "--site", "track", "--connect", &locator, "--count", "150"],
+    );
 
     let (grid, report) = rt.block_on(async {
         let grid = tokio::time::timeout(STEP, grids.recv_async()).await.expect("a grid within a minute").expect("open");
@@ -101,7 +103,12 @@ fn twin_and_risk_publish_and_record_grid_report_and_scene() {
     let edge_messages = messages.iter().filter(|m| m.topic.starts_with("risktwin/v1/track/veh-t/")).count() as u64;
     assert_eq!(Some(edge_messages), summary["total_received"].as_u64(), "every accepted message recorded");
     // Publish stamps of the edge messages are the edge's, not the cloud's receive times.
-    assert!(messages.iter().filter(|m| m.topic.ends_with("/state")).all(|m| m.publish_time_ns <= m.log_time_ns + 1_000_000_000));
+    assert!(
+        messages
+            .iter()
+            .filter(|m| m.topic.ends_with("/state"))
+            .all(|m| m.publish_time_ns <= m.log_time_ns + 1_000_000_000)
+    );
 
     // The official Python reader decodes every message of the live recording.
     let python = peer_python::python(&["mcap==1.6.0", "mcap-protobuf-support==0.6.0"]);
@@ -142,7 +149,20 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
     // 10× real time, so that a 15 s episode plays in 1.5 s; no cloud, so no waiting for one.
     let mut vehicle = Proc::spawn(
         "veh",
-        &["edge", "vehicle", "--id", "veh-p", "--site", "track", "--connect", &locator, "--rate-hz", "500", "--wait-for-cloud-s", "0"],
+        &[
+            "edge",
+            "vehicle",
+            "--id",
+            "veh-p",
+            "--site",
+            "track",
+            "--connect",
+            &locator,
+            "--rate-hz",
+            "500",
+            "--wait-for-cloud-s",
+            "0",
+        ],
     );
     vehicle.wait_line(STEP, |l| l == "edge veh-p: publishing");
 
@@ -150,8 +170,7 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
     let rt = runtime();
     let test_session = rt.block_on(session(&locator));
     rt.block_on(async {
-        let publisher =
-            test_session.declare_publisher("risktwin/v1/track/veh-p/scenario").await.expect("a publisher");
+        let publisher = test_session.declare_publisher("risktwin/v1/track/veh-p/scenario").await.expect("a publisher");
         let deadline = Instant::now() + STEP;
         while !publisher.matching_status().await.expect("status").matching() {
             assert!(Instant::now() < deadline, "the vehicle never subscribed to its scenario key");
@@ -162,7 +181,18 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
     vehicle.wait_line(STEP, |l| l.starts_with("edge: refused scenario push: malformed"));
 
     let pushed = run_json(&[
-        "push", "scenario", "--db", &db, "--id", &id, "--to", "veh-p", "--site", "track", "--connect", &locator,
+        "push",
+        "scenario",
+        "--db",
+        &db,
+        "--id",
+        &id,
+        "--to",
+        "veh-p",
+        "--site",
+        "track",
+        "--connect",
+        &locator,
     ]);
     assert_eq!(pushed["spec_id"], id.as_str());
     assert_eq!(pushed["edge"], "veh-p");
@@ -186,8 +216,22 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
     let w = weights.to_str().expect("a UTF-8 path");
     for _ in 0..2 {
         let policy = [
-            "push", "policy", "--weights", w, "--policy-id", "ppo-1", "--version", "3", "--algo", "ppo", "--to", "veh-p",
-            "--site", "track", "--connect", &locator,
+            "push",
+            "policy",
+            "--weights",
+            w,
+            "--policy-id",
+            "ppo-1",
+            "--version",
+            "3",
+            "--algo",
+            "ppo",
+            "--to",
+            "veh-p",
+            "--site",
+            "track",
+            "--connect",
+            &locator,
         ];
         assert_eq!(run_json(&policy)["delivered"], true);
     }
@@ -201,7 +245,10 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
     assert_eq!(pushes["scenarios_accepted"], 1, "{summary}");
     assert_eq!(pushes["scenarios_refused"], serde_json::json!({"malformed": 1}));
     assert_eq!(pushes["results"][0]["spec_id"], id.as_str());
-    assert_eq!(pushes["policy"], serde_json::json!({"policy_id": "ppo-1", "version": 3, "algo": "ppo", "weights_bytes": 70}));
+    assert_eq!(
+        pushes["policy"],
+        serde_json::json!({"policy_id": "ppo-1", "version": 3, "algo": "ppo", "weights_bytes": 70})
+    );
     assert_eq!(pushes["policies_refused"], serde_json::json!({"stale_version": 1}));
     assert!(summary["sent"]["state"].as_u64().is_some_and(|n| n > 100), "the vehicle kept publishing: {summary}");
 }
@@ -242,7 +289,8 @@ fn the_library_queryable_answers_a_zenoh_get() {
     let bytes = replies[0].as_ref().expect("a ranking, not an error");
     let ranking = v1::LibraryRanking::decode(&**bytes).expect("a LibraryRanking");
     let ids: Vec<&str> = ranking.scenarios.iter().map(|s| s.id.as_str()).collect();
-    let expected: Vec<&str> = ranked.as_array().expect("a list").iter().take(2).filter_map(|r| r["id"].as_str()).collect();
+    let expected: Vec<&str> =
+        ranked.as_array().expect("a list").iter().take(2).filter_map(|r| r["id"].as_str()).collect();
     assert_eq!(ids, expected, "the CLI's ranking, top 2");
     assert_eq!(ranking.scenarios[0].rank, 1);
     let score = ranking.scenarios[0].risk.as_ref().map(|r| r.score);

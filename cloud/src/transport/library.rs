@@ -60,10 +60,9 @@ impl RankedQuery {
                 }
                 "kind" if value == "all" => query.kind = None,
                 "kind" => {
-                    let kind = value.parse::<ScenarioKind>().map_err(|e| LibraryQueryError::BadKind {
-                        value: value.to_owned(),
-                        reason: e.to_string(),
-                    })?;
+                    let kind = value
+                        .parse::<ScenarioKind>()
+                        .map_err(|e| LibraryQueryError::BadKind { value: value.to_owned(), reason: e.to_string() })?;
                     query.kind = Some(kind);
                 }
                 other => return Err(LibraryQueryError::UnknownParameter { name: other.to_owned() }),
@@ -119,10 +118,11 @@ pub(crate) async fn declare(
     site: Option<&SiteId>,
 ) -> Result<Queryable<FifoChannelHandler<Query>>, TransportError> {
     let key = risktwin_transport::keyexpr::library_queryable_all(site);
-    session
-        .declare_queryable(key.clone())
-        .await
-        .map_err(|e| TransportError::Declare { what: "queryable", key, reason: e.to_string() })
+    session.declare_queryable(key.clone()).await.map_err(|e| TransportError::Declare {
+        what: "queryable",
+        key,
+        reason: e.to_string(),
+    })
 }
 
 /// Answers the queries of `queryable` from `library` until `shutdown` fires.
@@ -156,10 +156,11 @@ pub(crate) async fn serve(
             eprintln!("cloud library: reply failed: {e}");
         }
     }
-    queryable
-        .undeclare()
-        .await
-        .map_err(|e| TransportError::Declare { what: "undeclare", key, reason: e.to_string() })?;
+    queryable.undeclare().await.map_err(|e| TransportError::Declare {
+        what: "undeclare",
+        key,
+        reason: e.to_string(),
+    })?;
     Ok(summary)
 }
 

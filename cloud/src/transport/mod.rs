@@ -197,7 +197,8 @@ pub async fn run(
     // Open the library and build the risk raster before joining: a bad file or config fails fast.
     let library = config.db.as_ref().filter(|_| config.has(Role::Library)).map(ScenarioLibrary::open).transpose()?;
     let risk = if config.has(Role::Risk) { Some(RiskAssessor::new(config.road.clone(), config.risk)?) } else { None };
-    let empty = CloudSummary { ingest: IngestSummary::default(), liveliness: Default::default(), twin: None, library: None };
+    let empty =
+        CloudSummary { ingest: IngestSummary::default(), liveliness: Default::default(), twin: None, library: None };
     let session = tokio::select! {
         opened = connect(&config.transport) => opened?,
         _ = shutdown.wait() => return Ok(empty),

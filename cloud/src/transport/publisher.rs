@@ -22,11 +22,10 @@ pub(crate) async fn publish_outputs(
         let publisher = match publishers.get(&key) {
             Some(p) => p,
             None => {
-                let declared = session
-                    .declare_publisher(key.clone())
-                    .congestion_control(CongestionControl::Drop)
-                    .await
-                    .map_err(|e| TransportError::Declare { what: "publisher", key: key.clone(), reason: e.to_string() })?;
+                let declared =
+                    session.declare_publisher(key.clone()).congestion_control(CongestionControl::Drop).await.map_err(
+                        |e| TransportError::Declare { what: "publisher", key: key.clone(), reason: e.to_string() },
+                    )?;
                 publishers.entry(key.clone()).or_insert(declared)
             }
         };
@@ -34,10 +33,11 @@ pub(crate) async fn publish_outputs(
         sent += 1;
     }
     for (key, publisher) in publishers {
-        publisher
-            .undeclare()
-            .await
-            .map_err(|e| TransportError::Declare { what: "undeclare", key, reason: e.to_string() })?;
+        publisher.undeclare().await.map_err(|e| TransportError::Declare {
+            what: "undeclare",
+            key,
+            reason: e.to_string(),
+        })?;
     }
     Ok(sent)
 }

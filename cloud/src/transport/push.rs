@@ -19,7 +19,9 @@ use thiserror::Error;
 /// Why a push failed.
 #[derive(Debug, Error)]
 pub enum PushError {
-    #[error("edge {target} did not subscribe to {key} within {waited_s} s (is `risktwin edge vehicle --id {target}` running?)")]
+    #[error(
+        "edge {target} did not subscribe to {key} within {waited_s} s (is `risktwin edge vehicle --id {target}` running?)"
+    )]
     NoEdge { target: String, key: String, waited_s: f64 },
     #[error("edge {target} sent no result for scenario {spec_id} within {waited_s} s")]
     NoResult { target: String, spec_id: String, waited_s: f64 },
@@ -123,7 +125,8 @@ pub async fn push_scenario(
     let session = connect(&target.transport).await?;
     let result_key = edge_report(&target.site, &target.edge, EdgeReport::ScenarioResult);
     // Subscribed before the push goes out, so that a quick result cannot be missed.
-    let results = session.declare_subscriber(result_key.clone()).await.map_err(declare_err("subscriber", &result_key))?;
+    let results =
+        session.declare_subscriber(result_key.clone()).await.map_err(declare_err("subscriber", &result_key))?;
     let push = ScenarioPush { header: header(0), spec_id: spec_id.to_owned(), spec: spec.clone() };
     deliver(&session, target, CloudToEdge::Scenario, encode(&push), shutdown.clone()).await?;
     eprintln!("pushed scenario {spec_id} to {}/{}", target.site, target.edge);

@@ -113,8 +113,11 @@ impl Twin {
                     }
                     _ => (0.0, 0.0),
                 };
-                self.previous[index] =
-                    Some(Previous { tick_ns: snapshot.tick_ns, accel_mps2: k.accel_mps2, heading_rad: k.pose.heading_rad });
+                self.previous[index] = Some(Previous {
+                    tick_ns: snapshot.tick_ns,
+                    accel_mps2: k.accel_mps2,
+                    heading_rad: k.pose.heading_rad,
+                });
                 twin.vehicles.push(TwinVehicle {
                     source: Arc::clone(source),
                     kinematics: *k,
@@ -126,9 +129,8 @@ impl Twin {
             }
             for stream in [Stream::Perception, Stream::Rsu] {
                 if let Some(TwinSample::Objects(list)) = current(snapshot, src, stream) {
-                    twin.objects.extend(
-                        list.iter().map(|o| TwinObject { observer: Arc::clone(source), object: o.clone() }),
-                    );
+                    twin.objects
+                        .extend(list.iter().map(|o| TwinObject { observer: Arc::clone(source), object: o.clone() }));
                 }
             }
         }

@@ -147,7 +147,11 @@ impl RiskAssessor {
             }
             let obb = Obb::new(v.kinematics.pose, v.kinematics.footprint);
             self.objects.push(FieldObject { obb, velocity: v.kinematics.velocity });
-            self.others.push(VehicleState { obb, velocity: v.kinematics.velocity, accel: obb.axis * v.kinematics.accel_mps2 });
+            self.others.push(VehicleState {
+                obb,
+                velocity: v.kinematics.velocity,
+                accel: obb.axis * v.kinematics.accel_mps2,
+            });
         }
         for o in &site.objects {
             let obj = &o.object;

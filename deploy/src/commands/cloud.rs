@@ -89,12 +89,12 @@ pub struct BenchLatencyArgs {
 }
 
 pub fn bench_latency(args: BenchLatencyArgs) -> CliResult {
-    if args.messages <= 50 || !(args.rate_hz.is_finite() && args.rate_hz > 0.0 && args.rate_hz <= 10_000.0) {
+    if args.messages <= 50 || !(args.rate_hz > 0.0 && args.rate_hz <= 10_000.0) {
         return Err(CliError::input("--messages must exceed 50 and --rate-hz lie in (0, 10000]"));
     }
     let mut ingest = IngestConfig::default();
     let ms = |flag: &str, v: f64| {
-        if v.is_finite() && v >= 0.0 && v <= 10_000.0 {
+        if (0.0..=10_000.0).contains(&v) {
             Ok((v * 1e6) as i64)
         } else {
             Err(CliError::input(format!("{flag} {v} must lie in [0, 10000] ms")))

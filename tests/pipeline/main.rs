@@ -6,6 +6,7 @@
 //! `ready` line, edges waiting for a matching subscriber before publishing, the cloud's
 //! `edge left` lines (liveliness) before it is sent SIGTERM.
 
+mod cloudloop;
 mod fleet;
 mod python_zenoh;
 mod support;

@@ -3,9 +3,10 @@
 mod bench;
 pub(crate) mod bench_ingest;
 pub(crate) mod bench_replay;
-mod cloud;
+pub mod cloud;
 mod criticality;
 mod edge;
+pub mod push;
 mod risk_field;
 mod router;
 mod run;
@@ -36,5 +37,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Edge(EdgeCommand::Rsu(a)) => edge::rsu(a),
         Command::Edge(EdgeCommand::Replay(a)) => edge::replay(a),
         Command::Cloud(a) => cloud::cloud(a),
+        Command::Push(c) => push::push(c),
+        Command::Bench(BenchCommand::Latency(a)) => cloud::bench_latency(a),
     }
 }

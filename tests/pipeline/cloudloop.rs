@@ -16,8 +16,7 @@ use std::time::{Duration, Instant};
 
 const STEP: Duration = Duration::from_secs(60);
 
-#[path = "../interop/peer_python.rs"]
-mod peer_python;
+use crate::peer_python;
 
 fn runtime() -> tokio::runtime::Runtime {
     tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().expect("a tokio runtime")

@@ -8,5 +8,7 @@
 
 mod cloudloop;
 mod fleet;
+#[path = "../interop/peer_python.rs"]
+mod peer_python;
 mod python_zenoh;
 mod support;

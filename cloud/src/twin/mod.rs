@@ -129,8 +129,7 @@ impl Twin {
             }
             for stream in [Stream::Perception, Stream::Rsu] {
                 if let Some(TwinSample::Objects(list)) = current(snapshot, src, stream) {
-                    twin.objects
-                        .extend(list.iter().map(|o| TwinObject { observer: Arc::clone(source), object: o.clone() }));
+                    twin.objects.extend(list.iter().map(|o| TwinObject { observer: Arc::clone(source), object: *o }));
                 }
             }
         }

@@ -9,7 +9,7 @@
 
 use crate::LearnError;
 use crate::policy::{Algo, PolicyNet};
-use crate::ppo::{Ppo, PpoConfig};
+use crate::ppo::{Ppo, PpoConfig, PpoTimings};
 use crate::sac::{Sac, SacConfig};
 use rayon::prelude::*;
 use risktwin_common::env::{ACT_DIM, OBS_DIM, ObsPolicy, ScenarioSource, Variant, VecEnv, benign_specs};
@@ -130,6 +130,8 @@ pub struct TrainReport {
     /// Wall time at which the benign success first reached 90 %, s.
     pub benign_90_wall_s: Option<f64>,
     pub policy: PolicyNet,
+    /// Where PPO's time went (zeros for SAC).
+    pub timings: PpoTimings,
 }
 
 /// Held-out evaluation scenarios: `per_kind` feasible samples of each kind from a seed stream
@@ -164,10 +166,18 @@ pub fn risk_ranked_specs(seed: u64, per_kind: usize) -> Vec<ScenarioSpec> {
 /// Drives each spec with the policy's deterministic action through `episode::run`.
 pub fn evaluate_policy(policy: &PolicyNet, specs: &[ScenarioSpec], variant: Variant) -> Vec<EpisodeMetrics> {
     let weights = variant.weights();
+    // Feed-forward policies act through a host-side snapshot (no tensors per step).
+    let host = policy.host().ok().flatten();
     specs
         .par_iter()
         .map(|spec| {
             let mut world = build(spec);
+            if let Some(host) = &host {
+                let mut scratch = host.scratch();
+                let act = |o: &[f32; OBS_DIM]| host.act_deterministic(o, &mut scratch);
+                let mut p = ObsPolicy::new(act, world.desired_speed_mps, world.dt_s);
+                return episode::run(&mut world, &mut p, &weights).metrics;
+            }
             let mut state = vec![0.0f32; policy.state_dim()];
             let act = |o: &[f32; OBS_DIM]| {
                 let mut a = [0.0f32; ACT_DIM];
@@ -259,6 +269,10 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
         progress(done_steps.min(cfg.steps), cfg.steps);
     }
     let wall_s = start.elapsed().as_secs_f64();
+    let timings = match &learner {
+        Learner::Ppo(p) => p.timings(),
+        Learner::Sac(_) => PpoTimings::default(),
+    };
     let policy = match learner {
         Learner::Ppo(p) => p.policy().clone(),
         Learner::Sac(s) => s.policy().clone(),
@@ -275,6 +289,7 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
         curve,
         benign_90_wall_s: benign_90,
         policy,
+        timings,
     })
 }
 

@@ -45,6 +45,11 @@ pub fn train(args: TrainArgs) -> CliResult {
         "env_steps_per_s": report.env_steps_per_s,
         "benign_90_wall_s": report.benign_90_wall_s,
         "final": report.final_metrics,
+        "profile_s": {
+            "env": report.timings.env_s,
+            "infer": report.timings.infer_s,
+            "update": report.timings.update_s,
+        },
     });
     match args.format {
         Format::Json => print_json(&doc),

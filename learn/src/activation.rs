@@ -7,17 +7,30 @@
 
 use candle_core::{CpuStorage, CustomOp1, Layout, Result, Shape, Tensor, bail};
 
+// The constants are Eigen's, kept to their published digits.
+#[allow(clippy::excessive_precision)]
 const CLAMP: f32 = 7.998_811_7;
+#[allow(clippy::excessive_precision)]
 const A1: f32 = 4.893_524_6e-3;
+#[allow(clippy::excessive_precision)]
 const A3: f32 = 6.372_619_3e-4;
+#[allow(clippy::excessive_precision)]
 const A5: f32 = 1.485_722_4e-5;
+#[allow(clippy::excessive_precision)]
 const A7: f32 = 5.122_297e-8;
+#[allow(clippy::excessive_precision)]
 const A9: f32 = -8.604_671_5e-11;
+#[allow(clippy::excessive_precision)]
 const A11: f32 = 2.000_187_9e-13;
+#[allow(clippy::excessive_precision)]
 const A13: f32 = -2.760_768_5e-16;
+#[allow(clippy::excessive_precision)]
 const B0: f32 = 4.893_525_2e-3;
+#[allow(clippy::excessive_precision)]
 const B2: f32 = 2.268_434_6e-3;
+#[allow(clippy::excessive_precision)]
 const B4: f32 = 1.185_347_1e-4;
+#[allow(clippy::excessive_precision)]
 const B6: f32 = 1.198_258_4e-6;
 
 /// tanh(x) to a few ULP, branch-free apart from the clamp (NaN stays NaN).

@@ -192,6 +192,16 @@ impl PolicyNet {
         Ok(())
     }
 
+    /// Sets the state-independent log σ of the Gaussian policies (no effect on SAC).
+    pub(crate) fn set_log_std(&self, value: f32) -> candle_core::Result<()> {
+        match &self.body {
+            Body::Gaussian { log_std, .. } | Body::Recurrent { log_std, .. } => {
+                log_std.var.set(&Tensor::full(value, (1, ACT_DIM), &Device::Cpu)?)
+            }
+            Body::Squashed { .. } => Ok(()),
+        }
+    }
+
     /// A host-side snapshot for fast acting (`None` for the recurrent policy, which acts
     /// through candle).
     pub fn host(&self) -> Result<Option<HostPolicy>, LearnError> {

@@ -38,6 +38,10 @@ pub struct TrainConfig {
     pub benign_eval: usize,
     /// Environment steps between benign evaluations.
     pub benign_every: u64,
+    /// PPO hyper-parameters (`recurrent` is set from `algo`).
+    pub ppo: PpoConfig,
+    /// SAC hyper-parameters.
+    pub sac: SacConfig,
 }
 
 impl TrainConfig {
@@ -53,6 +57,8 @@ impl TrainConfig {
             eval_per_kind: 10,
             benign_eval: 0,
             benign_every: 100_000,
+            ppo: PpoConfig::default(),
+            sac: SacConfig::default(),
         }
     }
 }
@@ -213,13 +219,13 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
     };
     let benign = if cfg.benign_eval > 0 { benign_specs(cfg.seed ^ 0xBE91_6000, cfg.benign_eval) } else { Vec::new() };
     let start = Instant::now();
-    let mut env = VecEnv::new(cfg.n_envs, source, cfg.variant.weights())?;
+    let mut env = VecEnv::new(cfg.n_envs, source, cfg.variant.training_weights())?;
     let mut learner = match cfg.algo {
         Algo::Ppo | Algo::PpoGru => {
-            let pc = PpoConfig { recurrent: cfg.algo == Algo::PpoGru, ..PpoConfig::default() };
+            let pc = PpoConfig { recurrent: cfg.algo == Algo::PpoGru, ..cfg.ppo.clone() };
             Learner::Ppo(Box::new(Ppo::new(pc, cfg.n_envs, cfg.seed)?))
         }
-        Algo::Sac => Learner::Sac(Box::new(Sac::new(SacConfig::default(), cfg.n_envs, cfg.seed)?)),
+        Algo::Sac => Learner::Sac(Box::new(Sac::new(cfg.sac.clone(), cfg.n_envs, cfg.seed)?)),
     };
     let mut done_steps = 0u64;
     let mut curve = Vec::new();

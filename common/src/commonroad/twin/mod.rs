@@ -15,11 +15,11 @@
 mod playback;
 mod render;
 mod resim;
-#[cfg(test)]
-mod tests;
 mod road;
 mod scene;
 mod snapshot;
+#[cfg(test)]
+mod tests;
 
 pub use playback::{Playback, PlaybackState, footprint_of, kind_of};
 pub use render::render_field;
@@ -46,10 +46,7 @@ pub enum TwinError {
 }
 
 /// The ego obstacle by id, or the scenario's default ego.
-pub(crate) fn ego_of(
-    scenario: &super::Scenario,
-    ego_id: Option<u64>,
-) -> Result<&super::DynamicObstacle, TwinError> {
+pub(crate) fn ego_of(scenario: &super::Scenario, ego_id: Option<u64>) -> Result<&super::DynamicObstacle, TwinError> {
     let id = match ego_id {
         Some(id) => id,
         None => scenario.default_ego_id().ok_or(TwinError::NoEgo)?,

@@ -94,7 +94,10 @@ impl View {
     fn line(&self, img: &mut RgbImage, a: Vec2, b: Vec2, rgb: [u8; 3], dash_from_m: Option<f64>) {
         let (pa, pb) = (self.to_px(a), self.to_px(b));
         let (w, h) = (img.width as f64, img.height as f64);
-        if (pa.0 < 0.0 && pb.0 < 0.0) || (pa.1 < 0.0 && pb.1 < 0.0) || (pa.0 >= w && pb.0 >= w) || (pa.1 >= h && pb.1 >= h)
+        if (pa.0 < 0.0 && pb.0 < 0.0)
+            || (pa.1 < 0.0 && pb.1 < 0.0)
+            || (pa.0 >= w && pb.0 >= w)
+            || (pa.1 >= h && pb.1 >= h)
         {
             return;
         }

@@ -49,8 +49,13 @@ pub fn road_from_lanelets(network: &LaneletNetwork) -> Result<(Road, Vec<u64>), 
     }
     // A self-link or a left/right cycle would make the carriageway walk loop forever.
     break_neighbour_cycles(&mut lanes);
-    let road =
-        Road { lanes, crosswalks: Vec::new(), friction_default: FRICTION, friction_patches: Vec::new(), reference_lane: 0 };
+    let road = Road {
+        lanes,
+        crosswalks: Vec::new(),
+        friction_default: FRICTION,
+        friction_patches: Vec::new(),
+        reference_lane: 0,
+    };
     Ok((road, ids))
 }
 
@@ -87,7 +92,9 @@ mod tests {
 
     #[test]
     fn lanes_keep_centrelines_widths_and_same_direction_neighbours() {
-        let a = |y0: f64, y1: f64| (vec![Vec2::new(0.0, y1), Vec2::new(50.0, y1)], vec![Vec2::new(0.0, y0), Vec2::new(50.0, y0)]);
+        let a = |y0: f64, y1: f64| {
+            (vec![Vec2::new(0.0, y1), Vec2::new(50.0, y1)], vec![Vec2::new(0.0, y0), Vec2::new(50.0, y0)])
+        };
         let (l1, r1) = a(0.0, 3.0);
         let (l2, r2) = a(3.0, 7.0);
         let (l3, r3) = a(7.0, 10.0);

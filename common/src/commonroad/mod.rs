@@ -24,6 +24,7 @@ pub mod criticality;
 mod error;
 pub mod lanelet;
 pub mod model;
+pub mod twin;
 mod parse;
 mod xml;
 

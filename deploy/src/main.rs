@@ -9,6 +9,7 @@ mod output;
 #[allow(dead_code)]
 mod plot;
 mod png_out;
+mod process_tuning;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -18,6 +19,7 @@ fn main() -> ExitCode {
     // SAFETY: called once at start-up, before any other thread exists.
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        process_tuning::apply();
     }
     let args = match cli::Cli::try_parse() {
         Ok(args) => args,

@@ -5,7 +5,7 @@
 //! The approximation is the clamped rational 13/6 fit used by Eigen's `ptanh` for f32: within
 //! a few ULP of tanh on [−7.99, 7.99], ±1 beyond (where tanh is 1 to f32 precision).
 
-use candle_core::{CpuStorage, CustomOp1, Layout, Result, Shape, Tensor, bail};
+use candle_core::{CpuStorage, CustomOp1, Layout, Result, Shape, Tensor};
 
 // The constants are Eigen's, kept to their published digits.
 #[allow(clippy::excessive_precision)]
@@ -65,10 +65,7 @@ impl CustomOp1 for FastTanh {
     }
 
     fn cpu_fwd(&self, storage: &CpuStorage, layout: &Layout) -> Result<(CpuStorage, Shape)> {
-        let (CpuStorage::F32(data), Some((start, end))) = (storage, layout.contiguous_offsets()) else {
-            bail!("fast-tanh needs a contiguous f32 tensor (layout {layout:?})");
-        };
-        let mut out = data[start..end].to_vec();
+        let mut out = crate::cpu::contiguous_f32(storage, layout)?.to_vec();
         tanh_in_place(&mut out);
         Ok((CpuStorage::F32(out), layout.shape().clone()))
     }

@@ -1,5 +1,6 @@
 //! A GRU cell (Cho et al. 2014) on candle, differentiable through time, weights from our Rng.
 
+use crate::bias::bias_add;
 use crate::nn::{Param, const_param, uniform_param};
 use candle_core::{Result, Tensor};
 use risktwin_common::rng::Rng;
@@ -40,8 +41,8 @@ impl GruCell {
     /// One step: `x` (batch, input), `h` (batch, hidden) → h' (batch, hidden).
     pub fn step(&self, x: &Tensor, h: &Tensor) -> Result<Tensor> {
         let n = self.hidden;
-        let gx = x.matmul(self.w_x.var.as_tensor())?.broadcast_add(self.b_x.var.as_tensor())?;
-        let gh = h.matmul(self.w_h.var.as_tensor())?.broadcast_add(self.b_h.var.as_tensor())?;
+        let gx = bias_add(&x.matmul(self.w_x.var.as_tensor())?, self.b_x.var.as_tensor())?;
+        let gh = bias_add(&h.matmul(self.w_h.var.as_tensor())?, self.b_h.var.as_tensor())?;
         let r = sigmoid(&(gx.narrow(1, 0, n)? + gh.narrow(1, 0, n)?)?)?;
         let z = sigmoid(&(gx.narrow(1, n, n)? + gh.narrow(1, n, n)?)?)?;
         let cand = (gx.narrow(1, 2 * n, n)? + (r * gh.narrow(1, 2 * n, n)?)?)?.tanh()?;

@@ -12,6 +12,8 @@
 //! - [`train`]: the training driver behind `risktwin train` (curves, evaluation, report).
 
 pub mod activation;
+mod bias;
+mod cpu;
 pub mod envs;
 pub mod gae;
 pub mod gru;

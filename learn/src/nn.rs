@@ -54,7 +54,7 @@ impl Mlp {
     pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
         let mut h = x.clone();
         for (i, (w, b)) in self.layers.iter().enumerate() {
-            h = h.matmul(w.var.as_tensor())?.broadcast_add(b.var.as_tensor())?;
+            h = crate::bias::bias_add(&h.matmul(w.var.as_tensor())?, b.var.as_tensor())?;
             if i + 1 < self.layers.len() {
                 h = crate::activation::tanh_tensor(&h)?;
             }

@@ -6,4 +6,5 @@ pub mod ingest;
 pub mod library;
 #[cfg(test)]
 mod test_fixtures;
+pub mod trainer;
 pub mod transport;

@@ -9,6 +9,7 @@ mod contract_bench;
 mod contract_episode;
 mod contract_scenarios;
 mod determinism;
+mod run;
 mod same_scenario;
 mod support;
 mod train;

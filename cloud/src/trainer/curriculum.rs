@@ -63,7 +63,11 @@ impl Curriculum {
     }
 
     /// `plan.background` library scenarios drawn uniformly (without replacement).
-    fn background(&mut self, library: &ScenarioLibrary, plan: &TrainingPlan) -> Result<Vec<ScenarioSpec>, TrainerError> {
+    fn background(
+        &mut self,
+        library: &ScenarioLibrary,
+        plan: &TrainingPlan,
+    ) -> Result<Vec<ScenarioSpec>, TrainerError> {
         let mut all = library.rank(None, None)?;
         let mut out = Vec::with_capacity(plan.background);
         while out.len() < plan.background && !all.is_empty() {
@@ -130,7 +134,12 @@ impl Curriculum {
         let records: Vec<ScenarioRecord> = candidates
             .iter()
             .zip(&results)
-            .map(|(s, r)| ScenarioRecord { spec: s.clone(), origin: Origin::Imported, parent_id: None, outcome: Some(outcome(r)) })
+            .map(|(s, r)| ScenarioRecord {
+                spec: s.clone(),
+                origin: Origin::Imported,
+                parent_id: None,
+                outcome: Some(outcome(r)),
+            })
             .collect();
         library.insert_batch(&records)?;
 
@@ -144,7 +153,11 @@ impl Curriculum {
                 .then_with(|| content_id(&candidates[a]).cmp(&content_id(&candidates[b])))
         });
         let failures: Vec<usize> = order.iter().copied().filter(|&i| failed(&results[i])).collect();
-        let parents: Vec<usize> = if failures.is_empty() { order.iter().copied().take(plan.mutations.div_ceil(4)).collect() } else { failures.clone() };
+        let parents: Vec<usize> = if failures.is_empty() {
+            order.iter().copied().take(plan.mutations.div_ceil(4)).collect()
+        } else {
+            failures.clone()
+        };
 
         let mut children: Vec<(String, ScenarioSpec)> = Vec::new();
         for k in 0..plan.mutations {
@@ -165,7 +178,10 @@ impl Curriculum {
             .map(|((pid, c), r)| ScenarioRecord::mutated(c.clone(), pid, outcome(r)))
             .collect();
         child_records.extend(
-            children.iter().zip(&reference).map(|((pid, c), e)| ScenarioRecord::mutated(c.clone(), pid, reference_outcome(&e.result))),
+            children
+                .iter()
+                .zip(&reference)
+                .map(|((pid, c), e)| ScenarioRecord::mutated(c.clone(), pid, reference_outcome(&e.result))),
         );
         library.insert_batch(&child_records)?;
 

@@ -79,7 +79,10 @@ impl TrainingPlan {
             )));
         }
         if !(self.mutation_radius > 0.0 && self.mutation_radius <= 1.0) {
-            return Err(TrainerError::BadPlan(format!("mutation_radius {} is out of range (0, 1]", self.mutation_radius)));
+            return Err(TrainerError::BadPlan(format!(
+                "mutation_radius {} is out of range (0, 1]",
+                self.mutation_radius
+            )));
         }
         if self.replay_top + self.background == 0 {
             return Err(TrainerError::BadPlan("replay_top + background must be positive".into()));

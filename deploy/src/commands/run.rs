@@ -189,7 +189,7 @@ fn summarise(library: &ScenarioLibrary) -> Result<BTreeMap<ScenarioKind, KindSum
 /// The training seeds of a run: a seed stream of their own.
 fn training_seeds(seed: u64, n: u32) -> Vec<u64> {
     let mut rng = Rng::derive(seed, 0x5345_4544);
-    (0..n).map(|_| rng.next_u64() >> 16).collect()
+    (0..n).map(|_| rng.below(1_000_000)).collect()
 }
 
 fn plan(config: &RunConfig, algo: Algo, threads: usize) -> TrainingPlan {

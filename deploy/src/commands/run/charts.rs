@@ -1,13 +1,17 @@
 //! The report's charts: training curves (one line per variant, the seeds' min–max as a band)
 //! and the ablation spectrum (all metrics, normalised per metric so that higher is better).
 
+use crate::plot::PALETTE;
 use crate::plot::bars::{self, BarSeries};
 use crate::plot::lines::{self, Panel, Series};
-use crate::plot::PALETTE;
 use risktwin_cloud::trainer::ablation::CurveBand;
-use risktwin_cloud::trainer::stats::{HIGHER_IS_BETTER, METRIC_NAMES};
+use risktwin_cloud::trainer::stats::HIGHER_IS_BETTER;
 use risktwin_cloud::trainer::{AblationReport, Spread};
 use risktwin_common::risk::RgbImage;
+
+/// Group labels under the axis, in `METRIC_NAMES` order (short, so neighbours do not overlap).
+const SHORT_NAMES: [&str; 8] =
+    ["reward", "success", "completion", "collision", "speed", "steer rate", "jerk", "S_risk"];
 
 /// Height of the worst variant's bar, so every bar stays visible.
 const FLOOR: f64 = 0.15;
@@ -48,13 +52,11 @@ pub fn normalise(means: &[f64], higher_is_better: bool) -> (Vec<f64>, f64) {
         return (vec![1.0; means.len()], 0.0);
     }
     let scale = (1.0 - FLOOR) / span;
-    let heights =
-        means.iter().map(|&m| FLOOR + scale * if higher_is_better { m - lo } else { hi - m }).collect();
+    let heights = means.iter().map(|&m| FLOOR + scale * if higher_is_better { m - lo } else { hi - m }).collect();
     (heights, scale)
 }
 
-/// The ablation spectrum: one group per metric, one bar per variant, raw means as labels and
-/// the seed standard deviation as whiskers.
+/// The ablation spectrum: one group per metric, one bar per variant, raw means as labels.
 pub fn ablation(ab: &AblationReport) -> RgbImage {
     let spreads: Vec<[Spread; 8]> = ab.variants.iter().map(|v| v.overall.values()).collect();
     let mut series: Vec<BarSeries> = ab
@@ -71,14 +73,16 @@ pub fn ablation(ab: &AblationReport) -> RgbImage {
         .collect();
     for (j, &higher) in HIGHER_IS_BETTER.iter().enumerate() {
         let means: Vec<f64> = spreads.iter().map(|s| s[j].mean).collect();
-        let (heights, scale) = normalise(&means, higher);
+        let (heights, _) = normalise(&means, higher);
         for (i, s) in series.iter_mut().enumerate() {
             s.heights.push(heights[i]);
-            s.spreads.push(spreads[i][j].std * scale);
+            // Seed spreads are often wider than the gaps between variants; whiskers that size
+            // would cover the chart, so the spread lives in the report's table instead.
+            s.spreads.push(0.0);
             s.labels.push(format!("{:.2}", spreads[i][j].mean));
         }
     }
-    let groups: Vec<String> = METRIC_NAMES.iter().map(|n| n.replace('_', " ")).collect();
+    let groups: Vec<String> = SHORT_NAMES.iter().map(|n| n.to_string()).collect();
     bars::render("ablation on the held-out set (per metric: best = full height)", &groups, &series, 1400, 560)
 }
 

@@ -85,7 +85,8 @@ fn ablation_section(s: &mut String, m: &RunMetrics) {
     let _ = writeln!(
         s,
         "Bars per metric, normalised across variants so that higher is better (best = full height, worst = 0.15); \
-         labels are the raw means, whiskers one seed standard deviation on the same scale.\n"
+         labels are the raw means (the seed spread is in the tables above). Steer rate and jerk are the steering and \
+         longitudinal smoothness (lower is better, so the smoothest variant has the tallest bar).\n"
     );
     if let Some(full) = ab.variant(risktwin_common::env::Variant::Full) {
         let _ = writeln!(s, "### Library refreshes of `full`\n");

@@ -77,7 +77,13 @@ pub fn judge(ab: &AblationReport) -> Option<Verdict> {
         ab.held_out_episodes,
         pm(&f.collision_rate),
         pm(&b.collision_rate),
-        if collision_lower { "lower" } else if f.collision_rate.mean == b.collision_rate.mean { "equal" } else { "higher" },
+        if collision_lower {
+            "lower"
+        } else if f.collision_rate.mean == b.collision_rate.mean {
+            "equal"
+        } else {
+            "higher"
+        },
         if collision_beyond_noise { "" } else { ", within one seed standard deviation" },
         pm(&f.route_completion),
         pm(&b.route_completion),

@@ -8,3 +8,4 @@ pub mod library;
 mod test_fixtures;
 pub mod trainer;
 pub mod transport;
+pub mod twin;

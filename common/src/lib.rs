@@ -11,11 +11,13 @@
 //! - [`traffic`]: IDM/MOBIL traffic, scripted manoeuvres, pedestrians, parked cars (SoA).
 //! - [`sensor`]: what the ego perceives (range, field of view, occlusion, noise, dropout).
 //! - [`risk`]: the driving risk field, criticality measures and the scenario risk score.
+//! - [`commonroad`]: CommonRoad XML import and criticality measures on recorded traffic.
 //! - [`scenario`]: the five kinds, sampling, feasibility, building a world.
 //! - [`world`], [`driver`], [`episode`], [`metrics`]: one episode, its reference driver, its metrics.
 //! - [`env`]: the driving environment for reinforcement learning (observation, action, reward, VecEnv).
 
 pub mod align;
+pub mod commonroad;
 pub mod driver;
 pub mod env;
 pub mod episode;

@@ -8,6 +8,7 @@ mod bad_usage;
 mod contract_bench;
 mod contract_episode;
 mod contract_scenarios;
+mod criticality;
 mod determinism;
 mod run;
 mod same_scenario;

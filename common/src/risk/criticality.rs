@@ -46,13 +46,21 @@ impl PairMeasures {
 /// First τ ≥ 0 with gap(τ) = d + Δv·τ + ½·Δa·τ² = 0 (Jansson 2005, eq. 5.24/5.26), +inf when
 /// the gap never closes. `gap_m` ≥ 0.
 pub fn ttc_constant_accel_s(gap_m: f64, dv_mps: f64, da_mps2: f64) -> f64 {
+    ttc_jansson_s(gap_m, dv_mps, da_mps2, 1e-9)
+}
+
+/// [`ttc_constant_accel_s`] with a constant-velocity band: while closing (Δv < 0) and
+/// |Δa| ≤ `cv_band_mps2`, TTC = d/−Δv. CommonRoad-CriMe uses a 0.1 m/s² band (`ttc.py`,
+/// criticality.md §6.3, branch 1), which keeps acceleration noise of differentiated recorded
+/// speeds from swinging TTC; the simulator's exact accelerations use 1e-9.
+pub fn ttc_jansson_s(gap_m: f64, dv_mps: f64, da_mps2: f64, cv_band_mps2: f64) -> f64 {
     if !(gap_m.is_finite() && dv_mps.is_finite() && da_mps2.is_finite()) {
         return if gap_m == f64::INFINITY { f64::INFINITY } else { f64::NAN };
     }
     if gap_m <= 0.0 {
         return if dv_mps < 0.0 || (dv_mps == 0.0 && da_mps2 < 0.0) { 0.0 } else { f64::INFINITY };
     }
-    if da_mps2.abs() < 1e-9 {
+    if da_mps2.abs() < 1e-9 || (dv_mps < 0.0 && da_mps2.abs() <= cv_band_mps2) {
         return if dv_mps < 0.0 { gap_m / -dv_mps } else { f64::INFINITY };
     }
     let disc = dv_mps * dv_mps - 2.0 * gap_m * da_mps2;
@@ -200,6 +208,17 @@ mod tests {
         assert_eq!(behind.hw_m, f64::INFINITY);
         assert_eq!(behind.a_long_req_mps2, -1.0);
         assert_eq!(ttc_constant_accel_s(0.0, -1.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn constant_velocity_band() {
+        // Closing at 2 m/s over 50 m with Δa = 0.05 m/s²: the gap never closes (disc < 0) …
+        assert_eq!(ttc_constant_accel_s(50.0, -2.0, 0.05), f64::INFINITY);
+        // … but inside CriMe's 0.1 m/s² band it is 50/2 s.
+        assert_eq!(ttc_jansson_s(50.0, -2.0, 0.05, 0.1), 25.0);
+        // Outside the band, or opening, the band changes nothing.
+        assert_eq!(ttc_jansson_s(50.0, -2.0, 0.5, 0.1), ttc_constant_accel_s(50.0, -2.0, 0.5));
+        assert_eq!(ttc_jansson_s(50.0, 2.0, -0.05, 0.1), ttc_constant_accel_s(50.0, 2.0, -0.05));
     }
 
     #[test]

@@ -17,7 +17,9 @@ pub mod render;
 pub mod score;
 
 pub use bench::{BenchScene, bench_scene};
-pub use criticality::{EgoLaneFrame, LaneState, PairMeasures, VehicleState, pair_measures, ttc_constant_accel_s};
+pub use criticality::{
+    EgoLaneFrame, LaneState, PairMeasures, VehicleState, pair_measures, ttc_constant_accel_s, ttc_jansson_s,
+};
 pub use field::{EgoKinematics, FieldObject, RiskFieldParams};
 pub use kernel::GaussTable;
 pub use raster::{FieldError, GridEvaluator, RiskGrid, RoadRaster};

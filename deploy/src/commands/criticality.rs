@@ -1,0 +1,84 @@
+//! `risktwin criticality`: HW, THW, TTC and a_long,req of a CommonRoad scenario's ego against
+//! every other dynamic obstacle (cli.md), plus PET and minimum distance per pair in JSON.
+
+use crate::cli::CriticalityArgs;
+use crate::error::{CliError, CliResult};
+use crate::output::{Format, csv_float, print_json, print_table};
+use risktwin_common::commonroad::criticality::{ScenarioCriticality, scenario_criticality};
+use risktwin_common::commonroad::parse_scenario;
+use serde::Serialize;
+use std::io::Write;
+
+/// The CSV header of cli.md, exactly.
+pub const CSV_HEADER: &str = "time_step,other_id,hw,thw,ttc,a_long_req";
+
+/// The JSON document: where the numbers come from, then the cells and the pair summaries.
+#[derive(Serialize)]
+struct Report<'a> {
+    scenario: &'a str,
+    #[serde(flatten)]
+    measures: &'a ScenarioCriticality,
+}
+
+pub fn criticality(args: CriticalityArgs) -> CliResult {
+    let path = &args.commonroad;
+    let text =
+        std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
+    let scenario = parse_scenario(&text).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
+    let measures =
+        scenario_criticality(&scenario, args.ego).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
+    match args.format {
+        Format::Csv => write_csv(&measures),
+        Format::Json => print_json(&Report { scenario: &scenario.benchmark_id, measures: &measures }),
+        Format::Table => print_pairs(&measures),
+    }
+}
+
+fn write_csv(m: &ScenarioCriticality) -> CliResult {
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    let mut write = || -> std::io::Result<()> {
+        writeln!(out, "{CSV_HEADER}")?;
+        for c in &m.cells {
+            writeln!(
+                out,
+                "{},{},{},{},{},{}",
+                c.time_step,
+                c.other_id,
+                csv_float(c.hw_m),
+                csv_float(c.thw_s),
+                csv_float(c.ttc_s),
+                csv_float(c.a_long_req_mps2)
+            )?;
+        }
+        out.flush()
+    };
+    write().map_err(CliError::runtime)
+}
+
+/// One line per other: the worst value of each measure over the scenario.
+fn print_pairs(m: &ScenarioCriticality) -> CliResult {
+    let rows = m
+        .pairs
+        .iter()
+        .map(|p| {
+            let cells = m.cells.iter().filter(|c| c.other_id == p.other_id);
+            let min = |f: fn(&risktwin_common::commonroad::criticality::CellMeasures) -> f64| {
+                cells.clone().map(f).filter(|x| !x.is_nan()).fold(f64::INFINITY, f64::min)
+            };
+            vec![
+                p.other_id.to_string(),
+                fmt2(min(|c| c.hw_m)),
+                fmt2(min(|c| c.thw_s)),
+                fmt2(min(|c| c.ttc_s)),
+                fmt2(min(|c| c.a_long_req_mps2)),
+                fmt2(p.pet_s),
+                fmt2(p.min_distance_m),
+            ]
+        })
+        .collect::<Vec<_>>();
+    print_table(&["other_id", "min_hw_m", "min_thw_s", "min_ttc_s", "min_a_long_req", "pet_s", "min_distance_m"], &rows)
+}
+
+fn fmt2(x: f64) -> String {
+    if x.is_finite() { format!("{x:.2}") } else { csv_float(x) }
+}

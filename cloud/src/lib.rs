@@ -6,5 +6,6 @@ pub mod ingest;
 pub mod library;
 #[cfg(test)]
 mod test_fixtures;
+pub mod trainer;
 pub mod transport;
 pub mod twin;

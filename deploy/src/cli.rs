@@ -57,6 +57,9 @@ pub struct RunArgs {
     /// A smoke-test sized run (well under a minute on 2 cores).
     #[arg(long)]
     pub quick: bool,
+    /// Learner for the three variants: ppo or sac.
+    #[arg(long, default_value = "ppo")]
+    pub algo: String,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

@@ -5,8 +5,6 @@ mod cli;
 mod commands;
 mod error;
 mod output;
-// The run report's charts land before the report that draws them (issue 5).
-#[allow(dead_code)]
 mod plot;
 mod png_out;
 mod process_tuning;

@@ -21,6 +21,9 @@ fn config_with_out_of_range_values_is_refused() {
         (r#"{"mutation_radius": 2.5}"#, "mutation_radius 2.5"),
         (r#"{"count_per_kind": -4}"#, "-4"),
         (r#"{"heatmaps": 500}"#, "heatmaps"),
+        (r#"{"seeds": 0}"#, "seeds 0"),
+        (r#"{"train_steps": 0}"#, "train_steps 0"),
+        (r#"{"eval_per_kind": 0}"#, "eval_per_kind 0"),
     ] {
         write_file(dir.path(), "c.json", text);
         assert_input_error(dir.path(), &["run", "--config", "c.json", "--out", "out"], needle);
@@ -59,4 +62,11 @@ fn config_range_error_names_the_file() {
     let dir = tempdir().unwrap();
     write_file(dir.path(), "range.json", r#"{"count_per_kind": 0}"#);
     assert_input_error(dir.path(), &["run", "--config", "range.json", "--out", "out"], "range.json");
+}
+
+#[test]
+fn unknown_algorithm_is_refused_before_any_output() {
+    let dir = tempdir().unwrap();
+    assert_input_error(dir.path(), &["run", "--quick", "--algo", "dreamer", "--out", "out"], "dreamer");
+    assert!(!dir.path().join("out").exists(), "a refused run created its report folder");
 }

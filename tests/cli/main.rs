@@ -10,6 +10,7 @@ mod contract_episode;
 mod contract_scenarios;
 mod criticality;
 mod determinism;
+mod run;
 mod same_scenario;
 mod support;
 mod train;

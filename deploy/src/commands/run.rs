@@ -1,6 +1,10 @@
-//! `risktwin run`: the main job, embedded. Today's loop: generate → simulate → score → rank →
-//! mutate around the failures → re-score, then a report folder. Training, the ablation and the
-//! MCAP recording join the loop with the pipeline and learning issues; the report says so.
+//! `risktwin run`: the main job, embedded. Generate → simulate → score → rank → mutate around
+//! the failures (reference driver), then train the three variants (base / risk-only / full; PPO,
+//! or SAC with `--algo sac`) over several seeds through the trainer role, evaluate them on a
+//! held-out set, re-score the library's top scenarios with the trained policies, and write the
+//! report folder (report.md, metrics.json, training_curves.png, ablation.png, risk-field
+//! heatmaps, library.db, one policy per variant). The MCAP recording belongs to the pipeline
+//! part of the loop and is not written here yet; the report says so.
 
 use super::scenarios::worker_threads;
 use crate::cli::RunArgs;
@@ -9,69 +13,30 @@ use crate::output::{Format, print_json, print_table};
 use crate::png_out::write_png;
 use risktwin_cloud::generate::{GenerateReport, evaluate_all, generate, reference_outcome, store};
 use risktwin_cloud::library::{RankedScenario, ScenarioLibrary, ScenarioRecord};
+use risktwin_cloud::trainer::{AblationReport, HeldOut, Spread, TrainingPlan, run_ablation};
+use risktwin_common::env::Variant;
 use risktwin_common::episode::field_snapshot;
 use risktwin_common::risk::render_heatmap;
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, mutate};
 use risktwin_common::world::STEP_S;
-use serde::{Deserialize, Serialize};
+use risktwin_learn::Algo;
+use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
+mod charts;
+mod config;
+mod progress;
 mod report;
+mod rescore;
+mod verdict;
 
-/// The knobs of a run; a `--config` JSON file may set any of them.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct RunConfig {
-    /// Candidates sampled per kind in the first generation.
-    pub count_per_kind: u64,
-    /// Mutation rounds after the first generation.
-    pub iterations: u32,
-    /// Parents picked for mutation per round (failures first, then highest risk).
-    pub mutations_per_iteration: usize,
-    /// Mutation step as a share of each parameter's range.
-    pub mutation_radius: f64,
-    /// Scenarios listed in the report's ranking.
-    pub top_k: usize,
-    /// Risk-field heatmaps drawn for the top scenarios.
-    pub heatmaps: usize,
-}
-
-impl Default for RunConfig {
-    fn default() -> Self {
-        Self {
-            count_per_kind: 200,
-            iterations: 4,
-            mutations_per_iteration: 40,
-            mutation_radius: 0.1,
-            top_k: 10,
-            heatmaps: 3,
-        }
-    }
-}
-
-impl RunConfig {
-    fn quick() -> Self {
-        Self { count_per_kind: 12, iterations: 1, mutations_per_iteration: 8, top_k: 5, heatmaps: 2, ..Self::default() }
-    }
-
-    fn validate(&self) -> Result<(), String> {
-        if !(1..=100_000).contains(&self.count_per_kind) {
-            return Err(format!("count_per_kind {} is out of range [1, 100000]", self.count_per_kind));
-        }
-        if self.iterations > 1000 || self.mutations_per_iteration > 100_000 {
-            return Err("iterations (≤ 1000) or mutations_per_iteration (≤ 100000) too large".into());
-        }
-        if !(self.mutation_radius > 0.0 && self.mutation_radius <= 1.0) {
-            return Err(format!("mutation_radius {} is out of range (0, 1]", self.mutation_radius));
-        }
-        if self.top_k > 1000 || self.heatmaps > 20 {
-            return Err("top_k (≤ 1000) or heatmaps (≤ 20) too large".into());
-        }
-        Ok(())
-    }
-}
+pub use config::RunConfig;
+use progress::ProgressBar;
+use rescore::Rescore;
+use verdict::Verdict;
 
 /// One mutation round's effect.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -96,7 +61,7 @@ pub struct KindSummary {
 }
 
 /// `metrics.json`: everything measured, nothing from the wall clock (same seed → same bytes).
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize)]
 pub struct RunMetrics {
     pub seed: u64,
     pub config: RunConfig,
@@ -105,6 +70,15 @@ pub struct RunMetrics {
     pub by_kind: BTreeMap<ScenarioKind, KindSummary>,
     pub top: Vec<RankedScenario>,
     pub heatmaps: Vec<String>,
+    /// The training seeds (derived from `seed`).
+    pub training_seeds: Vec<u64>,
+    pub ablation: AblationReport,
+    /// The target checked against the ablation (absent when base or full was not trained).
+    pub verdict: Option<Verdict>,
+    /// The top scenarios driven again by each variant's policy.
+    pub rescore: Vec<Rescore>,
+    /// Files of the report folder.
+    pub files: Vec<String>,
 }
 
 fn load_config(args: &RunArgs) -> CliResult<RunConfig> {
@@ -212,28 +186,31 @@ fn summarise(library: &ScenarioLibrary) -> Result<BTreeMap<ScenarioKind, KindSum
     Ok(out)
 }
 
-pub fn run(args: RunArgs) -> CliResult {
-    let config = load_config(&args)?;
-    let out = args.out.clone().unwrap_or_else(default_out_dir);
-    prepare_out_dir(&out)?;
-    let mut library = ScenarioLibrary::open(out.join("library.db")).map_err(CliError::runtime)?;
-    let threads = worker_threads();
+/// The training seeds of a run: a seed stream of their own.
+fn training_seeds(seed: u64, n: u32) -> Vec<u64> {
+    let mut rng = Rng::derive(seed, 0x5345_4544);
+    (0..n).map(|_| rng.below(1_000_000)).collect()
+}
 
-    eprintln!("[1/4] generating {} candidates per kind on {threads} threads", config.count_per_kind);
-    let batch = generate(&ScenarioKind::ALL, config.count_per_kind, args.seed, threads);
-    let generation = store(&mut library, &ScenarioKind::ALL, &batch).map_err(CliError::runtime)?;
-
-    let mut rng = Rng::derive(args.seed, 0x4D55_5441);
-    let mut rounds = Vec::new();
-    for round in 1..=config.iterations {
-        eprintln!("[2/4] mutation round {round}/{}", config.iterations);
-        rounds.push(mutation_round(&mut library, &config, round, &mut rng).map_err(CliError::runtime)?);
+fn plan(config: &RunConfig, algo: Algo, threads: usize) -> TrainingPlan {
+    TrainingPlan {
+        algo,
+        steps: config.train_steps,
+        n_envs: config.n_envs,
+        phases: config.phases,
+        curve_points: config.curve_points,
+        replay_top: config.replay_top,
+        background: config.background,
+        mutations: config.failure_mutations,
+        mutation_radius: config.mutation_radius,
+        threads,
     }
+}
 
-    eprintln!("[3/4] ranking and drawing risk fields");
-    let top = library.rank(Some(config.top_k), None).map_err(CliError::runtime)?;
+/// Risk-field heatmaps of the top scenarios at the moment just before each episode's end.
+fn draw_heatmaps(library: &ScenarioLibrary, top: &[RankedScenario], n: usize, out: &Path) -> CliResult<Vec<String>> {
     let mut heatmaps = Vec::new();
-    for (i, r) in top.iter().take(config.heatmaps).enumerate() {
+    for (i, r) in top.iter().take(n).enumerate() {
         let spec = library.get(&r.id).map_err(CliError::runtime)?.map(|s| s.spec);
         let Some(spec) = spec else { continue };
         let result = risktwin_common::episode::evaluate(&spec);
@@ -244,34 +221,149 @@ pub fn run(args: RunArgs) -> CliResult {
         write_png(&out.join(&name), &render_heatmap(&snap.grid, &snap.road, &snap.others, &snap.ego, 4))?;
         heatmaps.push(name);
     }
+    Ok(heatmaps)
+}
 
-    eprintln!("[4/4] writing the report to {}", out.display());
+pub fn run(args: RunArgs) -> CliResult {
+    let config = load_config(&args)?;
+    let algo: Algo = args.algo.parse().map_err(CliError::input)?;
+    if algo == Algo::PpoGru {
+        return Err(CliError::input("--algo ppo-gru is not supported by run (expected ppo or sac)"));
+    }
+    let out = args.out.clone().unwrap_or_else(default_out_dir);
+    prepare_out_dir(&out)?;
+    let started = Instant::now();
+    let mut library = ScenarioLibrary::open(out.join("library.db")).map_err(CliError::runtime)?;
+    let threads = worker_threads();
+    let mut timings: Vec<(String, f64)> = Vec::new();
+    let mut lap = Instant::now();
+    let mut mark = |what: &str, lap: &mut Instant| {
+        timings.push((what.to_string(), lap.elapsed().as_secs_f64()));
+        *lap = Instant::now();
+    };
+
+    eprintln!("[1/6] generating {} candidates per kind on {threads} threads", config.count_per_kind);
+    let batch = generate(&ScenarioKind::ALL, config.count_per_kind, args.seed, threads);
+    let generation = store(&mut library, &ScenarioKind::ALL, &batch).map_err(CliError::runtime)?;
+    let mut rng = Rng::derive(args.seed, 0x4D55_5441);
+    let mut rounds = Vec::new();
+    let mut bar = ProgressBar::default();
+    for round in 1..=config.iterations {
+        bar.update("[2/6] mutation rounds (reference driver)", u64::from(round) - 1, u64::from(config.iterations));
+        rounds.push(mutation_round(&mut library, &config, round, &mut rng).map_err(CliError::runtime)?);
+    }
+    bar.update("[2/6] mutation rounds (reference driver)", 1, 1);
+    bar.finish();
+    mark("generate, score and mutate", &mut lap);
+
+    let seeds = training_seeds(args.seed, config.seeds);
+    let held_out = HeldOut::new(args.seed, config.eval_per_kind);
+    eprintln!(
+        "[3/6] training {} variants × {} seeds × {} steps ({algo}); held-out set: {} scenarios",
+        Variant::ALL.len(),
+        seeds.len(),
+        config.train_steps,
+        held_out.specs.len()
+    );
+    let ablation = run_ablation(
+        &plan(&config, algo, threads),
+        &Variant::ALL,
+        &seeds,
+        &mut library,
+        &held_out,
+        &mut |label, done, total| bar.update(label, done, total),
+    )
+    .map_err(CliError::runtime)?;
+    bar.finish();
+    mark("train and evaluate", &mut lap);
+
+    eprintln!("[4/6] re-scoring the top {} scenarios with the trained policies", config.top_k);
+    let top = library.rank(Some(config.top_k), None).map_err(CliError::runtime)?;
+    let rescore =
+        rescore::rescore(&mut library, &top, &ablation.policies, algo.name(), threads).map_err(CliError::runtime)?;
+    let mut files = vec!["report.md".to_string(), "metrics.json".to_string(), "library.db".to_string()];
+    for (variant, policy) in &ablation.policies {
+        let name = format!("policy_{variant}.safetensors");
+        policy.save(&out.join(&name)).map_err(CliError::runtime)?;
+        files.push(name);
+    }
+
+    eprintln!("[5/6] drawing risk fields and charts");
+    let heatmaps = draw_heatmaps(&library, &top, config.heatmaps, &out)?;
+    write_png(&out.join("training_curves.png"), &charts::training_curves(&ablation))?;
+    write_png(&out.join("ablation.png"), &charts::ablation(&ablation))?;
+    files.extend(["training_curves.png".to_string(), "ablation.png".to_string()]);
+    files.extend(heatmaps.iter().cloned());
+    mark("re-score, heatmaps and charts", &mut lap);
+
+    eprintln!("[6/6] writing the report to {}", out.display());
     let by_kind = summarise(&library).map_err(CliError::runtime)?;
-    let metrics = RunMetrics { seed: args.seed, config, generation, rounds, by_kind, top, heatmaps };
+    let verdict = verdict::judge(&ablation);
+    let metrics = RunMetrics {
+        seed: args.seed,
+        config,
+        generation,
+        rounds,
+        by_kind,
+        top,
+        heatmaps,
+        training_seeds: seeds,
+        ablation,
+        verdict,
+        rescore,
+        files,
+    };
     let json = serde_json::to_string_pretty(&metrics).map_err(CliError::runtime)?;
     std::fs::write(out.join("metrics.json"), json + "\n").map_err(CliError::runtime)?;
-    std::fs::write(out.join("report.md"), report::markdown(&metrics)).map_err(CliError::runtime)?;
+    timings.push(("total".to_string(), started.elapsed().as_secs_f64()));
+    std::fs::write(out.join("report.md"), report::markdown(&metrics, &timings)).map_err(CliError::runtime)?;
 
     match args.format {
         Format::Json => print_json(&metrics),
         _ => {
-            let rows: Vec<Vec<String>> = metrics
-                .by_kind
-                .iter()
-                .map(|(k, s)| {
-                    vec![
-                        k.to_string(),
-                        s.scenarios.to_string(),
-                        s.collisions.to_string(),
-                        format!("{:.2}", s.collision_rate),
-                        format!("{:.3}", s.mean_risk),
-                        format!("{:.3}", s.max_risk),
-                    ]
-                })
-                .collect();
-            print_table(&["kind", "scenarios", "collisions", "collision_rate", "mean_risk", "max_risk"], &rows)?;
+            print_table(&summary_header(), &summary_rows(&metrics))?;
+            if let Some(v) = &metrics.verdict {
+                println!("{}", v.sentences[0]);
+            }
             println!("report: {}", out.join("report.md").display());
             Ok(())
         }
     }
+}
+
+fn summary_header() -> Vec<&'static str> {
+    vec!["variant", "collision", "success", "completion", "speed_mps", "reward", "risk"]
+}
+
+/// One row per variant (mean ± std over seeds) and the reference driver.
+fn summary_rows(m: &RunMetrics) -> Vec<Vec<String>> {
+    let pm = |s: &Spread, p: usize| format!("{:.p$}±{:.p$}", s.mean, s.std);
+    let mut rows: Vec<Vec<String>> = m
+        .ablation
+        .variants
+        .iter()
+        .map(|v| {
+            let o = &v.overall;
+            vec![
+                v.variant.clone(),
+                pm(&o.collision_rate, 2),
+                pm(&o.success_rate, 2),
+                pm(&o.route_completion, 2),
+                pm(&o.avg_speed_mps, 1),
+                pm(&o.reward, 0),
+                pm(&o.risk_score, 3),
+            ]
+        })
+        .collect();
+    let r = &m.ablation.reference.overall;
+    rows.push(vec![
+        "idm (reference)".to_string(),
+        format!("{:.2}", r.collision_rate),
+        format!("{:.2}", r.success_rate),
+        format!("{:.2}", r.route_completion),
+        format!("{:.1}", r.avg_speed_mps),
+        format!("{:.0}", r.reward),
+        format!("{:.3}", r.risk_score),
+    ]);
+    rows
 }

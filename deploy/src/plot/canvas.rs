@@ -5,6 +5,7 @@ use super::font::{ADVANCE, GLYPH_H, GLYPH_W, glyph};
 use risktwin_common::risk::RgbImage;
 
 pub type Rgb = [u8; 3];
+#[cfg(test)]
 pub const WHITE: Rgb = [255, 255, 255];
 pub const BLACK: Rgb = [0, 0, 0];
 pub const GREY: Rgb = [120, 120, 120];

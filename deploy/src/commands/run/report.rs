@@ -1,11 +1,122 @@
-//! `report.md`: what the run measured, in tables a person reads, and what it does not cover yet.
+//! `report.md`: what the run measured, in tables a person reads, the findings computed from the
+//! numbers (see `verdict`), and what the run does not cover.
 
 use super::RunMetrics;
+use risktwin_cloud::trainer::stats::METRIC_NAMES;
+use risktwin_cloud::trainer::{EvalMetrics, EvalSpread, Spread};
 use std::fmt::Write;
 
-pub fn markdown(m: &RunMetrics) -> String {
-    let mut s = String::new();
-    let _ = writeln!(s, "# RiskTwin run (seed {})\n", m.seed);
+const METRIC_HEADER: &str = "| reward | success | route completion | collision | avg speed m/s | steering smoothness rad/s | \
+                             longitudinal smoothness m/s³ | S_risk |";
+
+fn pm(s: &Spread) -> String {
+    format!("{:.3} ± {:.3}", s.mean, s.std)
+}
+
+fn spread_cells(e: &EvalSpread) -> String {
+    e.values().iter().map(pm).collect::<Vec<_>>().join(" | ")
+}
+
+fn plain_cells(e: &EvalMetrics) -> String {
+    e.values().iter().map(|v| format!("{v:.3}")).collect::<Vec<_>>().join(" | ")
+}
+
+fn ablation_section(s: &mut String, m: &RunMetrics) {
+    let ab = &m.ablation;
+    let _ = writeln!(s, "## Retraining and ablation ({})\n", ab.algo);
+    let _ = writeln!(
+        s,
+        "Each variant was trained with {} for {} environment steps per seed, seeds {:?}. `base` has no risk term in \
+         its reward; `risk-only` adds the risk-field term; `full` also trains on scenarios from the library — the \
+         riskiest scenarios (risk-ranked replay) and an equal share of ordinary ones, refreshed after each of {} \
+         phases with the current policy's failures and mutations around them. `base` and `risk-only` sample the \
+         five kinds uniformly.\n",
+        ab.algo, ab.steps_per_run, m.training_seeds, m.config.phases
+    );
+    let _ = writeln!(
+        s,
+        "Evaluation: {} held-out scenarios ({} per kind) from a seed stream no training or library set draws from \
+         (checked by content id), driven with each policy's deterministic action; every variant is scored with the \
+         same (full) reward weights. Mean ± sample standard deviation over seeds. Lower is better for collision, \
+         both smoothness columns and S_risk.\n",
+        ab.held_out_episodes, ab.held_out_per_kind
+    );
+    let _ = writeln!(s, "### All kinds\n");
+    let _ = writeln!(s, "| variant {METRIC_HEADER}\n|---{}|", "|---".repeat(METRIC_NAMES.len()));
+    for v in &ab.variants {
+        let _ = writeln!(s, "| {} | {} |", v.variant, spread_cells(&v.overall));
+    }
+    let _ = writeln!(s, "| idm (reference driver) | {} |", plain_cells(&ab.reference.overall));
+    let _ = writeln!(s, "\n### Per kind\n");
+    let _ = writeln!(s, "| kind | variant {METRIC_HEADER}\n|---|---{}|", "|---".repeat(METRIC_NAMES.len()));
+    for (kind, reference) in &ab.reference.by_kind {
+        for v in &ab.variants {
+            if let Some(e) = v.by_kind.get(kind) {
+                let _ = writeln!(s, "| {kind} | {} | {} |", v.variant, spread_cells(e));
+            }
+        }
+        let _ = writeln!(s, "| {kind} | idm | {} |", plain_cells(reference));
+    }
+    let _ = writeln!(s, "\n## What the numbers show\n");
+    match &m.verdict {
+        Some(v) => {
+            for line in &v.sentences {
+                let _ = writeln!(s, "- {line}");
+            }
+            let _ = writeln!(
+                s,
+                "\nRule (fixed before the run): \"lower\" compares means over seeds; \"equal or better\" allows full to \
+                 trail base by at most one seed standard deviation."
+            );
+        }
+        None => {
+            let _ = writeln!(s, "Base or full was not trained, so the target cannot be checked.");
+        }
+    }
+    let _ = writeln!(s, "\n## Training curves\n\n![training curves](training_curves.png)\n");
+    let _ = writeln!(
+        s,
+        "Finished training episodes averaged between checkpoints; the line is the mean over seeds, the band their \
+         min–max. These are training episodes: reward is each variant's own training reward (base has no risk \
+         term) and full's episodes come from its library set, so the curves compare learning progress, not the \
+         variants — the held-out table does that.\n"
+    );
+    let _ = writeln!(s, "## Ablation spectrum\n\n![ablation](ablation.png)\n");
+    let _ = writeln!(
+        s,
+        "Bars per metric, normalised across variants so that higher is better (best = full height, worst = 0.15); \
+         labels are the raw means (the seed spread is in the tables above). Steer rate and jerk are the steering and \
+         longitudinal smoothness (lower is better, so the smoothest variant has the tallest bar).\n"
+    );
+    if let Some(full) = ab.variant(risktwin_common::env::Variant::Full) {
+        let _ = writeln!(s, "### Library refreshes of `full`\n");
+        let _ = writeln!(
+            s,
+            "| seed | phase | policy label | evaluated | failures | children | child failures | next set | policy mean S_risk |\n|---|---|---|---|---|---|---|---|---|"
+        );
+        for seed in &full.seeds {
+            for r in &seed.refreshes {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | `{}` | {} | {} | {} | {} | {} | {:.3} |",
+                    seed.seed,
+                    r.phase,
+                    r.policy,
+                    r.evaluated,
+                    r.failures,
+                    r.children,
+                    r.child_failures,
+                    r.training_set,
+                    r.policy_mean_risk
+                );
+            }
+        }
+        let _ = writeln!(s);
+    }
+}
+
+fn library_section(s: &mut String, m: &RunMetrics) {
+    let _ = writeln!(s, "## Scenario generation\n");
     let _ = writeln!(
         s,
         "Scenarios of five kinds were sampled ({} per kind), filtered for physical feasibility, driven by the \
@@ -13,25 +124,12 @@ pub fn markdown(m: &RunMetrics) -> String {
          `library.db`; {} mutation rounds then searched around the failures.\n",
         m.config.count_per_kind, m.config.iterations
     );
-    let _ = writeln!(s, "## Generation\n");
     let _ = writeln!(s, "| kind | stored | infeasible | collisions |\n|---|---|---|---|");
     for (k, r) in &m.generation.by_kind {
         let _ = writeln!(s, "| {k} | {} | {} | {} |", r.stored, r.infeasible, r.collisions);
     }
-    let _ = writeln!(s, "\n## Library by kind (after mutation)\n");
-    let _ = writeln!(
-        s,
-        "| kind | scenarios | collisions | collision rate | mean S_risk | max S_risk |\n|---|---|---|---|---|---|"
-    );
-    for (k, r) in &m.by_kind {
-        let _ = writeln!(
-            s,
-            "| {k} | {} | {} | {:.2} | {:.3} | {:.3} |",
-            r.scenarios, r.collisions, r.collision_rate, r.mean_risk, r.max_risk
-        );
-    }
     if !m.rounds.is_empty() {
-        let _ = writeln!(s, "\n## Mutation rounds\n");
+        let _ = writeln!(s, "\n### Mutation rounds (reference driver)\n");
         let _ = writeln!(
             s,
             "| round | parents | children | infeasible | parent mean S_risk | child mean S_risk | child collisions |\n|---|---|---|---|---|---|---|"
@@ -49,45 +147,73 @@ pub fn markdown(m: &RunMetrics) -> String {
                 r.child_collisions
             );
         }
-        let _ = writeln!(
-            s,
-            "\nChildren are neighbours of the riskiest parents (failures first); a child mean near the parent mean \
-             says the failure region is wide, a much lower one that the failures sit on a thin edge."
-        );
     }
-    let _ = writeln!(s, "\n## Top scenarios\n");
+    let _ = writeln!(s, "\n### Library by kind (after mutation and training)\n");
     let _ = writeln!(
         s,
-        "| rank | id | kind | S_risk | TTC | dist | lane | jerk | collision | min TTC s | min dist m |\n|---|---|---|---|---|---|---|---|---|---|---|"
+        "| kind | scenarios | collisions (idm) | collision rate | mean S_risk | max S_risk |\n|---|---|---|---|---|---|"
     );
-    for (i, r) in m.top.iter().enumerate() {
-        let ttc = r.outcome.min_ttc_s.map_or("∞".to_string(), |t| format!("{t:.2}"));
+    for (k, r) in &m.by_kind {
         let _ = writeln!(
             s,
-            "| {} | `{}` | {} | {:.3} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {ttc} | {:.2} |",
-            i + 1,
-            r.id,
-            r.kind,
-            r.risk.score,
-            r.risk.ttc,
-            r.risk.dist,
-            r.risk.lane,
-            r.risk.jerk,
-            r.outcome.collision,
-            r.outcome.min_distance_m
+            "| {k} | {} | {} | {:.2} | {:.3} | {:.3} |",
+            r.scenarios, r.collisions, r.collision_rate, r.mean_risk, r.max_risk
         );
     }
+    let _ = writeln!(s, "\n## Top scenarios, re-scored\n");
+    let mut header = String::from("| rank | id | kind | collision (idm) | min TTC s |");
+    let mut rule = String::from("|---|---|---|---|---|");
+    for r in &m.rescore {
+        let _ = write!(header, " S_risk {} |", r.policy);
+        rule.push_str("---|");
+    }
+    let _ = writeln!(s, "{header}\n{rule}");
+    for (i, r) in m.top.iter().enumerate() {
+        let ttc = r.outcome.min_ttc_s.map_or("∞".to_string(), |t| format!("{t:.2}"));
+        let _ = write!(s, "| {} | `{}` | {} | {} | {ttc} |", i + 1, r.id, r.kind, r.outcome.collision);
+        for p in &m.rescore {
+            let _ = write!(s, " {} |", p.risk.get(i).map_or("–".to_string(), |v| format!("{v:.3}")));
+        }
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(s, "\n| policy | collisions on the top {} | mean S_risk |\n|---|---|---|", m.top.len());
+    for p in &m.rescore {
+        let _ = writeln!(s, "| {} | {} | {:.3} |", p.policy, p.collisions, p.mean_risk);
+    }
+    let _ = writeln!(
+        s,
+        "\nThe top scenarios come from the library that `full` trains on, so its column here is in-distribution; \
+         the held-out table above is the fair comparison."
+    );
     if !m.heatmaps.is_empty() {
         let _ = writeln!(s, "\n## Risk fields of the top scenarios\n");
         for h in &m.heatmaps {
             let _ = writeln!(s, "![{h}]({h})\n");
         }
     }
+}
+
+/// The report; `timings` (what, seconds) are measurements and appear only here, never in
+/// metrics.json.
+pub fn markdown(m: &RunMetrics, timings: &[(String, f64)]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# RiskTwin run (seed {})\n", m.seed);
+    ablation_section(&mut s, m);
+    library_section(&mut s, m);
+    let _ = writeln!(s, "\n## Wall time (this machine; not in metrics.json)\n\n| phase | s |\n|---|---|");
+    for (what, secs) in timings {
+        let _ = writeln!(s, "| {what} | {secs:.1} |");
+    }
+    let _ = writeln!(s, "\n| run | s |\n|---|---|");
+    for (v, seed, secs) in &m.ablation.train_wall_s {
+        let _ = writeln!(s, "| train {v} seed {seed} | {secs:.1} |");
+    }
     let _ = writeln!(
         s,
-        "\n## Not in this run yet\n\nPolicy retraining (PPO/SAC) with training curves and the base / risk-only / full \
-         ablation, and the MCAP recording, arrive with the learning and pipeline work; this report covers the \
-         scenario-generation and risk-scoring half of the loop only."
+        "\n## Not in this run\n\n- No `recording.mcap`: the embedded run does not yet drive the pipeline (edge \
+         vehicles, ingest, recorder), so there is nothing to record; pushing the mutated scenarios and the new \
+         policies to edge vehicles is not part of this run either.\n- Files: {}.",
+        m.files.join(", ")
     );
     s
 }

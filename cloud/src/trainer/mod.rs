@@ -1,0 +1,92 @@
+//! The trainer role: retrains driving policies against the scenario library and evaluates them
+//! (mission.md §3, the ablation of base / risk-only / full).
+//!
+//! - [`session`]: one training run (PPO or SAC from `risktwin-learn`) of a variant and a seed, in
+//!   phases, with training curves.
+//! - [`curriculum`]: how `full` draws its training scenarios from the library (risk-ranked
+//!   replay, mutation around the policy's failures, refreshed after every phase); `base` and
+//!   `risk-only` sample the five kinds uniformly.
+//! - [`held_out`]: the evaluation set, disjoint from everything trained on.
+//! - [`ablation`]: variants × seeds → per-variant, per-kind metrics with their spread over seeds.
+//! - [`stats`]: the metrics of paper table 1 (plus S_risk) and their spread.
+
+pub mod ablation;
+pub mod curriculum;
+pub mod drive;
+pub mod held_out;
+pub mod session;
+pub mod stats;
+
+#[cfg(test)]
+mod tests;
+
+pub use ablation::{AblationReport, PolicyEvaluation, VariantResult, evaluate_policy, run_ablation};
+pub use held_out::HeldOut;
+pub use session::{CurvePoint, TrainedPolicy, train_variant};
+pub use stats::{EvalMetrics, EvalSpread, Spread};
+
+use crate::library::LibraryError;
+use risktwin_learn::{Algo, LearnError};
+
+/// Why training or evaluation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainerError {
+    #[error(transparent)]
+    Learn(#[from] LearnError),
+    #[error(transparent)]
+    Library(#[from] LibraryError),
+    #[error(transparent)]
+    Source(#[from] risktwin_common::env::SourceError),
+    #[error("held-out scenario {0} reached a training or library set")]
+    HeldOutLeak(String),
+    #[error("the scenario library has no scenarios to train the full variant on")]
+    EmptyLibrary,
+    #[error("bad training plan: {0}")]
+    BadPlan(String),
+}
+
+/// How every training run of an ablation is done.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainingPlan {
+    pub algo: Algo,
+    /// Environment steps per run (variant × seed).
+    pub steps: u64,
+    /// Environments stepped together.
+    pub n_envs: usize,
+    /// Training phases; `full` refreshes its scenarios between phases.
+    pub phases: u32,
+    /// Checkpoints of the training curves.
+    pub curve_points: u32,
+    /// Risk-ranked replay: the riskiest library scenarios in `full`'s set.
+    pub replay_top: usize,
+    /// Ordinary library scenarios drawn uniformly into `full`'s set.
+    pub background: usize,
+    /// Mutated children around failures per refresh.
+    pub mutations: usize,
+    /// Mutation step as a share of each parameter's range.
+    pub mutation_radius: f64,
+    /// Worker threads for evaluation episodes.
+    pub threads: usize,
+}
+
+impl TrainingPlan {
+    /// Checks the plan can run.
+    pub fn validate(&self) -> Result<(), TrainerError> {
+        if self.steps == 0 || self.n_envs == 0 || self.phases == 0 {
+            return Err(TrainerError::BadPlan(format!(
+                "steps ({}), n_envs ({}) and phases ({}) must be positive",
+                self.steps, self.n_envs, self.phases
+            )));
+        }
+        if !(self.mutation_radius > 0.0 && self.mutation_radius <= 1.0) {
+            return Err(TrainerError::BadPlan(format!(
+                "mutation_radius {} is out of range (0, 1]",
+                self.mutation_radius
+            )));
+        }
+        if self.replay_top + self.background == 0 {
+            return Err(TrainerError::BadPlan("replay_top + background must be positive".into()));
+        }
+        Ok(())
+    }
+}

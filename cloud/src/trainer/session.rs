@@ -1,0 +1,160 @@
+//! One training run: a learner (PPO or SAC from `risktwin-learn`) on a vectorised driving
+//! environment for a variant and a seed, in phases; between phases the `full` variant's
+//! scenarios are refreshed from the library ([`super::curriculum`]). Training curves are the
+//! finished training episodes averaged between evenly spaced checkpoints.
+
+use super::curriculum::{Curriculum, Refresh};
+use super::held_out::HeldOut;
+use super::{TrainerError, TrainingPlan};
+use crate::library::ScenarioLibrary;
+use risktwin_common::env::{ScenarioSource, Variant, VecEnv};
+use risktwin_common::metrics::EpisodeMetrics;
+use risktwin_common::rng::Rng;
+use risktwin_learn::ppo::{Ppo, PpoConfig};
+use risktwin_learn::sac::{Sac, SacConfig};
+use risktwin_learn::{Algo, PolicyNet};
+use serde::Serialize;
+use std::time::Instant;
+
+/// Training episodes averaged over one checkpoint window.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CurvePoint {
+    pub env_steps: u64,
+    pub episodes: u64,
+    /// The variant's own training reward (base has no risk term).
+    pub reward: f64,
+    pub success_rate: f64,
+    pub route_completion: f64,
+    pub avg_speed_mps: f64,
+    pub collision_rate: f64,
+}
+
+/// What one training run produced.
+#[derive(Debug, Clone)]
+pub struct TrainedPolicy {
+    pub variant: Variant,
+    /// The training seed.
+    pub seed: u64,
+    pub env_steps: u64,
+    /// Checkpoints with at least one finished episode.
+    pub curve: Vec<CurvePoint>,
+    /// The `full` variant's library refreshes (empty for the others).
+    pub refreshes: Vec<Refresh>,
+    pub policy: PolicyNet,
+    /// Wall time of training (measurement; not part of deterministic output).
+    pub wall_s: f64,
+}
+
+enum Learner {
+    Ppo(Box<Ppo>),
+    Sac(Box<Sac>),
+}
+
+impl Learner {
+    fn new(algo: Algo, n_envs: usize, seed: u64) -> Result<Self, TrainerError> {
+        Ok(match algo {
+            Algo::Ppo | Algo::PpoGru => {
+                let pc = PpoConfig { recurrent: algo == Algo::PpoGru, ..PpoConfig::default() };
+                Learner::Ppo(Box::new(Ppo::new(pc, n_envs, seed)?))
+            }
+            Algo::Sac => Learner::Sac(Box::new(Sac::new(SacConfig::default(), n_envs, seed)?)),
+        })
+    }
+
+    /// One learner iteration; returns the environment steps taken.
+    fn step(&mut self, env: &mut VecEnv) -> Result<u64, TrainerError> {
+        Ok(match self {
+            Learner::Ppo(p) => {
+                p.learn_rollout(env)?;
+                p.rollout_steps() as u64
+            }
+            Learner::Sac(s) => s.learn_steps(env)?,
+        })
+    }
+
+    fn policy(&self) -> &PolicyNet {
+        match self {
+            Learner::Ppo(p) => p.policy(),
+            Learner::Sac(s) => s.policy(),
+        }
+    }
+}
+
+fn curve_point(env_steps: u64, acc: &[EpisodeMetrics]) -> CurvePoint {
+    let n = acc.len().max(1) as f64;
+    let mean = |f: fn(&EpisodeMetrics) -> f64| acc.iter().map(f).sum::<f64>() / n;
+    CurvePoint {
+        env_steps,
+        episodes: acc.len() as u64,
+        reward: mean(|m| m.reward),
+        success_rate: mean(|m| f64::from(u8::from(m.success))),
+        route_completion: mean(|m| m.route_completion),
+        avg_speed_mps: mean(|m| m.avg_speed_mps),
+        collision_rate: mean(|m| f64::from(u8::from(m.collision))),
+    }
+}
+
+/// Trains `variant` with training seed `seed`; `library` feeds the `full` variant (and receives
+/// its policies' outcomes); `progress(done, total)` follows the environment steps.
+pub fn train_variant(
+    plan: &TrainingPlan,
+    variant: Variant,
+    seed: u64,
+    library: &mut ScenarioLibrary,
+    held_out: &HeldOut,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<TrainedPolicy, TrainerError> {
+    plan.validate()?;
+    let start = Instant::now();
+    let threads = plan.threads.max(1);
+    let mut curriculum = Curriculum::new(seed);
+    let source = match variant {
+        Variant::Full => ScenarioSource::List {
+            seed: Rng::derive(seed, 0).next_u64(),
+            specs: curriculum.initial(library, plan, held_out)?,
+        },
+        Variant::Base | Variant::RiskOnly => ScenarioSource::all_kinds(Rng::derive(seed, 0x5A4D_504C).next_u64()),
+    };
+    let mut env = VecEnv::new(plan.n_envs, source, variant.weights())?;
+    let mut learner = Learner::new(plan.algo, plan.n_envs, seed)?;
+    let checkpoint = plan.steps.div_ceil(plan.curve_points.max(1) as u64).max(1);
+    let phase_steps = plan.steps.div_ceil(u64::from(plan.phases.max(1)));
+    let (mut done, mut next_checkpoint) = (0u64, checkpoint);
+    let mut acc: Vec<EpisodeMetrics> = Vec::new();
+    let mut curve = Vec::new();
+    let mut refreshes = Vec::new();
+    for phase in 0..plan.phases.max(1) {
+        let phase_end = (u64::from(phase) + 1).saturating_mul(phase_steps).min(plan.steps);
+        while done < phase_end {
+            done += learner.step(&mut env)?;
+            env.drain_finished(|_, s| acc.push(s.metrics));
+            if done >= next_checkpoint || done >= plan.steps {
+                while next_checkpoint <= done {
+                    next_checkpoint += checkpoint;
+                }
+                // An empty window (no episode finished yet) carries over to the next one.
+                if !acc.is_empty() {
+                    curve.push(curve_point(done, &acc));
+                    acc.clear();
+                }
+            }
+            progress(done.min(plan.steps), plan.steps);
+        }
+        if variant == Variant::Full && phase + 1 < plan.phases {
+            let label = format!("{}-full-seed{seed}-phase{phase}", plan.algo.name());
+            let (specs, refresh) =
+                curriculum.refresh(library, learner.policy(), &label, phase, plan, held_out, threads)?;
+            env.set_source(ScenarioSource::List { seed: Rng::derive(seed, u64::from(phase) + 1).next_u64(), specs })?;
+            refreshes.push(refresh);
+        }
+    }
+    Ok(TrainedPolicy {
+        variant,
+        seed,
+        env_steps: done,
+        curve,
+        refreshes,
+        policy: learner.policy().clone(),
+        wall_s: start.elapsed().as_secs_f64(),
+    })
+}

@@ -1,0 +1,138 @@
+//! What the numbers show, computed rather than written by hand: the issue's target ("on the
+//! held-out set, across ≥ 3 seeds, full has a lower collision rate than base at equal or better
+//! route completion and average speed") checked against the ablation, and said in sentences,
+//! including where full does not win.
+//!
+//! The rule is fixed here, before any result: "lower" compares means over seeds; "equal or
+//! better" allows full to fall short of base by at most one seed standard deviation (the larger
+//! of the two variants'), the resolution the seeds give. A collision difference no larger than
+//! that standard deviation is reported as within seed noise.
+
+use risktwin_cloud::trainer::{AblationReport, Spread};
+use risktwin_common::env::Variant;
+use risktwin_common::scenario::ScenarioKind;
+use serde::Serialize;
+
+/// Full against base on one kind.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KindComparison {
+    pub kind: ScenarioKind,
+    pub full_collision_rate: f64,
+    pub base_collision_rate: f64,
+    pub full_lower: bool,
+}
+
+/// The target, checked.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Verdict {
+    pub seeds: usize,
+    pub collision_lower: bool,
+    /// The collision difference exceeds one seed standard deviation.
+    pub collision_beyond_noise: bool,
+    pub completion_equal_or_better: bool,
+    pub speed_equal_or_better: bool,
+    pub target_met: bool,
+    pub by_kind: Vec<KindComparison>,
+    /// The findings as sentences (also in report.md).
+    pub sentences: Vec<String>,
+}
+
+fn within(full: &Spread, base: &Spread) -> bool {
+    full.mean >= base.mean - full.std.max(base.std)
+}
+
+fn pm(s: &Spread) -> String {
+    format!("{:.3} ± {:.3}", s.mean, s.std)
+}
+
+/// Compares full with base (and risk-only with both); `None` when either was not trained.
+pub fn judge(ab: &AblationReport) -> Option<Verdict> {
+    let (full, base) = (ab.variant(Variant::Full)?, ab.variant(Variant::Base)?);
+    let seeds = full.seeds.len().min(base.seeds.len());
+    let (f, b) = (&full.overall, &base.overall);
+    let collision_lower = f.collision_rate.mean < b.collision_rate.mean;
+    let noise = f.collision_rate.std.max(b.collision_rate.std);
+    let collision_beyond_noise = (f.collision_rate.mean - b.collision_rate.mean).abs() > noise;
+    let completion_equal_or_better = within(&f.route_completion, &b.route_completion);
+    let speed_equal_or_better = within(&f.avg_speed_mps, &b.avg_speed_mps);
+    let target_met = seeds >= 3 && collision_lower && completion_equal_or_better && speed_equal_or_better;
+    let by_kind: Vec<KindComparison> = ScenarioKind::ALL
+        .iter()
+        .filter_map(|k| {
+            let (fk, bk) = (full.by_kind.get(k)?, base.by_kind.get(k)?);
+            Some(KindComparison {
+                kind: *k,
+                full_collision_rate: fk.collision_rate.mean,
+                base_collision_rate: bk.collision_rate.mean,
+                full_lower: fk.collision_rate.mean < bk.collision_rate.mean,
+            })
+        })
+        .collect();
+
+    let mut s = Vec::new();
+    s.push(format!(
+        "Target {}: on the held-out set ({} episodes, {seeds} seeds) full's collision rate is {} against base's {} \
+         ({}{}), at route completion {} vs {} ({}) and average speed {} vs {} m/s ({}).",
+        if target_met { "met" } else { "not met" },
+        ab.held_out_episodes,
+        pm(&f.collision_rate),
+        pm(&b.collision_rate),
+        if collision_lower {
+            "lower"
+        } else if f.collision_rate.mean == b.collision_rate.mean {
+            "equal"
+        } else {
+            "higher"
+        },
+        if collision_beyond_noise { "" } else { ", within one seed standard deviation" },
+        pm(&f.route_completion),
+        pm(&b.route_completion),
+        if completion_equal_or_better { "equal or better" } else { "worse" },
+        pm(&f.avg_speed_mps),
+        pm(&b.avg_speed_mps),
+        if speed_equal_or_better { "equal or better" } else { "slower" },
+    ));
+    if seeds < 3 {
+        s.push(format!("Only {seeds} seed(s) were trained; the target asks for at least three."));
+    }
+    let wins: Vec<String> = by_kind.iter().filter(|k| k.full_lower).map(|k| k.kind.to_string()).collect();
+    let losses: Vec<String> = by_kind
+        .iter()
+        .filter(|k| k.full_collision_rate > k.base_collision_rate)
+        .map(|k| format!("{} ({:.2} vs {:.2})", k.kind, k.full_collision_rate, k.base_collision_rate))
+        .collect();
+    s.push(format!(
+        "By kind, full collides less than base on {} and more on {}.",
+        if wins.is_empty() { "no kind".to_string() } else { wins.join(", ") },
+        if losses.is_empty() { "no kind".to_string() } else { losses.join(", ") }
+    ));
+    if let Some(r) = ab.variant(Variant::RiskOnly) {
+        let rc = r.overall.collision_rate.mean;
+        s.push(format!(
+            "Separating the two ingredients: the risk reward alone (risk-only) gives collision rate {rc:.3} against \
+             base's {:.3}; adding the library scenarios (full) gives {:.3} against risk-only's {rc:.3}.",
+            b.collision_rate.mean, f.collision_rate.mean
+        ));
+    }
+    let best_success = ab.variants.iter().map(|v| v.overall.success_rate.mean).fold(0.0, f64::max);
+    let reference = &ab.reference.overall;
+    if best_success < 0.5 * reference.success_rate {
+        s.push(format!(
+            "Caveat: no learned policy drives well yet — the best success rate is {best_success:.2} against the \
+             reference driver's {:.2} (collision {:.2}, route completion {:.2}) on the same scenarios, after {} \
+             environment steps per run; differences between variants at this stage say more about how each \
+             fails than about safe driving.",
+            reference.success_rate, reference.collision_rate, reference.route_completion, ab.steps_per_run
+        ));
+    }
+    Some(Verdict {
+        seeds,
+        collision_lower,
+        collision_beyond_noise,
+        completion_equal_or_better,
+        speed_equal_or_better,
+        target_met,
+        by_kind,
+        sentences: s,
+    })
+}

@@ -48,7 +48,7 @@ impl Default for RunConfig {
             mutation_radius: 0.1,
             top_k: 10,
             heatmaps: 3,
-            train_steps: 65_536,
+            train_steps: 196_608,
             seeds: 3,
             n_envs: 32,
             phases: 4,

@@ -1,7 +1,7 @@
 //! `report.md`: what the run measured, in tables a person reads, the findings computed from the
 //! numbers (see `verdict`), and what the run does not cover.
 
-use super::RunMetrics;
+use super::{RunMetrics, verdict};
 use risktwin_cloud::trainer::stats::METRIC_NAMES;
 use risktwin_cloud::trainer::{EvalMetrics, EvalSpread, Spread};
 use std::fmt::Write;
@@ -66,7 +66,9 @@ fn ablation_section(s: &mut String, m: &RunMetrics) {
             let _ = writeln!(
                 s,
                 "\nRule (fixed before the run): \"lower\" compares means over seeds; \"equal or better\" allows full to \
-                 trail base by at most one seed standard deviation."
+                 trail base by at most {} in route completion and {} m/s in average speed.",
+                verdict::COMPLETION_TOLERANCE,
+                verdict::SPEED_TOLERANCE_MPS
             );
         }
         None => {

@@ -104,13 +104,19 @@ pub struct ScenarioSource {
     /// A JSON spec file: {"kind", "seed", "params"}.
     #[arg(long)]
     pub spec: Option<PathBuf>,
+    /// A CommonRoad XML scenario (recorded traffic; `simulate` and `risk-field` only).
+    #[arg(long, conflicts_with_all = ["spec", "db"])]
+    pub commonroad: Option<PathBuf>,
+    /// The CommonRoad ego's dynamic-obstacle id (default: the planning problem's, else the first).
+    #[arg(long, requires = "commonroad")]
+    pub ego: Option<u64>,
 }
 
 #[derive(Debug, Args)]
 pub struct SimulateArgs {
     #[command(flatten)]
     pub source: ScenarioSource,
-    /// `idm` (the reference driver).
+    /// `idm` (the reference driver), or `replay` (the recorded ego; `--commonroad` only).
     #[arg(long, default_value = "idm")]
     pub policy: String,
     /// Write a per-step CSV trace of the ego and its nearest object here.

@@ -10,5 +10,6 @@ mod contract_episode;
 mod contract_scenarios;
 mod criticality;
 mod determinism;
+mod real_data;
 mod same_scenario;
 mod support;

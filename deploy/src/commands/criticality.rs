@@ -5,7 +5,7 @@ use crate::cli::CriticalityArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_common::commonroad::criticality::{ScenarioCriticality, scenario_criticality};
-use risktwin_common::commonroad::parse_scenario;
+use risktwin_common::commonroad::{Scenario, parse_scenario};
 use serde::Serialize;
 use std::io::Write;
 
@@ -22,9 +22,7 @@ struct Report<'a> {
 
 pub fn criticality(args: CriticalityArgs) -> CliResult {
     let path = &args.commonroad;
-    let text =
-        std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
-    let scenario = parse_scenario(&text).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
+    let scenario = read_commonroad(path)?;
     let measures =
         scenario_criticality(&scenario, args.ego).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
     match args.format {
@@ -32,6 +30,13 @@ pub fn criticality(args: CriticalityArgs) -> CliResult {
         Format::Json => print_json(&Report { scenario: &scenario.benchmark_id, measures: &measures }),
         Format::Table => print_pairs(&measures),
     }
+}
+
+/// Reads and parses a CommonRoad file; every problem is an input error naming the file.
+pub fn read_commonroad(path: &std::path::Path) -> CliResult<Scenario> {
+    let text =
+        std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
+    parse_scenario(&text).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
 }
 
 fn write_csv(m: &ScenarioCriticality) -> CliResult {

@@ -5,10 +5,12 @@ mod cloud;
 mod criticality;
 mod edge;
 mod risk_field;
+mod risk_field_commonroad;
 mod router;
 mod run;
 mod scenarios;
 mod simulate;
+mod simulate_commonroad;
 mod source;
 
 use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ScenariosCommand};

@@ -24,8 +24,8 @@ pub mod criticality;
 mod error;
 pub mod lanelet;
 pub mod model;
-pub mod twin;
 mod parse;
+pub mod twin;
 mod xml;
 
 pub use error::CommonRoadError;

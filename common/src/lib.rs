@@ -14,10 +14,12 @@
 //! - [`commonroad`]: CommonRoad XML import and criticality measures on recorded traffic.
 //! - [`scenario`]: the five kinds, sampling, feasibility, building a world.
 //! - [`world`], [`driver`], [`episode`], [`metrics`]: one episode, its reference driver, its metrics.
+//! - [`env`]: the driving environment for reinforcement learning (observation, action, reward, VecEnv).
 
 pub mod align;
 pub mod commonroad;
 pub mod driver;
+pub mod env;
 pub mod episode;
 pub mod geometry;
 pub mod metrics;

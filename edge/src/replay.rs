@@ -1,13 +1,16 @@
 //! `risktwin edge replay`: fleet data from a recording. Every edge-stream message of an MCAP file
 //! (a cloud `--record`ing, or any file with the same key scheme as topics) is republished on its
-//! recorded key, paced by its log time divided by `speed` (0: as fast as the transport takes it).
+//! recorded key, paced by its log time divided by `speed` (0: as fast as the transport takes it),
+//! with its recorded receive time attached (see [`run`]).
 
 use crate::EdgeError;
-use risktwin_protos::recording::read_messages;
+use risktwin_protos::recording::{MessageCursor, RecordingError, encode_replay_time};
 use risktwin_transport::keyexpr::parse_edge_key;
+use risktwin_transport::zenoh::Session;
 use risktwin_transport::{Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect};
 use serde::Serialize;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
+use std::io::Read;
 use std::time::Duration;
 
 /// How to replay.
@@ -21,43 +24,56 @@ pub struct ReplayConfig {
 }
 
 /// What a replay published, per key, and what it skipped (topics outside the edge scheme).
-#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct ReplaySummary {
     pub published: u64,
     pub skipped: u64,
     pub by_key: BTreeMap<String, u64>,
+    /// From the first message to the last one handed to Zenoh.
+    pub elapsed_s: f64,
+    /// Published messages per second over `elapsed_s`.
+    pub msgs_per_s: f64,
 }
 
-/// Republishes the edge streams of `recording` (the bytes of an MCAP file).
-pub async fn run(recording: &[u8], config: &ReplayConfig, mut shutdown: Shutdown) -> Result<ReplaySummary, EdgeError> {
-    let messages = read_messages(recording).map_err(|e| EdgeError::Recording { reason: e.to_string() })?;
+/// Republishes the edge streams of a recording read from `source` (an MCAP file, streamed: the
+/// recording is never held in memory). Each message carries its recorded receive time as a
+/// replay-time attachment ([`encode_replay_time`]), which a cloud run with `--replay-time`
+/// ingests at instead of its own clock, so that it rebuilds the live run's snapshots.
+pub async fn run<R: Read>(
+    source: R,
+    config: &ReplayConfig,
+    mut shutdown: Shutdown,
+) -> Result<ReplaySummary, EdgeError> {
+    let bad_file = |e: RecordingError| EdgeError::Recording { reason: e.to_string() };
+    let mut cursor = MessageCursor::new(source);
     let session = connect(&config.transport).await?;
-    let mut publishers: HashMap<&str, StreamPublisher> = HashMap::new();
-    for m in &messages {
-        if publishers.contains_key(m.topic.as_str()) {
-            continue;
-        }
-        if let Some(key) = parse_edge_key(&m.topic) {
-            let bad = |e: risktwin_transport::KeyError| EdgeError::Recording { reason: format!("{}: {e}", m.topic) };
-            let site = SiteId::new(key.site).map_err(bad)?;
-            let source = SourceId::new(key.source).map_err(bad)?;
-            publishers.insert(&m.topic, StreamPublisher::declare(&session, &site, &source, key.stream).await?);
-        }
-    }
-    if let Some(p) = publishers.values().next() {
-        p.wait_for_subscriber(config.wait_for_cloud, shutdown.clone()).await?;
-    }
+    // By channel id: the publisher of the channel's key, or None for a topic outside the scheme.
+    let mut publishers: Vec<Option<Option<StreamPublisher>>> = Vec::new();
+    let mut waited = false;
     let mut summary = ReplaySummary::default();
-    let t0 = messages.first().map_or(0, |m| m.log_time_ns);
+    let mut first_log_ns = None;
     let start = tokio::time::Instant::now();
-    for m in &messages {
+    while let Some(m) = cursor.next_message() {
+        let m = m.map_err(bad_file)?;
         if shutdown.is_fired() {
             break;
         }
-        let Some(publisher) = publishers.get(m.topic.as_str()) else {
+        let slot = usize::from(m.channel_id);
+        if publishers.len() <= slot {
+            publishers.resize_with(slot + 1, || None);
+        }
+        if publishers[slot].is_none() {
+            publishers[slot] = Some(declare(&session, m.topic).await?);
+        }
+        let Some(Some(publisher)) = &publishers[slot] else {
             summary.skipped += 1;
             continue;
         };
+        if !waited {
+            publisher.wait_for_subscriber(config.wait_for_cloud, shutdown.clone()).await?;
+            waited = true;
+        }
+        let t0 = *first_log_ns.get_or_insert(m.log_time_ns);
         if config.speed > 0.0 {
             let offset = Duration::from_secs_f64(m.log_time_ns.saturating_sub(t0) as f64 * 1e-9 / config.speed);
             tokio::select! {
@@ -65,13 +81,31 @@ pub async fn run(recording: &[u8], config: &ReplayConfig, mut shutdown: Shutdown
                 () = shutdown.wait() => break,
             }
         }
-        publisher.put(m.data.clone()).await?;
+        let Ok(log_time_ns) = i64::try_from(m.log_time_ns) else {
+            summary.skipped += 1;
+            continue;
+        };
+        let topic = m.topic.to_owned();
+        publisher.put_with_attachment(m.data.to_vec(), encode_replay_time(log_time_ns).to_vec()).await?;
         summary.published += 1;
-        *summary.by_key.entry(m.topic.clone()).or_default() += 1;
+        *summary.by_key.entry(topic).or_default() += 1;
     }
-    for (_, p) in publishers {
+    summary.elapsed_s = start.elapsed().as_secs_f64();
+    summary.msgs_per_s = summary.published as f64 / summary.elapsed_s.max(1e-9);
+    for p in publishers.into_iter().flatten().flatten() {
         p.undeclare().await?;
     }
     close(session).await?;
     Ok(summary)
+}
+
+/// The publisher of `topic`'s key, or `None` when the topic is not an edge stream of the scheme.
+async fn declare(session: &Session, topic: &str) -> Result<Option<StreamPublisher>, EdgeError> {
+    let Some(key) = parse_edge_key(topic) else {
+        return Ok(None);
+    };
+    let bad = |e: risktwin_transport::KeyError| EdgeError::Recording { reason: format!("{topic}: {e}") };
+    let site = SiteId::new(key.site).map_err(bad)?;
+    let source = SourceId::new(key.source).map_err(bad)?;
+    Ok(Some(StreamPublisher::declare(session, &site, &source, key.stream).await?))
 }

@@ -13,3 +13,4 @@ mod determinism;
 mod real_data;
 mod same_scenario;
 mod support;
+mod train;

@@ -165,18 +165,29 @@ fn bad_ids_and_endpoints_are_refused_with_exit_2() {
     }
 }
 
+/// Replay over the network: a live run's recording, republished unpaced by `edge replay` with
+/// the recorded receive times attached, into a cloud in `--replay-time` mode, yields the live
+/// cloud's snapshots (same count and digest) and counts.
 #[test]
-fn edge_replay_streams_a_recording_into_a_second_cloud() {
+fn edge_replay_into_a_second_cloud_rebuilds_the_live_snapshots() {
     let (router, locator) = start_router();
     let dir = tempfile::tempdir().expect("a temporary directory");
     let recording = dir.path().join("live.mcap");
     let cloud = start_cloud(&locator, &["--record", recording.to_str().expect("a UTF-8 path")]);
-    let mut vehicle = edge("vehicle", "veh-r", &locator, &["--rate-hz", "200", "--count", "40"]);
-    vehicle.exit_json(STEP);
-    let live = stop_cloud(cloud, &["veh-r"]);
+    let mut edges = vec![
+        edge("vehicle", "veh-r", &locator, &["--rate-hz", "200", "--count", "120", "--clock-offset-ns", "7000000"]),
+        edge("vehicle", "veh-s", &locator, &["--rate-hz", "200", "--count", "120", "--clock-drift-ppm", "80"]),
+        edge("rsu", "rsu-r", &locator, &["--rate-hz", "50", "--count", "30"]),
+    ];
+    for e in &mut edges {
+        e.exit_json(STEP);
+    }
+    let live = stop_cloud(cloud, &["veh-r", "veh-s", "rsu-r"]);
+    assert_eq!(live["total_dropped"], 0, "{live}");
+    assert!(live["snapshots"].as_u64().is_some_and(|n| n > 4), "{live}");
 
-    // Fleet data: the recording streamed unpaced into a fresh cloud.
-    let mut replayed_cloud = start_cloud(&locator, &[]);
+    // The recording streamed unpaced into a fresh cloud that ingests at the attached times.
+    let mut replayed_cloud = start_cloud(&locator, &["--replay-time"]);
     let path = recording.to_str().expect("a UTF-8 path");
     let mut replay = Proc::spawn("replay", &["edge", "replay", path, "--speed", "0", "--connect", &locator]);
     let published = replay.exit_json(STEP);
@@ -184,7 +195,19 @@ fn edge_replay_streams_a_recording_into_a_second_cloud() {
     assert_eq!(published["skipped"], 0);
     replayed_cloud.terminate();
     let replayed = replayed_cloud.exit_json(STEP);
-    router.terminate();
     assert_eq!(replayed["total_dropped"], 0, "{replayed}");
     assert_eq!(replayed["received"], live["received"], "the replayed cloud sees what the live one accepted");
+    assert_eq!(replayed["snapshots"], live["snapshots"], "live {live}\nreplayed {replayed}");
+    assert_eq!(replayed["snapshot_digest"], live["snapshot_digest"], "replay rebuilds the live snapshots");
+
+    // Without --replay-time the cloud stamps the replay with its own clock: the counts match
+    // but the snapshots are not the live ones (what the attachment is for).
+    let mut own_clock = start_cloud(&locator, &[]);
+    let mut replay = Proc::spawn("replay", &["edge", "replay", path, "--speed", "0", "--connect", &locator]);
+    replay.exit_json(STEP);
+    own_clock.terminate();
+    let own = own_clock.exit_json(STEP);
+    assert_eq!(own["received"], live["received"]);
+    assert_ne!(own["snapshot_digest"], live["snapshot_digest"], "own-clock replay: {own}");
+    router.terminate();
 }

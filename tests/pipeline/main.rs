@@ -6,6 +6,9 @@
 //! `ready` line, edges waiting for a matching subscriber before publishing, the cloud's
 //! `edge left` lines (liveliness) before it is sent SIGTERM.
 
+mod cloudloop;
 mod fleet;
+#[path = "../interop/peer_python.rs"]
+mod peer_python;
 mod python_zenoh;
 mod support;

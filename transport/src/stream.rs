@@ -63,6 +63,19 @@ impl StreamPublisher {
             .map_err(|e| TransportError::Put { key: self.key().to_owned(), reason: e.to_string() })
     }
 
+    /// Publishes one payload with an attachment (e.g. a replay's recorded receive time).
+    pub async fn put_with_attachment(
+        &self,
+        payload: impl Into<ZBytes>,
+        attachment: impl Into<ZBytes>,
+    ) -> Result<(), TransportError> {
+        self.publisher
+            .put(payload)
+            .attachment(attachment)
+            .await
+            .map_err(|e| TransportError::Put { key: self.key().to_owned(), reason: e.to_string() })
+    }
+
     /// Waits until some subscriber matches this stream: `Ok(true)` once one does, `Ok(false)` if
     /// `timeout` passes or `shutdown` fires first. Publishing before that point would be lost.
     pub async fn wait_for_subscriber(&self, timeout: Duration, mut shutdown: Shutdown) -> Result<bool, TransportError> {

@@ -1,6 +1,8 @@
 //! The edge→cloud streams the ingest role understands, and what each carries.
 
 use risktwin_common::align::{StreamIndex, StreamMode, StreamSpec};
+use risktwin_common::telemetry::{CanFrame, ObjectList, RsuObservation, SignalPhase, VehicleStateSample};
+use risktwin_protos::WireMessage;
 
 /// One edge→cloud stream; its name is the last segment of its key expression.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -34,6 +36,17 @@ impl Stream {
     /// The stream named by a key-expression segment.
     pub fn from_name(name: &str) -> Option<Stream> {
         Stream::ALL.into_iter().find(|s| s.name() == name)
+    }
+
+    /// The protobuf message type the stream carries (its schema name in a recording).
+    pub fn proto_name(self) -> &'static str {
+        match self {
+            Stream::State => VehicleStateSample::PROTO_NAME,
+            Stream::Can => CanFrame::PROTO_NAME,
+            Stream::Perception => ObjectList::PROTO_NAME,
+            Stream::Rsu => RsuObservation::PROTO_NAME,
+            Stream::Signal => SignalPhase::PROTO_NAME,
+        }
     }
 
     /// Position in the aligner's stream table.

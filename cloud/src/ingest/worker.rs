@@ -106,7 +106,7 @@ impl<W: Write + Seek> IngestWorker<W> {
             Ok(_) => {
                 self.stats.accepted += 1;
                 if let Some(rec) = self.recorder.as_mut() {
-                    let channel = rec.channel(topic, Self::schema(stream))?;
+                    let channel = rec.channel(topic, stream.proto_name())?;
                     rec.write(channel, receive_ns.max(0) as u64, header.publish_time_ns.max(0) as u64, payload)?;
                     self.stats.recorded += 1;
                 }
@@ -143,16 +143,6 @@ impl<W: Write + Seek> IngestWorker<W> {
 
     fn drop_for(&mut self, reason: &str) {
         *self.stats.dropped.entry(reason.to_string()).or_default() += 1;
-    }
-
-    fn schema(stream: Stream) -> &'static str {
-        match stream {
-            Stream::State => VehicleStateSample::PROTO_NAME,
-            Stream::Can => CanFrame::PROTO_NAME,
-            Stream::Perception => ObjectList::PROTO_NAME,
-            Stream::Rsu => RsuObservation::PROTO_NAME,
-            Stream::Signal => SignalPhase::PROTO_NAME,
-        }
     }
 
     fn decode(stream: Stream, payload: &[u8]) -> Result<(Header, TwinSample), &'static str> {

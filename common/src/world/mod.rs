@@ -151,21 +151,40 @@ impl World {
         &self.perceived
     }
 
-    /// Advances the world by one step with `policy` driving the ego.
+    /// Advances the world by one step with `policy` driving the ego: [`World::perceive`], the
+    /// policy acts on [`World::view`], then [`World::advance`].
     pub fn step(&mut self, policy: &mut dyn Policy) -> StepReport {
+        self.perceive();
+        let controls = policy.act(&self.view());
+        self.advance(controls)
+    }
+
+    /// The first part of a step: refreshes the scene and lets the ego's sensor perceive it.
+    /// A learned policy's environment calls this, observes [`World::view`], and later
+    /// [`World::advance`]s with its action, consuming the sensor noise exactly as `step` does.
+    pub fn perceive(&mut self) {
         self.scene_objects();
         let ego_pose = self.ego.pose();
         self.sensor.perceive(ego_pose, &self.objects, &mut self.sensor_rng, &mut self.perceived);
-        let view = DriverView {
+    }
+
+    /// What a policy sees after the last [`World::perceive`].
+    pub fn view(&self) -> DriverView<'_> {
+        DriverView {
             road: &self.road,
             time_s: self.time_s,
-            ego_pose,
+            ego_pose: self.ego.pose(),
             ego_speed_mps: self.ego.state.speed_mps,
             ego_accel_mps2: self.ego.state.accel_mps2,
             ego_footprint: self.ego.params.footprint(),
             perceived: &self.perceived,
-        };
-        let controls = policy.act(&view);
+        }
+    }
+
+    /// The rest of a step after [`World::perceive`]: the ego applies `controls`, traffic and
+    /// pedestrians move, time advances and contacts are detected.
+    pub fn advance(&mut self, controls: Controls) -> StepReport {
+        let ego_pose = self.ego.pose();
         let mu = self.road.friction_at(ego_pose.position());
         let ego_velocity = self.ego.velocity();
         self.ego.step(controls, mu, self.dt_s);

@@ -30,11 +30,11 @@ pub fn replay(args: ReplayArgs) -> CliResult {
     }
     let wait_for_cloud = Duration::try_from_secs_f64(args.wait_for_cloud_s)
         .map_err(|_| CliError::input(format!("--wait-for-cloud-s {} must be non-negative", args.wait_for_cloud_s)))?;
-    let bytes = std::fs::read(&args.recording)
+    let file = std::fs::File::open(&args.recording)
         .map_err(|e| CliError::input(format!("cannot read {}: {e}", args.recording.display())))?;
     let config = ReplayConfig { transport: transport_config(args.zenoh)?, speed: args.speed, wait_for_cloud };
     let summary = with_signals(|shutdown| async move {
-        replay::run(&bytes, &config, shutdown).await.map_err(|e| match e {
+        replay::run(std::io::BufReader::with_capacity(1 << 20, file), &config, shutdown).await.map_err(|e| match e {
             EdgeError::Recording { .. } => CliError::input(format!("{}: {e}", args.recording.display())),
             other => CliError::runtime(other),
         })

@@ -1,9 +1,12 @@
 //! One module per subcommand; each turns parsed arguments into library calls and output.
 
 mod bench;
-mod cloud;
+pub(crate) mod bench_ingest;
+pub(crate) mod bench_replay;
+pub mod cloud;
 mod criticality;
 mod edge;
+pub mod push;
 mod risk_field;
 mod risk_field_commonroad;
 mod router;
@@ -12,6 +15,7 @@ mod scenarios;
 mod simulate;
 mod simulate_commonroad;
 mod source;
+mod train;
 
 use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ScenariosCommand};
 use crate::error::CliResult;
@@ -22,15 +26,20 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Scenarios(ScenariosCommand::Generate(a)) => scenarios::generate(a),
         Command::Scenarios(ScenariosCommand::Rank(a)) => scenarios::rank(a),
         Command::Simulate(a) => simulate::simulate(a),
+        Command::Train(a) => train::train(a),
         Command::RiskField(a) => risk_field::risk_field(a),
         Command::Criticality(a) => criticality::criticality(a),
         Command::Bench(BenchCommand::Sim(a)) => bench::sim(a),
         Command::Bench(BenchCommand::RiskField(a)) => bench::risk_field(a),
         Command::Bench(BenchCommand::Zenoh(a)) => cloud::bench_zenoh(a),
+        Command::Bench(BenchCommand::Replay(a)) => bench_replay::replay(a),
+        Command::Bench(BenchCommand::Ingest(a)) => bench_ingest::ingest(a),
         Command::Router(a) => router::router(a),
         Command::Edge(EdgeCommand::Vehicle(a)) => edge::vehicle(a),
         Command::Edge(EdgeCommand::Rsu(a)) => edge::rsu(a),
         Command::Edge(EdgeCommand::Replay(a)) => edge::replay(a),
         Command::Cloud(a) => cloud::cloud(a),
+        Command::Push(c) => push::push(c),
+        Command::Bench(BenchCommand::Latency(a)) => cloud::bench_latency(a),
     }
 }

@@ -1,0 +1,175 @@
+//! Environment tests: shapes, determinism (also across thread counts), reward signs,
+//! termination, and agreement with `episode::run`.
+
+use super::*;
+use crate::episode;
+use crate::scenario::{ScenarioKind, ScenarioSpec, build, check_feasible, sample};
+use std::collections::BTreeMap;
+
+fn spec(kind: ScenarioKind, params: &[(&str, f64)]) -> ScenarioSpec {
+    let params: BTreeMap<String, f64> = params.iter().map(|(k, v)| (k.to_string(), *v)).collect();
+    let s = ScenarioSpec::new(kind, 7, params).expect("valid test spec");
+    check_feasible(&s).expect("feasible test spec");
+    s
+}
+
+/// A lead car braking hard right in front: full throttle must crash into it.
+fn crash_spec() -> ScenarioSpec {
+    spec(
+        ScenarioKind::EmergencyBraking,
+        &[
+            ("ego_speed_mps", 20.0),
+            ("initial_headway_m", 10.0),
+            ("braking_decel_mps2", 8.0),
+            ("brake_time_s", 0.5),
+            ("friction_mu", 1.0),
+        ],
+    )
+}
+
+/// A simple lane-keeping controller on the observation: steer against e_y and e_ψ, hold speed.
+fn keep_lane(o: &[f32; OBS_DIM]) -> [f32; ACT_DIM] {
+    let steer = -0.8 * o[3] - 1.5 * o[4];
+    let speed_err = o[10] - o[0];
+    [steer.clamp(-1.0, 1.0), (4.0 * speed_err).clamp(0.0, 1.0), (-4.0 * speed_err).clamp(0.0, 1.0)]
+}
+
+#[test]
+fn observations_are_finite_and_scaled() {
+    let s = sample(1, ScenarioKind::CutIn, 0);
+    let mut obs = [0.0; OBS_DIM];
+    let env = DrivingEnv::new(&s, Variant::Full.weights(), &mut obs);
+    assert!(obs.iter().all(|x| x.is_finite() && x.abs() <= 10.0), "{obs:?}");
+    let w = env.world();
+    assert!((obs[0] as f64 - w.ego.state.speed_mps / observe::SPEED_SCALE_MPS).abs() < 1e-6);
+    assert!((obs[10] as f64 - w.desired_speed_mps / observe::SPEED_SCALE_MPS).abs() < 1e-6);
+    assert!(obs[3].abs() < 0.05 && obs[4].abs() < 0.05, "starts centred and aligned: {obs:?}");
+}
+
+#[test]
+fn full_throttle_into_a_braking_lead_collides_and_terminates() {
+    let mut obs = [0.0; OBS_DIM];
+    let mut env = DrivingEnv::new(&crash_spec(), Variant::Full.weights(), &mut obs);
+    let mut last = StepOutcome::default();
+    for _ in 0..400 {
+        last = env.step(&[0.0, 1.0, 0.0], &mut obs);
+        if last.done() {
+            break;
+        }
+    }
+    assert!(last.terminated && !last.truncated, "{last:?}");
+    assert!(last.reward < -100.0, "the crash penalty dominates: {}", last.reward);
+    let s = env.summary();
+    assert!(s.metrics.collision && !s.metrics.success);
+}
+
+#[test]
+fn reward_signs_progress_positive_risk_negative() {
+    let s = sample(2, ScenarioKind::PedestrianCrossing, 3);
+    let (mut o1, mut o2) = ([0.0; OBS_DIM], [0.0; OBS_DIM]);
+    let mut base = DrivingEnv::new(&s, Variant::Base.weights(), &mut o1);
+    let mut full = DrivingEnv::new(&s, Variant::Full.weights(), &mut o2);
+    let (rb, rf) = (base.step(&keep_lane(&o1), &mut o1).reward, full.step(&keep_lane(&o2), &mut o2).reward);
+    assert!(rb > 0.0, "driving at the desired speed pays: {rb}");
+    assert!(rf < rb, "the risk term only subtracts: {rf} vs {rb}");
+    // Standing still and braking earns less than driving on.
+    let mut still = DrivingEnv::new(&s, Variant::Base.weights(), &mut o1);
+    let mut r_still = 0.0;
+    for _ in 0..40 {
+        r_still = still.step(&[0.0, 0.0, 1.0], &mut o1).reward;
+    }
+    assert!(r_still < rb, "{r_still} vs {rb}");
+}
+
+#[test]
+fn env_rollout_matches_episode_run() {
+    for kind in ScenarioKind::ALL {
+        let s = (0..20).map(|i| sample(4, kind, i)).find(|s| check_feasible(s).is_ok()).expect("feasible sample");
+        let weights = Variant::Full.weights();
+        let mut obs = [0.0; OBS_DIM];
+        let mut env = DrivingEnv::new(&s, weights, &mut obs);
+        let mut reward = 0.0;
+        loop {
+            let out = env.step(&keep_lane(&obs), &mut obs);
+            reward += out.reward;
+            if out.done() {
+                break;
+            }
+        }
+        let summary = env.summary();
+        let mut world = build(&s);
+        let mut policy = ObsPolicy::new(keep_lane, world.desired_speed_mps, world.dt_s);
+        let m = episode::run(&mut world, &mut policy, &weights).metrics;
+        assert_eq!(m.steps, summary.metrics.steps, "{kind}");
+        assert!((m.reward - reward).abs() < 1e-9, "{kind}: {} vs {reward}", m.reward);
+        assert_eq!(
+            (m.collision, m.offroad, m.success),
+            (summary.metrics.collision, summary.metrics.offroad, summary.metrics.success)
+        );
+    }
+}
+
+fn run_vec(threads: usize) -> (Vec<f32>, Vec<f32>, usize) {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
+    pool.install(|| {
+        let mut env = VecEnv::new(16, ScenarioSource::all_kinds(11), Variant::Full.weights()).expect("source");
+        assert_eq!(env.obs().len(), 16 * OBS_DIM);
+        let mut actions = vec![0.0f32; 16 * ACT_DIM];
+        let (mut rewards, mut episodes) = (Vec::new(), 0);
+        for _ in 0..400 {
+            for (a, o) in actions.chunks_mut(ACT_DIM).zip(env.obs().chunks(OBS_DIM)) {
+                a.copy_from_slice(&keep_lane(o.try_into().expect("row")));
+            }
+            env.step(&actions).expect("step");
+            assert_eq!(env.rewards().len(), 16);
+            rewards.extend_from_slice(env.rewards());
+            env.drain_finished(|_, _| episodes += 1);
+        }
+        (env.obs().to_vec(), rewards, episodes)
+    })
+}
+
+#[test]
+fn vec_env_is_deterministic_across_thread_counts_and_resets() {
+    let (o1, r1, e1) = run_vec(1);
+    let (o2, r2, e2) = run_vec(2);
+    assert!(e1 > 0, "400 steps finish some episodes");
+    assert_eq!(e1, e2);
+    assert_eq!(o1, o2);
+    assert_eq!(r1, r2);
+}
+
+#[test]
+fn variants_parse_and_base_has_no_risk_weight() {
+    assert_eq!("risk-only".parse::<Variant>(), Ok(Variant::RiskOnly));
+    assert!("bogus".parse::<Variant>().is_err());
+    assert_eq!(Variant::Base.weights().risk, 0.0);
+    assert!(Variant::Full.weights().risk > 0.0);
+}
+
+/// Throughput of the environment alone: `cargo test --release -p risktwin-common env_throughput -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn env_throughput() {
+    let n = 64;
+    let mut env = VecEnv::new(n, ScenarioSource::all_kinds(1), Variant::Full.weights()).expect("source");
+    let mut actions = vec![0.0f32; n * ACT_DIM];
+    let mut rng = crate::rng::Rng::new(5);
+    let steps = 400;
+    let t0 = std::time::Instant::now();
+    for _ in 0..steps {
+        for (a, o) in actions.chunks_mut(ACT_DIM).zip(env.obs().chunks(OBS_DIM)) {
+            let mut k = keep_lane(o.try_into().expect("row"));
+            k[0] += 0.3 * rng.normal() as f32;
+            a.copy_from_slice(&k);
+        }
+        env.step(&actions).expect("step");
+    }
+    let dt = t0.elapsed().as_secs_f64();
+    println!(
+        "{} env steps in {dt:.3} s: {:.0} steps/s ({} threads)",
+        n * steps,
+        (n * steps) as f64 / dt,
+        rayon::current_num_threads()
+    );
+}

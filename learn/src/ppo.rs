@@ -1,0 +1,437 @@
+//! PPO (Schulman et al. 2017): clipped surrogate, GAE(λ), value loss, entropy bonus,
+//! minibatch AdamW epochs; feed-forward or through a GRU (truncated BPTT over the rollout).
+//!
+//! Actions are sampled from an unbounded Gaussian and clipped to [−1, 1] by the environment
+//! (the log-probability is that of the unclipped sample). Truncated episodes bootstrap by
+//! adding γ·V(s_final) to their last reward; rewards are scaled by the running return std.
+
+use crate::LearnError;
+use crate::envs::Environment;
+use crate::gae::{ReturnScaler, gae};
+use crate::host::{HostMlp, Scratch};
+use crate::nn::{HALF_LN_TAU, Mlp, matrix, normals, vars};
+use crate::optim::Adam;
+use crate::policy::{Algo, PolicyNet, gaussian_log_prob};
+use candle_core::{D, Tensor};
+use risktwin_common::env::{ACT_DIM, OBS_DIM};
+use risktwin_common::rng::Rng;
+use std::time::Instant;
+
+/// Largest activation (rows × width) of a minibatch: candle hands elementwise ops from 64 Ki
+/// elements to a spinning thread pool, which on a busy 2-core machine spent half the training
+/// time waiting; minibatches are capped below it (more, smaller minibatches if needed).
+const MAX_ELEMWISE: usize = 64 * 1024 - 1;
+
+/// PPO hyper-parameters. Defaults tuned on the driving task (`examples/tune.rs`): 64 × 64-step
+/// rollouts, 10 epochs of 8 minibatches (512 rows), lr 1e-3, initial σ ≈ 0.3 so exploration
+/// noise does not throw the car off the road at highway speed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PpoConfig {
+    /// Vector steps per rollout (rollout size = n_steps × n_envs).
+    pub n_steps: usize,
+    pub epochs: usize,
+    /// Minibatches per epoch.
+    pub minibatches: usize,
+    pub lr: f64,
+    pub gamma: f32,
+    pub lambda: f32,
+    pub clip: f32,
+    pub vf_coef: f64,
+    pub ent_coef: f64,
+    pub max_grad_norm: f64,
+    pub hidden: Vec<usize>,
+    pub recurrent: bool,
+    /// Initial log σ of the Gaussian policy.
+    pub init_log_std: f32,
+}
+
+impl Default for PpoConfig {
+    fn default() -> Self {
+        Self {
+            n_steps: 64,
+            epochs: 10,
+            minibatches: 8,
+            lr: 1e-3,
+            gamma: 0.99,
+            lambda: 0.95,
+            clip: 0.2,
+            vf_coef: 0.5,
+            ent_coef: 0.0,
+            max_grad_norm: 0.5,
+            hidden: vec![64, 64],
+            recurrent: false,
+            init_log_std: -1.2,
+        }
+    }
+}
+
+/// What one update measured.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PpoStats {
+    pub policy_loss: f32,
+    pub value_loss: f32,
+    pub entropy: f32,
+    pub approx_kl: f32,
+}
+
+/// Wall time spent per phase, s (accumulated over the learner's life).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PpoTimings {
+    /// Stepping the environments.
+    pub env_s: f64,
+    /// Acting: policy and value inference, sampling, reward bookkeeping and bootstrapping.
+    pub infer_s: f64,
+    /// GAE and the gradient epochs (including refreshing the acting copies).
+    pub update_s: f64,
+}
+
+/// A PPO learner with its rollout buffers (allocated once for `n_envs`).
+pub struct Ppo {
+    cfg: PpoConfig,
+    policy: PolicyNet,
+    critic: Mlp,
+    opt: Adam,
+    rng: Rng,
+    scaler: ReturnScaler,
+    n_envs: usize,
+    state_dim: usize,
+    state: Vec<f32>,
+    state0: Vec<f32>,
+    obs: Vec<f32>,
+    actions: Vec<f32>,
+    logp: Vec<f32>,
+    values: Vec<f32>,
+    rewards: Vec<f32>,
+    done: Vec<u8>,
+    advantages: Vec<f32>,
+    returns: Vec<f32>,
+    noise: Vec<f32>,
+    /// Per-vector-step buffers: means, values, done flags, V(s_T).
+    mean: Vec<f32>,
+    value: Vec<f32>,
+    done_row: Vec<u8>,
+    last_value: Vec<f32>,
+    log_std: [f32; ACT_DIM],
+    host_actor: HostMlp,
+    host_critic: HostMlp,
+    scratch: Scratch,
+    timings: PpoTimings,
+}
+
+impl Ppo {
+    /// A learner for `n_envs` environments, initialised from `seed`.
+    pub fn new(cfg: PpoConfig, n_envs: usize, seed: u64) -> Result<Self, LearnError> {
+        if cfg.n_steps == 0 || cfg.epochs == 0 || cfg.minibatches == 0 || n_envs == 0 {
+            return Err(LearnError::BadConfig(format!("PPO needs positive sizes, got {cfg:?} with {n_envs} envs")));
+        }
+        if cfg.recurrent && !n_envs.is_multiple_of(cfg.minibatches) {
+            return Err(LearnError::BadConfig(format!(
+                "{n_envs} envs do not split into {} minibatches",
+                cfg.minibatches
+            )));
+        }
+        let mut rng = Rng::derive(seed, 0x990);
+        let algo = if cfg.recurrent { Algo::PpoGru } else { Algo::Ppo };
+        let policy = PolicyNet::new(algo, &cfg.hidden, &mut rng)?;
+        policy.set_log_std(cfg.init_log_std)?;
+        let state_dim = policy.state_dim();
+        let critic_in = if cfg.recurrent { state_dim } else { OBS_DIM };
+        let mut sizes = vec![critic_in];
+        sizes.extend_from_slice(if cfg.recurrent { &cfg.hidden[1..] } else { &cfg.hidden });
+        sizes.push(1);
+        let critic = Mlp::new("critic", &sizes, 1.0, &mut rng)?;
+        let mut all = vars(policy.params());
+        all.extend(vars(critic.params()));
+        let opt = Adam::new(all, cfg.lr, cfg.max_grad_norm)?;
+        let n = cfg.n_steps * n_envs;
+        let (host_actor, host_critic) = match policy.mean_mlp() {
+            Some(mean) if !cfg.recurrent => (HostMlp::from_mlp(mean)?, HostMlp::from_mlp(&critic)?),
+            _ => (HostMlp::default(), HostMlp::default()),
+        };
+        let scratch = Scratch::wide(host_actor.max_width().max(host_critic.max_width()));
+        let log_std = policy.log_std()?.expect("PPO policies have a state-independent log σ");
+        Ok(Self {
+            mean: vec![0.0; n_envs * ACT_DIM],
+            value: vec![0.0; n_envs],
+            done_row: vec![0; n_envs],
+            last_value: vec![0.0; n_envs],
+            log_std,
+            host_actor,
+            host_critic,
+            scratch,
+            timings: PpoTimings::default(),
+            scaler: ReturnScaler::new(n_envs, f64::from(cfg.gamma)),
+            policy,
+            critic,
+            opt,
+            rng,
+            n_envs,
+            state_dim,
+            state: vec![0.0; n_envs * state_dim],
+            state0: vec![0.0; n_envs * state_dim],
+            obs: vec![0.0; n * OBS_DIM],
+            actions: vec![0.0; n * ACT_DIM],
+            logp: vec![0.0; n],
+            values: vec![0.0; n],
+            rewards: vec![0.0; n],
+            done: vec![0; n],
+            advantages: vec![0.0; n],
+            returns: vec![0.0; n],
+            noise: Vec::with_capacity(n_envs * ACT_DIM),
+            cfg,
+        })
+    }
+
+    /// The current policy.
+    pub fn policy(&self) -> &PolicyNet {
+        &self.policy
+    }
+
+    /// Environment steps per rollout.
+    pub fn rollout_steps(&self) -> usize {
+        self.cfg.n_steps * self.n_envs
+    }
+
+    /// Features the heads see: the observations, or the GRU state after them (advancing `state`).
+    fn features(&self, obs: &[f32], state: &mut [f32]) -> Result<Tensor, LearnError> {
+        let x = matrix(obs, obs.len() / OBS_DIM, OBS_DIM)?;
+        match self.policy.gru() {
+            Some(cell) => {
+                let h = cell.step(&x, &matrix(state, state.len() / self.state_dim, self.state_dim)?)?;
+                state.copy_from_slice(&h.flatten_all()?.to_vec1::<f32>()?);
+                Ok(h)
+            }
+            None => Ok(x),
+        }
+    }
+
+    /// Value estimates of `obs` after `state` (not advanced).
+    fn value_of(&self, obs: &[f32], state: &[f32]) -> Result<Vec<f32>, LearnError> {
+        let mut s = state.to_vec();
+        let f = self.features(obs, &mut s)?;
+        Ok(self.critic.forward(&f)?.flatten_all()?.to_vec1()?)
+    }
+
+    /// Means and values of the current observations into `self.mean`/`self.value` (advancing
+    /// the recurrent state): host-side for the feed-forward policy, candle for the GRU.
+    fn act_batch(&mut self, obs: &[f32]) -> Result<(), LearnError> {
+        if self.policy.gru().is_none() {
+            let (actor, critic) = (&self.host_actor, &self.host_critic);
+            let scratch = &mut self.scratch;
+            for ((o, m), v) in
+                obs.chunks_exact(OBS_DIM).zip(self.mean.chunks_exact_mut(ACT_DIM)).zip(self.value.iter_mut())
+            {
+                actor.forward(o, scratch, m);
+                critic.forward(o, scratch, std::slice::from_mut(v));
+            }
+            return Ok(());
+        }
+        let mut state = std::mem::take(&mut self.state);
+        let f = self.features(obs, &mut state)?;
+        self.state = state;
+        let (mean, _) = self.policy.head(&f)?;
+        self.mean.copy_from_slice(&mean.flatten_all()?.to_vec1::<f32>()?);
+        self.value.copy_from_slice(&self.critic.forward(&f)?.flatten_all()?.to_vec1::<f32>()?);
+        Ok(())
+    }
+
+    /// V(final observation) of environment `i` after `state` (not advanced).
+    fn bootstrap_value(&mut self, final_obs: &[f32], i: usize) -> Result<f32, LearnError> {
+        if self.policy.gru().is_none() {
+            let mut v = 0.0f32;
+            self.host_critic.forward(final_obs, &mut self.scratch, std::slice::from_mut(&mut v));
+            return Ok(v);
+        }
+        let sd = self.state_dim;
+        Ok(self.value_of(final_obs, &self.state[i * sd..(i + 1) * sd])?[0])
+    }
+
+    /// Copies the current weights into the host-side networks used for acting.
+    fn refresh_host(&mut self) -> Result<(), LearnError> {
+        if self.policy.gru().is_none() {
+            self.host_actor.refresh(self.policy.mean_mlp().expect("feed-forward PPO has a mean MLP"))?;
+            self.host_critic.refresh(&self.critic)?;
+        }
+        self.log_std = self.policy.log_std()?.expect("PPO policies have a state-independent log σ");
+        Ok(())
+    }
+
+    /// Where the time of the learner went so far.
+    pub fn timings(&self) -> PpoTimings {
+        self.timings
+    }
+
+    /// Collects one rollout from `env` and updates the networks on it.
+    pub fn learn_rollout(&mut self, env: &mut dyn Environment) -> Result<PpoStats, LearnError> {
+        let (n, sd) = (self.n_envs, self.state_dim);
+        self.state0.copy_from_slice(&self.state);
+        let std: [f32; ACT_DIM] = self.log_std.map(f32::exp);
+        for t in 0..self.cfg.n_steps {
+            let t0 = Instant::now();
+            let rows = t * n..(t + 1) * n;
+            self.obs[rows.start * OBS_DIM..rows.end * OBS_DIM].copy_from_slice(env.obs());
+            self.act_batch(env.obs())?;
+            normals(&mut self.rng, n * ACT_DIM, &mut self.noise);
+            for i in 0..n {
+                let k = t * n + i;
+                let m = &self.mean[i * ACT_DIM..(i + 1) * ACT_DIM];
+                let a = &mut self.actions[k * ACT_DIM..(k + 1) * ACT_DIM];
+                for j in 0..ACT_DIM {
+                    a[j] = m[j] + std[j] * self.noise[i * ACT_DIM + j];
+                }
+                self.logp[k] = gaussian_log_prob(a, m, &self.log_std);
+                self.values[k] = self.value[i];
+            }
+            let t1 = Instant::now();
+            env.step(&self.actions[rows.start * ACT_DIM..rows.end * ACT_DIM])?;
+            let t2 = Instant::now();
+            for i in 0..n {
+                self.done_row[i] = env.terminated()[i] | env.truncated()[i];
+            }
+            self.scaler.observe(env.rewards(), &self.done_row);
+            let scale = self.scaler.scale();
+            for i in 0..n {
+                let k = t * n + i;
+                self.rewards[k] = env.rewards()[i] * scale;
+                self.done[k] = self.done_row[i];
+                if env.truncated()[i] != 0 {
+                    // The cut episode still has a future: fold γ·V(s_final) into its reward.
+                    let v = self.bootstrap_value(&env.final_obs()[i * OBS_DIM..(i + 1) * OBS_DIM], i)?;
+                    self.rewards[k] += self.cfg.gamma * v;
+                }
+                if self.done_row[i] != 0 {
+                    self.state[i * sd..(i + 1) * sd].fill(0.0);
+                }
+            }
+            self.timings.infer_s += (t1 - t0 + t2.elapsed()).as_secs_f64();
+            self.timings.env_s += (t2 - t1).as_secs_f64();
+        }
+        let t0 = Instant::now();
+        self.act_batch_values_only(env.obs())?;
+        gae(
+            &self.rewards,
+            &self.values,
+            &self.done,
+            &self.last_value,
+            n,
+            self.cfg.gamma,
+            self.cfg.lambda,
+            &mut self.advantages,
+            &mut self.returns,
+        );
+        let stats = if self.cfg.recurrent { self.update_recurrent() } else { self.update_flat() }?;
+        self.refresh_host()?;
+        self.timings.update_s += t0.elapsed().as_secs_f64();
+        Ok(stats)
+    }
+
+    /// V(s_T) of the observations after the rollout into `self.last_value` (state not advanced).
+    fn act_batch_values_only(&mut self, obs: &[f32]) -> Result<(), LearnError> {
+        if self.policy.gru().is_none() {
+            for (o, v) in obs.chunks_exact(OBS_DIM).zip(self.last_value.iter_mut()) {
+                self.host_critic.forward(o, &mut self.scratch, std::slice::from_mut(v));
+            }
+            return Ok(());
+        }
+        let v = self.value_of(obs, &self.state.clone())?;
+        self.last_value.copy_from_slice(&v);
+        Ok(())
+    }
+
+    /// The clipped PPO loss on one minibatch given the features of its rows.
+    fn loss(&self, features: &Tensor, rows: &[usize]) -> Result<(Tensor, PpoStats), LearnError> {
+        let m = rows.len();
+        let gather = |src: &[f32], w: usize| -> Vec<f32> {
+            rows.iter().flat_map(|&k| src[k * w..(k + 1) * w].to_vec()).collect()
+        };
+        let actions = matrix(&gather(&self.actions, ACT_DIM), m, ACT_DIM)?;
+        let logp_old = matrix(&gather(&self.logp, 1), m, 1)?;
+        let mut adv = gather(&self.advantages, 1);
+        let mu = adv.iter().sum::<f32>() / m as f32;
+        let sd = (adv.iter().map(|a| (a - mu) * (a - mu)).sum::<f32>() / m as f32).sqrt();
+        adv.iter_mut().for_each(|a| *a = (*a - mu) / (sd + 1e-8));
+        let adv = matrix(&adv, m, 1)?;
+        let ret = matrix(&gather(&self.returns, 1), m, 1)?;
+        let (mean, log_std) = self.policy.head(features)?;
+        let z = actions.sub(&mean)?.broadcast_mul(&log_std.neg()?.exp()?)?;
+        let logp = ((z.sqr()? * -0.5)?.broadcast_sub(&log_std)? - f64::from(HALF_LN_TAU))?.sum_keepdim(D::Minus1)?;
+        let log_ratio = (&logp - &logp_old)?;
+        let ratio = log_ratio.exp()?;
+        let clipped = ratio.clamp(1.0 - self.cfg.clip, 1.0 + self.cfg.clip)?;
+        let surr = (&ratio * &adv)?.minimum(&(clipped * &adv)?)?;
+        let policy_loss = surr.mean_all()?.neg()?;
+        let value = self.critic.forward(features)?;
+        let value_loss = (value - ret)?.sqr()?.mean_all()?;
+        let entropy = (log_std + (0.5 + f64::from(HALF_LN_TAU)))?.sum_keepdim(D::Minus1)?.mean_all()?;
+        let loss = ((&policy_loss + (&value_loss * self.cfg.vf_coef)?)? - (&entropy * self.cfg.ent_coef)?)?;
+        let approx_kl = ((ratio - 1.0)? - log_ratio)?.mean_all()?.to_scalar::<f32>()?;
+        let stats = PpoStats {
+            policy_loss: policy_loss.to_scalar()?,
+            value_loss: value_loss.to_scalar()?,
+            entropy: entropy.to_scalar()?,
+            approx_kl,
+        };
+        Ok((loss, stats))
+    }
+
+    /// Fisher–Yates shuffle of 0..n from the learner's Rng.
+    fn permutation(&mut self, n: usize) -> Vec<usize> {
+        let mut idx: Vec<usize> = (0..n).collect();
+        for i in (1..n).rev() {
+            idx.swap(i, self.rng.below(i as u64 + 1) as usize);
+        }
+        idx
+    }
+
+    fn update_flat(&mut self) -> Result<PpoStats, LearnError> {
+        let total = self.rollout_steps();
+        let widest = self.cfg.hidden.iter().copied().max().unwrap_or(1).max(1);
+        let mb = total.div_ceil(self.cfg.minibatches).min(MAX_ELEMWISE / widest).max(1);
+        let mut stats = PpoStats::default();
+        for _ in 0..self.cfg.epochs {
+            let perm = self.permutation(total);
+            for rows in perm.chunks(mb) {
+                let obs: Vec<f32> =
+                    rows.iter().flat_map(|&k| self.obs[k * OBS_DIM..(k + 1) * OBS_DIM].to_vec()).collect();
+                let features = matrix(&obs, rows.len(), OBS_DIM)?;
+                let (loss, s) = self.loss(&features, rows)?;
+                self.opt.minimise(&loss)?;
+                stats = s;
+            }
+        }
+        Ok(stats)
+    }
+
+    /// Minibatches are groups of environments; the GRU is unrolled over the whole rollout from
+    /// the state it had at the rollout's start, reset where episodes ended.
+    fn update_recurrent(&mut self) -> Result<PpoStats, LearnError> {
+        let cell = self.policy.gru().expect("recurrent PPO has a GRU policy").clone();
+        let (n, t_len, sd) = (self.n_envs, self.cfg.n_steps, self.state_dim);
+        let group = n / self.cfg.minibatches;
+        let mut stats = PpoStats::default();
+        for _ in 0..self.cfg.epochs {
+            let perm = self.permutation(n);
+            for envs in perm.chunks(group) {
+                let h0: Vec<f32> = envs.iter().flat_map(|&i| self.state0[i * sd..(i + 1) * sd].to_vec()).collect();
+                let mut h = matrix(&h0, envs.len(), sd)?;
+                let mut outs = Vec::with_capacity(t_len);
+                let mut rows = Vec::with_capacity(t_len * envs.len());
+                for t in 0..t_len {
+                    let ks: Vec<usize> = envs.iter().map(|&i| t * n + i).collect();
+                    let x: Vec<f32> =
+                        ks.iter().flat_map(|&k| self.obs[k * OBS_DIM..(k + 1) * OBS_DIM].to_vec()).collect();
+                    h = cell.step(&matrix(&x, envs.len(), OBS_DIM)?, &h)?;
+                    outs.push(h.clone());
+                    let live: Vec<f32> = ks.iter().map(|&k| 1.0 - f32::from(self.done[k])).collect();
+                    h = h.broadcast_mul(&matrix(&live, envs.len(), 1)?)?;
+                    rows.extend(ks);
+                }
+                let features = Tensor::cat(&outs, 0)?;
+                let (loss, s) = self.loss(&features, &rows)?;
+                self.opt.minimise(&loss)?;
+                stats = s;
+            }
+        }
+        Ok(stats)
+    }
+}

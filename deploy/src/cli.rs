@@ -26,6 +26,9 @@ pub enum Command {
     RiskField(RiskFieldArgs),
     /// Criticality measures (HW, THW, TTC, a_long,req; PET) of a CommonRoad scenario's ego.
     Criticality(CriticalityArgs),
+    /// Import recorded traffic as fleet data (an MCAP recording of edge messages).
+    #[command(subcommand)]
+    Import(ImportCommand),
     /// Throughput benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -180,8 +183,12 @@ pub struct RiskFieldArgs {
 #[derive(Debug, Args)]
 pub struct CriticalityArgs {
     /// A CommonRoad XML scenario (2020a).
+    #[arg(long, required_unless_present = "mcap", conflicts_with = "mcap")]
+    pub commonroad: Option<PathBuf>,
+    /// A recording written by `risktwin import commonroad` (the scenario rebuilt from its map and
+    /// state messages, decoded as the cloud's ingest decodes them).
     #[arg(long)]
-    pub commonroad: PathBuf,
+    pub mcap: Option<PathBuf>,
     /// The ego's dynamic-obstacle id (default: the planning problem's id, else the first obstacle).
     #[arg(long)]
     pub ego: Option<u64>,
@@ -260,6 +267,23 @@ pub struct RouterArgs {
     /// Another router to connect to; repeatable.
     #[arg(long = "connect", value_name = "ENDPOINT")]
     pub connect: Vec<String>,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum ImportCommand {
+    /// A CommonRoad XML scenario: the lanelet map and every obstacle's state per time step.
+    Commonroad(ImportCommonRoadArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct ImportCommonRoadArgs {
+    /// The CommonRoad XML scenario (2020a).
+    pub scenario: PathBuf,
+    /// The MCAP recording to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
 }
 
 #[derive(Debug, Subcommand)]

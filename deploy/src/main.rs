@@ -3,6 +3,7 @@
 
 mod cli;
 mod commands;
+mod commonroad_recording;
 mod error;
 mod output;
 // The run report's charts land before the report that draws them (issue 5).

@@ -1,7 +1,7 @@
 //! `risktwin risk-field --commonroad` and `risktwin simulate --commonroad`: the risk field over a
 //! real lanelet map, S_risk of the recorded ego, and the recorded scenario re-run in the twin.
 
-use crate::support::{assert_input_error, ok_json};
+use crate::support::{assert_input_error, ok_json, ok_stdout};
 use std::path::PathBuf;
 use tempfile::tempdir;
 
@@ -65,12 +65,71 @@ fn simulate_replays_or_drives_a_recorded_scenario() {
                 dir.path(),
                 &["simulate", "--commonroad", &xml, "--ego", ego, "--policy", policy, "--format", "json"],
             );
-            for key in ["collision", "offroad", "min_ttc_s", "min_distance_m", "risk_score", "steps"] {
+            // cli.md's simulate document, every key.
+            let keys = [
+                "collision",
+                "offroad",
+                "success",
+                "route_completion",
+                "avg_speed_mps",
+                "steering_smoothness",
+                "longitudinal_smoothness",
+                "min_ttc_s",
+                "min_distance_m",
+                "risk_score",
+                "reward",
+                "steps",
+            ];
+            for key in keys {
                 assert!(v.get(key).is_some(), "{name} {policy}: missing {key} in {v}");
             }
             assert!(v["steps"].as_u64().unwrap() > 0, "{name} {policy}: {v}");
+            assert!(v["avg_speed_mps"].as_f64().unwrap() > 0.0, "{name} {policy}: {v}");
+            if policy == "replay" && v["avg_speed_mps"].as_f64().unwrap() > 1.0 {
+                // A moving recorded ego follows its own path to the end and hits nothing (the
+                // Putte ego stands: its route is a 1 m stub it never covers).
+                assert_eq!(v["collision"], false, "{name}: {v}");
+                let completion = v["route_completion"].as_f64().unwrap();
+                assert!(completion > 0.95, "{name}: the replay covers the recorded route: {v}");
+            }
         }
     }
     let xml = fixture("OSC_CutIn-1_2_T-1.xml");
     assert_input_error(dir.path(), &["simulate", "--commonroad", &xml, "--policy", "ppo.bin"], "unknown policy");
+}
+
+#[test]
+fn an_imported_recording_gives_the_offline_criticality() {
+    let dir = tempdir().unwrap();
+    for (name, ego) in
+        [("OSC_CutIn-1_2_T-1.xml", "3"), ("BEL_Putte-8_2_T-1.xml", "33"), ("HRV_Pula-27_3_T-1.xml", "34")]
+    {
+        let xml = fixture(name);
+        let mcap = dir.path().join(format!("{name}.mcap"));
+        let mcap_s = mcap.to_str().unwrap();
+        let summary = ok_json(dir.path(), &["import", "commonroad", &xml, "--out", mcap_s, "--format", "json"]);
+        assert!(summary["messages"].as_u64().unwrap() > 10, "{name}: {summary}");
+        assert!(summary["lanelets"].as_u64().unwrap() > 0, "{name}: {summary}");
+        for format in ["csv", "json"] {
+            let offline =
+                ok_stdout(dir.path(), &["criticality", "--commonroad", &xml, "--ego", ego, "--format", format]);
+            let replayed = ok_stdout(dir.path(), &["criticality", "--mcap", mcap_s, "--ego", ego, "--format", format]);
+            assert!(offline.lines().count() > 5, "{name}: too little output to compare:\n{offline}");
+            assert_eq!(replayed, offline, "{name} {format}: the recording's criticality differs from the XML's");
+        }
+    }
+}
+
+#[test]
+fn import_and_criticality_mcap_reject_bad_input() {
+    let dir = tempdir().unwrap();
+    let out = dir.path().join("x.mcap");
+    let out_s = out.to_str().unwrap();
+    assert_input_error(dir.path(), &["import", "commonroad", "/nonexistent/s.xml", "--out", out_s], "cannot read");
+    let not_mcap = crate::support::write_file(dir.path(), "not.mcap", "hello");
+    assert_input_error(dir.path(), &["criticality", "--mcap", not_mcap.to_str().unwrap()], "not.mcap");
+    // A valid recording, an ego it does not hold.
+    let xml = fixture("OSC_CutIn-1_2_T-1.xml");
+    ok_json(dir.path(), &["import", "commonroad", &xml, "--out", out_s, "--format", "json"]);
+    assert_input_error(dir.path(), &["criticality", "--mcap", out_s, "--ego", "424242"], "424242");
 }

@@ -2,6 +2,7 @@
 //! every other dynamic obstacle (cli.md), plus PET and minimum distance per pair in JSON.
 
 use crate::cli::CriticalityArgs;
+use crate::commonroad_recording::read_scenario;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_common::commonroad::criticality::{ScenarioCriticality, scenario_criticality};
@@ -21,8 +22,11 @@ struct Report<'a> {
 }
 
 pub fn criticality(args: CriticalityArgs) -> CliResult {
-    let path = &args.commonroad;
-    let scenario = read_commonroad(path)?;
+    let (path, scenario) = match (&args.commonroad, &args.mcap) {
+        (Some(path), _) => (path, read_commonroad(path)?),
+        (None, Some(path)) => (path, read_recording(path)?),
+        (None, None) => return Err(CliError::input("give --commonroad FILE.xml or --mcap FILE.mcap")),
+    };
     let measures =
         scenario_criticality(&scenario, args.ego).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
     match args.format {
@@ -37,6 +41,13 @@ pub fn read_commonroad(path: &std::path::Path) -> CliResult<Scenario> {
     let text =
         std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
     parse_scenario(&text).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
+}
+
+/// Rebuilds a scenario from a recording of `risktwin import commonroad`.
+fn read_recording(path: &std::path::Path) -> CliResult<Scenario> {
+    let file =
+        std::fs::File::open(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
+    read_scenario(std::io::BufReader::new(file)).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
 }
 
 fn write_csv(m: &ScenarioCriticality) -> CliResult {

@@ -11,8 +11,8 @@ use std::io::BufWriter;
 
 pub fn commonroad(args: ImportCommonRoadArgs) -> CliResult {
     let scenario = read_commonroad(&args.scenario)?;
-    let file = File::create(&args.out)
-        .map_err(|e| CliError::runtime(format!("cannot create {}: {e}", args.out.display())))?;
+    let file =
+        File::create(&args.out).map_err(|e| CliError::runtime(format!("cannot create {}: {e}", args.out.display())))?;
     let summary = write_scenario(&scenario, BufWriter::new(file)).map_err(|e| match e {
         FleetRecordingError::Recording(e) => CliError::runtime(format!("writing {}: {e}", args.out.display())),
         e => CliError::input(format!("{}: {e}", args.scenario.display())),

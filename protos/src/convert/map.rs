@@ -8,8 +8,8 @@ use super::{ConvertError, finite, invalid, non_negative, positive};
 use crate::v1;
 use risktwin_common::commonroad::{Adjacency, Lanelet, LaneletNetwork};
 use risktwin_common::road::{Crosswalk, FrictionPatch, Lane, Road};
-use std::collections::HashSet;
 use risktwin_common::telemetry::RoadMap;
+use std::collections::HashSet;
 
 impl From<&RoadMap> for v1::RoadMap {
     fn from(m: &RoadMap) -> Self {
@@ -50,7 +50,8 @@ impl From<&RoadMap> for v1::RoadMap {
 }
 
 fn lanelet_to(l: &Lanelet) -> v1::Lanelet {
-    let adjacency = |a: Option<Adjacency>| a.map(|a| v1::LaneletAdjacency { id: a.id, same_direction: a.same_direction });
+    let adjacency =
+        |a: Option<Adjacency>| a.map(|a| v1::LaneletAdjacency { id: a.id, same_direction: a.same_direction });
     v1::Lanelet {
         id: l.id,
         left_bound_m: l.left_bound.iter().map(vec_to).collect(),
@@ -88,7 +89,8 @@ fn lanelet_from(l: v1::Lanelet) -> Result<Lanelet, ConvertError> {
     let mut out = Lanelet::new(l.id, left, right);
     out.predecessors = l.predecessors;
     out.successors = l.successors;
-    let adjacency = |a: Option<v1::LaneletAdjacency>| a.map(|a| Adjacency { id: a.id, same_direction: a.same_direction });
+    let adjacency =
+        |a: Option<v1::LaneletAdjacency>| a.map(|a| Adjacency { id: a.id, same_direction: a.same_direction });
     out.adjacent_left = adjacency(l.adjacent_left);
     out.adjacent_right = adjacency(l.adjacent_right);
     out.lanelet_types = l.lanelet_types;

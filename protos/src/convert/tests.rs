@@ -398,7 +398,11 @@ fn lanelets_travel_with_their_bounds_and_links() {
     a.predecessors = vec![7];
     a.adjacent_left = Some(Adjacency { id: 12, same_direction: false });
     a.lanelet_types = vec!["driveWay".into()];
-    let b = Lanelet::new(11, vec![Vec2::new(50.0, 3.25), Vec2::new(90.0, 3.0)], vec![Vec2::new(50.0, 0.1), Vec2::new(90.0, 0.0)]);
+    let b = Lanelet::new(
+        11,
+        vec![Vec2::new(50.0, 3.25), Vec2::new(90.0, 3.0)],
+        vec![Vec2::new(50.0, 0.1), Vec2::new(90.0, 0.0)],
+    );
     let mut map = road_map();
     map.lanelets = LaneletNetwork::new(vec![a.clone(), b]);
     let back: RoadMap = decode(&encode(&map)).expect("a valid map decodes");
@@ -421,9 +425,5 @@ fn lanelets_travel_with_their_bounds_and_links() {
         ),
     );
     rejects(&map, |p| p.lanelets[1].id = 10, bad("RoadMap", "lanelets", "lanelet id 10 appears twice"));
-    rejects(
-        &map,
-        |p| p.lanelets[0].left_bound_m[0].y = f64::NAN,
-        bad("Lanelet", "left_bound_m", "NaN is not finite"),
-    );
+    rejects(&map, |p| p.lanelets[0].left_bound_m[0].y = f64::NAN, bad("Lanelet", "left_bound_m", "NaN is not finite"));
 }

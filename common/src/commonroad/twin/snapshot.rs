@@ -78,9 +78,8 @@ pub fn field_at(
 /// reaches [`CROP_MARGIN_M`] beyond the grid, past which the boundary term is capped and no cell
 /// of the grid is nearer to them than to the kept lanes.
 fn crop_road(road: &Road, lo: Vec2, hi: Vec2) -> Option<Road> {
-    let meets = |a: Vec2, b: Vec2| {
-        a.x.min(b.x) <= hi.x && a.x.max(b.x) >= lo.x && a.y.min(b.y) <= hi.y && a.y.max(b.y) >= lo.y
-    };
+    let meets =
+        |a: Vec2, b: Vec2| a.x.min(b.x) <= hi.x && a.x.max(b.x) >= lo.x && a.y.min(b.y) <= hi.y && a.y.max(b.y) >= lo.y;
     let mut new_index = vec![None; road.lanes.len()];
     let mut lanes = Vec::new();
     for (i, lane) in road.lanes.iter().enumerate() {

@@ -125,10 +125,12 @@ fn cropping_the_map_keeps_the_field_of_the_whole_map() {
 fn field_speed_on_real_maps() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/commonroad");
     let Ok(entries) = std::fs::read_dir(&dir) else { return };
-    let mut files: Vec<_> = entries.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|x| x == "xml")).collect();
+    let mut files: Vec<_> =
+        entries.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|x| x == "xml")).collect();
     files.sort();
     for path in files {
-        let Ok(s) = std::fs::read_to_string(&path).map_err(|_| ()).and_then(|t| parse_scenario(&t).map_err(|_| ())) else {
+        let Ok(s) = std::fs::read_to_string(&path).map_err(|_| ()).and_then(|t| parse_scenario(&t).map_err(|_| ()))
+        else {
             continue;
         };
         let Ok(scene) = TwinScene::new(&s, None) else { continue };

@@ -122,6 +122,9 @@ pub struct SignalPhase {
 pub struct RoadMap {
     pub header: Header,
     pub road: Road,
+    /// The CommonRoad lanelets `road` was converted from (empty for the twin's own roads):
+    /// criticality needs their polygons and links, which the twin lanes simplify away.
+    pub lanelets: crate::commonroad::LaneletNetwork,
 }
 
 /// The risk field on a grid around an ego, as the cloud twin computed it.

@@ -26,6 +26,9 @@ pub enum Command {
     RiskField(RiskFieldArgs),
     /// Criticality measures (HW, THW, TTC, a_long,req; PET) of a CommonRoad scenario's ego.
     Criticality(CriticalityArgs),
+    /// Import recorded traffic as fleet data (an MCAP recording of edge messages).
+    #[command(subcommand)]
+    Import(ImportCommand),
     /// Throughput benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -112,6 +115,12 @@ pub struct ScenarioSource {
     /// A JSON spec file: {"kind", "seed", "params"}.
     #[arg(long)]
     pub spec: Option<PathBuf>,
+    /// A CommonRoad XML scenario (recorded traffic; `simulate` and `risk-field` only).
+    #[arg(long, conflicts_with_all = ["spec", "db"])]
+    pub commonroad: Option<PathBuf>,
+    /// The CommonRoad ego's dynamic-obstacle id (default: the planning problem's, else the first).
+    #[arg(long, requires = "commonroad")]
+    pub ego: Option<u64>,
 }
 
 #[derive(Debug, Args)]
@@ -141,7 +150,7 @@ pub struct TrainArgs {
 pub struct SimulateArgs {
     #[command(flatten)]
     pub source: ScenarioSource,
-    /// `idm` (the reference driver).
+    /// `idm` (the reference driver), or `replay` (the recorded ego; `--commonroad` only).
     #[arg(long, default_value = "idm")]
     pub policy: String,
     /// Write a per-step CSV trace of the ego and its nearest object here.
@@ -177,8 +186,12 @@ pub struct RiskFieldArgs {
 #[derive(Debug, Args)]
 pub struct CriticalityArgs {
     /// A CommonRoad XML scenario (2020a).
+    #[arg(long, required_unless_present = "mcap", conflicts_with = "mcap")]
+    pub commonroad: Option<PathBuf>,
+    /// A recording written by `risktwin import commonroad` (the scenario rebuilt from its map and
+    /// state messages, decoded as the cloud's ingest decodes them).
     #[arg(long)]
-    pub commonroad: PathBuf,
+    pub mcap: Option<PathBuf>,
     /// The ego's dynamic-obstacle id (default: the planning problem's id, else the first obstacle).
     #[arg(long)]
     pub ego: Option<u64>,
@@ -257,6 +270,23 @@ pub struct RouterArgs {
     /// Another router to connect to; repeatable.
     #[arg(long = "connect", value_name = "ENDPOINT")]
     pub connect: Vec<String>,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum ImportCommand {
+    /// A CommonRoad XML scenario: the lanelet map and every obstacle's state per time step.
+    Commonroad(ImportCommonRoadArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct ImportCommonRoadArgs {
+    /// The CommonRoad XML scenario (2020a).
+    pub scenario: PathBuf,
+    /// The MCAP recording to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
 }
 
 #[derive(Debug, Subcommand)]

@@ -3,6 +3,7 @@
 
 mod cli;
 mod commands;
+mod commonroad_recording;
 mod error;
 mod output;
 mod plot;

@@ -10,6 +10,7 @@ mod contract_episode;
 mod contract_scenarios;
 mod criticality;
 mod determinism;
+mod real_data;
 mod run;
 mod same_scenario;
 mod support;

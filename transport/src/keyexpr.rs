@@ -2,6 +2,7 @@
 //!
 //! Every key starts with `risktwin/v1/<site>/` and is named by direction:
 //! - edge→cloud streams: `risktwin/v1/<site>/<source_id>/{state,can,perception,rsu,signal}`
+//! - an edge's road map: `risktwin/v1/<site>/<source_id>/map` (not an ingest stream)
 //! - cloud→edge pushes: `risktwin/v1/<site>/<source_id>/{scenario,policy,control}`
 //! - cloud outputs: `risktwin/v1/<site>/cloud/{risk_field,risk_report,snapshot}`
 //! - library queryables: `risktwin/v1/<site>/cloud/library/**`
@@ -233,6 +234,25 @@ pub fn cloud_output(site: &SiteId, output: CloudOutput) -> String {
     format!("{ROOT}/{site}/{CLOUD_CHUNK}/{}", output.as_str())
 }
 
+/// The last chunk of an edge's road-map key.
+pub const MAP_CHUNK: &str = "map";
+
+/// `risktwin/v1/<site>/<source>/map`: the road map `source` drives on (a `RoadMap`, sent once;
+/// an imported CommonRoad recording carries its lanelet map here).
+pub fn edge_map(site: &SiteId, source: &SourceId) -> String {
+    format!("{ROOT}/{site}/{source}/{MAP_CHUNK}")
+}
+
+/// The site and source of a road-map key `risktwin/v1/<site>/<source>/map`; `None` otherwise.
+pub fn parse_edge_map_key(key: &str) -> Option<(&str, &str)> {
+    let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
+    let mut chunks = rest.split('/');
+    let (site, source, last) = (chunks.next()?, chunks.next()?, chunks.next()?);
+    let reserved = source == CLOUD_CHUNK || source == ALIVE_CHUNK;
+    (last == MAP_CHUNK && chunks.next().is_none() && !site.is_empty() && !source.is_empty() && !reserved)
+        .then_some((site, source))
+}
+
 /// `risktwin/v1/<site>/<source>/<report>`: what one edge reports back about a push.
 pub fn edge_report(site: &SiteId, source: &SourceId, report: EdgeReport) -> String {
     format!("{ROOT}/{site}/{source}/{}", report.as_str())
@@ -365,6 +385,18 @@ mod tests {
         assert_eq!(edge_report_all(None, EdgeReport::ScenarioResult), "risktwin/v1/*/*/scenario_result");
         assert_eq!(liveliness_token(&site, &src), "risktwin/v1/track-1/alive/veh_0.a");
         assert_eq!(liveliness_all(None), "risktwin/v1/*/alive/*");
+    }
+
+    #[test]
+    fn map_keys_round_trip_and_are_no_ingest_stream() {
+        let (site, src) = ids();
+        let key = edge_map(&site, &src);
+        assert_eq!(key, "risktwin/v1/track-1/veh_0.a/map");
+        assert_eq!(parse_edge_map_key(&key), Some(("track-1", "veh_0.a")));
+        assert_eq!(parse_edge_key(&key), None, "the ingest does not take a map for a stream");
+        for other in ["risktwin/v1/track-1/cloud/map", "risktwin/v1/track-1/veh/state", "risktwin/v1/s/v/map/x"] {
+            assert_eq!(parse_edge_map_key(other), None, "{other}");
+        }
     }
 
     #[test]

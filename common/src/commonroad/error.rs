@@ -19,4 +19,7 @@ pub enum CommonRoadError {
     /// A structurally valid element whose content is inconsistent.
     #[error("<{element}> (line {line}): {reason}")]
     Invalid { element: String, line: u32, reason: String },
+    /// Two dynamic obstacles with one id (in a scenario built from parts).
+    #[error("dynamic obstacle id {id} appears twice")]
+    DuplicateObstacle { id: u64 },
 }

@@ -31,6 +31,35 @@ pub struct Scenario {
 }
 
 impl Scenario {
+    /// A scenario from its parts (e.g. rebuilt from a recording), with no tags, planning
+    /// problems or intersections; a dynamic obstacle id may appear once only.
+    pub fn from_parts(
+        benchmark_id: String,
+        dt_s: f64,
+        lanelets: LaneletNetwork,
+        dynamic_obstacles: Vec<DynamicObstacle>,
+        static_obstacles: Vec<StaticObstacle>,
+    ) -> Result<Self, super::CommonRoadError> {
+        let mut dynamic_index = HashMap::with_capacity(dynamic_obstacles.len());
+        for (i, o) in dynamic_obstacles.iter().enumerate() {
+            if dynamic_index.insert(o.id, i).is_some() {
+                return Err(super::CommonRoadError::DuplicateObstacle { id: o.id });
+            }
+        }
+        Ok(Self {
+            benchmark_id,
+            version: "2020a".to_string(),
+            dt_s,
+            tags: Vec::new(),
+            lanelets,
+            dynamic_obstacles,
+            static_obstacles,
+            planning_problems: Vec::new(),
+            intersections: Vec::new(),
+            dynamic_index,
+        })
+    }
+
     /// The dynamic obstacle with this id.
     pub fn dynamic_obstacle(&self, id: u64) -> Option<&DynamicObstacle> {
         self.dynamic_index.get(&id).map(|&i| &self.dynamic_obstacles[i])

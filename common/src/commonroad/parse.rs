@@ -177,8 +177,17 @@ fn dynamic_obstacle(el: &El) -> Result<DynamicObstacle, CommonRoadError> {
     let initial_state = state(&el.req("initialState")?)?;
     let mut trajectory = Vec::new();
     if let Some(tr) = el.opt("trajectory") {
-        for (expected, s) in (initial_state.time_step + 1..).zip(tr.children("state")) {
-            let st = state(&s)?;
+        let mut states = tr.children("state").map(|s| state(&s).map(|st| (s, st))).peekable();
+        // Some 2020a files (ZAM_Zip-2_1, ZAM_Urban-3_3_Repair) repeat the initial state as the
+        // trajectory's first state. commonroad-io accepts them: `Obstacle.state_at_time` answers
+        // the initial step from `initial_state` and never consults the trajectory's copy. So do we.
+        if let Some(Ok((_, first))) = states.peek()
+            && first.time_step == initial_state.time_step
+        {
+            states.next();
+        }
+        for (expected, item) in (initial_state.time_step + 1..).zip(states) {
+            let (s, st) = item?;
             if st.time_step != expected {
                 return Err(s.invalid(format!(
                     "time step {} where {expected} should follow (trajectories are consecutive)",
@@ -299,6 +308,19 @@ mod tests {
     }
 
     #[test]
+    fn a_trajectory_repeating_the_initial_state_is_read_as_commonroad_io_reads_it() {
+        // As in ZAM_Zip-2_1_T-1: initial state at 0, trajectory 0, 1, 2 (its 0 a copy).
+        let s = parse_scenario(&doc(&car(4, &[(0, 0.0), (0, 9.0), (1, 1.0), (2, 2.0)]))).unwrap();
+        let o = s.dynamic_obstacle(4).unwrap();
+        assert_eq!((o.first_time_step(), o.last_time_step(), o.trajectory.len()), (0, 2, 2));
+        assert_eq!(o.state_at(0).map(|st| st.position.x), Some(0.0), "the initial state wins at its step");
+        assert_eq!(o.state_at(1).map(|st| st.position.x), Some(1.0));
+        // A repeat anywhere else is still a gap.
+        let later = car(4, &[(0, 0.0), (1, 1.0), (1, 1.0)]);
+        assert!(error(&later).contains("time step 1 where 2 should follow"), "{}", error(&later));
+    }
+
+    #[test]
     fn errors_name_element_and_reason() {
         let no_right = r#"<lanelet id="4"><leftBound><point><x>0</x><y>0</y></point></leftBound></lanelet>"#;
         assert_eq!(error(no_right), "<lanelet id=4> (line 1): missing <rightBound>");
@@ -312,6 +334,8 @@ mod tests {
         assert!(parse_scenario("<commonRoad").unwrap_err().to_string().starts_with("not well-formed XML"));
         let dt = r#"<commonRoad timeStepSize="-1"/>"#;
         assert!(parse_scenario(dt).unwrap_err().to_string().contains("timeStepSize '-1'"));
+        let before = car(3, &[(5, 0.0), (4, 1.0)]);
+        assert!(error(&before).contains("time step 4 where 6 should follow"), "{}", error(&before));
         let twice = format!("{}{}", car(3, &[(0, 0.0)]), car(3, &[(0, 0.0)]));
         assert!(error(&twice).contains("dynamic obstacle id 3 appears twice"));
     }

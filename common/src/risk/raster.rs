@@ -117,6 +117,20 @@ impl RoadRaster {
         Ok(Self { grid, params: *params })
     }
 
+    /// Rasterises the road on exactly the lattice of `grid` (its origin, resolution and size):
+    /// a grid filled once on a large map, where a raster over the whole road would cost far more
+    /// than the grid itself.
+    pub fn covering(road: &Road, params: &RiskFieldParams, grid: &RiskGrid) -> Result<Self, FieldError> {
+        let mut grid = RiskGrid::new(grid.origin_m, grid.resolution_m, grid.cols, grid.rows)?;
+        for r in 0..grid.rows {
+            for c in 0..grid.cols {
+                let v = params.static_terms(road, grid.cell_centre(c, r));
+                grid.cells[r * grid.cols + c] = v as f32;
+            }
+        }
+        Ok(Self { grid, params: *params })
+    }
+
     /// The raster itself (e.g. to render the road's static risk).
     pub fn grid(&self) -> &RiskGrid {
         &self.grid

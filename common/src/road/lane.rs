@@ -54,6 +54,16 @@ impl Lane {
     /// Projects `p` on the centreline: the nearest segment wins; before the first and after the
     /// last vertex the end segments are extended, so `s_m` can leave [0, length].
     pub fn project(&self, p: Vec2) -> Frenet {
+        let (s_m, e_y_m, i) = self.project_offsets(p);
+        let ab = self.centre[i + 1] - self.centre[i];
+        let dir = ab / ab.norm();
+        Frenet { s_m, e_y_m, lane_heading_rad: dir.y.atan2(dir.x) }
+    }
+
+    /// [`Lane::project`] without the heading: `(s_m, e_y_m, segment)`. The risk field's static
+    /// terms project every cell on every lane and need no heading, whose `atan2` cost as much as
+    /// the projection itself.
+    pub fn project_offsets(&self, p: Vec2) -> (f64, f64, usize) {
         let n = self.segment_count();
         let mut best = (f64::INFINITY, 0usize, 0.0f64);
         for i in 0..n {
@@ -75,11 +85,7 @@ impl Lane {
         let len = ab.norm();
         let dir = ab / len;
         let rel = p - a;
-        Frenet {
-            s_m: self.cum_s[i] + t * len,
-            e_y_m: dir.x * rel.y - dir.y * rel.x,
-            lane_heading_rad: dir.y.atan2(dir.x),
-        }
+        (self.cum_s[i] + t * len, dir.x * rel.y - dir.y * rel.x, i)
     }
 
     fn segment_at(&self, s_m: f64) -> usize {

@@ -60,20 +60,22 @@ impl Road {
     /// The lane whose centreline is laterally closest to `p` among lanes whose arc-length range
     /// covers it (falling back to all lanes), i.e. the lane a vehicle at `p` is driving in.
     pub fn locate(&self, p: Vec2) -> LanePosition {
-        let mut best: Option<(bool, f64, LanePosition)> = None;
+        // Headings (atan2) only for the winner: this runs per cell and lane in the risk field.
+        let mut best: Option<(bool, f64, LaneId)> = None;
         for (id, lane) in self.lanes.iter().enumerate() {
-            let f = lane.project(p);
-            let inside_s = f.s_m >= 0.0 && f.s_m <= lane.length_m();
-            let key = (inside_s, f.e_y_m.abs());
+            let (s_m, e_y_m, _) = lane.project_offsets(p);
+            let inside_s = s_m >= 0.0 && s_m <= lane.length_m();
+            let key = (inside_s, e_y_m.abs());
             let better = match &best {
                 None => true,
                 Some((bs, be, _)) => (key.0 && !bs) || (key.0 == *bs && key.1 < *be),
             };
             if better {
-                best = Some((key.0, key.1, LanePosition { lane: id, frenet: f }));
+                best = Some((key.0, key.1, id));
             }
         }
-        best.map(|b| b.2).expect("a road has at least one lane (builders guarantee it)")
+        let lane = best.map(|b| b.2).expect("a road has at least one lane (builders guarantee it)");
+        LanePosition { lane, frenet: self.lanes[lane].project(p) }
     }
 
     /// Like [`Road::locate`] but restricted to lanes whose heading is within 90° of `heading_rad`,
@@ -117,11 +119,11 @@ impl Road {
     pub fn edge_distance_m(&self, p: Vec2) -> f64 {
         let mut best = f64::NEG_INFINITY;
         for (id, lane) in self.lanes.iter().enumerate() {
-            let f = lane.project(p);
+            let (s_m, e_y_m, _) = lane.project_offsets(p);
             let (ml, mr) = self.carriageway_margins(id);
             let half = 0.5 * lane.width_m;
-            let lateral = (half + ml - f.e_y_m).min(half + mr + f.e_y_m);
-            let along = f.s_m.min(lane.length_m() - f.s_m);
+            let lateral = (half + ml - e_y_m).min(half + mr + e_y_m);
+            let along = s_m.min(lane.length_m() - s_m);
             let d = if lateral >= 0.0 && along >= 0.0 {
                 lateral
             } else {

@@ -2,10 +2,11 @@
 //! every other dynamic obstacle (cli.md), plus PET and minimum distance per pair in JSON.
 
 use crate::cli::CriticalityArgs;
+use crate::commonroad_recording::read_scenario;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_common::commonroad::criticality::{ScenarioCriticality, scenario_criticality};
-use risktwin_common::commonroad::parse_scenario;
+use risktwin_common::commonroad::{Scenario, parse_scenario};
 use serde::Serialize;
 use std::io::Write;
 
@@ -21,10 +22,11 @@ struct Report<'a> {
 }
 
 pub fn criticality(args: CriticalityArgs) -> CliResult {
-    let path = &args.commonroad;
-    let text =
-        std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
-    let scenario = parse_scenario(&text).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
+    let (path, scenario) = match (&args.commonroad, &args.mcap) {
+        (Some(path), _) => (path, read_commonroad(path)?),
+        (None, Some(path)) => (path, read_recording(path)?),
+        (None, None) => return Err(CliError::input("give --commonroad FILE.xml or --mcap FILE.mcap")),
+    };
     let measures =
         scenario_criticality(&scenario, args.ego).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
     match args.format {
@@ -32,6 +34,20 @@ pub fn criticality(args: CriticalityArgs) -> CliResult {
         Format::Json => print_json(&Report { scenario: &scenario.benchmark_id, measures: &measures }),
         Format::Table => print_pairs(&measures),
     }
+}
+
+/// Reads and parses a CommonRoad file; every problem is an input error naming the file.
+pub fn read_commonroad(path: &std::path::Path) -> CliResult<Scenario> {
+    let text =
+        std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
+    parse_scenario(&text).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
+}
+
+/// Rebuilds a scenario from a recording of `risktwin import commonroad`.
+fn read_recording(path: &std::path::Path) -> CliResult<Scenario> {
+    let file =
+        std::fs::File::open(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
+    read_scenario(std::io::BufReader::new(file)).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
 }
 
 fn write_csv(m: &ScenarioCriticality) -> CliResult {

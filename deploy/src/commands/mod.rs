@@ -6,16 +6,19 @@ pub(crate) mod bench_replay;
 pub mod cloud;
 mod criticality;
 mod edge;
+mod import;
 pub mod push;
 mod risk_field;
+mod risk_field_commonroad;
 mod router;
 mod run;
 mod scenarios;
 mod simulate;
+mod simulate_commonroad;
 mod source;
 mod train;
 
-use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ScenariosCommand};
+use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ImportCommand, ScenariosCommand};
 use crate::error::CliResult;
 
 pub fn dispatch(cli: Cli) -> CliResult {
@@ -27,6 +30,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Train(a) => train::train(a),
         Command::RiskField(a) => risk_field::risk_field(a),
         Command::Criticality(a) => criticality::criticality(a),
+        Command::Import(ImportCommand::Commonroad(a)) => import::commonroad(a),
         Command::Bench(BenchCommand::Sim(a)) => bench::sim(a),
         Command::Bench(BenchCommand::RiskField(a)) => bench::risk_field(a),
         Command::Bench(BenchCommand::Zenoh(a)) => cloud::bench_zenoh(a),

@@ -1,5 +1,6 @@
 //! `risktwin risk-field`: the risk field around the ego at a moment of a scenario.
 
+use super::risk_field_commonroad::commonroad_field;
 use super::source;
 use crate::cli::RiskFieldArgs;
 use crate::error::{CliError, CliResult};
@@ -10,15 +11,15 @@ use risktwin_common::risk::render_heatmap;
 use serde::Serialize;
 
 #[derive(Serialize)]
-struct FieldSummary {
-    cols: usize,
-    rows: usize,
-    resolution_m: f64,
-    origin_m: [f64; 2],
-    max: f64,
-    mean: f64,
-    argmax_m: [f64; 2],
-    time_s: f64,
+pub(super) struct FieldSummary {
+    pub cols: usize,
+    pub rows: usize,
+    pub resolution_m: f64,
+    pub origin_m: [f64; 2],
+    pub max: f64,
+    pub mean: f64,
+    pub argmax_m: [f64; 2],
+    pub time_s: f64,
 }
 
 pub fn risk_field(args: RiskFieldArgs) -> CliResult {
@@ -30,6 +31,9 @@ pub fn risk_field(args: RiskFieldArgs) -> CliResult {
     }
     if !(args.time >= 0.0 && args.time.is_finite()) {
         return Err(CliError::input(format!("--time {} must be a non-negative number of seconds", args.time)));
+    }
+    if let Some(path) = &args.source.commonroad {
+        return commonroad_field(&args, path);
     }
     let spec = source::load(&args.source)?;
     let snap: FieldSnapshot = field_snapshot(&spec, args.time, args.resolution, args.cells).map_err(CliError::input)?;
@@ -47,8 +51,13 @@ pub fn risk_field(args: RiskFieldArgs) -> CliResult {
         argmax_m: [argmax.x, argmax.y],
         time_s: snap.time_s,
     };
-    match args.format {
-        Format::Json => print_json(&summary),
+    print_summary(&summary, &summary, args.format)
+}
+
+/// `json` as JSON, or the summary as a table.
+pub(super) fn print_summary(summary: &FieldSummary, json: &impl Serialize, format: Format) -> CliResult {
+    match format {
+        Format::Json => print_json(json),
         _ => print_table(
             &["cols", "rows", "resolution_m", "max", "mean", "argmax_m"],
             &[vec![

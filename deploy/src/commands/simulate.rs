@@ -10,6 +10,13 @@ use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
 use risktwin_common::world::{StepReport, World};
 
 pub fn simulate(args: SimulateArgs) -> CliResult {
+    if let Some(path) = &args.source.commonroad {
+        let run = super::simulate_commonroad::simulate(&args, path)?;
+        return match args.format {
+            Format::Json => print_json(&run.metrics),
+            Format::Table | Format::Csv => print_metrics(&run.metrics, args.format),
+        };
+    }
     if args.policy != "idm" {
         return Err(CliError::input(format!("unknown policy '{}' (available: idm)", args.policy)));
     }

@@ -1,11 +1,15 @@
 //! The road map. Lanes travel as centreline vertices; arc lengths are recomputed on arrival,
-//! so a map cannot carry arc lengths inconsistent with its vertices.
+//! so a map cannot carry arc lengths inconsistent with its vertices. CommonRoad lanelets travel
+//! as their two bounds and links; centrelines, widths and polygons are rebuilt on arrival
+//! ([`Lanelet::new`]), exactly as the XML import builds them.
 
 use super::geometry::{header, vec_from, vec_to};
 use super::{ConvertError, finite, invalid, non_negative, positive};
 use crate::v1;
+use risktwin_common::commonroad::{Adjacency, Lanelet, LaneletNetwork};
 use risktwin_common::road::{Crosswalk, FrictionPatch, Lane, Road};
 use risktwin_common::telemetry::RoadMap;
+use std::collections::HashSet;
 
 impl From<&RoadMap> for v1::RoadMap {
     fn from(m: &RoadMap) -> Self {
@@ -40,8 +44,66 @@ impl From<&RoadMap> for v1::RoadMap {
                 .map(|p| v1::FrictionPatch { s_start_m: p.s_start_m, s_end_m: p.s_end_m, mu: p.mu })
                 .collect(),
             reference_lane: r.reference_lane as u32,
+            lanelets: m.lanelets.lanelets.iter().map(lanelet_to).collect(),
         }
     }
+}
+
+fn lanelet_to(l: &Lanelet) -> v1::Lanelet {
+    let adjacency =
+        |a: Option<Adjacency>| a.map(|a| v1::LaneletAdjacency { id: a.id, same_direction: a.same_direction });
+    v1::Lanelet {
+        id: l.id,
+        left_bound_m: l.left_bound.iter().map(vec_to).collect(),
+        right_bound_m: l.right_bound.iter().map(vec_to).collect(),
+        predecessors: l.predecessors.clone(),
+        successors: l.successors.clone(),
+        adjacent_left: adjacency(l.adjacent_left),
+        adjacent_right: adjacency(l.adjacent_right),
+        lanelet_types: l.lanelet_types.clone(),
+    }
+}
+
+/// A lanelet with bounds of equal length (at least two finite vertices each). Links may name
+/// lanelets absent from the map: CommonRoad files do (cut-outs of larger maps), and every
+/// consumer looks ids up.
+fn lanelet_from(l: v1::Lanelet) -> Result<Lanelet, ConvertError> {
+    const M: &str = "Lanelet";
+    let bound = |field: &'static str, vs: Vec<v1::Vector2>| -> Result<Vec<_>, ConvertError> {
+        vs.into_iter().map(|v| vec_from(M, field, Some(v))).collect()
+    };
+    let left = bound("left_bound_m", l.left_bound_m)?;
+    let right = bound("right_bound_m", l.right_bound_m)?;
+    if left.len() < 2 || left.len() != right.len() {
+        return Err(invalid(
+            M,
+            "right_bound_m",
+            format!(
+                "lanelet {}: bounds need the same number of vertices (at least 2), left has {}, right has {}",
+                l.id,
+                left.len(),
+                right.len()
+            ),
+        ));
+    }
+    let mut out = Lanelet::new(l.id, left, right);
+    out.predecessors = l.predecessors;
+    out.successors = l.successors;
+    let adjacency =
+        |a: Option<v1::LaneletAdjacency>| a.map(|a| Adjacency { id: a.id, same_direction: a.same_direction });
+    out.adjacent_left = adjacency(l.adjacent_left);
+    out.adjacent_right = adjacency(l.adjacent_right);
+    out.lanelet_types = l.lanelet_types;
+    Ok(out)
+}
+
+/// The lanelets of a map, ids unique.
+fn lanelets_from(ls: Vec<v1::Lanelet>) -> Result<LaneletNetwork, ConvertError> {
+    let mut seen = HashSet::with_capacity(ls.len());
+    if let Some(dup) = ls.iter().map(|l| l.id).find(|id| !seen.insert(*id)) {
+        return Err(invalid("RoadMap", "lanelets", format!("lanelet id {dup} appears twice")));
+    }
+    Ok(LaneletNetwork::new(ls.into_iter().map(lanelet_from).collect::<Result<_, _>>()?))
 }
 
 /// A lane index that names another lane of the map.
@@ -109,8 +171,10 @@ impl TryFrom<v1::RoadMap> for RoadMap {
                 Ok(FrictionPatch { s_start_m, s_end_m, mu: positive(P, "mu", p.mu)? })
             })
             .collect::<Result<Vec<_>, ConvertError>>()?;
+        let lanelets = lanelets_from(m.lanelets)?;
         Ok(Self {
             header: header(M, m.header)?,
+            lanelets,
             road: Road {
                 lanes,
                 crosswalks,

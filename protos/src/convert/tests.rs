@@ -66,7 +66,11 @@ fn metrics() -> EpisodeMetrics {
 }
 
 fn road_map() -> RoadMap {
-    RoadMap { header: hdr(1), road: Road::crossing(3.5, 200.0, 100.0, 80.0, 13.9).with_friction_patch(10.0, 50.0, 0.3) }
+    RoadMap {
+        header: hdr(1),
+        road: Road::crossing(3.5, 200.0, 100.0, 80.0, 13.9).with_friction_patch(10.0, 50.0, 0.3),
+        lanelets: Default::default(),
+    }
 }
 
 /// Encodes, decodes and checks the value came back bit for bit (Debug prints the shortest
@@ -380,4 +384,46 @@ fn measure_vehicle_state_encode_decode() {
     }
     let per = t.elapsed().as_nanos() as f64 / f64::from(n);
     println!("VehicleState: {} bytes, encode+decode {per:.0} ns/message (checksum {total})", buf.len());
+}
+
+#[test]
+fn lanelets_travel_with_their_bounds_and_links() {
+    use risktwin_common::commonroad::{Adjacency, Lanelet, LaneletNetwork};
+    let mut a = Lanelet::new(
+        10,
+        vec![Vec2::new(0.0, 3.0), Vec2::new(50.0, 3.25)],
+        vec![Vec2::new(0.0, 0.0), Vec2::new(50.0, 0.1)],
+    );
+    a.successors = vec![11, 99];
+    a.predecessors = vec![7];
+    a.adjacent_left = Some(Adjacency { id: 12, same_direction: false });
+    a.lanelet_types = vec!["driveWay".into()];
+    let b = Lanelet::new(
+        11,
+        vec![Vec2::new(50.0, 3.25), Vec2::new(90.0, 3.0)],
+        vec![Vec2::new(50.0, 0.1), Vec2::new(90.0, 0.0)],
+    );
+    let mut map = road_map();
+    map.lanelets = LaneletNetwork::new(vec![a.clone(), b]);
+    let back: RoadMap = decode(&encode(&map)).expect("a valid map decodes");
+    assert_eq!(back.lanelets.len(), 2);
+    let l = back.lanelets.get(10).expect("lanelet 10 came back");
+    assert_eq!((&l.left_bound, &l.right_bound), (&a.left_bound, &a.right_bound));
+    assert_eq!((&l.centreline, &l.widths_m, &l.polygon), (&a.centreline, &a.widths_m, &a.polygon));
+    assert_eq!((&l.predecessors, &l.successors), (&a.predecessors, &a.successors));
+    assert_eq!((l.adjacent_left, l.adjacent_right), (a.adjacent_left, None));
+    assert_eq!(l.lanelet_types, a.lanelet_types);
+    assert_eq!(back.lanelets.lanelets[1].id, 11, "file order is kept");
+
+    rejects(
+        &map,
+        |p| p.lanelets[1].right_bound_m.truncate(1),
+        bad(
+            "Lanelet",
+            "right_bound_m",
+            "lanelet 11: bounds need the same number of vertices (at least 2), left has 2, right has 1",
+        ),
+    );
+    rejects(&map, |p| p.lanelets[1].id = 10, bad("RoadMap", "lanelets", "lanelet id 10 appears twice"));
+    rejects(&map, |p| p.lanelets[0].left_bound_m[0].y = f64::NAN, bad("Lanelet", "left_bound_m", "NaN is not finite"));
 }

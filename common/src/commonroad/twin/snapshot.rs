@@ -9,9 +9,6 @@ use crate::road::{Lane, Road};
 
 /// Lanes are kept this far beyond the grid (m): past it the boundary term is capped anyway.
 const CROP_MARGIN_M: f64 = 30.0;
-/// Centreline segments are split to at most this length before cropping, so the cropped road's
-/// bounds (and its raster) stay near the grid.
-const MAX_SEGMENT_M: f64 = 2.0;
 
 /// The field at one moment, with what is needed to draw it.
 #[derive(Debug, Clone)]
@@ -67,34 +64,31 @@ pub fn field_at(
     let lo = centre - Vec2::repeat(half_extent_m + CROP_MARGIN_M);
     let hi = centre + Vec2::repeat(half_extent_m + CROP_MARGIN_M);
     let road = crop_road(&scene.road, lo, hi).unwrap_or(scene.road);
-    let raster = RoadRaster::new(&road, &params, resolution_m, half_extent_m + 10.0)?;
-    let origin = raster.snap_origin(centre - Vec2::repeat(half_extent_m));
-    let mut grid = RiskGrid::new(origin, resolution_m, cells, cells)?;
+    let mut grid = RiskGrid::new(centre - Vec2::repeat(half_extent_m), resolution_m, cells, cells)?;
+    // The static terms once, on the grid's own lattice: a raster over the whole (cropped) road
+    // would cost several grids.
+    let raster = RoadRaster::covering(&road, &params, &grid)?;
     GridEvaluator::new(params).fill(&mut grid, &raster, &road, &field_objects, &ego);
     Ok(CommonRoadField { time_s, grid, ego: ego.obb(), others: objects.iter().map(|o| o.obb).collect() })
 }
 
-/// The lanes' parts within the box `[lo, hi]` (segments split to ≤ [`MAX_SEGMENT_M`] first),
-/// neighbours remapped; `None` when no lane reaches the box.
+/// The lanes' parts near the box `[lo, hi]`: each lane from one segment before the first
+/// segment whose bounding box meets the box to one segment after the last, neighbours remapped;
+/// `None` when no lane reaches the box. Lanes elsewhere on the map only cost time: the box
+/// reaches [`CROP_MARGIN_M`] beyond the grid, past which the boundary term is capped and no cell
+/// of the grid is nearer to them than to the kept lanes.
 fn crop_road(road: &Road, lo: Vec2, hi: Vec2) -> Option<Road> {
-    let inside = |p: &Vec2| p.x >= lo.x && p.y >= lo.y && p.x <= hi.x && p.y <= hi.y;
+    let meets =
+        |a: Vec2, b: Vec2| a.x.min(b.x) <= hi.x && a.x.max(b.x) >= lo.x && a.y.min(b.y) <= hi.y && a.y.max(b.y) >= lo.y;
     let mut new_index = vec![None; road.lanes.len()];
     let mut lanes = Vec::new();
     for (i, lane) in road.lanes.iter().enumerate() {
-        let mut dense = Vec::with_capacity(lane.centre.len());
-        for w in lane.centre.windows(2) {
-            let n = ((w[1] - w[0]).norm() / MAX_SEGMENT_M).ceil().max(1.0) as usize;
-            dense.extend((0..n).map(|k| w[0] + (w[1] - w[0]) * (k as f64 / n as f64)));
-        }
-        dense.extend(lane.centre.last().copied());
-        let Some(first) = dense.iter().position(inside) else { continue };
-        let last = dense.iter().rposition(inside).unwrap_or(first);
-        let (a, b) = (first.saturating_sub(1), (last + 1).min(dense.len() - 1));
-        if b <= a {
-            continue;
-        }
+        let c = &lane.centre;
+        let Some(first) = c.windows(2).position(|w| meets(w[0], w[1])) else { continue };
+        let last = c.windows(2).rposition(|w| meets(w[0], w[1])).unwrap_or(first);
+        let (a, b) = (first.saturating_sub(1), (last + 2).min(c.len() - 1));
         new_index[i] = Some(lanes.len());
-        let mut l = Lane::new(dense[a..=b].to_vec(), lane.width_m, lane.speed_limit_mps);
+        let mut l = Lane::new(c[a..=b].to_vec(), lane.width_m, lane.speed_limit_mps);
         (l.left, l.right) = (lane.left, lane.right);
         lanes.push(l);
     }

@@ -86,3 +86,62 @@ fn field_on_the_real_map_peaks_near_traffic_and_rejects_bad_times() {
     assert!(matches!(field_at(&s, Some(3), 1e4, 0.5, 64), Err(TwinError::TimeOutOfRange { .. })));
     assert!(matches!(field_at(&s, Some(999_999), 0.0, 0.5, 64), Err(TwinError::UnknownEgo { .. })));
 }
+
+/// The field of [`field_at`] (road cropped around the grid) against the same grid over the whole
+/// map: cropping must not change what the grid shows.
+#[test]
+fn cropping_the_map_keeps_the_field_of_the_whole_map() {
+    use crate::risk::{EgoKinematics, FieldObject, GridEvaluator, RiskFieldParams, RiskGrid, RoadRaster};
+    for (name, ego) in FIXTURES {
+        let s = fixture(name);
+        let scene = TwinScene::new(&s, Some(ego)).expect("scene");
+        let t = scene.ego.start_s() + 0.5 * (scene.ego.end_s() - scene.ego.start_s());
+        let cropped = field_at(&s, Some(ego), t, 0.5, 160).expect("field");
+        let st = scene.ego.at(t).expect("ego at t");
+        let kin = EgoKinematics {
+            pose: st.pose,
+            velocity: st.velocity(),
+            lateral_accel_mps2: 0.0,
+            jerk_mps3: 0.0,
+            footprint: scene.ego.footprint,
+        };
+        let mut objects = Vec::new();
+        scene.objects_at(t, &mut objects);
+        let fo: Vec<FieldObject> = objects.iter().map(|o| FieldObject { obb: o.obb, velocity: o.velocity }).collect();
+        let g = &cropped.grid;
+        let mut whole = RiskGrid::new(g.origin_m, g.resolution_m, g.cols, g.rows).expect("grid");
+        let params = RiskFieldParams::default();
+        let raster = RoadRaster::covering(&scene.road, &params, &whole).expect("raster");
+        GridEvaluator::new(params).fill(&mut whole, &raster, &scene.road, &fo, &kin);
+        let worst = g.cells.iter().zip(&whole.cells).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "{name}: cropped field differs from the whole map's by {worst}");
+    }
+}
+
+/// Cost of one field over a real map (release: `cargo test --release -p risktwin-common --lib
+/// field_speed -- --ignored --nocapture`); scenarios from ../shared/data/commonroad when present.
+#[test]
+#[ignore = "timing, prints"]
+fn field_speed_on_real_maps() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/commonroad");
+    let Ok(entries) = std::fs::read_dir(&dir) else { return };
+    let mut files: Vec<_> =
+        entries.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|x| x == "xml")).collect();
+    files.sort();
+    for path in files {
+        let Ok(s) = std::fs::read_to_string(&path).map_err(|_| ()).and_then(|t| parse_scenario(&t).map_err(|_| ()))
+        else {
+            continue;
+        };
+        let Ok(scene) = TwinScene::new(&s, None) else { continue };
+        let t = scene.ego.start_s();
+        let start = std::time::Instant::now();
+        let n = 5;
+        for _ in 0..n {
+            let _ = field_at(&s, None, t, 0.5, 160);
+        }
+        let per_field_s = start.elapsed().as_secs_f64() / n as f64;
+        let name = path.file_stem().map(|x| x.to_string_lossy().into_owned()).unwrap_or_default();
+        println!("{name}: {} lanelets, {:.1} ms per 160x160 field", s.lanelets.len(), 1e3 * per_field_s);
+    }
+}

@@ -1,0 +1,240 @@
+//! A CommonRoad scenario as fleet data, and back: the recording `risktwin import commonroad`
+//! writes and `risktwin criticality --mcap` reads.
+//!
+//! Layout (the MCAP layout of `--record`, topics from `transport::keyexpr`, site = the benchmark
+//! id): one `risktwin.v1.RoadMap` on `risktwin/v1/<site>/map/map` (twin lanes plus the lanelet
+//! network), then per time step every obstacle present as a `risktwin.v1.VehicleState` on
+//! `risktwin/v1/<site>/dyn-<id>/state` (static obstacles once, `static-<id>`), log and capture
+//! time = time step × dt (scenario time from 0). Channels are declared in file order, so the
+//! reader restores the file's obstacle order from the channel ids. dt is not a field of any
+//! message: the reader takes the smallest gap between two states of one obstacle.
+//!
+//! What does not travel (the wire state has no slot for it): obstacle type (read back as `car`),
+//! shapes other than rectangles (circles and polygons become their bounding rectangle), absent
+//! velocities and accelerations (sent as 0), planning problems (so the default ego of a rebuilt
+//! scenario is its first dynamic obstacle).
+
+use risktwin_common::commonroad::twin::{footprint_of, road_from_lanelets};
+use risktwin_common::commonroad::{DynamicObstacle, ObstacleState, Scenario, Shape, StaticObstacle};
+use risktwin_common::geometry::{Pose, Vec2};
+use risktwin_common::telemetry::{Frame, Header, RoadMap, VehicleStateSample};
+use risktwin_protos::recording::{MessageCursor, Recorder, RecordingError};
+use risktwin_protos::{WireMessage, decode, encode};
+use risktwin_transport::keyexpr::{EdgeStream, edge_map, edge_stream, parse_edge_key, parse_edge_map_key};
+use risktwin_transport::{SiteId, SourceId};
+use std::collections::BTreeMap;
+use std::collections::btree_map::Entry;
+use std::io::{Read, Seek, Write};
+
+/// The source that publishes the map.
+pub const MAP_SOURCE: &str = "map";
+/// Site used when the benchmark id is not a valid site id.
+const FALLBACK_SITE: &str = "commonroad";
+
+/// Why a scenario could not be written as, or rebuilt from, a recording.
+#[derive(Debug, thiserror::Error)]
+pub enum FleetRecordingError {
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
+    #[error("the lanelet network cannot be converted to twin lanes: {0}")]
+    Map(#[from] risktwin_common::commonroad::twin::TwinError),
+    #[error("obstacle id {id}: {reason}")]
+    Obstacle { id: u64, reason: String },
+    #[error("{topic}: {reason}")]
+    Message { topic: String, reason: String },
+    #[error("the recording holds no road map (risktwin/v1/<site>/<source>/map)")]
+    NoMap,
+    #[error("cannot infer the time step: no obstacle has two states")]
+    NoTimeStep,
+    #[error(transparent)]
+    Scenario(#[from] risktwin_common::commonroad::CommonRoadError),
+}
+
+/// What [`write_scenario`] wrote.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ImportSummary {
+    pub site: String,
+    pub dt_s: f64,
+    pub lanelets: usize,
+    pub dynamic_obstacles: usize,
+    pub static_obstacles: usize,
+    /// Messages written, the map included.
+    pub messages: u64,
+    /// Scenario time of the last message, s.
+    pub duration_s: f64,
+}
+
+fn source(prefix: &str, id: u64) -> Result<SourceId, FleetRecordingError> {
+    SourceId::new(format!("{prefix}-{id}")).map_err(|e| FleetRecordingError::Obstacle { id, reason: e.to_string() })
+}
+
+fn state_sample(source: &str, seq: u64, time_ns: i64, shape: &Shape, s: &ObstacleState) -> VehicleStateSample {
+    let pose = Pose::new(s.position.x, s.position.y, s.orientation_rad);
+    let speed_mps = s.velocity_mps.unwrap_or(0.0);
+    VehicleStateSample {
+        header: Header {
+            source: source.to_string(),
+            seq,
+            capture_time_ns: time_ns,
+            publish_time_ns: time_ns,
+            frame: Frame::World,
+        },
+        pose,
+        velocity: pose.forward() * speed_mps,
+        speed_mps,
+        accel_mps2: s.acceleration_mps2.unwrap_or(0.0),
+        yaw_rate_radps: 0.0,
+        steer_rad: 0.0,
+        footprint: footprint_of(shape),
+    }
+}
+
+/// Writes `scenario` into `w` as described in the module doc.
+pub fn write_scenario<W: Write + Seek>(scenario: &Scenario, w: W) -> Result<ImportSummary, FleetRecordingError> {
+    let site = SiteId::new(scenario.benchmark_id.clone())
+        .or_else(|_| SiteId::new(FALLBACK_SITE))
+        .expect("the fallback site id is valid");
+    let dt_ns = (scenario.dt_s * 1e9).round() as i64;
+    let mut rec = Recorder::new(w)?;
+    let map_source = SourceId::new(MAP_SOURCE).expect("the map source id is valid");
+    let map_topic = edge_map(&site, &map_source);
+    let map_channel = rec.channel(&map_topic, RoadMap::PROTO_NAME)?;
+    // Channels in file order: dynamic obstacles, then static ones.
+    let mut tracks = Vec::new();
+    for o in &scenario.dynamic_obstacles {
+        let src = source("dyn", o.id)?;
+        let channel = rec.channel(&edge_stream(&site, &src, EdgeStream::State), VehicleStateSample::PROTO_NAME)?;
+        tracks.push((src, channel, &o.shape, o.states().collect::<Vec<_>>()));
+    }
+    for o in &scenario.static_obstacles {
+        let src = source("static", o.id)?;
+        let channel = rec.channel(&edge_stream(&site, &src, EdgeStream::State), VehicleStateSample::PROTO_NAME)?;
+        tracks.push((src, channel, &o.shape, vec![&o.initial_state]));
+    }
+    let first_step = tracks.iter().filter_map(|t| t.3.first()).map(|s| s.time_step).min().unwrap_or(0);
+    let last_step = tracks.iter().filter_map(|t| t.3.last()).map(|s| s.time_step).max().unwrap_or(0);
+    let stamp = |step: i64| (step.max(0) * dt_ns) as u64;
+
+    let (road, _) = road_from_lanelets(&scenario.lanelets)?;
+    let map_header = Header {
+        source: MAP_SOURCE.to_string(),
+        seq: 0,
+        capture_time_ns: stamp(first_step) as i64,
+        publish_time_ns: stamp(first_step) as i64,
+        frame: Frame::World,
+    };
+    let map = RoadMap { header: map_header, road, lanelets: scenario.lanelets.clone() };
+    rec.write(map_channel, stamp(first_step), stamp(first_step), &encode(&map))?;
+    let mut messages = 1;
+    // Time-ordered, file order within a step: a cursor per track.
+    let mut next = vec![0usize; tracks.len()];
+    for step in first_step..=last_step {
+        for (k, (src, channel, shape, states)) in tracks.iter().enumerate() {
+            let Some(s) = states.get(next[k]).filter(|s| s.time_step == step) else { continue };
+            let sample = state_sample(src.as_str(), next[k] as u64, stamp(step) as i64, shape, s);
+            rec.write(*channel, stamp(step), stamp(step), &encode(&sample))?;
+            next[k] += 1;
+            messages += 1;
+        }
+    }
+    rec.finish()?;
+    Ok(ImportSummary {
+        site: site.as_str().to_string(),
+        dt_s: scenario.dt_s,
+        lanelets: scenario.lanelets.len(),
+        dynamic_obstacles: scenario.dynamic_obstacles.len(),
+        static_obstacles: scenario.static_obstacles.len(),
+        messages,
+        duration_s: stamp(last_step) as f64 * 1e-9,
+    })
+}
+
+/// One obstacle's states as read back, by channel id.
+struct Track {
+    id: u64,
+    is_static: bool,
+    shape: Shape,
+    /// (capture time, state without its time step yet).
+    states: Vec<(i64, ObstacleState)>,
+}
+
+/// Rebuilds the scenario from a recording written by [`write_scenario`]: every state and map
+/// message decoded and validated as the cloud's ingest decodes them (`risktwin_protos::decode`).
+/// Topics outside the layout are skipped.
+pub fn read_scenario<R: Read>(source: R) -> Result<Scenario, FleetRecordingError> {
+    let mut cursor = MessageCursor::new(source);
+    let mut map: Option<(String, RoadMap)> = None;
+    let mut tracks: BTreeMap<u16, Track> = BTreeMap::new();
+    while let Some(m) = cursor.next_message() {
+        let m = m?;
+        let bad = |reason: String| FleetRecordingError::Message { topic: m.topic.to_string(), reason };
+        if let Some((site, _)) = parse_edge_map_key(m.topic) {
+            let decoded: RoadMap = decode(m.data).map_err(|e| bad(e.to_string()))?;
+            map = Some((site.to_string(), decoded));
+            continue;
+        }
+        let Some(key) = parse_edge_key(m.topic).filter(|k| k.stream == EdgeStream::State) else { continue };
+        let s: VehicleStateSample = decode(m.data).map_err(|e| bad(e.to_string()))?;
+        let track = match tracks.entry(m.channel_id) {
+            Entry::Occupied(e) => e.into_mut(),
+            Entry::Vacant(e) => {
+                let (is_static, id) = match key.source.split_once('-') {
+                    Some(("dyn", id)) => (false, id.parse::<u64>().ok()),
+                    Some(("static", id)) => (true, id.parse::<u64>().ok()),
+                    _ => (false, None),
+                };
+                let id = id.ok_or_else(|| bad(format!("source '{}' is not dyn-<id> or static-<id>", key.source)))?;
+                let shape = Shape::Rectangle { length_m: s.footprint.length_m, width_m: s.footprint.width_m };
+                e.insert(Track { id, is_static, shape, states: Vec::new() })
+            }
+        };
+        let state = ObstacleState {
+            time_step: 0,
+            position: Vec2::new(s.pose.x_m, s.pose.y_m),
+            orientation_rad: s.pose.heading_rad,
+            velocity_mps: Some(s.speed_mps),
+            acceleration_mps2: Some(s.accel_mps2),
+        };
+        track.states.push((s.header.capture_time_ns, state));
+    }
+    let (site, map) = map.ok_or(FleetRecordingError::NoMap)?;
+    let dt_ns = tracks
+        .values()
+        .flat_map(|t| t.states.windows(2).map(|w| w[1].0 - w[0].0))
+        .filter(|&d| d > 0)
+        .min()
+        .ok_or(FleetRecordingError::NoTimeStep)?;
+    let (mut dynamic, mut statics) = (Vec::new(), Vec::new());
+    for t in tracks.into_values() {
+        let mut states = Vec::with_capacity(t.states.len());
+        for (time_ns, mut s) in t.states {
+            if time_ns % dt_ns != 0 {
+                let reason = format!("state at {time_ns} ns is not on the {dt_ns} ns time grid");
+                return Err(FleetRecordingError::Obstacle { id: t.id, reason });
+            }
+            s.time_step = time_ns / dt_ns;
+            if let Some(prev) = states.last().map(|p: &ObstacleState| p.time_step)
+                && s.time_step != prev + 1
+            {
+                let reason = format!("time step {} follows {prev} (a state is missing)", s.time_step);
+                return Err(FleetRecordingError::Obstacle { id: t.id, reason });
+            }
+            states.push(s);
+        }
+        let mut states = states.into_iter();
+        let Some(initial_state) = states.next() else { continue };
+        if t.is_static {
+            statics.push(StaticObstacle { id: t.id, obstacle_type: "unknown".into(), shape: t.shape, initial_state });
+        } else {
+            dynamic.push(DynamicObstacle {
+                id: t.id,
+                obstacle_type: "car".into(),
+                shape: t.shape,
+                initial_state,
+                trajectory: states.collect(),
+                occupancy_set: Vec::new(),
+            });
+        }
+    }
+    Ok(Scenario::from_parts(site, dt_ns as f64 / 1e9, map.lanelets, dynamic, statics)?)
+}

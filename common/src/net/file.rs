@@ -76,7 +76,11 @@ fn f32_tensor(tensors: &SafeTensors<'_>, name: &str, shape: &[usize]) -> Result<
         return Err(NetError::Dtype { name: name.to_owned(), found: view.dtype().to_string() });
     }
     if view.shape() != shape {
-        return Err(NetError::TensorShape { name: name.to_owned(), expected: shape.to_vec(), found: view.shape().to_vec() });
+        return Err(NetError::TensorShape {
+            name: name.to_owned(),
+            expected: shape.to_vec(),
+            found: view.shape().to_vec(),
+        });
     }
     // The view's length is shape·4 bytes (checked by the safetensors parser).
     Ok(view.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())

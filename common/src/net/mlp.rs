@@ -19,9 +19,11 @@ impl Dense {
     /// all finite.
     pub fn new(name: &str, w: Vec<f32>, b: Vec<f32>, n_in: usize, n_out: usize) -> Result<Self, NetError> {
         let check = |what: &str, found: usize, expected: usize| {
-            (found == expected)
-                .then_some(())
-                .ok_or_else(|| NetError::LayerSize { layer: format!("{name}.{what}"), found, expected })
+            (found == expected).then_some(()).ok_or_else(|| NetError::LayerSize {
+                layer: format!("{name}.{what}"),
+                found,
+                expected,
+            })
         };
         check("weight", w.len(), n_in * n_out)?;
         check("bias", b.len(), n_out)?;
@@ -168,7 +170,10 @@ mod tests {
         ));
         let a = Dense::new("a", vec![0.0; 6], vec![0.0; 3], 2, 3).expect("a layer");
         let b = Dense::new("b", vec![0.0; 4], vec![0.0; 2], 2, 2).expect("a layer");
-        assert!(matches!(HostMlp::from_layers(vec![a, b]), Err(NetError::Chain { layer: 1, n_in: 2, previous_out: 3 })));
+        assert!(matches!(
+            HostMlp::from_layers(vec![a, b]),
+            Err(NetError::Chain { layer: 1, n_in: 2, previous_out: 3 })
+        ));
         assert!(matches!(HostMlp::from_layers(vec![]), Err(NetError::NoLayers)));
     }
 }

@@ -34,10 +34,8 @@ fn altered(p: &HostPolicy, meta: &[(&str, &str)], tensor: Option<(&str, Dtype, V
     for (k, v) in meta {
         m.insert((*k).to_owned(), (*v).to_owned());
     }
-    let views: Vec<(&str, TensorView<'_>)> = tensors
-        .iter()
-        .map(|(n, d, s, b)| (n.as_str(), TensorView::new(*d, s.clone(), b).expect("a view")))
-        .collect();
+    let views: Vec<(&str, TensorView<'_>)> =
+        tensors.iter().map(|(n, d, s, b)| (n.as_str(), TensorView::new(*d, s.clone(), b).expect("a view"))).collect();
     safetensors::serialize(views, Some(m)).expect("serialised")
 }
 
@@ -70,7 +68,10 @@ fn bad_policy_files_are_refused_with_their_reason() {
         (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![1, 3], Vec::new()))), "missing_tensor"),
         (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![3], f32s(&[0.0; 3])))), "bad_tensor"),
         (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F64, vec![1, 3], vec![0; 24]))), "bad_tensor"),
-        (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![1, 3], f32s(&[0.0, f32::NAN, 0.0])))), "non_finite"),
+        (
+            altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![1, 3], f32s(&[0.0, f32::NAN, 0.0])))),
+            "non_finite",
+        ),
     ];
     for (i, (bytes, reason)) in cases.iter().enumerate() {
         match HostPolicy::from_safetensors(bytes) {

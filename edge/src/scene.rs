@@ -92,7 +92,7 @@ pub struct ActivePolicy {
 /// training environment's observation through its action mapping (`common::net::HostDriver`).
 pub enum EgoController {
     /// The IDM/MOBIL reference driver of the scenario.
-    Reference(ReferenceDriver),
+    Reference(Box<ReferenceDriver>),
     /// A learned policy.
     Learned { id: PolicyRef, driver: Box<HostDriver> },
 }
@@ -114,7 +114,7 @@ impl EgoController {
         world.dt_s = STEP_S;
         let controller = match policy {
             Some(p) => EgoController::learned(&world, p),
-            None => EgoController::Reference(reference),
+            None => EgoController::Reference(Box::new(reference)),
         };
         (world, controller)
     }
@@ -128,7 +128,7 @@ impl EgoController {
     /// The policy to drive with.
     pub fn policy(&mut self) -> &mut dyn Policy {
         match self {
-            EgoController::Reference(driver) => driver,
+            EgoController::Reference(driver) => driver.as_mut(),
             EgoController::Learned { driver, .. } => driver.as_mut(),
         }
     }

@@ -15,6 +15,7 @@
 //! - [`scenario`]: the five kinds, sampling, feasibility, building a world.
 //! - [`world`], [`driver`], [`episode`], [`metrics`]: one episode, its reference driver, its metrics.
 //! - [`env`]: the driving environment for reinforcement learning (observation, action, reward, VecEnv).
+//! - [`net`]: trained policies on the host (no tensor library): policy files, MLP, driver.
 
 pub mod align;
 pub mod commonroad;
@@ -23,6 +24,7 @@ pub mod env;
 pub mod episode;
 pub mod geometry;
 pub mod metrics;
+pub mod net;
 pub mod risk;
 pub mod rng;
 pub mod road;

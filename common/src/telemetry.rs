@@ -176,6 +176,13 @@ pub struct ScenarioPush {
     pub spec: ScenarioSpec,
 }
 
+/// A version of a learned policy: what drove an episode.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, serde::Serialize)]
+pub struct PolicyRef {
+    pub policy_id: String,
+    pub version: u32,
+}
+
 /// Edge to cloud: the outcome of a pushed scenario.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScenarioResult {
@@ -183,4 +190,6 @@ pub struct ScenarioResult {
     pub spec_id: String,
     pub metrics: EpisodeMetrics,
     pub risk: RiskTerms,
+    /// The received policy that drove the ego; `None`: the scenario's reference driver.
+    pub policy: Option<PolicyRef>,
 }

@@ -1,6 +1,6 @@
 //! The simulated scene behind an edge: a scenario's world driven by the ego controller (the
-//! reference driver for now), and the conversions from what it yields to the wire messages of
-//! `common::telemetry`.
+//! reference driver, or a policy received from the cloud: [`EgoController`]), and the
+//! conversions from what it yields to the wire messages of `common::telemetry`.
 //!
 //! A scenario pushed by the cloud is executed as one episode with `common::episode` (so its
 //! outcome is measured as `risktwin simulate` measures it, stopping at the first collision —
@@ -14,11 +14,15 @@ use risktwin_common::driver::{Policy, ReferenceDriver};
 use risktwin_common::episode::{EpisodeResult, run_observed, with_reference_driver};
 use risktwin_common::geometry::{Footprint, Pose};
 use risktwin_common::metrics::RewardWeights;
+use risktwin_common::net::{HostDriver, HostPolicy};
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, check_feasible, sample};
 use risktwin_common::sensor::PerceivedObject;
+use risktwin_common::telemetry::PolicyRef;
 use risktwin_common::telemetry::{DetectedObject, VehicleStateSample};
 use risktwin_common::vehicle::Controls;
 use risktwin_common::world::World;
+use std::fmt;
+use std::sync::Arc;
 
 /// Simulation step of every edge world, s (50 Hz).
 pub const STEP_S: f64 = 0.02;
@@ -34,45 +38,106 @@ pub fn feasible_spec(seed: u64, kind: ScenarioKind) -> Result<ScenarioSpec, Edge
         .ok_or(EdgeError::NoFeasibleScenario { kind: kind.name(), seed, tried: MAX_CANDIDATES })
 }
 
-/// A scenario world stepping at [`STEP_S`] with the reference driver; when the scenario's
+/// A scenario world stepping at [`STEP_S`] with the ego controller; when the scenario's
 /// horizon is reached it starts over, so an edge can publish for as long as it runs.
 pub struct Scene {
     spec: ScenarioSpec,
     pub world: World,
-    driver: ReferenceDriver,
+    controller: EgoController,
+    policy: Option<ActivePolicy>,
 }
 
 impl Scene {
-    /// The world of `spec` at t = 0.
+    /// The world of `spec` at t = 0, driven by the reference driver.
     pub fn new(spec: ScenarioSpec) -> Self {
-        let (mut world, driver) = with_reference_driver(&spec);
-        world.dt_s = STEP_S;
-        Scene { spec, world, driver }
+        Self::with_policy(spec, None)
+    }
+
+    /// The world of `spec` at t = 0, driven by `policy` when given.
+    fn with_policy(spec: ScenarioSpec, policy: Option<ActivePolicy>) -> Self {
+        let (world, controller) = EgoController::world(&spec, policy.as_ref());
+        Scene { spec, world, controller, policy }
+    }
+
+    /// Drives with `policy` from the next step on (the world goes on where it is).
+    pub fn set_policy(&mut self, policy: ActivePolicy) {
+        self.controller = EgoController::learned(&self.world, &policy);
+        self.policy = Some(policy);
+    }
+
+    /// Which policy drives (`None`: the reference driver).
+    pub fn driven_by(&self) -> Option<&PolicyRef> {
+        self.controller.driven_by()
     }
 
     /// One step (and a restart first when the horizon was reached); the driver's controls.
     pub fn step(&mut self) -> Controls {
         if self.world.time_s >= self.world.horizon_s {
-            *self = Scene::new(self.spec.clone());
+            *self = Scene::with_policy(self.spec.clone(), self.policy.take());
         }
-        self.world.step(&mut self.driver).controls
+        self.world.step(self.controller.policy()).controls
     }
 }
 
-/// What drives the ego. The seam for learned policies: a `Learned` variant backed by the
-/// `learn` crate's networks (built from a received `PolicyUpdate`) will implement
-/// [`Policy`] next to the reference driver; until then every episode uses the reference driver.
+/// A policy received from the cloud, checked and ready to drive.
 #[derive(Debug, Clone)]
+pub struct ActivePolicy {
+    /// Which policy and version.
+    pub id: PolicyRef,
+    /// Its network, shared by every world it drives.
+    pub net: Arc<HostPolicy>,
+}
+
+/// What drives the ego: the scenario's reference driver, or a received policy acting on the
+/// training environment's observation through its action mapping (`common::net::HostDriver`).
 pub enum EgoController {
     /// The IDM/MOBIL reference driver of the scenario.
-    Reference(ReferenceDriver),
+    Reference(Box<ReferenceDriver>),
+    /// A learned policy.
+    Learned { id: PolicyRef, driver: Box<HostDriver> },
+}
+
+impl fmt::Debug for EgoController {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EgoController::Reference(driver) => f.debug_tuple("Reference").field(driver).finish(),
+            EgoController::Learned { id, .. } => f.debug_struct("Learned").field("id", id).finish_non_exhaustive(),
+        }
+    }
 }
 
 impl EgoController {
+    /// The world of `spec` at the edge's step and its controller: `policy` when given, else
+    /// the scenario's reference driver.
+    pub fn world(spec: &ScenarioSpec, policy: Option<&ActivePolicy>) -> (World, EgoController) {
+        let (mut world, reference) = with_reference_driver(spec);
+        world.dt_s = STEP_S;
+        let controller = match policy {
+            Some(p) => EgoController::learned(&world, p),
+            None => EgoController::Reference(Box::new(reference)),
+        };
+        (world, controller)
+    }
+
+    /// `policy` driving in `world` (its desired speed and step are part of the observation).
+    pub fn learned(world: &World, policy: &ActivePolicy) -> EgoController {
+        let driver = Arc::clone(&policy.net).driver(world.desired_speed_mps, world.dt_s);
+        EgoController::Learned { id: policy.id.clone(), driver: Box::new(driver) }
+    }
+
     /// The policy to drive with.
     pub fn policy(&mut self) -> &mut dyn Policy {
         match self {
-            EgoController::Reference(driver) => driver,
+            EgoController::Reference(driver) => driver.as_mut(),
+            EgoController::Learned { driver, .. } => driver.as_mut(),
+        }
+    }
+
+    /// Which received policy drives (`None`: the reference driver).
+    pub fn driven_by(&self) -> Option<&PolicyRef> {
+        match self {
+            EgoController::Reference(_) => None,
+            EgoController::Learned { id, .. } => Some(id),
         }
     }
 }
@@ -91,16 +156,16 @@ pub struct TapeStep {
 pub struct Tape {
     pub steps: Vec<TapeStep>,
     pub result: EpisodeResult,
+    /// The received policy that drove (`None`: the reference driver).
+    pub driven_by: Option<PolicyRef>,
     next: usize,
 }
 
 impl Tape {
-    /// Runs `spec` (which must be feasible) to its end with the ego controller of the
-    /// scenario, recording every step.
-    pub fn record(spec: &ScenarioSpec) -> Tape {
-        let (mut world, driver) = with_reference_driver(spec);
-        world.dt_s = STEP_S;
-        let mut controller = EgoController::Reference(driver);
+    /// Runs `spec` (which must be feasible) to its end driven by `policy` (the scenario's
+    /// reference driver when `None`), recording every step.
+    pub fn record(spec: &ScenarioSpec, policy: Option<&ActivePolicy>) -> Tape {
+        let (mut world, mut controller) = EgoController::world(spec, policy);
         let mut steps = Vec::new();
         let mut states = Vec::new();
         let result = run_observed(&mut world, controller.policy(), &RewardWeights::default(), &mut |w, report| {
@@ -113,7 +178,7 @@ impl Tape {
                 });
             }
         });
-        Tape { steps, result, next: 0 }
+        Tape { steps, result, driven_by: controller.driven_by().cloned(), next: 0 }
     }
 
     /// The next step to play, `None` once all were played.
@@ -137,8 +202,48 @@ pub fn detected(object: &PerceivedObject) -> DetectedObject {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use risktwin_common::env::OBS_DIM;
+    use risktwin_common::net::{Dense, HostMlp, PolicyKind};
+
+    /// A `kind` policy file OBS_DIM → 4 → out: zero weights, so the action is the output bias.
+    pub(crate) fn policy_net(kind: PolicyKind, out_bias: &[f32]) -> HostPolicy {
+        let hidden = Dense::new("h", vec![0.0; OBS_DIM * 4], vec![0.0; 4], OBS_DIM, 4).expect("a layer");
+        let out =
+            Dense::new("o", vec![0.0; 4 * kind.out_dim()], out_bias.to_vec(), 4, kind.out_dim()).expect("a layer");
+        HostPolicy::new(kind, HostMlp::from_layers(vec![hidden, out]).expect("a chain")).expect("a policy")
+    }
+
+    /// [`policy_net`] as a policy file.
+    pub(crate) fn policy_file(kind: PolicyKind, out_bias: &[f32]) -> Vec<u8> {
+        policy_net(kind, out_bias).to_safetensors().expect("serialised")
+    }
+
+    #[test]
+    fn a_received_policy_drives_the_tape_and_the_scene() {
+        let spec = feasible_spec(3, ScenarioKind::CutIn).expect("a feasible cut-in");
+        let reference = Tape::record(&spec, None);
+        // Full brake from the first step.
+        let id = PolicyRef { policy_id: "brake".into(), version: 2 };
+        let policy = ActivePolicy { id: id.clone(), net: Arc::new(policy_net(PolicyKind::Gaussian, &[0.0, 0.0, 1.0])) };
+        let braking = Tape::record(&spec, Some(&policy));
+        assert_eq!(braking.driven_by.as_ref(), Some(&id));
+        let last = |t: &Tape| t.steps.last().map(|s| (s.state.pose.x_m, s.state.speed_mps)).expect("steps");
+        assert!(braking.steps.iter().all(|s| s.controls.brake == 1.0 && s.controls.throttle == 0.0));
+        assert!(last(&braking).1 < 0.1, "stopped: {:?}", last(&braking));
+        assert!(last(&reference).1 > 5.0, "the reference driver keeps going: {:?}", last(&reference));
+        assert!(braking.result.metrics.avg_speed_mps < reference.result.metrics.avg_speed_mps);
+
+        let mut scene = Scene::new(spec);
+        scene.step();
+        assert_eq!(scene.driven_by(), None);
+        scene.set_policy(policy);
+        assert_eq!(scene.step().brake, 1.0);
+        scene.world.time_s = scene.world.horizon_s;
+        assert_eq!(scene.step().brake, 1.0, "still the policy after the restart");
+        assert_eq!(scene.driven_by(), Some(&id));
+    }
 
     #[test]
     fn a_feasible_cut_in_steps_and_restarts_at_its_horizon() {
@@ -159,7 +264,8 @@ mod tests {
     #[test]
     fn a_tape_holds_every_step_of_the_episode_and_its_outcome() {
         let spec = feasible_spec(3, ScenarioKind::CutIn).expect("a feasible cut-in");
-        let mut tape = Tape::record(&spec);
+        let mut tape = Tape::record(&spec, None);
+        assert_eq!(tape.driven_by, None);
         // `simulate` measured at the edge's step (the library's outcomes use the world's own).
         let (mut world, mut driver) = with_reference_driver(&spec);
         world.dt_s = STEP_S;

@@ -1,4 +1,5 @@
-//! The vehicle role: a scenario world stepped at 50 Hz by the reference driver; per step the
+//! The vehicle role: a scenario world stepped at 50 Hz by its ego controller (the reference
+//! driver until the cloud pushes a policy); per step the
 //! ego's `VehicleStateSample` on `state`, the motion and driver CAN frames on `can` twice (every
 //! 10 ms: 100 Hz per frame id, 200 frames/s on the stream), and every 5th step the perceived
 //! `ObjectList` on `perception` (10 Hz).
@@ -6,12 +7,14 @@
 //! Cloud pushes ([`push`]): a valid scenario push replaces what the vehicle drives — the
 //! pushed episode is executed (see `scene::Tape`) and played out on the same streams, then its
 //! `ScenarioResult` goes back on `risktwin/v1/<site>/<id>/scenario_result` and the vehicle
-//! returns to its own scenario. A valid policy update is kept and reported in the summary.
+//! returns to its own scenario. A valid policy update drives from then on: the vehicle's own
+//! scene at once, and every pushed scenario executed after it (its `ScenarioResult` names the
+//! policy version that drove).
 
 pub mod push;
 
 use crate::publish::{EdgeConfig, Producer, Stamper, run_producer};
-use crate::scene::{Scene, Tape, detected, feasible_spec};
+use crate::scene::{ActivePolicy, Scene, Tape, detected, feasible_spec};
 use crate::{EdgeError, SentSummary};
 use push::{PushSummary, ResultLine};
 use risktwin_common::telemetry::{CanSignals, DetectedObject, ObjectList, ScenarioResult, VehicleStateSample};
@@ -30,12 +33,17 @@ const PUSHES: [CloudToEdge; 2] = [CloudToEdge::Scenario, CloudToEdge::Policy];
 struct Pushed {
     spec_id: String,
     tape: Tape,
+    /// First and last sequence numbers of the `state` messages published from the tape.
+    state_seqs: Option<(u64, u64)>,
 }
 
 /// A vehicle's scene and what it last did, ticked at twice the step rate.
 pub struct Vehicle {
     scene: Scene,
     pushed: Option<Pushed>,
+    /// Whether the current step came from the pushed tape.
+    on_tape: bool,
+    policy: Option<ActivePolicy>,
     signals: CanSignals,
     steps: u64,
     states: Vec<VehicleStateSample>,
@@ -60,6 +68,8 @@ impl Vehicle {
         Ok(Vehicle {
             scene,
             pushed: None,
+            on_tape: false,
+            policy: None,
             signals: CanSignals::default(),
             steps: 0,
             states: Vec::new(),
@@ -78,6 +88,7 @@ impl Vehicle {
     /// One simulation step: from the pushed episode while it lasts, else from the own scene.
     fn step(&mut self, stamper: &Stamper<'_>) {
         let from_tape = self.pushed.as_mut().and_then(|p| p.tape.next_step().cloned());
+        self.on_tape = from_tape.is_some();
         let controls = match from_tape {
             Some(step) => {
                 self.states.clear();
@@ -116,10 +127,15 @@ impl Vehicle {
             spec_id: done.spec_id,
             metrics: done.tape.result.metrics.clone(),
             risk: done.tape.result.risk,
+            policy: done.tape.driven_by.clone(),
         };
         self.results_sent += 1;
+        let driver = result
+            .policy
+            .as_ref()
+            .map_or("reference driver".to_owned(), |p| format!("policy {} version {}", p.policy_id, p.version));
         eprintln!(
-            "edge {}: scenario {} done: collision {}, min TTC {:?} s",
+            "edge {}: scenario {} done ({driver}): collision {}, min TTC {:?} s",
             stamper.source(),
             result.spec_id,
             result.metrics.collision,
@@ -131,6 +147,8 @@ impl Vehicle {
             min_ttc_s: result.metrics.min_ttc_s,
             risk_score: result.risk.score,
             steps: result.metrics.steps,
+            policy: result.policy.clone(),
+            state_seqs: done.state_seqs,
         });
         self.reports.push((EdgeReport::ScenarioResult, encode(&result)));
     }
@@ -150,6 +168,10 @@ impl Producer for Vehicle {
             self.step(stamper);
             if let Some(mut state) = self.states.first().cloned() {
                 state.header = stamper.header(EdgeStream::State);
+                if let Some(pushed) = self.pushed.as_mut().filter(|_| self.on_tape) {
+                    let seq = state.header.seq;
+                    pushed.state_seqs = Some(pushed.state_seqs.map_or((seq, seq), |(first, _)| (first, seq)));
+                }
                 out.push((EdgeStream::State, encode(&state)));
             }
             if self.steps.is_multiple_of(5) {
@@ -176,12 +198,20 @@ impl Producer for Vehicle {
                 if let Some(p) = self.pushes.scenario(payload) {
                     eprintln!("edge: running pushed scenario {}", p.spec_id);
                     // A push while another one plays replaces it (its result is not reported).
-                    self.pushed = Some(Pushed { spec_id: p.spec_id, tape: Tape::record(&p.spec) });
+                    let tape = Tape::record(&p.spec, self.policy.as_ref());
+                    self.pushed = Some(Pushed { spec_id: p.spec_id, tape, state_seqs: None });
                 }
             }
             CloudToEdge::Policy => {
-                if let Some(u) = self.pushes.policy(payload) {
-                    eprintln!("edge: holding policy {} version {} ({})", u.policy_id, u.version, u.algo);
+                if let Some(policy) = self.pushes.policy(payload) {
+                    let kind = policy.net.kind().algo();
+                    eprintln!(
+                        "edge: driving with policy {} version {} ({kind})",
+                        policy.id.policy_id, policy.id.version
+                    );
+                    // The own scene switches now; a pushed episode already recorded keeps its driver.
+                    self.scene.set_policy(policy.clone());
+                    self.policy = Some(policy);
                 }
             }
             CloudToEdge::Control => {}

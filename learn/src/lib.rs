@@ -44,6 +44,8 @@ pub enum LearnError {
     BadPolicyFile(String),
     #[error("{0}: {1}")]
     Io(String, String),
+    #[error("host network: {0}")]
+    Net(#[from] risktwin_common::net::NetError),
     #[error(transparent)]
     Source(#[from] risktwin_common::env::SourceError),
 }

@@ -3,18 +3,18 @@
 
 use crate::LearnError;
 use crate::gru::GruCell;
-use crate::host::{HostMlp, Scratch};
+use crate::host::snapshot;
 use crate::nn::{HALF_LN_TAU, Mlp, Param, const_param, load_params, matrix};
 use candle_core::{Device, Tensor};
 use risktwin_common::env::{ACT_DIM, OBS_DIM};
 use risktwin_common::rng::Rng;
-use std::collections::HashMap;
 use std::fmt;
 use std::path::Path;
 use std::str::FromStr;
 
-/// Version of the policy file layout; bumped when tensor names or shapes change.
-pub const POLICY_FORMAT_VERSION: u32 = 1;
+use risktwin_common::net::PolicyKind;
+use risktwin_common::net::file::{metadata, read_meta};
+pub use risktwin_common::net::{HostPolicy, POLICY_FORMAT_VERSION};
 
 /// Learning algorithm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -206,8 +206,8 @@ impl PolicyNet {
     /// through candle).
     pub fn host(&self) -> Result<Option<HostPolicy>, LearnError> {
         Ok(match &self.body {
-            Body::Gaussian { mean, .. } => Some(HostPolicy { squashed: false, net: HostMlp::from_mlp(mean)? }),
-            Body::Squashed { net } => Some(HostPolicy { squashed: true, net: HostMlp::from_mlp(net)? }),
+            Body::Gaussian { mean, .. } => Some(HostPolicy::new(PolicyKind::Gaussian, snapshot(mean)?)?),
+            Body::Squashed { net } => Some(HostPolicy::new(PolicyKind::Squashed, snapshot(net)?)?),
             Body::Recurrent { .. } => None,
         })
     }
@@ -229,14 +229,7 @@ impl PolicyNet {
     pub fn save(&self, path: &Path) -> Result<(), LearnError> {
         let tensors: Vec<(String, Tensor)> =
             self.params().iter().map(|p| (p.name.clone(), p.var.as_tensor().clone())).collect();
-        let hidden: Vec<String> = self.hidden.iter().map(|h| h.to_string()).collect();
-        let meta = HashMap::from([
-            ("algo".to_string(), self.algo.name().to_string()),
-            ("obs_dim".to_string(), OBS_DIM.to_string()),
-            ("act_dim".to_string(), ACT_DIM.to_string()),
-            ("hidden".to_string(), hidden.join(",")),
-            ("version".to_string(), POLICY_FORMAT_VERSION.to_string()),
-        ]);
+        let meta = metadata(self.algo.name(), &self.hidden);
         safetensors::serialize_to_file(tensors.iter().map(|(n, t)| (n.as_str(), t)), Some(meta), path)
             .map_err(|e| LearnError::Io(path.display().to_string(), e.to_string()))
     }
@@ -244,59 +237,12 @@ impl PolicyNet {
     /// Loads a policy saved by [`PolicyNet::save`], checking version and dimensions.
     pub fn load(path: &Path) -> Result<Self, LearnError> {
         let bytes = std::fs::read(path).map_err(|e| LearnError::Io(path.display().to_string(), e.to_string()))?;
-        let (_, header) = safetensors::SafeTensors::read_metadata(&bytes)
-            .map_err(|e| LearnError::BadPolicyFile(format!("{}: {e}", path.display())))?;
-        let meta = header.metadata().clone().unwrap_or_default();
-        let get =
-            |k: &str| meta.get(k).cloned().ok_or_else(|| LearnError::BadPolicyFile(format!("metadata lacks '{k}'")));
-        let version = get("version")?;
-        if version != POLICY_FORMAT_VERSION.to_string() {
-            return Err(LearnError::BadPolicyFile(format!(
-                "format version {version}, expected {POLICY_FORMAT_VERSION}"
-            )));
-        }
-        for (k, want) in [("obs_dim", OBS_DIM), ("act_dim", ACT_DIM)] {
-            let v = get(k)?;
-            if v != want.to_string() {
-                return Err(LearnError::BadPolicyFile(format!("{k} = {v}, this build uses {want}")));
-            }
-        }
-        let algo: Algo = get("algo")?.parse()?;
-        let hidden = get("hidden")?
-            .split(',')
-            .map(|s| s.parse::<usize>().map_err(|_| LearnError::BadPolicyFile(format!("bad hidden size '{s}'"))))
-            .collect::<Result<Vec<_>, _>>()?;
+        let meta = read_meta(&bytes).map_err(|e| LearnError::BadPolicyFile(format!("{}: {e}", path.display())))?;
+        let (algo, hidden): (Algo, _) = (meta.algo.parse()?, meta.hidden);
         let net = PolicyNet::new(algo, &hidden, &mut Rng::new(0))?;
         let tensors = candle_core::safetensors::load_buffer(&bytes, &Device::Cpu)?;
         load_params(net.params(), &tensors)?;
         Ok(net)
-    }
-}
-
-/// A frozen host-side copy of a feed-forward policy: deterministic actions without candle.
-#[derive(Debug, Clone)]
-pub struct HostPolicy {
-    squashed: bool,
-    net: HostMlp,
-}
-
-impl HostPolicy {
-    /// Scratch buffers for [`HostPolicy::act_deterministic`].
-    pub fn scratch(&self) -> Scratch {
-        self.net.scratch()
-    }
-
-    /// The mode of the action distribution for one observation, in [−1, 1] (same as
-    /// [`PolicyNet::act_deterministic`] up to float rounding).
-    pub fn act_deterministic(&self, obs: &[f32; OBS_DIM], scratch: &mut Scratch) -> [f32; ACT_DIM] {
-        let mut out = [0.0f32; 2 * ACT_DIM];
-        let width = self.net.out_dim().min(2 * ACT_DIM);
-        self.net.forward(obs, scratch, &mut out[..width]);
-        let mut a = [0.0f32; ACT_DIM];
-        for (a, m) in a.iter_mut().zip(out) {
-            *a = if self.squashed { m.tanh() } else { m.clamp(-1.0, 1.0) };
-        }
-        a
     }
 }
 

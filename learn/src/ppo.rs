@@ -8,7 +8,7 @@
 use crate::LearnError;
 use crate::envs::Environment;
 use crate::gae::{ReturnScaler, gae};
-use crate::host::{HostMlp, Scratch};
+use crate::host::{HostMlp, Scratch, snapshot};
 use crate::nn::{HALF_LN_TAU, Mlp, matrix, normals, vars};
 use crate::optim::Adam;
 use crate::policy::{Algo, PolicyNet, gaussian_log_prob};
@@ -145,7 +145,7 @@ impl Ppo {
         let opt = Adam::new(all, cfg.lr, cfg.max_grad_norm)?;
         let n = cfg.n_steps * n_envs;
         let (host_actor, host_critic) = match policy.mean_mlp() {
-            Some(mean) if !cfg.recurrent => (HostMlp::from_mlp(mean)?, HostMlp::from_mlp(&critic)?),
+            Some(mean) if !cfg.recurrent => (snapshot(mean)?, snapshot(&critic)?),
             _ => (HostMlp::default(), HostMlp::default()),
         };
         let scratch = Scratch::wide(host_actor.max_width().max(host_critic.max_width()));
@@ -249,8 +249,8 @@ impl Ppo {
     /// Copies the current weights into the host-side networks used for acting.
     fn refresh_host(&mut self) -> Result<(), LearnError> {
         if self.policy.gru().is_none() {
-            self.host_actor.refresh(self.policy.mean_mlp().expect("feed-forward PPO has a mean MLP"))?;
-            self.host_critic.refresh(&self.critic)?;
+            self.host_actor = snapshot(self.policy.mean_mlp().expect("feed-forward PPO has a mean MLP"))?;
+            self.host_critic = snapshot(&self.critic)?;
         }
         self.log_std = self.policy.log_std()?.expect("PPO policies have a state-independent log σ");
         Ok(())

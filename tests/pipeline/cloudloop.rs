@@ -207,11 +207,10 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
 
     // A policy update: accepted once, a repeat of its version refused.
     let weights = dir.path().join("w.safetensors");
-    let json = br#"{"w":{"dtype":"F32","shape":[2],"data_offsets":[0,8]}}"#;
-    let mut bytes = (json.len() as u64).to_le_bytes().to_vec();
-    bytes.extend_from_slice(json);
-    bytes.extend_from_slice(&[0; 8]);
-    std::fs::write(&weights, bytes).expect("weights written");
+    let mut rng = risktwin_common::rng::Rng::new(1);
+    let net = risktwin_learn::PolicyNet::new(risktwin_learn::Algo::Ppo, &[16], &mut rng).expect("a policy");
+    net.save(&weights).expect("weights written");
+    let weights_bytes = std::fs::metadata(&weights).expect("the weights file").len();
     let w = weights.to_str().expect("a UTF-8 path");
     for _ in 0..2 {
         let policy = [
@@ -246,7 +245,7 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
     assert_eq!(pushes["results"][0]["spec_id"], id.as_str());
     assert_eq!(
         pushes["policy"],
-        serde_json::json!({"policy_id": "ppo-1", "version": 3, "algo": "ppo", "weights_bytes": 70})
+        serde_json::json!({"policy_id": "ppo-1", "version": 3, "algo": "ppo", "weights_bytes": weights_bytes})
     );
     assert_eq!(pushes["policies_refused"], serde_json::json!({"stale_version": 1}));
     assert!(summary["sent"]["state"].as_u64().is_some_and(|n| n > 100), "the vehicle kept publishing: {summary}");

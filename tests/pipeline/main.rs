@@ -10,5 +10,6 @@ mod cloudloop;
 mod fleet;
 #[path = "../interop/peer_python.rs"]
 mod peer_python;
+mod policyloop;
 mod python_zenoh;
 mod support;

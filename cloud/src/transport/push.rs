@@ -6,7 +6,7 @@
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::ScenarioSpec;
-use risktwin_common::telemetry::{Frame, Header, PolicyUpdate, ScenarioPush, ScenarioResult};
+use risktwin_common::telemetry::{Frame, Header, PolicyRef, PolicyUpdate, ScenarioPush, ScenarioResult};
 use risktwin_protos::{decode, encode};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report};
 use risktwin_transport::zenoh::Session;
@@ -49,6 +49,8 @@ pub struct ScenarioPushReport {
     pub spec_id: String,
     pub metrics: EpisodeMetrics,
     pub risk: RiskTerms,
+    /// The policy version that drove the ego on the edge; `None`: the reference driver.
+    pub policy: Option<PolicyRef>,
 }
 
 /// What `push policy` prints.
@@ -157,6 +159,7 @@ pub async fn push_scenario(
         spec_id: result.spec_id,
         metrics: result.metrics,
         risk: result.risk,
+        policy: result.policy,
     })
 }
 

@@ -1,14 +1,18 @@
 //! What a vehicle does with the cloud's pushes: scenario pushes are validated (decodable,
 //! complete, in range, feasible) before the vehicle runs them; policy updates are validated
-//! (decodable, a known algorithm, a monotonic version per policy id, safetensors-shaped weights
-//! of sane size) and kept, for the `learn` crate's controller to load once it exists. A refused
-//! push is counted by reason and logged; the vehicle keeps running what it was running.
+//! (decodable, a known algorithm, weights of sane size that load as a policy of this build's
+//! observation and action sizes — `common::net::HostPolicy` — and whose file names the same
+//! algorithm, a monotonic version per policy id) and then drive the vehicle. A refused push is
+//! counted by reason and logged; the vehicle keeps running what it was running.
 
+use crate::scene::ActivePolicy;
+use risktwin_common::net::HostPolicy;
 use risktwin_common::scenario::check_feasible;
-use risktwin_common::telemetry::{PolicyUpdate, ScenarioPush};
+use risktwin_common::telemetry::{PolicyRef, PolicyUpdate, ScenarioPush};
 use risktwin_protos::decode;
 use serde::Serialize;
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 /// Algorithms whose network layouts an edge knows.
 pub const KNOWN_ALGOS: [&str; 2] = ["ppo", "sac"];
@@ -23,6 +27,11 @@ pub struct ResultLine {
     pub min_ttc_s: Option<f64>,
     pub risk_score: f64,
     pub steps: u64,
+    /// The received policy that drove; `None`: the reference driver.
+    pub policy: Option<PolicyRef>,
+    /// Sequence numbers of the first and last `state` message of the played episode, so its
+    /// streams can be found in what the cloud received.
+    pub state_seqs: Option<(u64, u64)>,
 }
 
 /// The policy a vehicle holds.
@@ -45,7 +54,7 @@ pub struct PushSummary {
     pub results: Vec<ResultLine>,
     /// Policy updates refused, by reason.
     pub policies_refused: BTreeMap<String, u64>,
-    /// The latest accepted policy (not driving yet: see `scene::EgoController`).
+    /// The latest accepted policy, which drives the vehicle.
     pub policy: Option<PolicyLine>,
 }
 
@@ -72,8 +81,9 @@ impl PushSummary {
         Some(push)
     }
 
-    /// Validates a policy update and keeps it when it is newer than the one held.
-    pub fn policy(&mut self, payload: &[u8]) -> Option<PolicyUpdate> {
+    /// Validates a policy update and loads its weights; the policy to drive with when valid
+    /// and newer than the one held.
+    pub fn policy(&mut self, payload: &[u8]) -> Option<ActivePolicy> {
         let update = match decode::<PolicyUpdate>(payload) {
             Ok(u) => u,
             Err(e) => {
@@ -81,52 +91,50 @@ impl PushSummary {
                 return None;
             }
         };
-        let reason = if !KNOWN_ALGOS.contains(&update.algo.as_str()) {
-            Some(("unknown_algo", format!("algo {:?}, known {KNOWN_ALGOS:?}", update.algo)))
-        } else if update.weights.len() > MAX_WEIGHTS_BYTES {
-            Some(("too_large", format!("{} bytes > {MAX_WEIGHTS_BYTES}", update.weights.len())))
-        } else if let Err(e) = check_safetensors(&update.weights) {
-            Some(("bad_weights", e))
-        } else if let Some(held) = self.policy.as_ref().filter(|p| p.policy_id == update.policy_id)
+        match self.check_policy(&update) {
+            Ok(net) => {
+                self.policy = Some(PolicyLine {
+                    policy_id: update.policy_id.clone(),
+                    version: update.version,
+                    algo: update.algo.clone(),
+                    weights_bytes: update.weights.len(),
+                });
+                let id = PolicyRef { policy_id: update.policy_id, version: update.version };
+                Some(ActivePolicy { id, net: Arc::new(net) })
+            }
+            Err((reason, detail)) => {
+                Self::refuse(&mut self.policies_refused, "policy update", reason, &detail);
+                None
+            }
+        }
+    }
+
+    /// The loaded policy of a decoded update, or why it is refused.
+    fn check_policy(&self, update: &PolicyUpdate) -> Result<HostPolicy, (&'static str, String)> {
+        if !KNOWN_ALGOS.contains(&update.algo.as_str()) {
+            return Err(("unknown_algo", format!("algo {:?}, known {KNOWN_ALGOS:?}", update.algo)));
+        }
+        if update.weights.len() > MAX_WEIGHTS_BYTES {
+            return Err(("too_large", format!("{} bytes > {MAX_WEIGHTS_BYTES}", update.weights.len())));
+        }
+        if let Some(held) = self.policy.as_ref().filter(|p| p.policy_id == update.policy_id)
             && update.version <= held.version
         {
-            Some(("stale_version", format!("version {} ≤ held {}", update.version, held.version)))
-        } else {
-            None
-        };
-        if let Some((reason, detail)) = reason {
-            Self::refuse(&mut self.policies_refused, "policy update", reason, &detail);
-            return None;
+            return Err(("stale_version", format!("version {} ≤ held {}", update.version, held.version)));
         }
-        self.policy = Some(PolicyLine {
-            policy_id: update.policy_id.clone(),
-            version: update.version,
-            algo: update.algo.clone(),
-            weights_bytes: update.weights.len(),
-        });
-        Some(update)
+        let net = HostPolicy::from_safetensors(&update.weights).map_err(|e| (e.reason(), e.to_string()))?;
+        if net.kind().algo() != update.algo {
+            let detail = format!("update says {:?}, its weights are a {} policy", update.algo, net.kind().algo());
+            return Err(("algo_mismatch", detail));
+        }
+        Ok(net)
     }
-}
-
-/// The safetensors framing: an 8-byte little-endian header length, then that many bytes of a
-/// JSON object, then the tensor data (which the header's offsets must not overrun: checked by
-/// the loader of the `learn` crate, which parses the header).
-pub fn check_safetensors(bytes: &[u8]) -> Result<(), String> {
-    let len_bytes: [u8; 8] = bytes.get(..8).and_then(|b| b.try_into().ok()).ok_or("shorter than 8 bytes")?;
-    let header_len = u64::from_le_bytes(len_bytes);
-    let end = usize::try_from(header_len).ok().and_then(|n| n.checked_add(8)).filter(|end| *end <= bytes.len());
-    let end = end.ok_or_else(|| format!("header length {header_len} overruns the {} bytes", bytes.len()))?;
-    let header = std::str::from_utf8(&bytes[8..end]).map_err(|_| "header is not UTF-8".to_owned())?;
-    let header = header.trim_end();
-    if !(header.starts_with('{') && header.ends_with('}')) {
-        return Err("header is not a JSON object".to_owned());
-    }
-    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use risktwin_common::net::PolicyKind;
     use risktwin_common::scenario::ScenarioKind;
     use risktwin_common::telemetry::{Frame, Header};
     use risktwin_protos::encode;
@@ -135,13 +143,8 @@ mod tests {
         Header { source: "cloud".into(), seq: 0, capture_time_ns: 1, publish_time_ns: 1, frame: Frame::World }
     }
 
-    /// A minimal safetensors file: one f32 tensor of shape [2].
-    pub(crate) fn weights() -> Vec<u8> {
-        let json = br#"{"w":{"dtype":"F32","shape":[2],"data_offsets":[0,8]}}"#;
-        let mut bytes = (json.len() as u64).to_le_bytes().to_vec();
-        bytes.extend_from_slice(json);
-        bytes.extend_from_slice(&[0; 8]);
-        bytes
+    fn weights() -> Vec<u8> {
+        crate::scene::tests::policy_file(PolicyKind::Gaussian, &[0.0; 3])
     }
 
     fn policy(version: u32, algo: &str, weights: Vec<u8>) -> Vec<u8> {
@@ -163,17 +166,34 @@ mod tests {
     }
 
     #[test]
-    fn policies_must_be_known_sane_and_newer() {
+    fn policies_must_be_known_loadable_and_newer() {
         let mut log = PushSummary::default();
-        assert!(log.policy(&policy(1, "ppo", weights())).is_some());
+        let first = log.policy(&policy(1, "ppo", weights())).expect("accepted");
+        assert_eq!(first.id, PolicyRef { policy_id: "p".into(), version: 1 });
         assert!(log.policy(&policy(1, "ppo", weights())).is_none(), "same version again");
         assert!(log.policy(&policy(0, "ppo", weights())).is_none(), "older");
         assert!(log.policy(&policy(2, "dqn", weights())).is_none());
         assert!(log.policy(&policy(2, "sac", vec![9; 12])).is_none(), "not safetensors");
-        assert!(log.policy(&policy(3, "sac", weights())).is_some());
+        assert!(log.policy(&policy(2, "sac", weights())).is_none(), "a ppo file pushed as sac");
+        // A file whose observation width is not this build's: refused, never a panic.
+        let mut wide = weights();
+        let key = br#""obs_dim":"12""#;
+        let at = wide.windows(key.len()).position(|w| w == key).expect("the metadata holds obs_dim");
+        wide[at + key.len() - 2] = b'3';
+        assert!(log.policy(&policy(2, "ppo", wide)).is_none(), "wrong observation width");
+        let sac = crate::scene::tests::policy_file(PolicyKind::Squashed, &[0.0; 6]);
+        assert!(log.policy(&policy(3, "sac", sac)).is_some());
         assert_eq!(log.policy.as_ref().map(|p| (p.version, p.algo.as_str())), Some((3, "sac")));
-        let reasons: Vec<&str> = log.policies_refused.keys().map(String::as_str).collect();
-        assert_eq!(reasons, ["bad_weights", "stale_version", "unknown_algo"]);
-        assert_eq!(log.policies_refused["stale_version"], 2);
+        let reasons: Vec<(&str, u64)> = log.policies_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        assert_eq!(
+            reasons,
+            [
+                ("algo_mismatch", 1),
+                ("not_safetensors", 1),
+                ("stale_version", 2),
+                ("unknown_algo", 1),
+                ("wrong_dims", 1)
+            ]
+        );
     }
 }

@@ -9,7 +9,7 @@ use super::{
 use crate::v1;
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
-use risktwin_common::telemetry::{PolicyUpdate, ScenarioPush, ScenarioResult};
+use risktwin_common::telemetry::{PolicyRef, PolicyUpdate, ScenarioPush, ScenarioResult};
 
 impl From<ScenarioKind> for v1::ScenarioKind {
     fn from(k: ScenarioKind) -> Self {
@@ -111,6 +111,7 @@ impl From<&ScenarioResult> for v1::ScenarioResult {
             spec_id: r.spec_id.clone(),
             metrics: Some((&r.metrics).into()),
             risk: Some((&r.risk).into()),
+            policy: r.policy.as_ref().map(|p| v1::PolicyRef { policy_id: p.policy_id.clone(), version: p.version }),
         }
     }
 }
@@ -124,6 +125,13 @@ impl TryFrom<v1::ScenarioResult> for ScenarioResult {
             spec_id: non_empty(M, "spec_id", r.spec_id)?,
             metrics: required(M, "metrics", r.metrics)?.try_into()?,
             risk: terms(M, "risk", r.risk)?,
+            policy: r
+                .policy
+                .map(|p| {
+                    non_empty("PolicyRef", "policy_id", p.policy_id)
+                        .map(|id| PolicyRef { policy_id: id, version: p.version })
+                })
+                .transpose()?,
         })
     }
 }

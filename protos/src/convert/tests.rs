@@ -140,12 +140,19 @@ fn every_message_round_trips_bit_exactly() {
     for kind in ScenarioKind::ALL {
         round_trip(&ScenarioPush { header: hdr(12), spec_id: format!("{kind}-1"), spec: sample(7, kind, 3) });
     }
-    round_trip(&ScenarioResult { header: hdr(13), spec_id: "cut-in-1".into(), metrics: metrics(), risk: terms() });
+    round_trip(&ScenarioResult {
+        header: hdr(13),
+        spec_id: "cut-in-1".into(),
+        metrics: metrics(),
+        risk: terms(),
+        policy: None,
+    });
     round_trip(&ScenarioResult {
         header: hdr(13),
         spec_id: "x".into(),
         metrics: EpisodeMetrics { min_ttc_s: Some(0.0), ..metrics() },
         risk: terms(),
+        policy: Some(PolicyRef { policy_id: "ppo-main".into(), version: 7 }),
     });
 }
 
@@ -183,8 +190,15 @@ fn missing_sub_messages_and_ids_are_rejected() {
     rejects(&s, |p| p.footprint = None, missing("VehicleState", "footprint"));
     rejects(&s, |p| p.velocity_mps = None, missing("VehicleState", "velocity_mps"));
     rejects(&s, |p| p.header.as_mut().map_or((), |h| h.source.clear()), missing("Header", "source"));
-    let r = ScenarioResult { header: hdr(1), spec_id: "a".into(), metrics: metrics(), risk: terms() };
+    let r = ScenarioResult {
+        header: hdr(1),
+        spec_id: "a".into(),
+        metrics: metrics(),
+        risk: terms(),
+        policy: Some(PolicyRef { policy_id: "p".into(), version: 1 }),
+    };
     rejects(&r, |p| p.metrics = None, missing("ScenarioResult", "metrics"));
+    rejects(&r, |p| p.policy.as_mut().map_or((), |q| q.policy_id.clear()), missing("PolicyRef", "policy_id"));
     rejects(&r, |p| p.risk = None, missing("ScenarioResult", "risk"));
     let push = ScenarioPush { header: hdr(1), spec_id: "a".into(), spec: sample(1, ScenarioKind::LowFriction, 0) };
     rejects(&push, |p| p.spec = None, missing("ScenarioPush", "spec"));
@@ -280,7 +294,7 @@ fn negative_sizes_and_out_of_range_values_are_rejected() {
         bad("Lane", "centre_m", "lane 2 repeats vertex 1 (zero-length segment)"),
     );
     rejects(&map, |p| p.friction_patches[0].s_end_m = 0.0, bad("FrictionPatch", "s_end_m", "0 is before s_start_m 10"));
-    let r = ScenarioResult { header: hdr(1), spec_id: "a".into(), metrics: metrics(), risk: terms() };
+    let r = ScenarioResult { header: hdr(1), spec_id: "a".into(), metrics: metrics(), risk: terms(), policy: None };
     rejects(
         &r,
         |p| p.metrics.as_mut().map_or((), |m| m.min_distance_m = -0.5),

@@ -1,0 +1,147 @@
+//! Policy files: safetensors with a metadata header, the layout the `learn` crate saves and
+//! loads (`learn::PolicyNet::save`), read here without a tensor library.
+//!
+//! Metadata: `algo` (`ppo`, `ppo-gru`, `sac`), `obs_dim`, `act_dim`, `hidden` (comma-separated
+//! layer widths) and `version` ([`POLICY_FORMAT_VERSION`]). The actor of a feed-forward
+//! policy is an MLP `OBS_DIM → hidden… → out` stored as `<prefix>.<i>.weight` (in × out, F32)
+//! and `<prefix>.<i>.bias` (1 × out, F32), with prefix `actor.mean` and out = ACT_DIM for PPO,
+//! `actor.net` and out = 2·ACT_DIM (mean, log σ) for SAC. Other tensors (PPO's `actor.log_std`,
+//! critics) may be present and are not read.
+
+use super::{Dense, HostMlp, HostPolicy, NetError, PolicyKind};
+use crate::env::{ACT_DIM, OBS_DIM};
+use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+use std::collections::HashMap;
+
+/// Version of the policy file layout; bumped when tensor names or shapes change.
+pub const POLICY_FORMAT_VERSION: u32 = 1;
+
+/// What a policy file's metadata says, once checked against this build.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PolicyMeta {
+    /// Algorithm name as written (`ppo`, `ppo-gru`, `sac`).
+    pub algo: String,
+    /// Hidden layer widths.
+    pub hidden: Vec<usize>,
+}
+
+/// The metadata a policy file of `algo` with `hidden` layers carries.
+pub fn metadata(algo: &str, hidden: &[usize]) -> HashMap<String, String> {
+    let hidden: Vec<String> = hidden.iter().map(|h| h.to_string()).collect();
+    HashMap::from([
+        ("algo".to_string(), algo.to_string()),
+        ("obs_dim".to_string(), OBS_DIM.to_string()),
+        ("act_dim".to_string(), ACT_DIM.to_string()),
+        ("hidden".to_string(), hidden.join(",")),
+        ("version".to_string(), POLICY_FORMAT_VERSION.to_string()),
+    ])
+}
+
+/// Reads a policy file's metadata and checks its format version and dimensions.
+pub fn read_meta(bytes: &[u8]) -> Result<PolicyMeta, NetError> {
+    let (_, header) = SafeTensors::read_metadata(bytes).map_err(|e| NetError::Safetensors(e.to_string()))?;
+    let meta = header.metadata().clone().unwrap_or_default();
+    let get = |k: &'static str| meta.get(k).ok_or(NetError::MissingMetadata(k));
+    let version = get("version")?;
+    if *version != POLICY_FORMAT_VERSION.to_string() {
+        return Err(NetError::FormatVersion { found: version.clone(), expected: POLICY_FORMAT_VERSION });
+    }
+    for (name, expected) in [("obs_dim", OBS_DIM), ("act_dim", ACT_DIM)] {
+        let found = get(name)?;
+        if *found != expected.to_string() {
+            return Err(NetError::Dimension { name, found: found.clone(), expected });
+        }
+    }
+    let hidden_text = get("hidden")?;
+    let hidden = hidden_text
+        .split(',')
+        .map(|s| s.parse::<usize>().ok().filter(|&h| h > 0))
+        .collect::<Option<Vec<_>>>()
+        .ok_or_else(|| NetError::BadHidden(hidden_text.clone()))?;
+    Ok(PolicyMeta { algo: get("algo")?.clone(), hidden })
+}
+
+/// Tensor-name prefix of the actor MLP of a `kind` policy.
+pub fn actor_prefix(kind: PolicyKind) -> &'static str {
+    match kind {
+        PolicyKind::Gaussian => "actor.mean",
+        PolicyKind::Squashed => "actor.net",
+    }
+}
+
+/// The values of an F32 tensor of exactly `shape`.
+fn f32_tensor(tensors: &SafeTensors<'_>, name: &str, shape: &[usize]) -> Result<Vec<f32>, NetError> {
+    let view = tensors.tensor(name).map_err(|_| NetError::MissingTensor(name.to_owned()))?;
+    if view.dtype() != Dtype::F32 {
+        return Err(NetError::Dtype { name: name.to_owned(), found: view.dtype().to_string() });
+    }
+    if view.shape() != shape {
+        return Err(NetError::TensorShape {
+            name: name.to_owned(),
+            expected: shape.to_vec(),
+            found: view.shape().to_vec(),
+        });
+    }
+    // The view's length is shape·4 bytes (checked by the safetensors parser).
+    Ok(view.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
+}
+
+impl HostPolicy {
+    /// The policy of a policy file (as `learn::PolicyNet::save` writes it): metadata checked,
+    /// every actor tensor present, F32, of the shape the metadata implies, and finite.
+    pub fn from_safetensors(bytes: &[u8]) -> Result<Self, NetError> {
+        let meta = read_meta(bytes)?;
+        let kind = match meta.algo.as_str() {
+            "ppo" => PolicyKind::Gaussian,
+            "sac" => PolicyKind::Squashed,
+            "ppo-gru" => return Err(NetError::Recurrent(meta.algo)),
+            _ => return Err(NetError::UnknownAlgo(meta.algo)),
+        };
+        let tensors = SafeTensors::deserialize(bytes).map_err(|e| NetError::Safetensors(e.to_string()))?;
+        let mut sizes = vec![OBS_DIM];
+        sizes.extend_from_slice(&meta.hidden);
+        sizes.push(kind.out_dim());
+        let prefix = actor_prefix(kind);
+        let layers = sizes
+            .windows(2)
+            .enumerate()
+            .map(|(i, io)| {
+                let (n_in, n_out) = (io[0], io[1]);
+                let name = format!("{prefix}.{i}");
+                let w = f32_tensor(&tensors, &format!("{name}.weight"), &[n_in, n_out])?;
+                let b = f32_tensor(&tensors, &format!("{name}.bias"), &[1, n_out])?;
+                Dense::new(&name, w, b, n_in, n_out)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        HostPolicy::new(kind, HostMlp::from_layers(layers)?)
+    }
+
+    /// The actor part of a policy file: what [`HostPolicy::from_safetensors`] reads back (the
+    /// `learn` crate's files carry more, e.g. PPO's log σ, and are what training produces).
+    pub fn to_safetensors(&self) -> Result<Vec<u8>, NetError> {
+        let layers = self.net().layers();
+        let hidden: Vec<usize> = layers.iter().take(layers.len().saturating_sub(1)).map(|l| l.n_out()).collect();
+        let prefix = actor_prefix(self.kind());
+        let bytes: Vec<(String, Vec<usize>, Vec<u8>)> = layers
+            .iter()
+            .enumerate()
+            .flat_map(|(i, l)| {
+                let le = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+                [
+                    (format!("{prefix}.{i}.weight"), vec![l.n_in(), l.n_out()], le(l.weight())),
+                    (format!("{prefix}.{i}.bias"), vec![1, l.n_out()], le(l.bias())),
+                ]
+            })
+            .collect();
+        let views = bytes
+            .iter()
+            .map(|(name, shape, data)| Ok((name.as_str(), TensorView::new(Dtype::F32, shape.clone(), data)?)))
+            .collect::<Result<Vec<_>, safetensors::SafeTensorError>>()
+            .map_err(|e| NetError::Safetensors(e.to_string()))?;
+        safetensors::serialize(views, Some(metadata(self.kind().algo(), &hidden)))
+            .map_err(|e| NetError::Safetensors(e.to_string()))
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,108 @@
+//! Policy files: round trip, every kind of bad file refused with its typed error, and a
+//! policy read from a file driving a world through the training environment's mapping.
+
+use super::*;
+use crate::episode::{self, with_reference_driver};
+use crate::metrics::RewardWeights;
+use crate::rng::Rng;
+use crate::scenario::{ScenarioKind, check_feasible, sample};
+use std::sync::Arc;
+
+/// A `kind` policy OBS_DIM → 8 → out with random weights, and `out_bias` on the output layer.
+fn policy(kind: PolicyKind, seed: u64, out_bias: &[f32]) -> HostPolicy {
+    let mut rng = Rng::new(seed);
+    let mut values = |n: usize| (0..n).map(|_| rng.uniform(-0.5, 0.5) as f32).collect::<Vec<_>>();
+    let out = kind.out_dim();
+    let hidden = Dense::new("h", values(OBS_DIM * 8), values(8), OBS_DIM, 8).expect("a layer");
+    let last = Dense::new("o", values(8 * out), out_bias.to_vec(), 8, out).expect("a layer");
+    HostPolicy::new(kind, HostMlp::from_layers(vec![hidden, last]).expect("a chain")).expect("a policy")
+}
+
+/// A policy file with one tensor or metadata entry changed.
+fn altered(p: &HostPolicy, meta: &[(&str, &str)], tensor: Option<(&str, Dtype, Vec<usize>, Vec<u8>)>) -> Vec<u8> {
+    let bytes = p.to_safetensors().expect("serialised");
+    let st = SafeTensors::deserialize(&bytes).expect("parsed");
+    let mut tensors: Vec<(String, Dtype, Vec<usize>, Vec<u8>)> =
+        st.iter().map(|(n, v)| (n.to_owned(), v.dtype(), v.shape().to_vec(), v.data().to_vec())).collect();
+    if let Some((name, dtype, shape, data)) = tensor {
+        tensors.retain(|t| t.0 != name);
+        if !data.is_empty() {
+            tensors.push((name.to_owned(), dtype, shape, data));
+        }
+    }
+    let mut m = metadata(p.kind().algo(), &[8]);
+    for (k, v) in meta {
+        m.insert((*k).to_owned(), (*v).to_owned());
+    }
+    let views: Vec<(&str, TensorView<'_>)> =
+        tensors.iter().map(|(n, d, s, b)| (n.as_str(), TensorView::new(*d, s.clone(), b).expect("a view"))).collect();
+    safetensors::serialize(views, Some(m)).expect("serialised")
+}
+
+#[test]
+fn a_policy_file_round_trips_for_both_kinds() {
+    for kind in [PolicyKind::Gaussian, PolicyKind::Squashed] {
+        let p = policy(kind, 1, &vec![0.1; kind.out_dim()]);
+        let back = HostPolicy::from_safetensors(&p.to_safetensors().expect("bytes")).expect("read back");
+        assert_eq!(back, p);
+        let meta = read_meta(&p.to_safetensors().expect("bytes")).expect("metadata");
+        assert_eq!(meta, PolicyMeta { algo: kind.algo().to_owned(), hidden: vec![8] });
+    }
+}
+
+#[test]
+fn bad_policy_files_are_refused_with_their_reason() {
+    let p = policy(PolicyKind::Gaussian, 2, &[0.0; ACT_DIM]);
+    let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let cases: Vec<(Vec<u8>, &str)> = vec![
+        (b"\x05\0\0\0\0\0\0\0{}".to_vec(), "not_safetensors"),
+        (vec![0xff; 4], "not_safetensors"),
+        (altered(&p, &[("obs_dim", "13")], None), "wrong_dims"),
+        (altered(&p, &[("act_dim", "2")], None), "wrong_dims"),
+        (altered(&p, &[("version", "9")], None), "bad_metadata"),
+        (altered(&p, &[("hidden", "8,x")], None), "bad_metadata"),
+        (altered(&p, &[("hidden", "16")], None), "bad_tensor"),
+        (altered(&p, &[("algo", "dqn")], None), "unsupported_algo"),
+        (altered(&p, &[("algo", "ppo-gru")], None), "unsupported_algo"),
+        (altered(&p, &[("algo", "sac")], None), "missing_tensor"),
+        (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![1, 3], Vec::new()))), "missing_tensor"),
+        (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![3], f32s(&[0.0; 3])))), "bad_tensor"),
+        (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F64, vec![1, 3], vec![0; 24]))), "bad_tensor"),
+        (
+            altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![1, 3], f32s(&[0.0, f32::NAN, 0.0])))),
+            "non_finite",
+        ),
+    ];
+    for (i, (bytes, reason)) in cases.iter().enumerate() {
+        match HostPolicy::from_safetensors(bytes) {
+            Ok(_) => panic!("case {i} accepted"),
+            Err(e) => assert_eq!(e.reason(), *reason, "case {i}: {e}"),
+        }
+    }
+    let Err(e) = HostPolicy::from_safetensors(&altered(&p, &[("obs_dim", "13")], None)) else { panic!("accepted") };
+    assert_eq!(e, NetError::Dimension { name: "obs_dim", found: "13".into(), expected: OBS_DIM });
+}
+
+#[test]
+fn a_braking_policy_from_a_file_drives_the_world_through_the_env_mapping() {
+    let spec = (0..1000).map(|i| sample(3, ScenarioKind::CutIn, i)).find(|s| check_feasible(s).is_ok());
+    let spec = spec.expect("a feasible cut-in");
+    let weights = RewardWeights::default();
+    let (mut world, mut reference) = with_reference_driver(&spec);
+    let by_reference = episode::run(&mut world, &mut reference, &weights).metrics;
+
+    // Large output biases dominate the small random weights: full brake (a₂ = 1), no throttle.
+    let brake = policy(PolicyKind::Gaussian, 3, &[0.0, -5.0, 5.0]);
+    let brake = Arc::new(HostPolicy::from_safetensors(&brake.to_safetensors().expect("bytes")).expect("read"));
+    let (mut world, _) = with_reference_driver(&spec);
+    let mut driver = brake.driver(world.desired_speed_mps, world.dt_s);
+    let v0 = world.ego.state.speed_mps;
+    let by_policy = episode::run(&mut world, &mut driver, &weights).metrics;
+    assert!(world.ego.state.speed_mps < 0.1, "braked to a stop from {v0} m/s: {}", world.ego.state.speed_mps);
+    assert!(
+        by_policy.avg_speed_mps < 0.5 * by_reference.avg_speed_mps,
+        "{} vs reference {}",
+        by_policy.avg_speed_mps,
+        by_reference.avg_speed_mps
+    );
+}

@@ -8,4 +8,5 @@
 
 mod fleet;
 mod python_zenoh;
+mod shm_gateway;
 mod support;

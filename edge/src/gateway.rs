@@ -317,14 +317,14 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
     }
 
     let mut forwarded = [0u64; STREAMS.len()];
-    let mut result = Ok(());
+    let mut result: Result<(), TransportError> = Ok(());
     loop {
         tokio::select! {
             message = rx.recv() => {
                 let Some((stream, bytes)) = message else { break };
                 let slot = Reader::slot(stream);
                 if let Err(e) = publishers[slot].put(bytes).await {
-                    result = Err(e.into());
+                    result = Err(e);
                     break;
                 }
                 forwarded[slot] += 1;

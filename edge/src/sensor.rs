@@ -135,7 +135,8 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<SentSummary,
     let control = ShmControl::open(id)?;
     let publishers = Publishers::open(id, ShmQos::default())?;
     let scene = Scene::new(feasible_spec(config.scenario_seed, config.kind)?);
-    let mut sensor = Sensor { scene, signals: CanSignals::default(), steps: 0, publishers, counters: Counters::default() };
+    let mut sensor =
+        Sensor { scene, signals: CanSignals::default(), steps: 0, publishers, counters: Counters::default() };
 
     // Start-up handshake: iceoryx2 keeps no history, so nothing goes out before every stream
     // has the gateway's subscriber.
@@ -201,4 +202,3 @@ fn summary(config: &EdgeConfig, counters: &Counters) -> SentSummary {
     let streams = [EdgeStream::State, EdgeStream::Can, EdgeStream::Perception];
     SentSummary::new(config, streams.map(|s| (s, counters.sent(s))))
 }
-

@@ -28,7 +28,8 @@ fn sensor_through_gateway_to_cloud_loses_nothing() {
     let vehicle = ["--id", &id, "--site", "track", "--seed", "3"];
     let mut gateway = Proc::spawn("gateway", &[&["edge", "gateway", "--connect", &locator][..], &vehicle].concat());
     // Started at once: the producer's handshake, not the test, waits for the gateway's subscribers.
-    let producer_args = ["--rate-hz", "200", "--count", "40", "--clock-offset-ns", "5000000", "--clock-jitter-ns", "100000"];
+    let producer_args =
+        ["--rate-hz", "200", "--count", "40", "--clock-offset-ns", "5000000", "--clock-jitter-ns", "100000"];
     let mut sensor = Proc::spawn("sensor", &[&["edge", "sensor"][..], &vehicle, &producer_args].concat());
 
     let sent = sensor.exit_json(STEP);
@@ -74,10 +75,8 @@ fn a_sensor_without_gateway_fails_clearly_and_publishes_nothing() {
 fn sigterm_stops_an_idle_gateway_cleanly() {
     let (_router, locator) = start_router();
     let id = vehicle_id("idle");
-    let mut gateway = Proc::spawn(
-        "gateway",
-        &["edge", "gateway", "--id", &id, "--connect", &locator, "--wait-for-cloud-s", "0"],
-    );
+    let mut gateway =
+        Proc::spawn("gateway", &["edge", "gateway", "--id", &id, "--connect", &locator, "--wait-for-cloud-s", "0"]);
     gateway.wait_line(STEP, |l| l == format!("gateway {id}: ready"));
     gateway.terminate();
     let summary = gateway.exit_json(STEP);

@@ -97,9 +97,10 @@ impl ShmControl {
 
     /// Signals `event` to every listener of the service.
     pub fn signal(&self, event: ControlEvent) -> Result<(), ShmError> {
-        self.notifier.notify_with_custom_event_id(EventId::new(event.id())).map(|_| ()).map_err(|source| {
-            ShmError::ControlNotify { service: self.service.clone(), event: event.as_str(), source }
-        })
+        self.notifier
+            .notify_with_custom_event_id(EventId::new(event.id()))
+            .map(|_| ())
+            .map_err(|source| ShmError::ControlNotify { service: self.service.clone(), event: event.as_str(), source })
     }
 
     /// Whether `event` has been heard, looking at pending events without blocking.

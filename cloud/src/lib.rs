@@ -7,3 +7,4 @@ pub mod library;
 #[cfg(test)]
 mod test_fixtures;
 pub mod transport;
+pub mod twin;

@@ -34,8 +34,11 @@ pub enum Command {
     /// Edge roles: a simulated vehicle or roadside unit publishing to the cloud.
     #[command(subcommand)]
     Edge(EdgeCommand),
-    /// Cloud roles: ingest of the edge streams (twin, risk, library, trainer to come).
+    /// Cloud roles: ingest of the edge streams, the live twin, risk on it, the library queryable.
     Cloud(CloudArgs),
+    /// Cloud→edge pushes: a scenario to run or a policy update, to one edge vehicle.
+    #[command(subcommand)]
+    Push(crate::commands::push::PushCommand),
 }
 
 #[derive(Debug, Args)]
@@ -192,6 +195,8 @@ pub enum BenchCommand {
     Replay(crate::commands::bench_replay::BenchReplayArgs),
     /// A paced fleet (2,000 vehicles at 50 Hz) into the cloud ingest over Zenoh: loss and CPU.
     Ingest(crate::commands::bench_ingest::BenchIngestArgs),
+    /// Edge publish → twin snapshot latency, ours against a raw Zenoh one-way hop.
+    Latency(crate::commands::cloud::BenchLatencyArgs),
 }
 
 #[derive(Debug, Args)]
@@ -321,19 +326,26 @@ pub struct EdgeArgs {
 
 #[derive(Debug, Args)]
 pub struct CloudArgs {
-    /// Comma-separated roles: ingest (twin, risk, library, trainer to come).
+    /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db).
     #[arg(long, default_value = "ingest", value_delimiter = ',')]
     pub roles: Vec<String>,
     /// Serve one site only (default: every site).
     #[arg(long)]
     pub site: Option<String>,
-    /// Record every accepted message into this MCAP file (closed cleanly on SIGINT/SIGTERM).
+    /// Record every accepted message (and the twin's scene and risk outputs) into this MCAP
+    /// file (closed cleanly on SIGINT/SIGTERM).
     #[arg(long)]
     pub record: Option<std::path::PathBuf>,
     /// Ingest `risktwin edge replay` output at the recorded receive times it attaches, instead
     /// of this cloud's clock (messages without one are dropped as `no-replay-time`).
     #[arg(long)]
     pub replay_time: bool,
+    /// The scenario library the library role serves.
+    #[arg(long)]
+    pub db: Option<PathBuf>,
+    /// The risk role evaluates on the road of this scenario kind (the edges' `--kind`).
+    #[arg(long, default_value = "cut-in")]
+    pub road: String,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
 }

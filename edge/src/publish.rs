@@ -1,13 +1,18 @@
 //! The publishing loop shared by every edge role: a role's [`Producer`] is ticked at a fixed
 //! wall-clock rate and hands back encoded messages per stream; the loop numbers them per
 //! stream, stamps them with the edge clock and publishes them until a count, a duration or the
-//! shutdown ends it.
+//! shutdown ends it. Between ticks the producer is handed the cloud's pushes on its own keys
+//! (`risktwin/v1/<site>/<id>/{scenario,policy,…}`) and its reports about them are published.
 
 use crate::clock::{ClockModel, EdgeClock};
 use crate::{EdgeError, SentSummary};
 use risktwin_common::telemetry::{Frame, Header};
+use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report};
+use risktwin_transport::zenoh::pubsub::Publisher;
+use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::{
-    EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect, declare_alive,
+    EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, TransportError, close, connect,
+    declare_alive,
 };
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -78,6 +83,22 @@ impl Stamper<'_> {
         *seq += 1;
         header
     }
+
+    /// The header of report number `seq` (reports are numbered by the producer).
+    pub fn report_header(&self, seq: u64) -> Header {
+        Header {
+            source: self.source.to_owned(),
+            seq,
+            capture_time_ns: self.capture_time_ns,
+            publish_time_ns: self.publish_time_ns,
+            frame: Frame::World,
+        }
+    }
+
+    /// The edge's id.
+    pub fn source(&self) -> &str {
+        self.source
+    }
 }
 
 /// A role's message source, ticked by [`run_producer`].
@@ -88,6 +109,28 @@ pub trait Producer {
     fn ticks_per_base(&self) -> u32;
     /// Tick number `tick`: append the encoded messages due, in publishing order.
     fn tick(&mut self, tick: u64, stamper: &mut Stamper<'_>, out: &mut Vec<(EdgeStream, Vec<u8>)>);
+    /// The cloud pushes it accepts (each subscribed on the edge's own key).
+    fn pushes(&self) -> &[CloudToEdge] {
+        &[]
+    }
+    /// One push received (called before a tick, never concurrently with one).
+    fn on_push(&mut self, _push: CloudToEdge, _payload: &[u8]) {}
+    /// Moves the reports due into `out` (called after each tick).
+    fn reports(&mut self, _out: &mut Vec<(EdgeReport, Vec<u8>)>) {}
+}
+
+/// Declares the reliable publisher of one report key.
+async fn report_publisher(
+    session: &risktwin_transport::zenoh::Session,
+    config: &EdgeConfig,
+    report: EdgeReport,
+) -> Result<Publisher<'static>, TransportError> {
+    let key = edge_report(&config.site, &config.id, report);
+    session
+        .declare_publisher(key.clone())
+        .congestion_control(CongestionControl::Block)
+        .await
+        .map_err(|e| TransportError::Declare { what: "publisher", key, reason: e.to_string() })
 }
 
 /// Runs `producer` for `config` until the base stream has sent `count`, `duration` has passed
@@ -111,6 +154,18 @@ pub async fn run_producer(
     for stream in &streams {
         publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, *stream).await?);
     }
+    let mut push_subscribers = Vec::new();
+    for push in producer.pushes().to_vec() {
+        let key = cloud_to_edge(&config.site, &config.id, push);
+        let subscriber = session.declare_subscriber(key.clone()).await.map_err(|e| TransportError::Declare {
+            what: "subscriber",
+            key,
+            reason: e.to_string(),
+        })?;
+        push_subscribers.push((push, subscriber));
+    }
+    let mut report_publishers: Vec<(EdgeReport, Publisher<'static>)> = Vec::new();
+    let mut reports = Vec::new();
     for publisher in &publishers {
         if !publisher.wait_for_subscriber(config.wait_for_cloud, shutdown.clone()).await? && !shutdown.is_fired() {
             eprintln!("edge {}: no subscriber on {} yet, publishing anyway", config.id, publisher.key());
@@ -151,8 +206,30 @@ pub async fn run_producer(
             capture_time_ns: clock.capture_ns(elapsed),
             publish_time_ns: clock.now_ns(elapsed),
         };
+        for (push, subscriber) in &push_subscribers {
+            while let Ok(Some(sample)) = subscriber.try_recv() {
+                producer.on_push(*push, &sample.payload().to_bytes());
+            }
+        }
         out.clear();
         producer.tick(tick, &mut stamper, &mut out);
+        producer.reports(&mut reports);
+        for (report, payload) in reports.drain(..) {
+            let index = match report_publishers.iter().position(|(r, _)| *r == report) {
+                Some(i) => i,
+                None => {
+                    let p = report_publisher(&session, config, report).await?;
+                    report_publishers.push((report, p));
+                    report_publishers.len() - 1
+                }
+            };
+            let publisher = &report_publishers[index].1;
+            if let Err(e) = publisher.put(payload).await {
+                result =
+                    Err(TransportError::Put { key: publisher.key_expr().to_string(), reason: e.to_string() }.into());
+                break;
+            }
+        }
         for (stream, payload) in out.drain(..) {
             let Some(publisher) = publishers.iter().find(|p| p.stream() == stream) else { continue };
             if let Err(e) = publisher.put(payload).await {
@@ -173,6 +250,12 @@ pub async fn run_producer(
     let summary = SentSummary::new(config, streams.iter().map(|s| (*s, sent[s.index()])));
     for publisher in publishers {
         publisher.undeclare().await?;
+    }
+    for (_, subscriber) in push_subscribers {
+        subscriber.undeclare().await.map_err(|e| EdgeError::Shutdown { reason: e.to_string() })?;
+    }
+    for (_, publisher) in report_publishers {
+        publisher.undeclare().await.map_err(|e| EdgeError::Shutdown { reason: e.to_string() })?;
     }
     token.undeclare().await.map_err(|e| EdgeError::Shutdown { reason: e.to_string() })?;
     close(session).await?;

@@ -20,9 +20,9 @@ pub fn gae(
     returns: &mut [f32],
 ) {
     let steps = rewards.len() / n_envs.max(1);
-    for i in 0..n_envs {
+    for (i, &last) in last_values.iter().enumerate().take(n_envs) {
         let mut next_adv = 0.0f32;
-        let mut next_value = last_values[i];
+        let mut next_value = last;
         for t in (0..steps).rev() {
             let k = t * n_envs + i;
             let live = 1.0 - f32::from(done[k]);

@@ -11,9 +11,11 @@
 //! - [`gae`]: advantage estimation and reward scaling; [`ppo`], [`sac`]: the learners.
 //! - [`train`]: the training driver behind `risktwin train` (curves, evaluation, report).
 
+pub mod activation;
 pub mod envs;
 pub mod gae;
 pub mod gru;
+pub mod host;
 pub mod nn;
 mod optim;
 pub mod policy;

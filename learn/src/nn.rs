@@ -26,7 +26,8 @@ pub fn const_param(name: String, shape: (usize, usize), value: f32) -> Result<Pa
     Ok(Param { name, var: Var::from_tensor(&Tensor::full(value, shape, &Device::Cpu)?)? })
 }
 
-/// A multilayer perceptron with tanh hidden activations and a linear output.
+/// A multilayer perceptron with tanh hidden activations ([`crate::activation::tanh`]) and a
+/// linear output.
 #[derive(Debug, Clone)]
 pub struct Mlp {
     layers: Vec<(Param, Param)>,
@@ -55,7 +56,7 @@ impl Mlp {
         for (i, (w, b)) in self.layers.iter().enumerate() {
             h = h.matmul(w.var.as_tensor())?.broadcast_add(b.var.as_tensor())?;
             if i + 1 < self.layers.len() {
-                h = h.tanh()?;
+                h = crate::activation::tanh_tensor(&h)?;
             }
         }
         Ok(h)
@@ -64,6 +65,17 @@ impl Mlp {
     /// Every parameter.
     pub fn params(&self) -> impl Iterator<Item = &Param> {
         self.layers.iter().flat_map(|(w, b)| [w, b])
+    }
+
+    /// Number of layers.
+    pub fn layer_count(&self) -> usize {
+        self.layers.len()
+    }
+
+    /// Weight (in × out) and bias (1 × out) of layer `i` (panics when out of range).
+    pub fn layer(&self, i: usize) -> (&Param, &Param) {
+        let (w, b) = &self.layers[i];
+        (w, b)
     }
 }
 

@@ -3,6 +3,7 @@
 
 use crate::LearnError;
 use crate::gru::GruCell;
+use crate::host::{HostMlp, Scratch};
 use crate::nn::{HALF_LN_TAU, Mlp, Param, const_param, load_params, matrix};
 use candle_core::{Device, Tensor};
 use risktwin_common::env::{ACT_DIM, OBS_DIM};
@@ -129,6 +130,14 @@ impl PolicyNet {
         }
     }
 
+    /// The mean MLP of the feed-forward Gaussian policy.
+    pub(crate) fn mean_mlp(&self) -> Option<&Mlp> {
+        match &self.body {
+            Body::Gaussian { mean, .. } => Some(mean),
+            _ => None,
+        }
+    }
+
     /// The recurrent cell, for training through time.
     pub(crate) fn gru(&self) -> Option<&GruCell> {
         match &self.body {
@@ -183,6 +192,39 @@ impl PolicyNet {
         Ok(())
     }
 
+    /// Sets the state-independent log σ of the Gaussian policies (no effect on SAC).
+    pub(crate) fn set_log_std(&self, value: f32) -> candle_core::Result<()> {
+        match &self.body {
+            Body::Gaussian { log_std, .. } | Body::Recurrent { log_std, .. } => {
+                log_std.var.set(&Tensor::full(value, (1, ACT_DIM), &Device::Cpu)?)
+            }
+            Body::Squashed { .. } => Ok(()),
+        }
+    }
+
+    /// A host-side snapshot for fast acting (`None` for the recurrent policy, which acts
+    /// through candle).
+    pub fn host(&self) -> Result<Option<HostPolicy>, LearnError> {
+        Ok(match &self.body {
+            Body::Gaussian { mean, .. } => Some(HostPolicy { squashed: false, net: HostMlp::from_mlp(mean)? }),
+            Body::Squashed { net } => Some(HostPolicy { squashed: true, net: HostMlp::from_mlp(net)? }),
+            Body::Recurrent { .. } => None,
+        })
+    }
+
+    /// The state-independent log σ of the Gaussian policies (`None` for SAC's state-dependent σ).
+    pub fn log_std(&self) -> Result<Option<[f32; ACT_DIM]>, LearnError> {
+        match &self.body {
+            Body::Gaussian { log_std, .. } | Body::Recurrent { log_std, .. } => {
+                let v = log_std.var.as_tensor().flatten_all()?.to_vec1::<f32>()?;
+                let mut out = [0.0; ACT_DIM];
+                out.copy_from_slice(&v[..ACT_DIM]);
+                Ok(Some(out))
+            }
+            Body::Squashed { .. } => Ok(None),
+        }
+    }
+
     /// Saves the policy as safetensors with metadata.
     pub fn save(&self, path: &Path) -> Result<(), LearnError> {
         let tensors: Vec<(String, Tensor)> =
@@ -228,6 +270,33 @@ impl PolicyNet {
         let tensors = candle_core::safetensors::load_buffer(&bytes, &Device::Cpu)?;
         load_params(net.params(), &tensors)?;
         Ok(net)
+    }
+}
+
+/// A frozen host-side copy of a feed-forward policy: deterministic actions without candle.
+#[derive(Debug, Clone)]
+pub struct HostPolicy {
+    squashed: bool,
+    net: HostMlp,
+}
+
+impl HostPolicy {
+    /// Scratch buffers for [`HostPolicy::act_deterministic`].
+    pub fn scratch(&self) -> Scratch {
+        self.net.scratch()
+    }
+
+    /// The mode of the action distribution for one observation, in [−1, 1] (same as
+    /// [`PolicyNet::act_deterministic`] up to float rounding).
+    pub fn act_deterministic(&self, obs: &[f32; OBS_DIM], scratch: &mut Scratch) -> [f32; ACT_DIM] {
+        let mut out = [0.0f32; 2 * ACT_DIM];
+        let width = self.net.out_dim().min(2 * ACT_DIM);
+        self.net.forward(obs, scratch, &mut out[..width]);
+        let mut a = [0.0f32; ACT_DIM];
+        for (a, m) in a.iter_mut().zip(out) {
+            *a = if self.squashed { m.tanh() } else { m.clamp(-1.0, 1.0) };
+        }
+        a
     }
 }
 

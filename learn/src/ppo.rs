@@ -8,14 +8,23 @@
 use crate::LearnError;
 use crate::envs::Environment;
 use crate::gae::{ReturnScaler, gae};
+use crate::host::{HostMlp, Scratch};
 use crate::nn::{HALF_LN_TAU, Mlp, matrix, normals, vars};
 use crate::optim::Adam;
 use crate::policy::{Algo, PolicyNet, gaussian_log_prob};
 use candle_core::{D, Tensor};
 use risktwin_common::env::{ACT_DIM, OBS_DIM};
 use risktwin_common::rng::Rng;
+use std::time::Instant;
 
-/// PPO hyper-parameters (defaults: the common MuJoCo settings scaled to many envs).
+/// Largest activation (rows × width) of a minibatch: candle hands elementwise ops from 64 Ki
+/// elements to a spinning thread pool, which on a busy 2-core machine spent half the training
+/// time waiting; minibatches are capped below it (more, smaller minibatches if needed).
+const MAX_ELEMWISE: usize = 64 * 1024 - 1;
+
+/// PPO hyper-parameters. Defaults tuned on the driving task (`examples/tune.rs`): 64 × 64-step
+/// rollouts, 10 epochs of 8 minibatches (512 rows), lr 1e-3, initial σ ≈ 0.3 so exploration
+/// noise does not throw the car off the road at highway speed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PpoConfig {
     /// Vector steps per rollout (rollout size = n_steps × n_envs).
@@ -32,15 +41,17 @@ pub struct PpoConfig {
     pub max_grad_norm: f64,
     pub hidden: Vec<usize>,
     pub recurrent: bool,
+    /// Initial log σ of the Gaussian policy.
+    pub init_log_std: f32,
 }
 
 impl Default for PpoConfig {
     fn default() -> Self {
         Self {
             n_steps: 64,
-            epochs: 4,
-            minibatches: 4,
-            lr: 3e-4,
+            epochs: 10,
+            minibatches: 8,
+            lr: 1e-3,
             gamma: 0.99,
             lambda: 0.95,
             clip: 0.2,
@@ -49,6 +60,7 @@ impl Default for PpoConfig {
             max_grad_norm: 0.5,
             hidden: vec![64, 64],
             recurrent: false,
+            init_log_std: -1.2,
         }
     }
 }
@@ -60,6 +72,17 @@ pub struct PpoStats {
     pub value_loss: f32,
     pub entropy: f32,
     pub approx_kl: f32,
+}
+
+/// Wall time spent per phase, s (accumulated over the learner's life).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PpoTimings {
+    /// Stepping the environments.
+    pub env_s: f64,
+    /// Acting: policy and value inference, sampling, reward bookkeeping and bootstrapping.
+    pub infer_s: f64,
+    /// GAE and the gradient epochs (including refreshing the acting copies).
+    pub update_s: f64,
 }
 
 /// A PPO learner with its rollout buffers (allocated once for `n_envs`).
@@ -83,7 +106,16 @@ pub struct Ppo {
     advantages: Vec<f32>,
     returns: Vec<f32>,
     noise: Vec<f32>,
-    step_actions: Vec<f32>,
+    /// Per-vector-step buffers: means, values, done flags, V(s_T).
+    mean: Vec<f32>,
+    value: Vec<f32>,
+    done_row: Vec<u8>,
+    last_value: Vec<f32>,
+    log_std: [f32; ACT_DIM],
+    host_actor: HostMlp,
+    host_critic: HostMlp,
+    scratch: Scratch,
+    timings: PpoTimings,
 }
 
 impl Ppo {
@@ -92,7 +124,7 @@ impl Ppo {
         if cfg.n_steps == 0 || cfg.epochs == 0 || cfg.minibatches == 0 || n_envs == 0 {
             return Err(LearnError::BadConfig(format!("PPO needs positive sizes, got {cfg:?} with {n_envs} envs")));
         }
-        if cfg.recurrent && n_envs % cfg.minibatches != 0 {
+        if cfg.recurrent && !n_envs.is_multiple_of(cfg.minibatches) {
             return Err(LearnError::BadConfig(format!(
                 "{n_envs} envs do not split into {} minibatches",
                 cfg.minibatches
@@ -101,6 +133,7 @@ impl Ppo {
         let mut rng = Rng::derive(seed, 0x990);
         let algo = if cfg.recurrent { Algo::PpoGru } else { Algo::Ppo };
         let policy = PolicyNet::new(algo, &cfg.hidden, &mut rng)?;
+        policy.set_log_std(cfg.init_log_std)?;
         let state_dim = policy.state_dim();
         let critic_in = if cfg.recurrent { state_dim } else { OBS_DIM };
         let mut sizes = vec![critic_in];
@@ -111,7 +144,22 @@ impl Ppo {
         all.extend(vars(critic.params()));
         let opt = Adam::new(all, cfg.lr, cfg.max_grad_norm)?;
         let n = cfg.n_steps * n_envs;
+        let (host_actor, host_critic) = match policy.mean_mlp() {
+            Some(mean) if !cfg.recurrent => (HostMlp::from_mlp(mean)?, HostMlp::from_mlp(&critic)?),
+            _ => (HostMlp::default(), HostMlp::default()),
+        };
+        let scratch = Scratch::wide(host_actor.max_width().max(host_critic.max_width()));
+        let log_std = policy.log_std()?.expect("PPO policies have a state-independent log σ");
         Ok(Self {
+            mean: vec![0.0; n_envs * ACT_DIM],
+            value: vec![0.0; n_envs],
+            done_row: vec![0; n_envs],
+            last_value: vec![0.0; n_envs],
+            log_std,
+            host_actor,
+            host_critic,
+            scratch,
+            timings: PpoTimings::default(),
             scaler: ReturnScaler::new(n_envs, f64::from(cfg.gamma)),
             policy,
             critic,
@@ -130,7 +178,6 @@ impl Ppo {
             advantages: vec![0.0; n],
             returns: vec![0.0; n],
             noise: Vec::with_capacity(n_envs * ACT_DIM),
-            step_actions: vec![0.0; n_envs * ACT_DIM],
             cfg,
         })
     }
@@ -165,75 +212,130 @@ impl Ppo {
         Ok(self.critic.forward(&f)?.flatten_all()?.to_vec1()?)
     }
 
+    /// Means and values of the current observations into `self.mean`/`self.value` (advancing
+    /// the recurrent state): host-side for the feed-forward policy, candle for the GRU.
+    fn act_batch(&mut self, obs: &[f32]) -> Result<(), LearnError> {
+        if self.policy.gru().is_none() {
+            let (actor, critic) = (&self.host_actor, &self.host_critic);
+            let scratch = &mut self.scratch;
+            for ((o, m), v) in
+                obs.chunks_exact(OBS_DIM).zip(self.mean.chunks_exact_mut(ACT_DIM)).zip(self.value.iter_mut())
+            {
+                actor.forward(o, scratch, m);
+                critic.forward(o, scratch, std::slice::from_mut(v));
+            }
+            return Ok(());
+        }
+        let mut state = std::mem::take(&mut self.state);
+        let f = self.features(obs, &mut state)?;
+        self.state = state;
+        let (mean, _) = self.policy.head(&f)?;
+        self.mean.copy_from_slice(&mean.flatten_all()?.to_vec1::<f32>()?);
+        self.value.copy_from_slice(&self.critic.forward(&f)?.flatten_all()?.to_vec1::<f32>()?);
+        Ok(())
+    }
+
+    /// V(final observation) of environment `i` after `state` (not advanced).
+    fn bootstrap_value(&mut self, final_obs: &[f32], i: usize) -> Result<f32, LearnError> {
+        if self.policy.gru().is_none() {
+            let mut v = 0.0f32;
+            self.host_critic.forward(final_obs, &mut self.scratch, std::slice::from_mut(&mut v));
+            return Ok(v);
+        }
+        let sd = self.state_dim;
+        Ok(self.value_of(final_obs, &self.state[i * sd..(i + 1) * sd])?[0])
+    }
+
+    /// Copies the current weights into the host-side networks used for acting.
+    fn refresh_host(&mut self) -> Result<(), LearnError> {
+        if self.policy.gru().is_none() {
+            self.host_actor.refresh(self.policy.mean_mlp().expect("feed-forward PPO has a mean MLP"))?;
+            self.host_critic.refresh(&self.critic)?;
+        }
+        self.log_std = self.policy.log_std()?.expect("PPO policies have a state-independent log σ");
+        Ok(())
+    }
+
+    /// Where the time of the learner went so far.
+    pub fn timings(&self) -> PpoTimings {
+        self.timings
+    }
+
     /// Collects one rollout from `env` and updates the networks on it.
     pub fn learn_rollout(&mut self, env: &mut dyn Environment) -> Result<PpoStats, LearnError> {
         let (n, sd) = (self.n_envs, self.state_dim);
         self.state0.copy_from_slice(&self.state);
+        let std: [f32; ACT_DIM] = self.log_std.map(f32::exp);
         for t in 0..self.cfg.n_steps {
+            let t0 = Instant::now();
             let rows = t * n..(t + 1) * n;
             self.obs[rows.start * OBS_DIM..rows.end * OBS_DIM].copy_from_slice(env.obs());
-            let state_before = self.state.clone();
-            let mut state = std::mem::take(&mut self.state);
-            let f = self.features(env.obs(), &mut state)?;
-            self.state = state;
-            let (mean, log_std) = self.policy.head(&f)?;
-            let mean = mean.flatten_all()?.to_vec1::<f32>()?;
-            let log_std = log_std.flatten_all()?.to_vec1::<f32>()?;
-            let value = self.critic.forward(&f)?.flatten_all()?.to_vec1::<f32>()?;
+            self.act_batch(env.obs())?;
             normals(&mut self.rng, n * ACT_DIM, &mut self.noise);
             for i in 0..n {
                 let k = t * n + i;
-                let m = &mean[i * ACT_DIM..(i + 1) * ACT_DIM];
+                let m = &self.mean[i * ACT_DIM..(i + 1) * ACT_DIM];
                 let a = &mut self.actions[k * ACT_DIM..(k + 1) * ACT_DIM];
                 for j in 0..ACT_DIM {
-                    a[j] = m[j] + log_std[j].exp() * self.noise[i * ACT_DIM + j];
+                    a[j] = m[j] + std[j] * self.noise[i * ACT_DIM + j];
                 }
-                self.logp[k] = gaussian_log_prob(a, m, &log_std[..ACT_DIM]);
-                self.values[k] = value[i];
+                self.logp[k] = gaussian_log_prob(a, m, &self.log_std);
+                self.values[k] = self.value[i];
             }
-            self.step_actions.copy_from_slice(&self.actions[rows.start * ACT_DIM..rows.end * ACT_DIM]);
-            env.step(&self.step_actions)?;
-            let mut done_row = vec![0u8; n];
-            for (i, d) in done_row.iter_mut().enumerate() {
-                *d = env.terminated()[i] | env.truncated()[i];
+            let t1 = Instant::now();
+            env.step(&self.actions[rows.start * ACT_DIM..rows.end * ACT_DIM])?;
+            let t2 = Instant::now();
+            for i in 0..n {
+                self.done_row[i] = env.terminated()[i] | env.truncated()[i];
             }
-            self.scaler.observe(env.rewards(), &done_row);
+            self.scaler.observe(env.rewards(), &self.done_row);
             let scale = self.scaler.scale();
-            let truncated: Vec<usize> = (0..n).filter(|&i| env.truncated()[i] != 0).collect();
-            let boot = if truncated.is_empty() {
-                Vec::new()
-            } else {
-                let fo: Vec<f32> =
-                    truncated.iter().flat_map(|&i| env.final_obs()[i * OBS_DIM..(i + 1) * OBS_DIM].to_vec()).collect();
-                let st: Vec<f32> = truncated.iter().flat_map(|&i| self.state[i * sd..(i + 1) * sd].to_vec()).collect();
-                self.value_of(&fo, &st)?
-            };
             for i in 0..n {
                 let k = t * n + i;
                 self.rewards[k] = env.rewards()[i] * scale;
-                self.done[k] = done_row[i];
-                if done_row[i] != 0 {
+                self.done[k] = self.done_row[i];
+                if env.truncated()[i] != 0 {
+                    // The cut episode still has a future: fold γ·V(s_final) into its reward.
+                    let v = self.bootstrap_value(&env.final_obs()[i * OBS_DIM..(i + 1) * OBS_DIM], i)?;
+                    self.rewards[k] += self.cfg.gamma * v;
+                }
+                if self.done_row[i] != 0 {
                     self.state[i * sd..(i + 1) * sd].fill(0.0);
                 }
             }
-            for (j, &i) in truncated.iter().enumerate() {
-                self.rewards[t * n + i] += self.cfg.gamma * boot[j];
-            }
-            drop(state_before);
+            self.timings.infer_s += (t1 - t0 + t2.elapsed()).as_secs_f64();
+            self.timings.env_s += (t2 - t1).as_secs_f64();
         }
-        let last = self.value_of(env.obs(), &self.state.clone())?;
+        let t0 = Instant::now();
+        self.act_batch_values_only(env.obs())?;
         gae(
             &self.rewards,
             &self.values,
             &self.done,
-            &last,
+            &self.last_value,
             n,
             self.cfg.gamma,
             self.cfg.lambda,
             &mut self.advantages,
             &mut self.returns,
         );
-        if self.cfg.recurrent { self.update_recurrent() } else { self.update_flat() }
+        let stats = if self.cfg.recurrent { self.update_recurrent() } else { self.update_flat() }?;
+        self.refresh_host()?;
+        self.timings.update_s += t0.elapsed().as_secs_f64();
+        Ok(stats)
+    }
+
+    /// V(s_T) of the observations after the rollout into `self.last_value` (state not advanced).
+    fn act_batch_values_only(&mut self, obs: &[f32]) -> Result<(), LearnError> {
+        if self.policy.gru().is_none() {
+            for (o, v) in obs.chunks_exact(OBS_DIM).zip(self.last_value.iter_mut()) {
+                self.host_critic.forward(o, &mut self.scratch, std::slice::from_mut(v));
+            }
+            return Ok(());
+        }
+        let v = self.value_of(obs, &self.state.clone())?;
+        self.last_value.copy_from_slice(&v);
+        Ok(())
     }
 
     /// The clipped PPO loss on one minibatch given the features of its rows.
@@ -283,7 +385,8 @@ impl Ppo {
 
     fn update_flat(&mut self) -> Result<PpoStats, LearnError> {
         let total = self.rollout_steps();
-        let mb = total.div_ceil(self.cfg.minibatches);
+        let widest = self.cfg.hidden.iter().copied().max().unwrap_or(1).max(1);
+        let mb = total.div_ceil(self.cfg.minibatches).min(MAX_ELEMWISE / widest).max(1);
         let mut stats = PpoStats::default();
         for _ in 0..self.cfg.epochs {
             let perm = self.permutation(total);

@@ -9,7 +9,7 @@
 
 use crate::LearnError;
 use crate::policy::{Algo, PolicyNet};
-use crate::ppo::{Ppo, PpoConfig};
+use crate::ppo::{Ppo, PpoConfig, PpoTimings};
 use crate::sac::{Sac, SacConfig};
 use rayon::prelude::*;
 use risktwin_common::env::{ACT_DIM, OBS_DIM, ObsPolicy, ScenarioSource, Variant, VecEnv, benign_specs};
@@ -38,6 +38,10 @@ pub struct TrainConfig {
     pub benign_eval: usize,
     /// Environment steps between benign evaluations.
     pub benign_every: u64,
+    /// PPO hyper-parameters (`recurrent` is set from `algo`).
+    pub ppo: PpoConfig,
+    /// SAC hyper-parameters.
+    pub sac: SacConfig,
 }
 
 impl TrainConfig {
@@ -53,6 +57,8 @@ impl TrainConfig {
             eval_per_kind: 10,
             benign_eval: 0,
             benign_every: 100_000,
+            ppo: PpoConfig::default(),
+            sac: SacConfig::default(),
         }
     }
 }
@@ -130,6 +136,8 @@ pub struct TrainReport {
     /// Wall time at which the benign success first reached 90 %, s.
     pub benign_90_wall_s: Option<f64>,
     pub policy: PolicyNet,
+    /// Where PPO's time went (zeros for SAC).
+    pub timings: PpoTimings,
 }
 
 /// Held-out evaluation scenarios: `per_kind` feasible samples of each kind from a seed stream
@@ -164,10 +172,18 @@ pub fn risk_ranked_specs(seed: u64, per_kind: usize) -> Vec<ScenarioSpec> {
 /// Drives each spec with the policy's deterministic action through `episode::run`.
 pub fn evaluate_policy(policy: &PolicyNet, specs: &[ScenarioSpec], variant: Variant) -> Vec<EpisodeMetrics> {
     let weights = variant.weights();
+    // Feed-forward policies act through a host-side snapshot (no tensors per step).
+    let host = policy.host().ok().flatten();
     specs
         .par_iter()
         .map(|spec| {
             let mut world = build(spec);
+            if let Some(host) = &host {
+                let mut scratch = host.scratch();
+                let act = |o: &[f32; OBS_DIM]| host.act_deterministic(o, &mut scratch);
+                let mut p = ObsPolicy::new(act, world.desired_speed_mps, world.dt_s);
+                return episode::run(&mut world, &mut p, &weights).metrics;
+            }
             let mut state = vec![0.0f32; policy.state_dim()];
             let act = |o: &[f32; OBS_DIM]| {
                 let mut a = [0.0f32; ACT_DIM];
@@ -203,13 +219,13 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
     };
     let benign = if cfg.benign_eval > 0 { benign_specs(cfg.seed ^ 0xBE91_6000, cfg.benign_eval) } else { Vec::new() };
     let start = Instant::now();
-    let mut env = VecEnv::new(cfg.n_envs, source, cfg.variant.weights())?;
+    let mut env = VecEnv::new(cfg.n_envs, source, cfg.variant.training_weights())?;
     let mut learner = match cfg.algo {
         Algo::Ppo | Algo::PpoGru => {
-            let pc = PpoConfig { recurrent: cfg.algo == Algo::PpoGru, ..PpoConfig::default() };
+            let pc = PpoConfig { recurrent: cfg.algo == Algo::PpoGru, ..cfg.ppo.clone() };
             Learner::Ppo(Box::new(Ppo::new(pc, cfg.n_envs, cfg.seed)?))
         }
-        Algo::Sac => Learner::Sac(Box::new(Sac::new(SacConfig::default(), cfg.n_envs, cfg.seed)?)),
+        Algo::Sac => Learner::Sac(Box::new(Sac::new(cfg.sac.clone(), cfg.n_envs, cfg.seed)?)),
     };
     let mut done_steps = 0u64;
     let mut curve = Vec::new();
@@ -259,6 +275,10 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
         progress(done_steps.min(cfg.steps), cfg.steps);
     }
     let wall_s = start.elapsed().as_secs_f64();
+    let timings = match &learner {
+        Learner::Ppo(p) => p.timings(),
+        Learner::Sac(_) => PpoTimings::default(),
+    };
     let policy = match learner {
         Learner::Ppo(p) => p.policy().clone(),
         Learner::Sac(s) => s.policy().clone(),
@@ -275,6 +295,7 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
         curve,
         benign_90_wall_s: benign_90,
         policy,
+        timings,
     })
 }
 

@@ -12,7 +12,17 @@ use toy::Toy;
 const THRESHOLD: f32 = -2.5;
 
 fn ppo_on_toy(recurrent: bool, seed: u64, rollouts: usize) -> (f32, Vec<f32>) {
-    let cfg = PpoConfig { n_steps: 20, recurrent, hidden: vec![32, 32], lr: 3e-3, ..PpoConfig::default() };
+    // The pre-tuning settings: small and fast for the toy task.
+    let cfg = PpoConfig {
+        n_steps: 20,
+        epochs: 4,
+        minibatches: 4,
+        init_log_std: -0.5,
+        recurrent,
+        hidden: vec![32, 32],
+        lr: 3e-3,
+        ..PpoConfig::default()
+    };
     let mut ppo = Ppo::new(cfg, 16, seed).expect("config");
     let mut env = Toy::new(16, seed);
     for _ in 0..rollouts {

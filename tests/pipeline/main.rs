@@ -6,7 +6,10 @@
 //! `ready` line, edges waiting for a matching subscriber before publishing, the cloud's
 //! `edge left` lines (liveliness) before it is sent SIGTERM.
 
+mod cloudloop;
 mod fleet;
+#[path = "../interop/peer_python.rs"]
+mod peer_python;
 mod python_zenoh;
 mod shm_gateway;
 mod support;

@@ -8,8 +8,7 @@ use std::time::Duration;
 
 #[path = "../interop/episode.rs"]
 mod episode;
-#[path = "../interop/peer_python.rs"]
-mod peer_python;
+use crate::peer_python;
 
 #[test]
 fn a_python_zenoh_subscriber_decodes_our_stream() {

@@ -174,6 +174,8 @@ pub enum CloudOutput {
     RiskReport,
     /// A twin snapshot.
     Snapshot,
+    /// The twin's vehicles as boxes (`foxglove.SceneUpdate`).
+    Scene,
 }
 
 impl CloudOutput {
@@ -183,6 +185,24 @@ impl CloudOutput {
             CloudOutput::RiskField => "risk_field",
             CloudOutput::RiskReport => "risk_report",
             CloudOutput::Snapshot => "snapshot",
+            CloudOutput::Scene => "scene",
+        }
+    }
+}
+
+/// Reports an edge sends back about a push it executed (not an ingest stream: the ingest
+/// subscriber sees these keys but the key parser skips them).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum EdgeReport {
+    /// The outcome of a pushed scenario (`ScenarioResult`).
+    ScenarioResult,
+}
+
+impl EdgeReport {
+    /// The last chunk of the key.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            EdgeReport::ScenarioResult => "scenario_result",
         }
     }
 }
@@ -213,9 +233,37 @@ pub fn cloud_output(site: &SiteId, output: CloudOutput) -> String {
     format!("{ROOT}/{site}/{CLOUD_CHUNK}/{}", output.as_str())
 }
 
+/// `risktwin/v1/<site>/<source>/<report>`: what one edge reports back about a push.
+pub fn edge_report(site: &SiteId, source: &SourceId, report: EdgeReport) -> String {
+    format!("{ROOT}/{site}/{source}/{}", report.as_str())
+}
+
+/// `risktwin/v1/<site|*>/*/<report>`: one report kind from every edge.
+pub fn edge_report_all(site: Option<&SiteId>, report: EdgeReport) -> String {
+    format!("{ROOT}/{}/*/{}", site_or_star(site), report.as_str())
+}
+
+/// `risktwin/v1/<site>/cloud/library/ranked`: the ranked-scenarios query of the library
+/// (parameters in the selector, e.g. `?top=5;kind=cut-in`).
+pub fn library_ranked(site: &SiteId) -> String {
+    format!("{ROOT}/{site}/{CLOUD_CHUNK}/library/ranked")
+}
+
 /// `risktwin/v1/<site>/cloud/library/**`: what the library queryable answers.
 pub fn library_queryable(site: &SiteId) -> String {
     format!("{ROOT}/{site}/{CLOUD_CHUNK}/library/**")
+}
+
+/// `risktwin/v1/<site|*>/cloud/library/**`: the library of one site, or of every site.
+pub fn library_queryable_all(site: Option<&SiteId>) -> String {
+    format!("{ROOT}/{}/{CLOUD_CHUNK}/library/**", site_or_star(site))
+}
+
+/// The site of a library query key `risktwin/v1/<site>/cloud/library/ranked`.
+pub fn parse_library_ranked(key: &str) -> Option<&str> {
+    let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
+    let site = rest.strip_suffix("/cloud/library/ranked")?;
+    (!site.is_empty() && !site.contains('/')).then_some(site)
 }
 
 /// `risktwin/v1/<site>/alive/<source>`: the liveliness token of one edge.
@@ -305,6 +353,16 @@ mod tests {
         assert_eq!(cloud_to_edge(&site, &src, CloudToEdge::Policy), "risktwin/v1/track-1/veh_0.a/policy");
         assert_eq!(cloud_output(&site, CloudOutput::RiskField), "risktwin/v1/track-1/cloud/risk_field");
         assert_eq!(library_queryable(&site), "risktwin/v1/track-1/cloud/library/**");
+        assert_eq!(library_ranked(&site), "risktwin/v1/track-1/cloud/library/ranked");
+        assert_eq!(parse_library_ranked(&library_ranked(&site)), Some("track-1"));
+        assert_eq!(parse_library_ranked("risktwin/v1/a/b/cloud/library/ranked"), None);
+        assert_eq!(parse_library_ranked("risktwin/v1/a/cloud/library/other"), None);
+        assert_eq!(library_queryable_all(None), "risktwin/v1/*/cloud/library/**");
+        assert_eq!(cloud_output(&site, CloudOutput::Scene), "risktwin/v1/track-1/cloud/scene");
+        let report = edge_report(&site, &src, EdgeReport::ScenarioResult);
+        assert_eq!(report, "risktwin/v1/track-1/veh_0.a/scenario_result");
+        assert_eq!(parse_edge_key(&report), None, "a report is not an ingest stream");
+        assert_eq!(edge_report_all(None, EdgeReport::ScenarioResult), "risktwin/v1/*/*/scenario_result");
         assert_eq!(liveliness_token(&site, &src), "risktwin/v1/track-1/alive/veh_0.a");
         assert_eq!(liveliness_all(None), "risktwin/v1/*/alive/*");
     }

@@ -156,7 +156,7 @@ impl SyntheticFleet {
                 key.push_str(stream.name());
                 emit(FleetMessage { vehicle: index, stream, key, payload, receive_ns });
             };
-            if tick % self.config.state_every_ticks.max(1) == 0 {
+            if tick.is_multiple_of(self.config.state_every_ticks.max(1)) {
                 let s = &mut v.state;
                 stamp(&mut s.header, capture_ns);
                 s.pose = Pose::new(x_m, v.lane_y_m, 0.0);
@@ -177,7 +177,7 @@ impl SyntheticFleet {
                 f.header.seq += 1;
                 send(Stream::Can, buf);
             }
-            if self.config.perception && tick % 10 == 0 {
+            if self.config.perception && tick.is_multiple_of(10) {
                 let l = &mut v.perception;
                 stamp(&mut l.header, capture_ns);
                 for (k, o) in l.objects.iter_mut().enumerate() {

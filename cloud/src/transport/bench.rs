@@ -98,7 +98,7 @@ fn median(values: &[f64]) -> f64 {
 }
 
 /// Two peers over TCP loopback: (listening subscriber side, connecting publisher side).
-async fn peer_pair() -> Result<(Session, Session), CloudError> {
+pub(super) async fn peer_pair() -> Result<(Session, Session), CloudError> {
     let listen = TransportConfig { mode: Mode::Peer, listen: vec!["tcp/127.0.0.1:0".into()], ..Default::default() };
     let sub_side = connect(&listen).await?;
     let locators = listening_locators(&sub_side).await;

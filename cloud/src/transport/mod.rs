@@ -1,19 +1,38 @@
-//! The cloud's side of the Zenoh pipeline: the `risktwin cloud` role. Today it runs the
-//! `ingest` role (subscribe to every edge→cloud stream, run each sample through the
-//! [`crate::ingest::IngestWorker`], optionally record what was accepted to MCAP, watch
-//! liveliness); twin, risk, library and trainer join it as they are built.
+//! The cloud's side of the Zenoh pipeline: the `risktwin cloud` role.
+//!
+//! - `ingest`: subscribe to every edge→cloud stream, run each sample through the
+//!   [`crate::ingest::IngestWorker`], optionally record what was accepted to MCAP, watch
+//!   liveliness;
+//! - `twin` (needs `ingest`): the [`crate::twin::Twin`] follows every ingest snapshot, and the
+//!   site's vehicles go out as `foxglove.SceneUpdate` boxes on `…/cloud/scene` each tick;
+//! - `risk` (needs `twin`): at 2 Hz of twin time per site, the risk field around every vehicle
+//!   (`foxglove.Grid` on `…/cloud/risk_field`) and its `RiskReport` (`…/cloud/risk_report`);
+//! - `library` (needs `--db`): the queryable of [`library`] answering ranked scenarios.
+//!
+//! With `--record`, the twin's scene and risk outputs are recorded next to the accepted edge
+//! messages, under their keys. `trainer` is not built yet.
 
 pub mod bench;
+pub mod bench_latency;
 mod edges;
 pub mod ingest;
+pub mod library;
 mod live;
 mod liveliness;
+pub mod outputs;
+mod publisher;
+pub mod push;
 #[cfg(test)]
 mod wire_tests;
 
+use crate::library::ScenarioLibrary;
+use crate::twin::risk::{RiskAssessor, RiskConfig};
+use library::LibrarySummary;
 use live::LiveIngest;
 pub use live::{IngestSummary, RecordError};
 use liveliness::LivenessLog;
+use outputs::{TwinOutputs, TwinSummary};
+use risktwin_common::road::Road;
 use risktwin_protos::recording::decode_replay_time;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Shutdown, SiteId, TransportConfig, TransportError, close, connect};
@@ -26,16 +45,28 @@ use thiserror::Error;
 /// A cloud worker role (cli.md: `--roles ingest,twin,risk,library,trainer`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Role {
-    /// Validate and count the edge streams.
+    /// Validate, align and record the edge streams.
     Ingest,
-    /// The live twin (not built yet).
+    /// The live twin, from the ingest snapshots.
     Twin,
-    /// Risk on the live twin (not built yet).
+    /// Risk on the live twin.
     Risk,
-    /// The scenario library queryable (not built yet).
+    /// The scenario library queryable.
     Library,
     /// Policy training (not built yet).
     Trainer,
+}
+
+impl Role {
+    fn name(self) -> &'static str {
+        match self {
+            Role::Ingest => "ingest",
+            Role::Twin => "twin",
+            Role::Risk => "risk",
+            Role::Library => "library",
+            Role::Trainer => "trainer",
+        }
+    }
 }
 
 impl std::str::FromStr for Role {
@@ -57,10 +88,18 @@ impl std::str::FromStr for Role {
 pub enum CloudError {
     #[error("role {role:?} is not one of ingest, twin, risk, library, trainer")]
     UnknownRole { role: String },
-    #[error("role {role:?} is not built yet; available: ingest")]
+    #[error("role {role:?} is not built yet; available: ingest, twin, risk, library")]
     RoleNotBuilt { role: String },
+    #[error("role {role:?} needs role {needs:?} in the same process (e.g. --roles ingest,twin,risk)")]
+    RoleNeeds { role: &'static str, needs: &'static str },
+    #[error("role library needs --db FILE")]
+    LibraryNeedsDb,
     #[error("no role to run")]
     NoRole,
+    #[error("risk field: {0}")]
+    Field(#[from] risktwin_common::risk::FieldError),
+    #[error(transparent)]
+    Library(#[from] crate::library::LibraryError),
     #[error(transparent)]
     Transport(#[from] TransportError),
     #[error(transparent)]
@@ -80,17 +119,25 @@ pub struct CloudConfig {
     pub drain_quiet: Duration,
     /// ...but no longer than this.
     pub drain_max: Duration,
-    /// Record every accepted message into this MCAP file (closed properly on shutdown).
+    /// Record every accepted message (and the twin's outputs) into this MCAP file (closed
+    /// properly on shutdown).
     pub record: Option<PathBuf>,
     /// Replay-ingest mode: take each message's receive time from its replay-time attachment
     /// (put there by `risktwin edge replay`) instead of the cloud's clock, so that a replayed
     /// recording rebuilds the live run's snapshots; a message without one is dropped as
     /// `no-replay-time`. Off, attachments are ignored (a live edge cannot set the cloud's clock).
     pub replay_time: bool,
+    /// The road the risk role evaluates on (every site drives the same road for now).
+    pub road: Road,
+    /// How the risk role evaluates.
+    pub risk: RiskConfig,
+    /// The scenario library the `library` role serves.
+    pub db: Option<PathBuf>,
 }
 
 impl CloudConfig {
-    /// Ingest for every site, with the default transport and drain.
+    /// Ingest for every site, with the default transport and drain, risk on the road of the
+    /// edges' default scenario (a feasible cut-in).
     pub fn new(transport: TransportConfig) -> Self {
         CloudConfig {
             site: None,
@@ -100,62 +147,130 @@ impl CloudConfig {
             drain_max: Duration::from_secs(2),
             record: None,
             replay_time: false,
+            road: crate::twin::scenario_road(risktwin_common::scenario::ScenarioKind::CutIn),
+            risk: RiskConfig::default(),
+            db: None,
         }
+    }
+
+    fn has(&self, role: Role) -> bool {
+        self.roles.contains(&role)
+    }
+
+    /// Refuses role sets that cannot run.
+    fn check_roles(&self) -> Result<(), CloudError> {
+        if self.roles.is_empty() {
+            return Err(CloudError::NoRole);
+        }
+        if let Some(role) = self.roles.iter().find(|r| **r == Role::Trainer) {
+            return Err(CloudError::RoleNotBuilt { role: role.name().to_owned() });
+        }
+        for (role, needs) in [(Role::Twin, Role::Ingest), (Role::Risk, Role::Twin)] {
+            if self.has(role) && !self.has(needs) {
+                return Err(CloudError::RoleNeeds { role: role.name(), needs: needs.name() });
+            }
+        }
+        if self.has(Role::Library) && self.db.is_none() {
+            return Err(CloudError::LibraryNeedsDb);
+        }
+        Ok(())
     }
 }
 
 /// The JSON the cloud prints on exit.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CloudSummary {
     /// Counts of the ingest role.
     #[serde(flatten)]
     pub ingest: IngestSummary,
     /// Edges whose liveliness token was seen, and those seen leaving.
     pub liveliness: liveliness::LivenessSummary,
+    /// The twin and risk roles, when they ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub twin: Option<TwinSummary>,
+    /// The library role, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub library: Option<LibrarySummary>,
 }
 
 /// Runs the cloud roles until `shutdown` fires; `on_ready` is called once every subscription
-/// is declared (edges started after that lose nothing).
+/// and queryable is declared (edges started after that lose nothing).
 pub async fn run(
     config: &CloudConfig,
     mut shutdown: Shutdown,
     on_ready: impl FnOnce(),
 ) -> Result<CloudSummary, CloudError> {
-    if config.roles.is_empty() {
-        return Err(CloudError::NoRole);
-    }
-    if let Some(role) = config.roles.iter().find(|r| **r != Role::Ingest) {
-        return Err(CloudError::RoleNotBuilt { role: format!("{role:?}").to_lowercase() });
-    }
+    config.check_roles()?;
+    // Open the library and build the risk raster before joining: a bad file or config fails fast.
+    let library = config.db.as_ref().filter(|_| config.has(Role::Library)).map(ScenarioLibrary::open).transpose()?;
+    let risk = if config.has(Role::Risk) { Some(RiskAssessor::new(config.road.clone(), config.risk)?) } else { None };
+    let empty =
+        CloudSummary { ingest: IngestSummary::default(), liveliness: Default::default(), twin: None, library: None };
     let session = tokio::select! {
         opened = connect(&config.transport) => opened?,
-        _ = shutdown.wait() => return Ok(CloudSummary { ingest: IngestSummary::default(), liveliness: Default::default() }),
+        _ = shutdown.wait() => return Ok(empty),
     };
-    let ingest = Arc::new(Mutex::new(LiveIngest::new(config.record.as_deref(), config.replay_time)?));
-    let subscriber =
-        risktwin_transport::subscribe_edge_streams(&session, config.site.as_ref(), ingest_sink(Arc::clone(&ingest)))
-            .await?;
+
+    let (publish_tx, publish_rx) = tokio::sync::mpsc::unbounded_channel();
+    let outputs = config.has(Role::Twin).then(|| TwinOutputs::new(risk, Some(publish_tx)));
+    let publisher = tokio::spawn(publisher::publish_outputs(session.clone(), publish_rx));
+    let queryable = match library {
+        Some(lib) => Some((library::declare(&session, config.site.as_ref()).await?, lib)),
+        None => None,
+    };
+    let ingest =
+        Arc::new(Mutex::new(LiveIngest::new(config.record.as_deref(), outputs)?.with_replay_time(config.replay_time)));
+    let subscriber = if config.has(Role::Ingest) {
+        Some(
+            risktwin_transport::subscribe_edge_streams(
+                &session,
+                config.site.as_ref(),
+                ingest_sink(Arc::clone(&ingest)),
+            )
+            .await?,
+        )
+    } else {
+        None
+    };
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
     let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness)).await?;
+    let library_task = queryable.map(|(q, lib)| tokio::spawn(library::serve(q, lib, shutdown.clone())));
     on_ready();
 
     shutdown.wait().await;
-    drain(&ingest, config.drain_quiet, config.drain_max).await;
+    if subscriber.is_some() {
+        drain(&ingest, config.drain_quiet, config.drain_max).await;
+    }
 
-    subscriber.undeclare().await.map_err(|e| undeclare_error("subscriber", e))?;
+    if let Some(subscriber) = subscriber {
+        subscriber.undeclare().await.map_err(|e| undeclare_error("subscriber", e))?;
+    }
     edges.subscriber.undeclare().await.map_err(|e| undeclare_error("liveliness subscriber", e))?;
     // With the subscriber gone its callback (and channel) is dropped, so the task ends.
     let _ = edges.declarer.await;
+    let library_summary = match library_task {
+        Some(task) => Some(task.await.map_err(|e| join_error("library", e))??),
+        None => None,
+    };
+    // The publisher task ends once the twin lets go of its sender and the queue is empty.
+    if let Some(outputs) = ingest.lock().unwrap_or_else(PoisonError::into_inner).outputs_mut() {
+        outputs.close_publisher();
+    }
+    publisher.await.map_err(|e| join_error("publisher", e))??;
     close(session).await?;
     // The subscriber is undeclared, so its callback (the other owner) is gone by now; should a
     // straggler still hold it, the summary waits for nothing and the error says so.
-    let ingest = Arc::try_unwrap(ingest)
+    let (ingest, outputs) = Arc::try_unwrap(ingest)
         .map_err(|_| CloudError::Transport(TransportError::Close { reason: "ingest still in use".to_owned() }))?
         .into_inner()
         .unwrap_or_else(PoisonError::into_inner)
         .finish()?;
     let liveliness = liveness.lock().unwrap_or_else(PoisonError::into_inner).summary();
-    Ok(CloudSummary { ingest, liveliness })
+    Ok(CloudSummary { ingest, liveliness, twin: outputs.map(|o| o.summary()), library: library_summary })
+}
+
+fn join_error(what: &str, e: tokio::task::JoinError) -> CloudError {
+    CloudError::Transport(TransportError::Close { reason: format!("{what} task: {e}") })
 }
 
 /// The subscriber callback of the ingest role: runs on Zenoh's receive path.

@@ -25,6 +25,7 @@ mod error;
 pub mod lanelet;
 pub mod model;
 mod parse;
+pub mod twin;
 mod xml;
 
 pub use error::CommonRoadError;

@@ -1,14 +1,18 @@
 //! `risktwin cloud`: run the cloud roles until SIGINT/SIGTERM, then print the JSON summary
 //! (received per source and stream, drops by reason, snapshots and their digest, liveliness;
 //! `--record FILE.mcap` records what was accepted). `ready` on stderr says the
-//! subscriptions are in place. Also `risktwin bench zenoh`.
+//! subscriptions are in place. `--roles ingest,twin,risk` adds the live twin and risk on it,
+//! `--roles library --db FILE` the library queryable. Also `risktwin bench zenoh|latency`.
 
 use super::router::{transport_config, with_signals};
 use crate::cli::{BenchZenohArgs, CloudArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_cloud::transport::bench::{BenchConfig, throughput};
+use risktwin_cloud::transport::bench_latency::{LatencyConfig, latency};
 use risktwin_cloud::transport::{CloudConfig, Role, run};
+use risktwin_common::align::IngestConfig;
+use risktwin_common::scenario::ScenarioKind;
 use risktwin_transport::SiteId;
 
 pub fn cloud(args: CloudArgs) -> CliResult {
@@ -19,6 +23,9 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     config.site = args.site.map(SiteId::new).transpose().map_err(CliError::input)?;
     config.record = args.record;
     config.replay_time = args.replay_time;
+    config.db = args.db;
+    let road_kind: ScenarioKind = args.road.parse().map_err(CliError::input)?;
+    config.road = risktwin_cloud::twin::scenario_road(road_kind);
     let summary = with_signals(|shutdown| async move {
         run(&config, shutdown, || eprintln!("ready")).await.map_err(|e| match e {
             risktwin_cloud::transport::CloudError::Transport(t) => CliError::runtime(t),
@@ -58,6 +65,73 @@ pub fn bench_zenoh(args: BenchZenohArgs) -> CliResult {
                 ],
                 vec!["ratio ours/raw".into(), format!("{:.3}", report.ratio), String::new()],
                 vec!["ratio ours/raw wildcard".into(), format!("{:.3}", report.ratio_vs_wildcard), String::new()],
+            ],
+        ),
+    }
+}
+
+/// `risktwin bench latency`.
+#[derive(Debug, clap::Args)]
+pub struct BenchLatencyArgs {
+    /// Messages per side (the first 50 warm up and are not counted).
+    #[arg(long, default_value_t = 1000)]
+    pub messages: u64,
+    /// Publish rate, Hz.
+    #[arg(long, default_value_t = 50.0)]
+    pub rate_hz: f64,
+    /// Snapshot tick of the twin, ms (default: the ingest's 50).
+    #[arg(long)]
+    pub tick_ms: Option<f64>,
+    /// Allowed lateness of the aligner, ms (default: the ingest's 100).
+    #[arg(long)]
+    pub lateness_ms: Option<f64>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+pub fn bench_latency(args: BenchLatencyArgs) -> CliResult {
+    if args.messages <= 50 || !(args.rate_hz > 0.0 && args.rate_hz <= 10_000.0) {
+        return Err(CliError::input("--messages must exceed 50 and --rate-hz lie in (0, 10000]"));
+    }
+    let mut ingest = IngestConfig::default();
+    let ms = |flag: &str, v: f64| {
+        if (0.0..=10_000.0).contains(&v) {
+            Ok((v * 1e6) as i64)
+        } else {
+            Err(CliError::input(format!("{flag} {v} must lie in [0, 10000] ms")))
+        }
+    };
+    if let Some(t) = args.tick_ms {
+        ingest.align.tick_ns = ms("--tick-ms", t)?.max(1_000_000);
+    }
+    if let Some(l) = args.lateness_ms {
+        ingest.align.lateness_ns = ms("--lateness-ms", l)?;
+    }
+    let config = LatencyConfig { messages: args.messages, rate_hz: args.rate_hz, ingest };
+    let report = with_signals(|_shutdown| async move { latency(config).await.map_err(CliError::runtime) })?;
+    match args.format {
+        Format::Json => print_json(&report),
+        _ => print_table(
+            &["side", "p50 ms", "p99 ms", "samples"],
+            &[
+                vec![
+                    "raw zenoh one-way".into(),
+                    format!("{:.3}", report.raw_p50_ms),
+                    format!("{:.3}", report.raw_p99_ms),
+                    report.raw_samples.to_string(),
+                ],
+                vec![
+                    "edge publish → twin snapshot".into(),
+                    format!("{:.3}", report.ours_p50_ms),
+                    format!("{:.3}", report.ours_p99_ms),
+                    report.ours_samples.to_string(),
+                ],
+                vec![
+                    format!("tick {} ms, lateness {} ms", report.tick_ms, report.lateness_ms),
+                    format!("ratio {:.3}", report.ratio),
+                    "ours_p50 / (raw_p50 + tick)".into(),
+                    String::new(),
+                ],
             ],
         ),
     }

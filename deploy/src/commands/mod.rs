@@ -3,9 +3,10 @@
 mod bench;
 pub(crate) mod bench_ingest;
 pub(crate) mod bench_replay;
-mod cloud;
+pub mod cloud;
 mod criticality;
 mod edge;
+pub mod push;
 mod risk_field;
 mod router;
 mod run;
@@ -38,5 +39,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Edge(EdgeCommand::Sensor(a)) => edge::sensor(a),
         Command::Edge(EdgeCommand::Gateway(a)) => edge::gateway(a),
         Command::Cloud(a) => cloud::cloud(a),
+        Command::Push(c) => push::push(c),
+        Command::Bench(BenchCommand::Latency(a)) => cloud::bench_latency(a),
     }
 }

@@ -1,7 +1,8 @@
 //! `risktwin train`: trains a policy on the twin and writes it (safetensors) and its training
 //! curves (CSV) into the output folder. Progress goes to stderr.
 //!
-//! `wall_s` and `env_steps_per_s` are measurements and differ between runs; every other field
+//! `wall_s`, `env_steps_per_s` and `profile_s` (PPO's wall time in environment stepping, acting
+//! and updates) are measurements and differ between runs; every other field
 //! of the JSON is a function of the flags (same seed, same machine and thread count → same
 //! values), which the CLI tests check.
 
@@ -45,6 +46,11 @@ pub fn train(args: TrainArgs) -> CliResult {
         "env_steps_per_s": report.env_steps_per_s,
         "benign_90_wall_s": report.benign_90_wall_s,
         "final": report.final_metrics,
+        "profile_s": {
+            "env": report.timings.env_s,
+            "infer": report.timings.infer_s,
+            "update": report.timings.update_s,
+        },
     });
     match args.format {
         Format::Json => print_json(&doc),

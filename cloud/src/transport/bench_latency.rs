@@ -1,0 +1,266 @@
+//! Edge publish → twin snapshot containing it, against a raw Zenoh one-way hop, in one run
+//! (`risktwin bench latency`).
+//!
+//! Both sides use two peer sessions in this process joined over TCP loopback (as
+//! `bench zenoh`), and one clock (`Instant`) for send and arrival:
+//! - raw: a plain publisher puts an 8-byte sequence number at the rate; a plain subscriber
+//!   notes the arrival; latency = arrival − put;
+//! - ours: the edge's [`StreamPublisher`] puts an encoded `VehicleState` at the rate (the car
+//!   drives along x at a fixed speed, so the position tells which sample a value reflects); the
+//!   cloud's live ingest path (the role's own `LiveIngest` with the twin) aligns it; after each
+//!   message the twin's ego position says up to which sample the newest snapshot reflects, and
+//!   every newly covered sample gets latency = now − its put.
+//!
+//! A snapshot at tick `t` is emitted once a message arrives with receive time ≥ `t + lateness`
+//! (see `common::align::aligner`), so ours is about lateness + half a tick + the message
+//! spacing above raw; the report gives the tick and lateness used next to the ratio.
+//! The first [`WARMUP`] samples of each side (clock estimate and connection warm-up) are left out.
+
+use super::CloudError;
+use super::bench::peer_pair;
+use super::live::LiveIngest;
+use super::outputs::TwinOutputs;
+use risktwin_common::align::IngestConfig;
+use risktwin_common::geometry::{Footprint, Pose, Vec2};
+use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
+use risktwin_protos::encode;
+use risktwin_transport::zenoh::Wait;
+use risktwin_transport::zenoh::qos::CongestionControl;
+use risktwin_transport::{EdgeStream, SiteId, SourceId, StreamPublisher, TransportError, subscribe_edge_streams};
+use serde::Serialize;
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+/// Samples of each side left out of the statistics.
+pub const WARMUP: usize = 50;
+/// Speed of the benchmark car, m/s, and so its spacing per sample at the rate.
+const SPEED_MPS: f64 = 10.0;
+
+/// What to measure.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LatencyConfig {
+    /// Messages per side (the first [`WARMUP`] are not counted).
+    pub messages: u64,
+    /// Publish rate, Hz (a vehicle's state: 50).
+    pub rate_hz: f64,
+    /// The ingest configuration of ours (tick and lateness).
+    pub ingest: IngestConfig,
+}
+
+/// The figures.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LatencyReport {
+    pub messages: u64,
+    pub rate_hz: f64,
+    pub tick_ms: f64,
+    pub lateness_ms: f64,
+    pub raw_p50_ms: f64,
+    pub raw_p99_ms: f64,
+    pub ours_p50_ms: f64,
+    pub ours_p99_ms: f64,
+    /// Samples measured per side after the warm-up.
+    pub raw_samples: usize,
+    pub ours_samples: usize,
+    /// ours_p50 / (raw_p50 + tick).
+    pub ratio: f64,
+}
+
+/// Runs both sides and reports.
+pub async fn latency(config: LatencyConfig) -> Result<LatencyReport, CloudError> {
+    let mut raw = raw_side(config).await?;
+    let mut ours = our_side(config).await?;
+    let tick_ms = config.ingest.align.tick_ns as f64 * 1e-6;
+    let (raw_p50, raw_p99) = (percentile(&mut raw, 0.5), percentile(&mut raw, 0.99));
+    let (ours_p50, ours_p99) = (percentile(&mut ours, 0.5), percentile(&mut ours, 0.99));
+    Ok(LatencyReport {
+        messages: config.messages,
+        rate_hz: config.rate_hz,
+        tick_ms,
+        lateness_ms: config.ingest.align.lateness_ns as f64 * 1e-6,
+        raw_p50_ms: raw_p50,
+        raw_p99_ms: raw_p99,
+        ours_p50_ms: ours_p50,
+        ours_p99_ms: ours_p99,
+        raw_samples: raw.len(),
+        ours_samples: ours.len(),
+        ratio: ours_p50 / (raw_p50 + tick_ms),
+    })
+}
+
+/// The `q` quantile (nearest rank) of `values`, ms; NaN when empty.
+fn percentile(values: &mut [f64], q: f64) -> f64 {
+    values.sort_by(f64::total_cmp);
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let rank = ((q * values.len() as f64).ceil() as usize).clamp(1, values.len());
+    values[rank - 1]
+}
+
+fn period(config: LatencyConfig) -> Duration {
+    Duration::from_secs_f64(1.0 / config.rate_hz)
+}
+
+/// Put instants by sequence number, shared by the publishing loop and the receive callback.
+type SentAt = Arc<Mutex<Vec<Option<Instant>>>>;
+
+fn put_instant(sent: &SentAt, seq: usize) -> Option<Instant> {
+    sent.lock().unwrap_or_else(PoisonError::into_inner).get(seq).copied().flatten()
+}
+
+async fn raw_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
+    let (sub_side, pub_side) = peer_pair().await?;
+    let n = usize::try_from(config.messages).unwrap_or(usize::MAX);
+    let sent: SentAt = Arc::new(Mutex::new(vec![None; n]));
+    let latencies = Arc::new(Mutex::new(Vec::with_capacity(n)));
+    let key = "risktwin/bench/latency";
+    let (sent_cb, lat_cb) = (Arc::clone(&sent), Arc::clone(&latencies));
+    let subscriber = sub_side
+        .declare_subscriber(key)
+        .callback(move |sample| {
+            let now = Instant::now();
+            let bytes = sample.payload().to_bytes();
+            let Ok(seq) = <[u8; 8]>::try_from(&bytes[..]).map(u64::from_le_bytes) else { return };
+            let seq = seq as usize;
+            if let Some(t) = put_instant(&sent_cb, seq).filter(|_| seq >= WARMUP) {
+                lat_cb.lock().unwrap_or_else(PoisonError::into_inner).push(now.duration_since(t).as_secs_f64() * 1e3);
+            }
+        })
+        .await
+        .map_err(|e| TransportError::Declare { what: "subscriber", key: key.into(), reason: e.to_string() })?;
+    let publisher = pub_side
+        .declare_publisher(key)
+        .congestion_control(CongestionControl::Block)
+        .await
+        .map_err(|e| TransportError::Declare { what: "publisher", key: key.into(), reason: e.to_string() })?;
+    wait_matching(&publisher).await;
+    let start = Instant::now();
+    for seq in 0..n {
+        tokio::time::sleep_until((start + period(config) * seq as u32).into()).await;
+        sent.lock().unwrap_or_else(PoisonError::into_inner)[seq] = Some(Instant::now());
+        publisher
+            .put((seq as u64).to_le_bytes().to_vec())
+            .await
+            .map_err(|e| TransportError::Put { key: key.into(), reason: e.to_string() })?;
+    }
+    settle(&latencies, n.saturating_sub(WARMUP)).await;
+    let _ = subscriber.undeclare().wait();
+    let _ = publisher.undeclare().wait();
+    let _ = sub_side.close().wait();
+    let _ = pub_side.close().wait();
+    let out = latencies.lock().unwrap_or_else(PoisonError::into_inner).clone();
+    Ok(out)
+}
+
+/// Waits until a subscriber matches `publisher` (at most 5 s).
+async fn wait_matching(publisher: &risktwin_transport::zenoh::pubsub::Publisher<'_>) {
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while Instant::now() < deadline {
+        if publisher.matching_status().await.is_ok_and(|s| s.matching()) {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+}
+
+/// Waits until `want` latencies are in, or nothing new came for 2 s.
+async fn settle(latencies: &Mutex<Vec<f64>>, want: usize) {
+    let mut last = (0, Instant::now());
+    loop {
+        let have = latencies.lock().unwrap_or_else(PoisonError::into_inner).len();
+        if have >= want {
+            return;
+        }
+        if have != last.0 {
+            last = (have, Instant::now());
+        } else if last.1.elapsed() > Duration::from_secs(2) {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+fn state(seq: u64, spacing_m: f64) -> VehicleStateSample {
+    let now_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+    VehicleStateSample {
+        header: Header {
+            source: "lat-0".into(),
+            seq,
+            capture_time_ns: now_ns,
+            publish_time_ns: now_ns,
+            frame: Frame::World,
+        },
+        pose: Pose::new(seq as f64 * spacing_m, 0.0, 0.0),
+        velocity: Vec2::new(SPEED_MPS, 0.0),
+        speed_mps: SPEED_MPS,
+        accel_mps2: 0.0,
+        yaw_rate_radps: 0.0,
+        steer_rad: 0.0,
+        footprint: Footprint::new(4.5, 1.8),
+    }
+}
+
+async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
+    let (sub_side, pub_side) = peer_pair().await?;
+    let site = SiteId::new("bench").map_err(|e| TransportError::Config {
+        key: "site",
+        value: "bench".into(),
+        reason: e.to_string(),
+    })?;
+    let source = SourceId::new("lat-0").map_err(|e| TransportError::Config {
+        key: "source",
+        value: "lat-0".into(),
+        reason: e.to_string(),
+    })?;
+    let n = usize::try_from(config.messages).unwrap_or(usize::MAX);
+    let spacing_m = SPEED_MPS / config.rate_hz;
+    let sent: SentAt = Arc::new(Mutex::new(vec![None; n]));
+    let latencies = Arc::new(Mutex::new(Vec::with_capacity(n)));
+    let ingest = LiveIngest::with_config(None, Some(TwinOutputs::new(None, None)), config.ingest)?;
+    let ingest = Arc::new(Mutex::new(ingest));
+    let (sent_cb, lat_cb, ingest_cb) = (Arc::clone(&sent), Arc::clone(&latencies), Arc::clone(&ingest));
+    // The next sample not yet seen in a snapshot.
+    let covered = Arc::new(Mutex::new(0usize));
+    let subscriber = subscribe_edge_streams(&sub_side, Some(&site), move |_, sample| {
+        let payload = sample.payload().to_bytes();
+        let mut ingest = ingest_cb.lock().unwrap_or_else(PoisonError::into_inner);
+        if ingest.handle(sample.key_expr().as_str(), &payload, None).is_err() {
+            return;
+        }
+        let now = Instant::now();
+        let Some(x_m) = ingest
+            .outputs_mut()
+            .and_then(|o| o.twin().site("bench").and_then(|s| s.vehicles.first()).map(|v| v.kinematics.pose.x_m))
+        else {
+            return;
+        };
+        // Interpolated between samples k and k+1: the snapshot reflects every sample ≤ k.
+        let reflected = (x_m / spacing_m + 1e-6).floor().max(-1.0) as i64;
+        let mut next = covered.lock().unwrap_or_else(PoisonError::into_inner);
+        while (*next as i64) <= reflected && *next < n {
+            if let Some(t) = put_instant(&sent_cb, *next).filter(|_| *next >= WARMUP) {
+                lat_cb.lock().unwrap_or_else(PoisonError::into_inner).push(now.duration_since(t).as_secs_f64() * 1e3);
+            }
+            *next += 1;
+        }
+    })
+    .await?;
+    let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State).await?;
+    let (_trigger, shutdown) = risktwin_transport::shutdown::channel();
+    publisher.wait_for_subscriber(Duration::from_secs(5), shutdown).await?;
+    let start = Instant::now();
+    for seq in 0..n {
+        tokio::time::sleep_until((start + period(config) * seq as u32).into()).await;
+        let payload = encode(&state(seq as u64, spacing_m));
+        sent.lock().unwrap_or_else(PoisonError::into_inner)[seq] = Some(Instant::now());
+        publisher.put(payload).await?;
+    }
+    // The last samples are only covered by snapshots after them: none come; count what came.
+    settle(&latencies, n.saturating_sub(WARMUP + 20)).await;
+    let _ = subscriber.undeclare().wait();
+    publisher.undeclare().await?;
+    let _ = sub_side.close().wait();
+    let _ = pub_side.close().wait();
+    let out = latencies.lock().unwrap_or_else(PoisonError::into_inner).clone();
+    Ok(out)
+}

@@ -1,0 +1,43 @@
+//! The task that publishes the cloud's outputs (risk field, risk report, scene) on their keys.
+//! Outputs are latest-value data: a slow subscriber makes Zenoh drop them rather than stall
+//! the cloud (`CongestionControl::Drop`).
+
+use super::outputs::Publication;
+use risktwin_transport::TransportError;
+use risktwin_transport::zenoh::Session;
+use risktwin_transport::zenoh::pubsub::Publisher;
+use risktwin_transport::zenoh::qos::CongestionControl;
+use std::collections::HashMap;
+use tokio::sync::mpsc::UnboundedReceiver;
+
+/// Publishes everything that arrives on `outputs` until the channel closes; returns how many
+/// messages went out.
+pub(crate) async fn publish_outputs(
+    session: Session,
+    mut outputs: UnboundedReceiver<Publication>,
+) -> Result<u64, TransportError> {
+    let mut publishers: HashMap<String, Publisher<'static>> = HashMap::new();
+    let mut sent = 0;
+    while let Some(Publication { key, payload }) = outputs.recv().await {
+        let publisher = match publishers.get(&key) {
+            Some(p) => p,
+            None => {
+                let declared =
+                    session.declare_publisher(key.clone()).congestion_control(CongestionControl::Drop).await.map_err(
+                        |e| TransportError::Declare { what: "publisher", key: key.clone(), reason: e.to_string() },
+                    )?;
+                publishers.entry(key.clone()).or_insert(declared)
+            }
+        };
+        publisher.put(payload).await.map_err(|e| TransportError::Put { key, reason: e.to_string() })?;
+        sent += 1;
+    }
+    for (key, publisher) in publishers {
+        publisher.undeclare().await.map_err(|e| TransportError::Declare {
+            what: "undeclare",
+            key,
+            reason: e.to_string(),
+        })?;
+    }
+    Ok(sent)
+}

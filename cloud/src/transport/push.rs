@@ -1,0 +1,190 @@
+//! Cloud→edge pushes (`risktwin push scenario|policy`): one message on the edge's own push key
+//! (`risktwin/v1/<site>/<id>/{scenario,policy}`), reliable, sent only once the edge's
+//! subscriber is there (Zenoh drops what nobody subscribes to); for a scenario, the edge's
+//! `ScenarioResult` with the same `spec_id` is then awaited on `…/<id>/scenario_result`.
+
+use risktwin_common::metrics::EpisodeMetrics;
+use risktwin_common::risk::RiskTerms;
+use risktwin_common::scenario::ScenarioSpec;
+use risktwin_common::telemetry::{Frame, Header, PolicyUpdate, ScenarioPush, ScenarioResult};
+use risktwin_protos::{decode, encode};
+use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report};
+use risktwin_transport::zenoh::Session;
+use risktwin_transport::zenoh::qos::CongestionControl;
+use risktwin_transport::{Shutdown, SiteId, SourceId, TransportConfig, TransportError, close, connect};
+use serde::Serialize;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use thiserror::Error;
+
+/// Why a push failed.
+#[derive(Debug, Error)]
+pub enum PushError {
+    #[error(
+        "edge {target} did not subscribe to {key} within {waited_s} s (is `risktwin edge vehicle --id {target}` running?)"
+    )]
+    NoEdge { target: String, key: String, waited_s: f64 },
+    #[error("edge {target} sent no result for scenario {spec_id} within {waited_s} s")]
+    NoResult { target: String, spec_id: String, waited_s: f64 },
+    #[error("interrupted")]
+    Interrupted,
+    #[error(transparent)]
+    Transport(#[from] TransportError),
+}
+
+/// Where a push goes and how long to wait.
+#[derive(Debug, Clone)]
+pub struct PushTarget {
+    pub transport: TransportConfig,
+    pub site: SiteId,
+    pub edge: SourceId,
+    /// How long to wait for the edge's push subscriber.
+    pub wait_for_edge: Duration,
+}
+
+/// What `push scenario` prints.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScenarioPushReport {
+    pub site: String,
+    pub edge: String,
+    pub spec_id: String,
+    pub metrics: EpisodeMetrics,
+    pub risk: RiskTerms,
+}
+
+/// What `push policy` prints.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct PolicyPushReport {
+    pub site: String,
+    pub edge: String,
+    pub policy_id: String,
+    pub version: u32,
+    pub delivered: bool,
+}
+
+fn header(seq: u64) -> Header {
+    let now_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+    Header { source: "cloud".to_owned(), seq, capture_time_ns: now_ns, publish_time_ns: now_ns, frame: Frame::World }
+}
+
+fn declare_err(what: &'static str, key: &str) -> impl FnOnce(risktwin_transport::zenoh::Error) -> TransportError {
+    let key = key.to_owned();
+    move |e| TransportError::Declare { what, key, reason: e.to_string() }
+}
+
+/// Publishes `payload` on `target`'s `push` key once the edge subscribes.
+async fn deliver(
+    session: &Session,
+    target: &PushTarget,
+    push: CloudToEdge,
+    payload: Vec<u8>,
+    mut shutdown: Shutdown,
+) -> Result<(), PushError> {
+    let key = cloud_to_edge(&target.site, &target.edge, push);
+    let publisher = session
+        .declare_publisher(key.clone())
+        .congestion_control(CongestionControl::Block)
+        .await
+        .map_err(declare_err("publisher", &key))?;
+    let listener = publisher.matching_listener().await.map_err(declare_err("matching listener", &key))?;
+    let matched = publisher.matching_status().await.map_err(declare_err("matching status", &key))?.matching();
+    if !matched {
+        let wait = async {
+            while let Ok(status) = listener.recv_async().await {
+                if status.matching() {
+                    return true;
+                }
+            }
+            false
+        };
+        let found = tokio::select! {
+            m = tokio::time::timeout(target.wait_for_edge, wait) => m.unwrap_or(false),
+            () = shutdown.wait() => return Err(PushError::Interrupted),
+        };
+        if !found {
+            return Err(PushError::NoEdge {
+                target: target.edge.to_string(),
+                key,
+                waited_s: target.wait_for_edge.as_secs_f64(),
+            });
+        }
+    }
+    publisher.put(payload).await.map_err(|e| TransportError::Put { key: key.clone(), reason: e.to_string() })?;
+    publisher.undeclare().await.map_err(declare_err("undeclare", &key))?;
+    Ok(())
+}
+
+/// Pushes `spec` (library id `spec_id`) to the edge and waits up to `wait_for_result` for its
+/// outcome.
+pub async fn push_scenario(
+    target: &PushTarget,
+    spec_id: &str,
+    spec: &ScenarioSpec,
+    wait_for_result: Duration,
+    mut shutdown: Shutdown,
+) -> Result<ScenarioPushReport, PushError> {
+    let session = connect(&target.transport).await?;
+    let result_key = edge_report(&target.site, &target.edge, EdgeReport::ScenarioResult);
+    // Subscribed before the push goes out, so that a quick result cannot be missed.
+    let results =
+        session.declare_subscriber(result_key.clone()).await.map_err(declare_err("subscriber", &result_key))?;
+    let push = ScenarioPush { header: header(0), spec_id: spec_id.to_owned(), spec: spec.clone() };
+    deliver(&session, target, CloudToEdge::Scenario, encode(&push), shutdown.clone()).await?;
+    eprintln!("pushed scenario {spec_id} to {}/{}", target.site, target.edge);
+    let wait = async {
+        while let Ok(sample) = results.recv_async().await {
+            match decode::<ScenarioResult>(&sample.payload().to_bytes()) {
+                Ok(r) if r.spec_id == spec_id => return Some(r),
+                Ok(r) => eprintln!("push: result of another scenario ({}) ignored", r.spec_id),
+                Err(e) => eprintln!("push: undecodable result ignored: {e}"),
+            }
+        }
+        None
+    };
+    let result = tokio::select! {
+        r = tokio::time::timeout(wait_for_result, wait) => r.ok().flatten(),
+        () = shutdown.wait() => return Err(PushError::Interrupted),
+    };
+    results.undeclare().await.map_err(declare_err("undeclare", &result_key))?;
+    close(session).await?;
+    let result = result.ok_or_else(|| PushError::NoResult {
+        target: target.edge.to_string(),
+        spec_id: spec_id.to_owned(),
+        waited_s: wait_for_result.as_secs_f64(),
+    })?;
+    Ok(ScenarioPushReport {
+        site: target.site.to_string(),
+        edge: target.edge.to_string(),
+        spec_id: result.spec_id,
+        metrics: result.metrics,
+        risk: result.risk,
+    })
+}
+
+/// Pushes a policy update to the edge (delivered once the edge subscribes; the edge validates
+/// it and reports what it holds in its own summary).
+pub async fn push_policy(
+    target: &PushTarget,
+    policy_id: &str,
+    version: u32,
+    algo: &str,
+    weights: Vec<u8>,
+    shutdown: Shutdown,
+) -> Result<PolicyPushReport, PushError> {
+    let session = connect(&target.transport).await?;
+    let update = PolicyUpdate {
+        header: header(u64::from(version)),
+        policy_id: policy_id.to_owned(),
+        version,
+        algo: algo.to_owned(),
+        weights,
+    };
+    deliver(&session, target, CloudToEdge::Policy, encode(&update), shutdown).await?;
+    close(session).await?;
+    Ok(PolicyPushReport {
+        site: target.site.to_string(),
+        edge: target.edge.to_string(),
+        policy_id: policy_id.to_owned(),
+        version,
+        delivered: true,
+    })
+}

@@ -1,0 +1,88 @@
+//! Re-simulation and field tests on the CriMe fixture scenarios (tests/fixtures/crime).
+
+use super::*;
+use crate::commonroad::criticality::scenario_criticality;
+use crate::commonroad::{Scenario, parse_scenario};
+use crate::world::STEP_S;
+
+/// (file stem, ego id) of the three fixture scenarios.
+const FIXTURES: [(&str, u64); 3] = [("OSC_CutIn-1_2_T-1", 3), ("BEL_Putte-8_2_T-1", 33), ("HRV_Pula-27_3_T-1", 34)];
+
+fn fixture(name: &str) -> Scenario {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../tests/fixtures/crime/{name}.xml"));
+    let text = std::fs::read_to_string(&path).expect("fixture file present");
+    parse_scenario(&text).expect("fixture parses")
+}
+
+#[test]
+fn replayed_ego_passes_its_recorded_states_at_the_twin_step() {
+    for (name, ego) in FIXTURES {
+        let s = fixture(name);
+        let r = resimulate(&s, Some(ego), EgoMode::Replay, STEP_S).expect("resimulates");
+        let rec = s.dynamic_obstacle(ego).expect("ego present");
+        let mut checked = 0;
+        for st in rec.states() {
+            let t = st.time_step as f64 * s.dt_s;
+            let Some(sample) = r.trace.iter().find(|x| (x.time_s - t).abs() < 1e-6) else { continue };
+            let err = (sample.ego.centre - st.position).norm();
+            assert!(err < 1e-6, "{name}: ego at step {} off by {err} m", st.time_step);
+            checked += 1;
+        }
+        // dt is a multiple of the twin step in every fixture: every recorded step is visited.
+        assert_eq!(checked, rec.states().count(), "{name}");
+        // Between recorded steps the ego moves on the chord: never farther from the recorded
+        // polyline than the distance covered in one step.
+        assert!(r.trace.len() > checked, "{name}: interpolated steps in between");
+    }
+}
+
+#[test]
+fn replay_min_distance_equals_the_criticality_module() {
+    for (name, ego) in FIXTURES {
+        let s = fixture(name);
+        let crit = scenario_criticality(&s, Some(ego)).expect("criticality");
+        let crit_min = crit.pairs.iter().map(|p| p.min_distance_m).fold(f64::INFINITY, f64::min);
+        // At the scenario's own step the twin visits exactly the recorded states.
+        let at_dt = resimulate(&s, Some(ego), EgoMode::Replay, s.dt_s).expect("resimulates");
+        let trace_min = at_dt.trace.iter().map(|x| x.min_distance_m).fold(f64::INFINITY, f64::min);
+        assert!((trace_min - crit_min).abs() < 1e-6, "{name}: twin {trace_min} vs criticality {crit_min}");
+        assert_eq!(at_dt.metrics.collision, crit_min == 0.0, "{name}");
+        // The twin step sees the recorded steps and the instants between: never farther.
+        let fine = resimulate(&s, Some(ego), EgoMode::Replay, STEP_S).expect("resimulates");
+        let fine_min = fine.trace.iter().map(|x| x.min_distance_m).fold(f64::INFINITY, f64::min);
+        assert!(fine_min <= crit_min + 1e-9 && fine_min > crit_min - 1.0, "{name}: {fine_min} vs {crit_min}");
+        assert!(fine.metrics.risk_score.is_finite() && fine.metrics.risk_score >= 0.0);
+    }
+}
+
+#[test]
+fn reference_driver_runs_closed_loop_on_every_fixture() {
+    for (name, ego) in FIXTURES {
+        let s = fixture(name);
+        let r = resimulate(&s, Some(ego), EgoMode::ReferenceDriver, STEP_S).expect("resimulates");
+        let m = &r.metrics;
+        assert!(m.steps > 0, "{name}");
+        assert!(m.avg_speed_mps.is_finite() && m.risk_score.is_finite(), "{name}: {m:?}");
+        // It starts where the recording starts.
+        let first = s.dynamic_obstacle(ego).expect("ego").initial_state.position;
+        assert!((r.trace[0].ego.centre - first).norm() < 1e-6, "{name}");
+        if !m.collision {
+            assert_eq!(m.steps as usize, r.trace.len() - 1, "{name}: runs to the end of the recording");
+        }
+    }
+}
+
+#[test]
+fn field_on_the_real_map_peaks_near_traffic_and_rejects_bad_times() {
+    let s = fixture("OSC_CutIn-1_2_T-1");
+    let f = field_at(&s, Some(3), 2.0, 0.5, 128).expect("field");
+    let (max, mean, _) = f.stats();
+    assert!(max > mean && mean > 0.0, "max {max} mean {mean}");
+    assert!(!f.others.is_empty());
+    let img = render_field(&f, &s.lanelets, 2);
+    assert_eq!((img.width, img.height), (256, 256));
+    // The ego sits at the grid centre and is drawn red there.
+    assert!(img.data.chunks(3).any(|p| p == [255, 40, 40]));
+    assert!(matches!(field_at(&s, Some(3), 1e4, 0.5, 64), Err(TwinError::TimeOutOfRange { .. })));
+    assert!(matches!(field_at(&s, Some(999_999), 0.0, 0.5, 64), Err(TwinError::UnknownEgo { .. })));
+}

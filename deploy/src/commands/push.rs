@@ -1,0 +1,116 @@
+//! `risktwin push scenario|policy`: send one cloud→edge push to an edge vehicle and print what
+//! came of it as JSON. A scenario comes from the library (`--db FILE --id ID`) or a spec file
+//! (`--spec FILE`); the command waits for the edge's `ScenarioResult` and prints it. A policy
+//! update (`--weights FILE.safetensors`) is delivered; the edge validates it and reports what it
+//! holds in its own summary.
+
+use super::router::{transport_config, with_signals};
+use super::source;
+use crate::cli::{ScenarioSource, ZenohArgs};
+use crate::error::{CliError, CliResult};
+use crate::output::print_json;
+use clap::{Args, Subcommand};
+use risktwin_cloud::library::content_id;
+use risktwin_cloud::transport::push::{PushError, PushTarget, push_policy, push_scenario};
+use risktwin_transport::{SiteId, SourceId};
+use std::path::PathBuf;
+use std::time::Duration;
+
+#[derive(Debug, Subcommand)]
+pub enum PushCommand {
+    /// Run a scenario on an edge vehicle and print its outcome.
+    Scenario(PushScenarioArgs),
+    /// Send new policy weights to an edge vehicle.
+    Policy(PushPolicyArgs),
+}
+
+/// Which edge, and how to reach it.
+#[derive(Debug, Args)]
+pub struct PushTo {
+    /// The edge's id (`risktwin edge vehicle --id ID`).
+    #[arg(long = "to", value_name = "ID")]
+    pub to: String,
+    #[arg(long, default_value = "default")]
+    pub site: String,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// Seconds to wait for the edge to subscribe.
+    #[arg(long, default_value_t = 10.0)]
+    pub wait_for_edge_s: f64,
+}
+
+#[derive(Debug, Args)]
+pub struct PushScenarioArgs {
+    #[command(flatten)]
+    pub source: ScenarioSource,
+    #[command(flatten)]
+    pub to: PushTo,
+    /// Seconds to wait for the edge's result (a pushed episode plays in real time: up to ~30 s).
+    #[arg(long, default_value_t = 60.0)]
+    pub wait_for_result_s: f64,
+}
+
+#[derive(Debug, Args)]
+pub struct PushPolicyArgs {
+    /// The weights as a safetensors file.
+    #[arg(long)]
+    pub weights: PathBuf,
+    #[arg(long)]
+    pub policy_id: String,
+    /// Must exceed the version the edge holds for this policy id.
+    #[arg(long)]
+    pub version: u32,
+    /// `ppo` or `sac`.
+    #[arg(long)]
+    pub algo: String,
+    #[command(flatten)]
+    pub to: PushTo,
+}
+
+pub fn push(command: PushCommand) -> CliResult {
+    match command {
+        PushCommand::Scenario(a) => scenario(a),
+        PushCommand::Policy(a) => policy(a),
+    }
+}
+
+fn seconds(flag: &str, s: f64) -> CliResult<Duration> {
+    Duration::try_from_secs_f64(s).map_err(|_| CliError::input(format!("{flag} {s} must be a non-negative number")))
+}
+
+fn target(to: PushTo) -> CliResult<PushTarget> {
+    Ok(PushTarget {
+        transport: transport_config(to.zenoh)?,
+        site: SiteId::new(to.site).map_err(CliError::input)?,
+        edge: SourceId::new(to.to).map_err(CliError::input)?,
+        wait_for_edge: seconds("--wait-for-edge-s", to.wait_for_edge_s)?,
+    })
+}
+
+fn runtime(e: PushError) -> CliError {
+    CliError::runtime(e)
+}
+
+fn scenario(args: PushScenarioArgs) -> CliResult {
+    let spec = source::load(&args.source)?;
+    // The library id when it came from the library; the content id (the id it would have
+    // there) for a spec file.
+    let spec_id = args.source.id.clone().unwrap_or_else(|| content_id(&spec));
+    let wait = seconds("--wait-for-result-s", args.wait_for_result_s)?;
+    let target = target(args.to)?;
+    let report = with_signals(|shutdown| async move {
+        push_scenario(&target, &spec_id, &spec, wait, shutdown).await.map_err(runtime)
+    })?;
+    print_json(&report)
+}
+
+fn policy(args: PushPolicyArgs) -> CliResult {
+    let weights = std::fs::read(&args.weights)
+        .map_err(|e| CliError::input(format!("cannot read {}: {e}", args.weights.display())))?;
+    let target = target(args.to)?;
+    let (id, version, algo) = (args.policy_id, args.version, args.algo);
+    let report = with_signals(|shutdown| async move {
+        push_policy(&target, &id, version, &algo, weights, shutdown).await.map_err(runtime)
+    })?;
+    print_json(&report)
+}

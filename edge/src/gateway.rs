@@ -7,8 +7,10 @@
 //! delivery) instead of dropping. The sample's sequence number and capture time travel
 //! unchanged; the publish time is the gateway's reading of the same edge clock model at
 //! forwarding. The run ends when the producer signals the end of its stream (the gateway drains
-//! every queue, then confirms with [`ControlEvent::Drained`]) or on SIGINT/SIGTERM (it forwards
-//! what is queued and stops; the producer then learns that nobody confirmed its end).
+//! every queue, then confirms with [`ControlEvent::Drained`]) or on SIGINT/SIGTERM: the gateway
+//! keeps forwarding for up to [`STOP_GRACE`] waiting for that end (a signal to the process group
+//! stops the producer too, which then ends its stream), then forwards what is queued and stops;
+//! a producer still running learns that its gateway left.
 
 use crate::publish::EdgeConfig;
 use crate::scene::{Scene, detected, feasible_spec};
@@ -32,6 +34,8 @@ use tokio::sync::{mpsc, oneshot};
 
 /// Longest sleep of an idle reader between looks at the stop flag and the control events.
 const IDLE_WAIT: Duration = Duration::from_millis(10);
+/// How long a signalled gateway keeps forwarding while waiting for the producer's end.
+const STOP_GRACE: Duration = Duration::from_millis(500);
 /// Encoded messages in flight between the reader thread and the Zenoh publishers.
 const FORWARD_QUEUE: usize = 1024;
 /// Rejected samples logged per stream; the rest are only counted.
@@ -51,6 +55,8 @@ pub enum ShmRoleError {
     Transport(#[from] TransportError),
     #[error("no gateway subscribed to {service} within {waited_s} s (start `risktwin edge gateway` first)")]
     NoGateway { service: String, waited_s: f64 },
+    #[error("the gateway left {service} while the sensor was publishing; samples since are lost")]
+    GatewayLeft { service: String },
     #[error("the gateway did not confirm draining the stream within {waited_s} s; samples may be lost")]
     NotDrained { waited_s: f64 },
     #[error("the shared-memory reader thread panicked")]
@@ -250,13 +256,22 @@ fn read_loop(
             return Ok(ReaderEnd { rejected: [0; STREAMS.len()], end_of_stream: false });
         }
     };
+    let mut give_up_at = None;
     let end_of_stream = loop {
         let stopping = stop.load(Ordering::Acquire);
         // Looked at before the drain: every sample sent before the end is queued by then.
         let ended = control.heard(ControlEvent::EndOfStream)?;
         let taken = reader.drain(&subs.state)? + reader.drain(&subs.objects)? + reader.drain(&subs.can)?;
-        if ended || stopping {
-            break ended;
+        if ended {
+            break true;
+        }
+        if stopping {
+            // A terminal's Ctrl-C reaches the producer too, which then ends its stream: waiting
+            // a moment for that end lets both exit cleanly with nothing lost.
+            let deadline = *give_up_at.get_or_insert_with(|| Instant::now() + STOP_GRACE);
+            if Instant::now() >= deadline {
+                break false;
+            }
         }
         if taken == 0 {
             // CAN goes out every tick, so its wake-up also covers the other two streams.

@@ -8,6 +8,7 @@
 //! gateway on one host; [`sensor`] (the producer, `edge sensor`) and [`gateway`] (`edge gateway`,
 //! forwarding to Zenoh) are the two processes around it.
 
+pub mod cadence;
 pub mod clock;
 pub mod gateway;
 pub mod publish;

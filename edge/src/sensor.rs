@@ -3,20 +3,24 @@
 //! published zero-copy into iceoryx2 for the vehicle's gateway ([`crate::gateway`]) instead of
 //! over Zenoh.
 //!
-//! Per step (50 Hz at the default rate) the ego state goes on `state`, every 5th step the
-//! perceived objects on `objects`, and per tick (twice a step) the motion and driver CAN frames
-//! on `can`, as in [`crate::vehicle`]. Nothing is lost at either end of the run: the producer
-//! publishes only once every service has a subscriber, and at the end it signals the end of the
-//! stream and keeps its publishers until the gateway has drained them ([`crate::shm::ShmControl`]).
+//! What is due at each tick (state per step, perception every 5th step, CAN frames every tick)
+//! is decided by [`crate::cadence`], the same code that ticks [`crate::vehicle`].
+//!
+//! Nothing is lost at either end of the run: the producer publishes only once every service has
+//! a subscriber, and at the end (count, duration or SIGINT/SIGTERM) it signals the end of the
+//! stream and keeps its publishers until the gateway has drained them
+//! ([`crate::shm::ShmControl`]). A gateway that leaves mid-run stops the producer with an error.
 
+use crate::cadence::{TICKS_PER_STEP, VehicleOutlet, ego_signals, vehicle_tick};
 use crate::gateway::ShmRoleError;
 use crate::publish::EdgeConfig;
 use crate::scene::{Scene, feasible_spec};
 use crate::shm::{
-    ControlEvent, OBJECT_LIST_CAPACITY, ShmCanFrame, ShmControl, ShmObjectList, ShmPublisher, ShmQos, ShmVehicleState,
+    ControlEvent, OBJECT_LIST_CAPACITY, ShmCanFrame, ShmControl, ShmError, ShmObjectList, ShmPublisher, ShmQos,
+    ShmStream, ShmVehicleState,
 };
 use crate::{EdgeClock, EdgeError, SentSummary};
-use risktwin_common::telemetry::{CAN_DLC, CAN_ID_DRIVER, CAN_ID_MOTION, CanSignals};
+use risktwin_common::telemetry::{CAN_DLC, CanSignals};
 use risktwin_transport::{EdgeStream, Shutdown};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -77,49 +81,48 @@ impl Counters {
 struct Sensor {
     scene: Scene,
     signals: CanSignals,
-    steps: u64,
     publishers: Publishers,
     counters: Counters,
+    /// The capture time of the tick being published, ns of the edge clock.
+    capture_ns: i64,
 }
 
-impl Sensor {
-    /// Tick `tick` at capture time `capture_ns`: what [`crate::vehicle::Vehicle`] publishes.
-    fn tick(&mut self, tick: u64, capture_ns: i64) -> Result<(), ShmRoleError> {
-        if tick.is_multiple_of(2) {
-            let controls = self.scene.step();
-            let world = &self.scene.world;
-            let ego = &world.ego;
-            self.signals = CanSignals {
-                speed_mps: ego.state.speed_mps,
-                accel_mps2: ego.state.accel_mps2,
-                yaw_rate_radps: ego.state.yaw_rate_radps,
-                throttle: controls.throttle,
-                brake: controls.brake,
-                steer_rad: ego.state.steer_rad,
-            };
-            let seq = self.counters.next(EdgeStream::State);
-            let state = ShmVehicleState::from_common(seq, capture_ns, &ego.state, &ego.params.footprint());
-            self.publishers.state.publish(&state)?;
-            if self.steps.is_multiple_of(5) {
-                let seq = self.counters.next(EdgeStream::Perception);
-                // The list has a fixed capacity; the sensor model yields far fewer in practice.
-                let perceived = world.perceived();
-                let objects = &perceived[..perceived.len().min(OBJECT_LIST_CAPACITY)];
-                self.publishers.objects.publish_with(|list| list.fill_from_perceived(seq, capture_ns, objects))?;
-            }
-            self.steps += 1;
-        }
-        let dlc = usize::from(CAN_DLC);
-        for (can_id, data) in
-            [(CAN_ID_MOTION, self.signals.motion_payload()), (CAN_ID_DRIVER, self.signals.driver_payload())]
-        {
-            let seq = self.counters.next(EdgeStream::Can);
-            let frame = ShmCanFrame::new(seq, capture_ns, can_id, &data[..dlc]).map_err(|source| {
-                crate::shm::ShmError::InvalidSample { stream: crate::shm::ShmStream::Can, seq, source }
-            })?;
-            self.publishers.can.publish(&frame)?;
-        }
+/// The ticks of [`crate::vehicle::Vehicle`], published as shared-memory samples.
+impl VehicleOutlet for Sensor {
+    type Error = ShmRoleError;
+
+    fn step(&mut self) -> Result<(), ShmRoleError> {
+        let controls = self.scene.step();
+        let ego = &self.scene.world.ego.state;
+        self.signals = ego_signals(ego.speed_mps, ego.accel_mps2, ego.yaw_rate_radps, ego.steer_rad, &controls);
         Ok(())
+    }
+
+    fn publish_state(&mut self) -> Result<(), ShmRoleError> {
+        let seq = self.counters.next(EdgeStream::State);
+        let ego = &self.scene.world.ego;
+        let state = ShmVehicleState::from_common(seq, self.capture_ns, &ego.state, &ego.params.footprint());
+        Ok(self.publishers.state.publish(&state)?)
+    }
+
+    fn publish_perception(&mut self) -> Result<(), ShmRoleError> {
+        let seq = self.counters.next(EdgeStream::Perception);
+        // The list has a fixed capacity; the sensor model yields far fewer in practice.
+        let perceived = self.scene.world.perceived();
+        let objects = &perceived[..perceived.len().min(OBJECT_LIST_CAPACITY)];
+        let capture_ns = self.capture_ns;
+        Ok(self.publishers.objects.publish_with(|list| list.fill_from_perceived(seq, capture_ns, objects))?)
+    }
+
+    fn signals(&self) -> CanSignals {
+        self.signals
+    }
+
+    fn publish_can(&mut self, can_id: u32, data: [u8; 8]) -> Result<(), ShmRoleError> {
+        let seq = self.counters.next(EdgeStream::Can);
+        let frame = ShmCanFrame::new(seq, self.capture_ns, can_id, &data[..usize::from(CAN_DLC)])
+            .map_err(|source| ShmError::InvalidSample { stream: ShmStream::Can, seq, source })?;
+        Ok(self.publishers.can.publish(&frame)?)
     }
 }
 
@@ -136,12 +139,15 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<SentSummary,
     let publishers = Publishers::open(id, ShmQos::default())?;
     let scene = Scene::new(feasible_spec(config.scenario_seed, config.kind)?);
     let mut sensor =
-        Sensor { scene, signals: CanSignals::default(), steps: 0, publishers, counters: Counters::default() };
+        Sensor { scene, signals: CanSignals::default(), publishers, counters: Counters::default(), capture_ns: 0 };
 
     // Start-up handshake: iceoryx2 keeps no history, so nothing goes out before every stream
     // has the gateway's subscriber.
     let mut stop = shutdown.clone();
     let waited = Instant::now();
+    if sensor.publishers.without_subscriber().is_some() {
+        eprintln!("sensor {id}: waiting for the gateway");
+    }
     while let Some(service) = sensor.publishers.without_subscriber() {
         if waited.elapsed() >= config.wait_for_cloud {
             return Err(ShmRoleError::NoGateway {
@@ -159,7 +165,10 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<SentSummary,
     // Whatever stopped the loop, everything sent so far must reach the gateway before the
     // publishers (and their data segments) go away.
     control.signal(ControlEvent::EndOfStream)?;
-    let drained = tokio::task::block_in_place(|| control.wait_for(ControlEvent::Drained, config.wait_for_cloud))?;
+    // A gateway that already left can confirm nothing more: no waiting for it then.
+    let drained = control.heard(ControlEvent::Drained)?
+        || (sensor.publishers.without_subscriber().is_none()
+            && tokio::task::block_in_place(|| control.wait_for(ControlEvent::Drained, config.wait_for_cloud))?);
     result?;
     if !drained {
         return Err(ShmRoleError::NotDrained { waited_s: config.wait_for_cloud.as_secs_f64() });
@@ -169,7 +178,7 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<SentSummary,
 
 /// Ticks the sensor at twice the state rate until the count, the duration or the shutdown.
 async fn publish_loop(config: &EdgeConfig, sensor: &mut Sensor, mut stop: Shutdown) -> Result<(), ShmRoleError> {
-    let tick_period = Duration::from_secs_f64(1.0 / (config.rate_hz * 2.0));
+    let tick_period = Duration::from_secs_f64(1.0 / (config.rate_hz * f64::from(TICKS_PER_STEP)));
     let start = Instant::now();
     let deadline = config.duration.map(|d| start + d);
     let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
@@ -178,7 +187,7 @@ async fn publish_loop(config: &EdgeConfig, sensor: &mut Sensor, mut stop: Shutdo
     loop {
         let due = start + tick_period * u32::try_from(tick).unwrap_or(u32::MAX);
         // The count applies to whole steps (a step's second CAN tick still goes out).
-        let whole = tick.is_multiple_of(2);
+        let whole = tick.is_multiple_of(u64::from(TICKS_PER_STEP));
         if (whole && config.count.is_some_and(|n| sensor.counters.sent(EdgeStream::State) >= n))
             || deadline.is_some_and(|d| due > d)
         {
@@ -190,7 +199,12 @@ async fn publish_loop(config: &EdgeConfig, sensor: &mut Sensor, mut stop: Shutdo
                 _ = stop.wait() => return Ok(()),
             }
         }
-        sensor.tick(tick, clock.capture_ns(Instant::now().duration_since(start)))?;
+        sensor.capture_ns = clock.capture_ns(Instant::now().duration_since(start));
+        vehicle_tick(tick, sensor)?;
+        // iceoryx2 delivers to the subscribers present at the send: a gateway gone means loss.
+        if let Some(service) = sensor.publishers.without_subscriber() {
+            return Err(ShmRoleError::GatewayLeft { service: service.to_owned() });
+        }
         if tick == 0 {
             eprintln!("sensor {}: publishing", config.id);
         }

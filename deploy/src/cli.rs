@@ -297,6 +297,13 @@ pub enum EdgeCommand {
     Rsu(EdgeArgs),
     /// Republish a recording's edge streams (fleet data) on their recorded keys.
     Replay(ReplayArgs),
+    /// A vehicle's sensor producer: the `vehicle` world and streams, published zero-copy into
+    /// iceoryx2 shared memory for the vehicle's `gateway` on this host (Zenoh flags unused).
+    Sensor(EdgeArgs),
+    /// A vehicle's gateway: forwards its `sensor`'s shared-memory samples to Zenoh on the
+    /// vehicle's keys, until the sensor ends its stream or a signal (`--kind`/`--seed` name the
+    /// vehicle model, as for the sensor; rate, count and duration are the sensor's).
+    Gateway(EdgeArgs),
 }
 
 #[derive(Debug, Args)]

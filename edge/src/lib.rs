@@ -5,13 +5,17 @@
 //! arguments. Each role simulates its own scenario world ([`scene`]) and publishes real
 //! `common::telemetry` messages encoded by `risktwin-protos`.
 //! [`shm`] is the zero-copy iceoryx2 exchange between a vehicle's sensor producer and its
-//! gateway on one host.
+//! gateway on one host; [`sensor`] (the producer, `edge sensor`) and [`gateway`] (`edge gateway`,
+//! forwarding to Zenoh) are the two processes around it.
 
+pub mod cadence;
 pub mod clock;
+pub mod gateway;
 pub mod publish;
 pub mod replay;
 pub mod rsu;
 pub mod scene;
+pub mod sensor;
 pub mod shm;
 pub mod vehicle;
 

@@ -13,15 +13,19 @@
 
 pub mod push;
 
+use crate::cadence::{TICKS_PER_STEP, VehicleOutlet, ego_signals, vehicle_tick};
 use crate::publish::{EdgeConfig, Producer, Stamper, run_producer};
 use crate::scene::{ActivePolicy, Scene, Tape, detected, feasible_spec};
 use crate::{EdgeError, SentSummary};
 use push::{PushSummary, ResultLine};
-use risktwin_common::telemetry::{CanSignals, DetectedObject, ObjectList, ScenarioResult, VehicleStateSample};
+use risktwin_common::telemetry::{
+    CAN_DLC, CanFrame, CanSignals, DetectedObject, ObjectList, ScenarioResult, VehicleStateSample,
+};
 use risktwin_protos::encode;
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport};
 use risktwin_transport::{EdgeStream, Shutdown};
 use serde::Serialize;
+use std::convert::Infallible;
 
 /// The state rate of a vehicle unless told otherwise, Hz.
 pub const DEFAULT_STATE_RATE_HZ: f64 = 50.0;
@@ -45,7 +49,6 @@ pub struct Vehicle {
     on_tape: bool,
     policy: Option<ActivePolicy>,
     signals: CanSignals,
-    steps: u64,
     states: Vec<VehicleStateSample>,
     perceived: Vec<DetectedObject>,
     pushes: PushSummary,
@@ -71,7 +74,6 @@ impl Vehicle {
             on_tape: false,
             policy: None,
             signals: CanSignals::default(),
-            steps: 0,
             states: Vec::new(),
             perceived: Vec::new(),
             pushes: PushSummary::default(),
@@ -109,14 +111,7 @@ impl Vehicle {
             }
         };
         if let Some(ego) = self.states.first() {
-            self.signals = CanSignals {
-                speed_mps: ego.speed_mps,
-                accel_mps2: ego.accel_mps2,
-                yaw_rate_radps: ego.yaw_rate_radps,
-                throttle: controls.throttle,
-                brake: controls.brake,
-                steer_rad: ego.steer_rad,
-            };
+            self.signals = ego_signals(ego.speed_mps, ego.accel_mps2, ego.yaw_rate_radps, ego.steer_rad, &controls);
         }
     }
 
@@ -160,32 +155,11 @@ impl Producer for Vehicle {
     }
 
     fn ticks_per_base(&self) -> u32 {
-        2
+        TICKS_PER_STEP
     }
 
     fn tick(&mut self, tick: u64, stamper: &mut Stamper<'_>, out: &mut Vec<(EdgeStream, Vec<u8>)>) {
-        if tick.is_multiple_of(2) {
-            self.step(stamper);
-            if let Some(mut state) = self.states.first().cloned() {
-                state.header = stamper.header(EdgeStream::State);
-                if let Some(pushed) = self.pushed.as_mut().filter(|_| self.on_tape) {
-                    let seq = state.header.seq;
-                    pushed.state_seqs = Some(pushed.state_seqs.map_or((seq, seq), |(first, _)| (first, seq)));
-                }
-                out.push((EdgeStream::State, encode(&state)));
-            }
-            if self.steps.is_multiple_of(5) {
-                let list =
-                    ObjectList { header: stamper.header(EdgeStream::Perception), objects: self.perceived.clone() };
-                out.push((EdgeStream::Perception, encode(&list)));
-            }
-            self.steps += 1;
-        }
-        let motion = stamper.header(EdgeStream::Can);
-        let driver = stamper.header(EdgeStream::Can);
-        for frame in self.signals.to_frames(motion, driver) {
-            out.push((EdgeStream::Can, encode(&frame)));
-        }
+        let Ok(()) = vehicle_tick(tick, &mut Encoding { vehicle: self, stamper, out });
     }
 
     fn pushes(&self) -> &[CloudToEdge] {
@@ -220,6 +194,52 @@ impl Producer for Vehicle {
 
     fn reports(&mut self, out: &mut Vec<(EdgeReport, Vec<u8>)>) {
         out.append(&mut self.reports);
+    }
+}
+
+/// A vehicle's tick encoded as protobuf messages for Zenoh.
+struct Encoding<'v, 's> {
+    vehicle: &'v mut Vehicle,
+    stamper: &'v mut Stamper<'s>,
+    out: &'v mut Vec<(EdgeStream, Vec<u8>)>,
+}
+
+impl VehicleOutlet for Encoding<'_, '_> {
+    type Error = Infallible;
+
+    fn step(&mut self) -> Result<(), Infallible> {
+        self.vehicle.step(self.stamper);
+        Ok(())
+    }
+
+    fn publish_state(&mut self) -> Result<(), Infallible> {
+        if let Some(mut state) = self.vehicle.states.first().cloned() {
+            state.header = self.stamper.header(EdgeStream::State);
+            let on_tape = self.vehicle.on_tape;
+            if let Some(pushed) = self.vehicle.pushed.as_mut().filter(|_| on_tape) {
+                let seq = state.header.seq;
+                pushed.state_seqs = Some(pushed.state_seqs.map_or((seq, seq), |(first, _)| (first, seq)));
+            }
+            self.out.push((EdgeStream::State, encode(&state)));
+        }
+        Ok(())
+    }
+
+    fn publish_perception(&mut self) -> Result<(), Infallible> {
+        let header = self.stamper.header(EdgeStream::Perception);
+        let list = ObjectList { header, objects: self.vehicle.perceived.clone() };
+        self.out.push((EdgeStream::Perception, encode(&list)));
+        Ok(())
+    }
+
+    fn signals(&self) -> CanSignals {
+        self.vehicle.signals
+    }
+
+    fn publish_can(&mut self, can_id: u32, data: [u8; 8]) -> Result<(), Infallible> {
+        let frame = CanFrame { header: self.stamper.header(EdgeStream::Can), can_id, data, dlc: CAN_DLC };
+        self.out.push((EdgeStream::Can, encode(&frame)));
+        Ok(())
     }
 }
 

@@ -12,4 +12,5 @@ mod fleet;
 mod peer_python;
 mod policyloop;
 mod python_zenoh;
+mod shm_gateway;
 mod support;

@@ -8,7 +8,7 @@
 
 use super::sample::{Kinematics, TwinSample};
 use super::stream::Stream;
-use risktwin_common::align::{Incoming, IngestConfig, IngestCore, Snapshot, SourceTable};
+use risktwin_common::align::{Incoming, IngestConfig, IngestCore, PushOutcome, Snapshot, SourceTable};
 use risktwin_common::telemetry::{CanFrame, Header, ObjectList, RsuObservation, SignalPhase, VehicleStateSample};
 use risktwin_protos::recording::{Recorder, RecordingError};
 use risktwin_protos::{WireMessage, decode};
@@ -26,6 +26,10 @@ pub struct IngestStats {
     pub accepted: u64,
     pub recorded: u64,
     pub snapshots: u64,
+    /// Accepted samples stamped at or before an already emitted tick (the aligner's late data).
+    pub late: u64,
+    /// Of those, the ones no coming tick could use, so the twin never saw them.
+    pub late_dropped: u64,
     pub dropped: BTreeMap<String, u64>,
 }
 
@@ -103,8 +107,16 @@ impl<W: Write + Seek> IngestWorker<W> {
         self.stats.snapshots += snapshots;
         match verdict {
             Err(reason) => self.drop_for(reason.code()),
-            Ok(_) => {
+            Ok(accepted) => {
                 self.stats.accepted += 1;
+                match accepted.push {
+                    PushOutcome::LateKept => self.stats.late += 1,
+                    PushOutcome::LateDropped => {
+                        self.stats.late += 1;
+                        self.stats.late_dropped += 1;
+                    }
+                    PushOutcome::Buffered | PushOutcome::SameTime => {}
+                }
                 if let Some(rec) = self.recorder.as_mut() {
                     let channel = rec.channel(topic, stream.proto_name())?;
                     rec.write(channel, receive_ns.max(0) as u64, header.publish_time_ns.max(0) as u64, payload)?;

@@ -43,6 +43,11 @@ pub struct IngestSummary {
     pub recorded: u64,
     /// Snapshots the aligner emitted.
     pub snapshots: u64,
+    /// Accepted messages that arrived after the snapshot of their time was emitted (beyond the
+    /// allowed lateness); `late_dropped` of them were of no use to any later snapshot either.
+    pub late: u64,
+    /// Late messages the twin never saw (still received and recorded).
+    pub late_dropped: u64,
     /// FNV-1a digest of every emitted snapshot (tick, statuses, pose bits), 16 hex digits.
     pub snapshot_digest: String,
 }
@@ -261,6 +266,8 @@ fn summarize(
         total_received: stats.accepted,
         recorded: stats.recorded,
         snapshots: stats.snapshots,
+        late: stats.late,
+        late_dropped: stats.late_dropped,
         snapshot_digest: digest.hex(),
         ..IngestSummary::default()
     };

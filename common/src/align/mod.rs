@@ -21,7 +21,7 @@ pub mod reason;
 pub mod snapshot;
 pub mod source;
 
-pub use aligner::{AlignConfig, AlignCounts, Aligner, PushOutcome, StreamMode, StreamSpec};
+pub use aligner::{AlignConfig, AlignCounts, Aligner, DEFAULT_LATENESS_NS, PushOutcome, StreamMode, StreamSpec};
 pub use clock::{ClockConfig, ClockEstimator};
 pub use dedupe::{DedupConfig, Deduper, SeqCounts, Verdict};
 pub use ingest::{Accepted, Incoming, IngestConfig, IngestCore, SequenceScope};

@@ -82,7 +82,7 @@ pub struct BenchLatencyArgs {
     /// Snapshot tick of the twin, ms (default: the ingest's 50).
     #[arg(long)]
     pub tick_ms: Option<f64>,
-    /// Allowed lateness of the aligner, ms (default: the ingest's 100).
+    /// Allowed lateness of the aligner, ms (default: the ingest's 30, `DEFAULT_LATENESS_NS`).
     #[arg(long)]
     pub lateness_ms: Option<f64>,
     #[arg(long, value_enum, default_value_t)]

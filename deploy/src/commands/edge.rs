@@ -1,4 +1,4 @@
-//! `risktwin edge vehicle|rsu`: parse, run the role (a simulated `--kind`/`--seed` scenario
+//! `risktwin edge vehicle|rsu|sensor|gateway`: parse, run the role (a simulated `--kind`/`--seed` scenario
 //! publishing real telemetry) until its count, duration or a signal, and print what it sent per
 //! stream as JSON on stdout.
 
@@ -7,7 +7,7 @@ use crate::cli::{EdgeArgs, ReplayArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::print_json;
 use risktwin_edge::replay::{self, ReplayConfig};
-use risktwin_edge::{ClockModel, EdgeConfig, EdgeError, rsu, vehicle};
+use risktwin_edge::{ClockModel, EdgeConfig, EdgeError, gateway, rsu, sensor, vehicle};
 use risktwin_transport::{SiteId, SourceId};
 use std::time::Duration;
 
@@ -15,6 +15,21 @@ pub fn vehicle(args: EdgeArgs) -> CliResult {
     let config = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ)?;
     let summary =
         with_signals(|shutdown| async move { vehicle::run(&config, shutdown).await.map_err(CliError::runtime) })?;
+    print_json(&summary)
+}
+
+pub fn sensor(args: EdgeArgs) -> CliResult {
+    let config = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ)?;
+    let summary =
+        with_signals(|shutdown| async move { sensor::run(&config, shutdown).await.map_err(CliError::runtime) })?;
+    print_json(&summary)
+}
+
+pub fn gateway(args: EdgeArgs) -> CliResult {
+    let config = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ)?;
+    risktwin_edge::shm::validate_vehicle_id(config.id.as_str()).map_err(CliError::input)?;
+    let summary =
+        with_signals(|shutdown| async move { gateway::run(&config, shutdown).await.map_err(CliError::runtime) })?;
     print_json(&summary)
 }
 

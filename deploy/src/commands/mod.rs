@@ -40,6 +40,8 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Edge(EdgeCommand::Vehicle(a)) => edge::vehicle(a),
         Command::Edge(EdgeCommand::Rsu(a)) => edge::rsu(a),
         Command::Edge(EdgeCommand::Replay(a)) => edge::replay(a),
+        Command::Edge(EdgeCommand::Sensor(a)) => edge::sensor(a),
+        Command::Edge(EdgeCommand::Gateway(a)) => edge::gateway(a),
         Command::Cloud(a) => cloud::cloud(a),
         Command::Push(c) => push::push(c),
         Command::Bench(BenchCommand::Latency(a)) => cloud::bench_latency(a),

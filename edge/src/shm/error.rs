@@ -154,4 +154,19 @@ pub enum ShmError {
         #[source]
         source: ShmPayloadError,
     },
+    /// A control event (end of stream, drained) could not be signalled.
+    #[error("cannot signal {event:?} on {service:?}")]
+    ControlNotify {
+        service: String,
+        event: &'static str,
+        #[source]
+        source: NotifierNotifyError,
+    },
+    /// Waiting for a control event failed.
+    #[error("cannot wait for control events on {service:?}")]
+    ControlWait {
+        service: String,
+        #[source]
+        source: ListenerWaitError,
+    },
 }

@@ -15,13 +15,21 @@
 //! Shared memory is input like any wire: the subscriber validates every sample
 //! ([`ShmPayload::validate`]: finite floats, ranges, object count within capacity) before handing
 //! it out, and rejects a bad one with [`ShmError::InvalidSample`] without stopping.
+//!
+//! A third service per vehicle, the event service `risktwin/<vehicle_id>/control`
+//! ([`ShmControl`]), orders the end of a run: the producer signals
+//! [`ControlEvent::EndOfStream`] after its last send and keeps its publishers until the gateway
+//! answers [`ControlEvent::Drained`], because a publisher that leaves can take unread samples
+//! along.
 
+mod control;
 mod convert;
 mod error;
 mod naming;
 mod payload;
 mod port;
 
+pub use control::{ControlEvent, ShmControl};
 pub use convert::object_kind_code;
 pub use error::{ShmError, ShmPayloadError};
 pub use naming::{MAX_VEHICLE_ID_LEN, ShmStream, service_name, validate_vehicle_id};

@@ -143,6 +143,11 @@ impl<T: ShmPayload> ShmPublisher<T> {
         &self.service
     }
 
+    /// How many subscribers the service has now (the start-up handshake waits for one).
+    pub fn subscriber_count(&self) -> usize {
+        self.pubsub.dynamic_config().number_of_subscribers()
+    }
+
     /// Copies `value` into a loaned chunk and sends it. The wrapper allocates nothing; iceoryx2 0.10's
     /// loan itself allocates one small `Rc` (checked by the crate's tests).
     pub fn publish(&self, value: &T) -> Result<(), ShmError> {

@@ -163,10 +163,10 @@ impl Curriculum {
         for k in 0..plan.mutations {
             let Some(&p) = parents.get(k % parents.len().max(1)) else { break };
             // An infeasible neighbourhood (mutate gives up) just yields no child.
-            if let Ok(child) = mutate(&candidates[p], plan.mutation_radius, &mut self.rng) {
-                if !held_out.contains(&child) {
-                    children.push((content_id(&candidates[p]), child));
-                }
+            if let Ok(child) = mutate(&candidates[p], plan.mutation_radius, &mut self.rng)
+                && !held_out.contains(&child)
+            {
+                children.push((content_id(&candidates[p]), child));
             }
         }
         let child_specs: Vec<ScenarioSpec> = children.iter().map(|(_, c)| c.clone()).collect();

@@ -3,8 +3,8 @@
 //! or SAC with `--algo sac`) over several seeds through the trainer role, evaluate them on a
 //! held-out set, re-score the library's top scenarios with the trained policies, and write the
 //! report folder (report.md, metrics.json, training_curves.png, ablation.png, risk-field
-//! heatmaps, library.db, one policy per variant). The MCAP recording belongs to the pipeline
-//! part of the loop and is not written here yet; the report says so.
+//! heatmaps, library.db, one policy per variant, recording.mcap of the top scenario driven by
+//! the `full` policy).
 
 use super::scenarios::worker_threads;
 use crate::cli::RunArgs;
@@ -29,6 +29,7 @@ use std::time::Instant;
 mod charts;
 mod config;
 mod progress;
+mod recording;
 mod report;
 mod rescore;
 mod verdict;
@@ -77,6 +78,8 @@ pub struct RunMetrics {
     pub verdict: Option<Verdict>,
     /// The top scenarios driven again by each variant's policy.
     pub rescore: Vec<Rescore>,
+    /// What `recording.mcap` holds (absent when nothing was recorded).
+    pub recording: Option<String>,
     /// Files of the report folder.
     pub files: Vec<String>,
 }
@@ -288,6 +291,11 @@ pub fn run(args: RunArgs) -> CliResult {
         files.push(name);
     }
 
+    let recorded = recording::record_top(&library, &top, &ablation.policies, &out)?;
+    if recorded.is_some() {
+        files.push(recording::FILE.to_string());
+    }
+
     eprintln!("[5/6] drawing risk fields and charts");
     let heatmaps = draw_heatmaps(&library, &top, config.heatmaps, &out)?;
     write_png(&out.join("training_curves.png"), &charts::training_curves(&ablation))?;
@@ -311,6 +319,7 @@ pub fn run(args: RunArgs) -> CliResult {
         ablation,
         verdict,
         rescore,
+        recording: recorded,
         files,
     };
     let json = serde_json::to_string_pretty(&metrics).map_err(CliError::runtime)?;

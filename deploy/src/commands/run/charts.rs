@@ -48,7 +48,8 @@ pub fn normalise(means: &[f64], higher_is_better: bool) -> (Vec<f64>, f64) {
     let lo = means.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = means.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let span = hi - lo;
-    if !(span > 1e-12) {
+    // NaN spans (no finite means) fall here too.
+    if span.is_nan() || span <= 1e-12 {
         return (vec![1.0; means.len()], 0.0);
     }
     let scale = (1.0 - FLOOR) / span;

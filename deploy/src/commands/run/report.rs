@@ -210,11 +210,14 @@ pub fn markdown(m: &RunMetrics, timings: &[(String, f64)]) -> String {
     for (v, seed, secs) in &m.ablation.train_wall_s {
         let _ = writeln!(s, "| train {v} seed {seed} | {secs:.1} |");
     }
+    if let Some(what) = &m.recording {
+        let _ = writeln!(s, "\n## Recording\n\n{what}: open it in Foxglove (states, scene boxes, risk grid at 2 Hz).");
+    }
     let _ = writeln!(
         s,
-        "\n## Not in this run\n\n- No `recording.mcap`: the embedded run does not yet drive the pipeline (edge \
-         vehicles, ingest, recorder), so there is nothing to record; pushing the mutated scenarios and the new \
-         policies to edge vehicles is not part of this run either.\n- Files: {}.",
+        "\n## Not in this run\n\n- Pushing the mutated scenarios and the new policies to edge vehicles over Zenoh \
+         (`risktwin push scenario|policy`) is the distributed loop, shown by the pipeline tests; the embedded run \
+         drives every episode in-process.\n- Files: {}.",
         m.files.join(", ")
     );
     s

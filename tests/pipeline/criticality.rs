@@ -84,3 +84,15 @@ fn the_cloud_writes_the_json_report_too_on_a_multi_vehicle_scenario() {
     let (report, _) = replayed_criticality(&xml, "1", "json");
     assert_eq!(report, offline(&xml, "1", "json"));
 }
+
+#[test]
+fn the_criticality_role_without_an_output_file_is_refused_with_exit_2() {
+    for args in [
+        &["cloud", "--roles", "ingest,criticality"][..],
+        &["cloud", "--roles", "criticality", "--criticality-out", "report.txt"],
+    ] {
+        let mut p = Proc::spawn("bad", args);
+        let (status, stdout) = p.wait_exit(STEP);
+        assert_eq!(status.code(), Some(2), "{args:?}: stdout {stdout}");
+    }
+}

@@ -42,8 +42,9 @@ pub enum RebuildError {
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 #[error("{topic}: {detail}")]
 pub struct Rejected {
-    /// A short, stable code for counting (`malformed`, `missing_field`, `invalid_field` from the
-    /// decoder, `bad_source`, `other_site`, `stale_seq`).
+    /// A short, stable code for counting: the decoder's (`malformed`, `missing_field`,
+    /// `invalid_field`), the ingest's `source-mismatch` (the payload names another source than its
+    /// key), `bad-source` (not `dyn-<id>`/`static-<id>`), `other-site`, `stale-seq`.
     pub reason: &'static str,
     /// The key the message came on.
     pub topic: String,
@@ -102,7 +103,7 @@ impl ScenarioCollector {
     pub fn push(&mut self, topic: &str, payload: &[u8]) -> Result<Pushed, Rejected> {
         let reject = |reason: &'static str, detail: String| Rejected { reason, topic: topic.to_owned(), detail };
         if let Some((site, _)) = parse_edge_map_key(topic) {
-            self.check_site(site).map_err(|d| reject("other_site", d))?;
+            self.check_site(site).map_err(|d| reject("other-site", d))?;
             let map: RoadMap = decode(payload).map_err(|e| reject(e.reason(), e.to_string()))?;
             self.site.get_or_insert_with(|| site.to_owned());
             self.map = Some(map);
@@ -111,8 +112,12 @@ impl ScenarioCollector {
         let Some(key) = parse_edge_key(topic).filter(|k| k.stream == EdgeStream::State) else {
             return Ok(Pushed::Skipped);
         };
-        self.check_site(key.site).map_err(|d| reject("other_site", d))?;
+        self.check_site(key.site).map_err(|d| reject("other-site", d))?;
         let s: VehicleStateSample = decode(payload).map_err(|e| reject(e.reason(), e.to_string()))?;
+        if s.header.source != key.source {
+            let detail = format!("the payload names source '{}'", s.header.source);
+            return Err(reject("source-mismatch", detail));
+        }
         let index = match self.by_source.get(key.source) {
             Some(&i) => i,
             None => {
@@ -122,7 +127,7 @@ impl ScenarioCollector {
                     _ => (false, None),
                 };
                 let id = id.ok_or_else(|| {
-                    reject("bad_source", format!("source '{}' is not dyn-<id> or static-<id>", key.source))
+                    reject("bad-source", format!("source '{}' is not dyn-<id> or static-<id>", key.source))
                 })?;
                 let shape = Shape::Rectangle { length_m: s.footprint.length_m, width_m: s.footprint.width_m };
                 self.tracks.push(Track { id, is_static, shape, next_seq: 0, states: Vec::new() });
@@ -133,7 +138,7 @@ impl ScenarioCollector {
         let track = &mut self.tracks[index];
         if s.header.seq < track.next_seq {
             let detail = format!("seq {} already passed (next {})", s.header.seq, track.next_seq);
-            return Err(reject("stale_seq", detail));
+            return Err(reject("stale-seq", detail));
         }
         track.next_seq = s.header.seq + 1;
         self.site.get_or_insert_with(|| key.site.to_owned());

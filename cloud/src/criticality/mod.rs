@@ -7,3 +7,6 @@ pub mod report;
 
 pub use collect::{Pushed, RebuildError, Rejected, ScenarioCollector};
 pub use report::{CSV_HEADER, ReportFormat, write_report};
+
+#[cfg(test)]
+mod tests;

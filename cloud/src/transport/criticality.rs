@@ -62,7 +62,7 @@ pub struct CriticalitySummary {
     pub maps: u64,
     /// Obstacle states taken, all sites.
     pub states: u64,
-    /// Dropped messages per reason (decode codes, `bad_source`, `stale_seq`).
+    /// Dropped messages per reason ([`crate::criticality::Rejected::reason`]).
     pub dropped: BTreeMap<String, u64>,
     /// The site the report is about.
     pub site: Option<String>,

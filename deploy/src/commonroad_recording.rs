@@ -9,8 +9,8 @@
 //! [`risktwin_cloud::criticality::collect`]'s, the same code the cloud runs on the live stream;
 //! its module doc says what does not travel.
 
-use risktwin_common::commonroad::twin::{footprint_of, road_from_lanelets};
 use risktwin_cloud::criticality::{RebuildError, Rejected, ScenarioCollector};
+use risktwin_common::commonroad::twin::{footprint_of, road_from_lanelets};
 use risktwin_common::commonroad::{ObstacleState, Scenario, Shape};
 use risktwin_common::geometry::Pose;
 use risktwin_common::telemetry::{Frame, Header, RoadMap, VehicleStateSample};

@@ -28,10 +28,8 @@ fn offline(xml: &Path, ego: &str, format: &str) -> String {
 fn replayed_criticality(xml: &Path, ego: &str, ext: &str) -> (String, serde_json::Value) {
     let dir = tempfile::tempdir().expect("a temporary directory");
     let recording = dir.path().join("scenario.mcap");
-    let mut import = Proc::spawn(
-        "import",
-        &["import", "commonroad", utf8(xml), "--out", utf8(&recording), "--format", "json"],
-    );
+    let mut import =
+        Proc::spawn("import", &["import", "commonroad", utf8(xml), "--out", utf8(&recording), "--format", "json"]);
     let imported = import.exit_json(STEP);
     let (router, locator) = start_router();
     let out = dir.path().join(format!("criticality.{ext}"));
@@ -50,7 +48,8 @@ fn replayed_criticality(xml: &Path, ego: &str, ext: &str) -> (String, serde_json
         ],
     );
     cloud.wait_line(STEP, |l| l == "ready");
-    let mut replay = Proc::spawn("replay", &["edge", "replay", utf8(&recording), "--speed", "0", "--connect", &locator]);
+    let mut replay =
+        Proc::spawn("replay", &["edge", "replay", utf8(&recording), "--speed", "0", "--connect", &locator]);
     let published = replay.exit_json(STEP);
     assert_eq!(published["published"], imported["messages"], "the map and every state are republished");
     assert_eq!(published["skipped"], 0);

@@ -191,7 +191,12 @@ impl ScenarioCollector {
             let mut states = states.into_iter();
             let Some(initial_state) = states.next() else { continue };
             if t.is_static {
-                statics.push(StaticObstacle { id: t.id, obstacle_type: "unknown".into(), shape: t.shape, initial_state });
+                statics.push(StaticObstacle {
+                    id: t.id,
+                    obstacle_type: "unknown".into(),
+                    shape: t.shape,
+                    initial_state,
+                });
             } else {
                 dynamic.push(DynamicObstacle {
                     id: t.id,

@@ -53,7 +53,7 @@ fn messages(s: &Scenario) -> Vec<(String, Vec<u8>)> {
             let pose = Pose::new(st.position.x, st.position.y, st.orientation_rad);
             let speed_mps = st.velocity_mps.unwrap_or(0.0);
             let sample = VehicleStateSample {
-                header: header(&source, step as u64, (st.time_step as i64) * 100_000_000),
+                header: header(&source, step as u64, st.time_step * 100_000_000),
                 pose,
                 velocity: pose.forward() * speed_mps,
                 speed_mps,
@@ -96,7 +96,8 @@ fn a_rebuilt_scenario_has_the_criticality_of_the_original() {
 fn bad_messages_are_rejected_by_reason_and_change_nothing() {
     let msgs = messages(&two_cars());
     let mut c = ScenarioCollector::new();
-    let reject = |c: &mut ScenarioCollector, key: &str, payload: &[u8]| c.push(key, payload).expect_err("rejected").reason;
+    let reject =
+        |c: &mut ScenarioCollector, key: &str, payload: &[u8]| c.push(key, payload).expect_err("rejected").reason;
     assert_eq!(reject(&mut c, MAP_KEY, b"\xff\xff\xff"), "malformed");
     assert!(!c.has_map(), "a map that does not decode is not taken");
     let (_, state) = &msgs[1];

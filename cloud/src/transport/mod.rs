@@ -30,8 +30,8 @@ pub mod push;
 mod wire_tests;
 
 use crate::library::ScenarioLibrary;
-use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, CriticalitySummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
+use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, CriticalitySummary};
 use library::LibrarySummary;
 use live::LiveIngest;
 pub use live::{IngestSummary, RecordError};

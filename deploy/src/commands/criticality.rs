@@ -5,9 +5,9 @@ use crate::cli::CriticalityArgs;
 use crate::commonroad_recording::read_scenario;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_table};
+use risktwin_cloud::criticality::{ReportFormat, write_report};
 use risktwin_common::commonroad::criticality::{ScenarioCriticality, scenario_criticality};
 use risktwin_common::commonroad::{Scenario, parse_scenario};
-use risktwin_cloud::criticality::{ReportFormat, write_report};
 
 pub fn criticality(args: CriticalityArgs) -> CliResult {
     let (path, scenario) = match (&args.commonroad, &args.mcap) {

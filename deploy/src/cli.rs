@@ -359,7 +359,8 @@ pub struct EdgeArgs {
 
 #[derive(Debug, Args)]
 pub struct CloudArgs {
-    /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db).
+    /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db),
+    /// criticality (needs --criticality-out).
     #[arg(long, default_value = "ingest", value_delimiter = ',')]
     pub roles: Vec<String>,
     /// Serve one site only (default: every site).
@@ -379,6 +380,13 @@ pub struct CloudArgs {
     /// The risk role evaluates on the road of this scenario kind (the edges' `--kind`).
     #[arg(long, default_value = "cut-in")]
     pub road: String,
+    /// The criticality role writes the CommonRoad criticality of the replayed scenario here on
+    /// shutdown: FILE.csv or FILE.json, as `risktwin criticality` prints them.
+    #[arg(long)]
+    pub criticality_out: Option<PathBuf>,
+    /// The ego obstacle of the criticality role (default: the first dynamic obstacle).
+    #[arg(long, requires = "criticality_out")]
+    pub ego: Option<u64>,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
 }

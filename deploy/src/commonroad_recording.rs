@@ -5,25 +5,19 @@
 //! id): one `risktwin.v1.RoadMap` on `risktwin/v1/<site>/map/map` (twin lanes plus the lanelet
 //! network), then per time step every obstacle present as a `risktwin.v1.VehicleState` on
 //! `risktwin/v1/<site>/dyn-<id>/state` (static obstacles once, `static-<id>`), log and capture
-//! time = time step × dt (scenario time from 0). Channels are declared in file order, so the
-//! reader restores the file's obstacle order from the channel ids. dt is not a field of any
-//! message: the reader takes the smallest gap between two states of one obstacle.
-//!
-//! What does not travel (the wire state has no slot for it): obstacle type (read back as `car`),
-//! shapes other than rectangles (circles and polygons become their bounding rectangle), absent
-//! velocities and accelerations (sent as 0), planning problems (so the default ego of a rebuilt
-//! scenario is its first dynamic obstacle).
+//! time = time step × dt (scenario time from 0). Reading back is
+//! [`risktwin_cloud::criticality::collect`]'s, the same code the cloud runs on the live stream;
+//! its module doc says what does not travel.
 
+use risktwin_cloud::criticality::{RebuildError, Rejected, ScenarioCollector};
 use risktwin_common::commonroad::twin::{footprint_of, road_from_lanelets};
-use risktwin_common::commonroad::{DynamicObstacle, ObstacleState, Scenario, Shape, StaticObstacle};
-use risktwin_common::geometry::{Pose, Vec2};
+use risktwin_common::commonroad::{ObstacleState, Scenario, Shape};
+use risktwin_common::geometry::Pose;
 use risktwin_common::telemetry::{Frame, Header, RoadMap, VehicleStateSample};
 use risktwin_protos::recording::{MessageCursor, Recorder, RecordingError};
-use risktwin_protos::{WireMessage, decode, encode};
-use risktwin_transport::keyexpr::{EdgeStream, edge_map, edge_stream, parse_edge_key, parse_edge_map_key};
+use risktwin_protos::{WireMessage, encode};
+use risktwin_transport::keyexpr::{EdgeStream, edge_map, edge_stream};
 use risktwin_transport::{SiteId, SourceId};
-use std::collections::BTreeMap;
-use std::collections::btree_map::Entry;
 use std::io::{Read, Seek, Write};
 
 /// The source that publishes the map.
@@ -40,14 +34,10 @@ pub enum FleetRecordingError {
     Map(#[from] risktwin_common::commonroad::twin::TwinError),
     #[error("obstacle id {id}: {reason}")]
     Obstacle { id: u64, reason: String },
-    #[error("{topic}: {reason}")]
-    Message { topic: String, reason: String },
-    #[error("the recording holds no road map (risktwin/v1/<site>/<source>/map)")]
-    NoMap,
-    #[error("cannot infer the time step: no obstacle has two states")]
-    NoTimeStep,
     #[error(transparent)]
-    Scenario(#[from] risktwin_common::commonroad::CommonRoadError),
+    Message(#[from] Rejected),
+    #[error(transparent)]
+    Rebuild(#[from] RebuildError),
 }
 
 /// What [`write_scenario`] wrote.
@@ -149,92 +139,16 @@ pub fn write_scenario<W: Write + Seek>(scenario: &Scenario, w: W) -> Result<Impo
     })
 }
 
-/// One obstacle's states as read back, by channel id.
-struct Track {
-    id: u64,
-    is_static: bool,
-    shape: Shape,
-    /// (capture time, state without its time step yet).
-    states: Vec<(i64, ObstacleState)>,
-}
-
-/// Rebuilds the scenario from a recording written by [`write_scenario`]: every state and map
-/// message decoded and validated as the cloud's ingest decodes them (`risktwin_protos::decode`).
-/// Topics outside the layout are skipped.
+/// Rebuilds the scenario from a recording written by [`write_scenario`], with the collector the
+/// cloud's `criticality` role uses on the live stream ([`ScenarioCollector`]): every state and
+/// map message decoded and validated as the ingest decodes them; here a message that fails is an
+/// error. Topics outside the layout are skipped.
 pub fn read_scenario<R: Read>(source: R) -> Result<Scenario, FleetRecordingError> {
     let mut cursor = MessageCursor::new(source);
-    let mut map: Option<(String, RoadMap)> = None;
-    let mut tracks: BTreeMap<u16, Track> = BTreeMap::new();
+    let mut collector = ScenarioCollector::new();
     while let Some(m) = cursor.next_message() {
         let m = m?;
-        let bad = |reason: String| FleetRecordingError::Message { topic: m.topic.to_string(), reason };
-        if let Some((site, _)) = parse_edge_map_key(m.topic) {
-            let decoded: RoadMap = decode(m.data).map_err(|e| bad(e.to_string()))?;
-            map = Some((site.to_string(), decoded));
-            continue;
-        }
-        let Some(key) = parse_edge_key(m.topic).filter(|k| k.stream == EdgeStream::State) else { continue };
-        let s: VehicleStateSample = decode(m.data).map_err(|e| bad(e.to_string()))?;
-        let track = match tracks.entry(m.channel_id) {
-            Entry::Occupied(e) => e.into_mut(),
-            Entry::Vacant(e) => {
-                let (is_static, id) = match key.source.split_once('-') {
-                    Some(("dyn", id)) => (false, id.parse::<u64>().ok()),
-                    Some(("static", id)) => (true, id.parse::<u64>().ok()),
-                    _ => (false, None),
-                };
-                let id = id.ok_or_else(|| bad(format!("source '{}' is not dyn-<id> or static-<id>", key.source)))?;
-                let shape = Shape::Rectangle { length_m: s.footprint.length_m, width_m: s.footprint.width_m };
-                e.insert(Track { id, is_static, shape, states: Vec::new() })
-            }
-        };
-        let state = ObstacleState {
-            time_step: 0,
-            position: Vec2::new(s.pose.x_m, s.pose.y_m),
-            orientation_rad: s.pose.heading_rad,
-            velocity_mps: Some(s.speed_mps),
-            acceleration_mps2: Some(s.accel_mps2),
-        };
-        track.states.push((s.header.capture_time_ns, state));
+        collector.push(m.topic, m.data)?;
     }
-    let (site, map) = map.ok_or(FleetRecordingError::NoMap)?;
-    let dt_ns = tracks
-        .values()
-        .flat_map(|t| t.states.windows(2).map(|w| w[1].0 - w[0].0))
-        .filter(|&d| d > 0)
-        .min()
-        .ok_or(FleetRecordingError::NoTimeStep)?;
-    let (mut dynamic, mut statics) = (Vec::new(), Vec::new());
-    for t in tracks.into_values() {
-        let mut states = Vec::with_capacity(t.states.len());
-        for (time_ns, mut s) in t.states {
-            if time_ns % dt_ns != 0 {
-                let reason = format!("state at {time_ns} ns is not on the {dt_ns} ns time grid");
-                return Err(FleetRecordingError::Obstacle { id: t.id, reason });
-            }
-            s.time_step = time_ns / dt_ns;
-            if let Some(prev) = states.last().map(|p: &ObstacleState| p.time_step)
-                && s.time_step != prev + 1
-            {
-                let reason = format!("time step {} follows {prev} (a state is missing)", s.time_step);
-                return Err(FleetRecordingError::Obstacle { id: t.id, reason });
-            }
-            states.push(s);
-        }
-        let mut states = states.into_iter();
-        let Some(initial_state) = states.next() else { continue };
-        if t.is_static {
-            statics.push(StaticObstacle { id: t.id, obstacle_type: "unknown".into(), shape: t.shape, initial_state });
-        } else {
-            dynamic.push(DynamicObstacle {
-                id: t.id,
-                obstacle_type: "car".into(),
-                shape: t.shape,
-                initial_state,
-                trajectory: states.collect(),
-                occupancy_set: Vec::new(),
-            });
-        }
-    }
-    Ok(Scenario::from_parts(site, dt_ns as f64 / 1e9, map.lanelets, dynamic, statics)?)
+    Ok(collector.finish()?)
 }

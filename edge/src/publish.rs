@@ -231,7 +231,7 @@ pub async fn run_producer(
             }
         }
         for (stream, payload) in out.drain(..) {
-            let Some(publisher) = publishers.iter().find(|p| p.stream() == stream) else { continue };
+            let Some(publisher) = publishers.iter().find(|p| p.stream() == Some(stream)) else { continue };
             if let Err(e) = publisher.put(payload).await {
                 result = Err(e.into());
                 break;

@@ -1,11 +1,11 @@
-//! `risktwin edge replay`: fleet data from a recording. Every edge-stream message of an MCAP file
-//! (a cloud `--record`ing, or any file with the same key scheme as topics) is republished on its
-//! recorded key, paced by its log time divided by `speed` (0: as fast as the transport takes it),
+//! `risktwin edge replay`: fleet data from a recording. Every edge-stream and road-map message of
+//! an MCAP file (a cloud `--record`ing, `risktwin import commonroad` output, or any file with the
+//! same key scheme as topics) is republished on its recorded key, in file order, paced by its log time divided by `speed` (0: as fast as the transport takes it),
 //! with its recorded receive time attached (see [`run`]).
 
 use crate::EdgeError;
 use risktwin_protos::recording::{MessageCursor, RecordingError, encode_replay_time};
-use risktwin_transport::keyexpr::parse_edge_key;
+use risktwin_transport::keyexpr::{parse_edge_key, parse_edge_map_key};
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect};
 use serde::Serialize;
@@ -23,7 +23,8 @@ pub struct ReplayConfig {
     pub wait_for_cloud: Duration,
 }
 
-/// What a replay published, per key, and what it skipped (topics outside the edge scheme).
+/// What a replay published, per key, and what it skipped (topics that are neither an edge stream
+/// nor a road map of the scheme).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct ReplaySummary {
     pub published: u64,
@@ -99,12 +100,17 @@ pub async fn run<R: Read>(
     Ok(summary)
 }
 
-/// The publisher of `topic`'s key, or `None` when the topic is not an edge stream of the scheme.
+/// The publisher of `topic`'s key, or `None` when the topic is neither an edge stream nor a road
+/// map of the scheme.
 async fn declare(session: &Session, topic: &str) -> Result<Option<StreamPublisher>, EdgeError> {
+    let bad = |e: risktwin_transport::KeyError| EdgeError::Recording { reason: format!("{topic}: {e}") };
+    if let Some((site, source)) = parse_edge_map_key(topic) {
+        let (site, source) = (SiteId::new(site).map_err(bad)?, SourceId::new(source).map_err(bad)?);
+        return Ok(Some(StreamPublisher::declare_map(session, &site, &source).await?));
+    }
     let Some(key) = parse_edge_key(topic) else {
         return Ok(None);
     };
-    let bad = |e: risktwin_transport::KeyError| EdgeError::Recording { reason: format!("{topic}: {e}") };
     let site = SiteId::new(key.site).map_err(bad)?;
     let source = SourceId::new(key.source).map_err(bad)?;
     Ok(Some(StreamPublisher::declare(session, &site, &source, key.stream).await?))

@@ -7,6 +7,7 @@
 //! `edge left` lines (liveliness) before it is sent SIGTERM.
 
 mod cloudloop;
+mod criticality;
 mod fleet;
 #[path = "../interop/peer_python.rs"]
 mod peer_python;

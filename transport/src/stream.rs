@@ -11,12 +11,13 @@ use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::CongestionControl;
 use zenoh::sample::{Locality, Sample, SampleKind};
 
-/// A publisher bound to one edge→cloud stream of one source.
+/// A publisher bound to one edge→cloud stream of one source, or to its road map.
 ///
 /// Reliable and blocking under congestion: a slow subscriber slows the edge down instead of
 /// losing messages, so that every message sent can be accounted for downstream.
 pub struct StreamPublisher {
-    stream: EdgeStream,
+    /// `None` for the road map.
+    stream: Option<EdgeStream>,
     publisher: Publisher<'static>,
 }
 
@@ -28,7 +29,16 @@ impl StreamPublisher {
         source: &SourceId,
         stream: EdgeStream,
     ) -> Result<Self, TransportError> {
-        let key = keyexpr::edge_stream(site, source, stream);
+        Self::declare_key(session, keyexpr::edge_stream(site, source, stream), Some(stream)).await
+    }
+
+    /// Declares the publisher of the road map of `source` at `site` (`…/<source>/map`), with the
+    /// same delivery guarantees as the streams.
+    pub async fn declare_map(session: &Session, site: &SiteId, source: &SourceId) -> Result<Self, TransportError> {
+        Self::declare_key(session, keyexpr::edge_map(site, source), None).await
+    }
+
+    async fn declare_key(session: &Session, key: String, stream: Option<EdgeStream>) -> Result<Self, TransportError> {
         // A declared key expression travels as a small numeric id, and both ends keep its
         // routes cached; otherwise every sample is matched against the (wildcard) subscriptions
         // again, which measured at a third of raw Zenoh's throughput.
@@ -45,8 +55,8 @@ impl StreamPublisher {
         Ok(StreamPublisher { stream, publisher })
     }
 
-    /// The stream this publishes.
-    pub fn stream(&self) -> EdgeStream {
+    /// The stream this publishes; `None` for the road map.
+    pub fn stream(&self) -> Option<EdgeStream> {
         self.stream
     }
 

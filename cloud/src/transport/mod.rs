@@ -7,13 +7,17 @@
 //!   site's vehicles go out as `foxglove.SceneUpdate` boxes on `…/cloud/scene` each tick;
 //! - `risk` (needs `twin`): at 2 Hz of twin time per site, the risk field around every vehicle
 //!   (`foxglove.Grid` on `…/cloud/risk_field`) and its `RiskReport` (`…/cloud/risk_report`);
-//! - `library` (needs `--db`): the queryable of [`library`] answering ranked scenarios.
+//! - `library` (needs `--db`): the queryable of [`library`] answering ranked scenarios;
+//! - `criticality` (needs `--criticality-out`): the road map and obstacle states of a site
+//!   (a replayed `risktwin import commonroad` recording), and on shutdown their CommonRoad
+//!   criticality, written as `risktwin criticality` writes it ([`criticality`]).
 //!
 //! With `--record`, the twin's scene and risk outputs are recorded next to the accepted edge
 //! messages, under their keys. `trainer` is not built yet.
 
 pub mod bench;
 pub mod bench_latency;
+pub mod criticality;
 mod edges;
 pub mod ingest;
 pub mod library;
@@ -27,6 +31,7 @@ mod wire_tests;
 
 use crate::library::ScenarioLibrary;
 use crate::twin::risk::{RiskAssessor, RiskConfig};
+use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, CriticalitySummary};
 use library::LibrarySummary;
 use live::LiveIngest;
 pub use live::{IngestSummary, RecordError};
@@ -42,7 +47,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 use thiserror::Error;
 
-/// A cloud worker role (cli.md: `--roles ingest,twin,risk,library,trainer`).
+/// A cloud worker role (cli.md: `--roles ingest,twin,risk,library,criticality,trainer`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Role {
     /// Validate, align and record the edge streams.
@@ -53,6 +58,8 @@ pub enum Role {
     Risk,
     /// The scenario library queryable.
     Library,
+    /// CommonRoad criticality of a replayed scenario, on shutdown.
+    Criticality,
     /// Policy training (not built yet).
     Trainer,
 }
@@ -64,6 +71,7 @@ impl Role {
             Role::Twin => "twin",
             Role::Risk => "risk",
             Role::Library => "library",
+            Role::Criticality => "criticality",
             Role::Trainer => "trainer",
         }
     }
@@ -77,6 +85,7 @@ impl std::str::FromStr for Role {
             "twin" => Ok(Role::Twin),
             "risk" => Ok(Role::Risk),
             "library" => Ok(Role::Library),
+            "criticality" => Ok(Role::Criticality),
             "trainer" => Ok(Role::Trainer),
             other => Err(CloudError::UnknownRole { role: other.to_owned() }),
         }
@@ -86,14 +95,18 @@ impl std::str::FromStr for Role {
 /// Why the cloud role failed.
 #[derive(Debug, Error)]
 pub enum CloudError {
-    #[error("role {role:?} is not one of ingest, twin, risk, library, trainer")]
+    #[error("role {role:?} is not one of ingest, twin, risk, library, criticality, trainer")]
     UnknownRole { role: String },
-    #[error("role {role:?} is not built yet; available: ingest, twin, risk, library")]
+    #[error("role {role:?} is not built yet; available: ingest, twin, risk, library, criticality")]
     RoleNotBuilt { role: String },
     #[error("role {role:?} needs role {needs:?} in the same process (e.g. --roles ingest,twin,risk)")]
     RoleNeeds { role: &'static str, needs: &'static str },
     #[error("role library needs --db FILE")]
     LibraryNeedsDb,
+    #[error("role criticality needs --criticality-out FILE.csv|FILE.json")]
+    CriticalityNeedsOut,
+    #[error(transparent)]
+    Criticality(#[from] CriticalityRoleError),
     #[error("no role to run")]
     NoRole,
     #[error("risk field: {0}")]
@@ -133,6 +146,8 @@ pub struct CloudConfig {
     pub risk: RiskConfig,
     /// The scenario library the `library` role serves.
     pub db: Option<PathBuf>,
+    /// Where the `criticality` role writes, and for which ego.
+    pub criticality: Option<CriticalityConfig>,
 }
 
 impl CloudConfig {
@@ -150,6 +165,7 @@ impl CloudConfig {
             road: crate::twin::scenario_road(risktwin_common::scenario::ScenarioKind::CutIn),
             risk: RiskConfig::default(),
             db: None,
+            criticality: None,
         }
     }
 
@@ -173,6 +189,9 @@ impl CloudConfig {
         if self.has(Role::Library) && self.db.is_none() {
             return Err(CloudError::LibraryNeedsDb);
         }
+        if self.has(Role::Criticality) {
+            self.criticality.as_ref().ok_or(CloudError::CriticalityNeedsOut)?.format()?;
+        }
         Ok(())
     }
 }
@@ -191,6 +210,9 @@ pub struct CloudSummary {
     /// The library role, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub library: Option<LibrarySummary>,
+    /// The criticality role, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub criticality: Option<CriticalitySummary>,
 }
 
 /// Runs the cloud roles until `shutdown` fires; `on_ready` is called once every subscription
@@ -204,8 +226,13 @@ pub async fn run(
     // Open the library and build the risk raster before joining: a bad file or config fails fast.
     let library = config.db.as_ref().filter(|_| config.has(Role::Library)).map(ScenarioLibrary::open).transpose()?;
     let risk = if config.has(Role::Risk) { Some(RiskAssessor::new(config.road.clone(), config.risk)?) } else { None };
-    let empty =
-        CloudSummary { ingest: IngestSummary::default(), liveliness: Default::default(), twin: None, library: None };
+    let empty = CloudSummary {
+        ingest: IngestSummary::default(),
+        liveliness: Default::default(),
+        twin: None,
+        library: None,
+        criticality: None,
+    };
     let session = tokio::select! {
         opened = connect(&config.transport) => opened?,
         _ = shutdown.wait() => return Ok(empty),
@@ -232,18 +259,30 @@ pub async fn run(
     } else {
         None
     };
+    let crit = Arc::new(Mutex::new(CriticalityCollect::default()));
+    let crit_subscriber = match config.criticality.as_ref().filter(|_| config.has(Role::Criticality)) {
+        Some(_) => Some(criticality::subscribe(&session, config.site.as_ref(), Arc::clone(&crit)).await?),
+        None => None,
+    };
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
     let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness)).await?;
     let library_task = queryable.map(|(q, lib)| tokio::spawn(library::serve(q, lib, shutdown.clone())));
     on_ready();
 
     shutdown.wait().await;
-    if subscriber.is_some() {
-        drain(&ingest, config.drain_quiet, config.drain_max).await;
+    if subscriber.is_some() || crit_subscriber.is_some() {
+        let last_sample = || {
+            let ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner).last_sample();
+            ingest.max(crit.lock().unwrap_or_else(PoisonError::into_inner).last_sample())
+        };
+        drain(last_sample, config.drain_quiet, config.drain_max).await;
     }
 
     if let Some(subscriber) = subscriber {
         subscriber.undeclare().await.map_err(|e| undeclare_error("subscriber", e))?;
+    }
+    if let Some(subscriber) = crit_subscriber {
+        subscriber.undeclare().await.map_err(|e| undeclare_error("criticality subscriber", e))?;
     }
     edges.subscriber.undeclare().await.map_err(|e| undeclare_error("liveliness subscriber", e))?;
     // With the subscriber gone its callback (and channel) is dropped, so the task ends.
@@ -266,7 +305,16 @@ pub async fn run(
         .unwrap_or_else(PoisonError::into_inner)
         .finish()?;
     let liveliness = liveness.lock().unwrap_or_else(PoisonError::into_inner).summary();
-    Ok(CloudSummary { ingest, liveliness, twin: outputs.map(|o| o.summary()), library: library_summary })
+    // Computed last, once every other role has flushed: a scenario that cannot be rebuilt fails
+    // the run without losing the recording or the database.
+    let criticality = match config.criticality.as_ref().filter(|_| config.has(Role::Criticality)) {
+        Some(crit_config) => {
+            let collected = std::mem::take(&mut *crit.lock().unwrap_or_else(PoisonError::into_inner));
+            Some(collected.finish(crit_config)?)
+        }
+        None => None,
+    };
+    Ok(CloudSummary { ingest, liveliness, twin: outputs.map(|o| o.summary()), library: library_summary, criticality })
 }
 
 fn join_error(what: &str, e: tokio::task::JoinError) -> CloudError {
@@ -290,11 +338,12 @@ fn ingest_sink(
     }
 }
 
-/// Lets samples already on their way arrive: waits until none came for `quiet`, at most `max`.
-async fn drain(ingest: &Mutex<LiveIngest>, quiet: Duration, max: Duration) {
+/// Lets samples already on their way arrive: waits until none came for `quiet` (as `last_sample`
+/// tells), at most `max`.
+async fn drain(last_sample: impl Fn() -> Option<Instant>, quiet: Duration, max: Duration) {
     let start = Instant::now();
     loop {
-        let last = ingest.lock().unwrap_or_else(PoisonError::into_inner).last_sample();
+        let last = last_sample();
         let quiet_since = last.map_or(start, |t| t.max(start));
         let until = (quiet_since + quiet).min(start + max);
         if Instant::now() >= until {

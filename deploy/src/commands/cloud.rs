@@ -2,7 +2,8 @@
 //! (received per source and stream, drops by reason, snapshots and their digest, liveliness;
 //! `--record FILE.mcap` records what was accepted). `ready` on stderr says the
 //! subscriptions are in place. `--roles ingest,twin,risk` adds the live twin and risk on it,
-//! `--roles library --db FILE` the library queryable. Also `risktwin bench zenoh|latency`.
+//! `--roles library --db FILE` the library queryable, `--roles criticality --criticality-out
+//! FILE.csv|json [--ego ID]` the criticality of a replayed CommonRoad scenario, written on exit. Also `risktwin bench zenoh|latency`.
 
 use super::router::{transport_config, with_signals};
 use crate::cli::{BenchZenohArgs, CloudArgs};
@@ -10,6 +11,7 @@ use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_cloud::transport::bench::{BenchConfig, throughput};
 use risktwin_cloud::transport::bench_latency::{LatencyConfig, latency};
+use risktwin_cloud::transport::criticality::{CriticalityConfig, CriticalityRoleError};
 use risktwin_cloud::transport::{CloudConfig, Role, run};
 use risktwin_common::align::IngestConfig;
 use risktwin_common::scenario::ScenarioKind;
@@ -24,12 +26,16 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     config.record = args.record;
     config.replay_time = args.replay_time;
     config.db = args.db;
+    config.criticality = args.criticality_out.map(|out| CriticalityConfig { out, ego: args.ego });
     let road_kind: ScenarioKind = args.road.parse().map_err(CliError::input)?;
     config.road = risktwin_cloud::twin::scenario_road(road_kind);
     let summary = with_signals(|shutdown| async move {
         run(&config, shutdown, || eprintln!("ready")).await.map_err(|e| match e {
             risktwin_cloud::transport::CloudError::Transport(t) => CliError::runtime(t),
             risktwin_cloud::transport::CloudError::Record(r) => CliError::runtime(r),
+            risktwin_cloud::transport::CloudError::Criticality(w @ CriticalityRoleError::Write { .. }) => {
+                CliError::runtime(w)
+            }
             other => CliError::input(other),
         })
     })?;

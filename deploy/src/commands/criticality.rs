@@ -4,22 +4,10 @@
 use crate::cli::CriticalityArgs;
 use crate::commonroad_recording::read_scenario;
 use crate::error::{CliError, CliResult};
-use crate::output::{Format, csv_float, print_json, print_table};
+use crate::output::{Format, csv_float, print_table};
+use risktwin_cloud::criticality::{ReportFormat, write_report};
 use risktwin_common::commonroad::criticality::{ScenarioCriticality, scenario_criticality};
 use risktwin_common::commonroad::{Scenario, parse_scenario};
-use serde::Serialize;
-use std::io::Write;
-
-/// The CSV header of cli.md, exactly.
-pub const CSV_HEADER: &str = "time_step,other_id,hw,thw,ttc,a_long_req";
-
-/// The JSON document: where the numbers come from, then the cells and the pair summaries.
-#[derive(Serialize)]
-struct Report<'a> {
-    scenario: &'a str,
-    #[serde(flatten)]
-    measures: &'a ScenarioCriticality,
-}
 
 pub fn criticality(args: CriticalityArgs) -> CliResult {
     let (path, scenario) = match (&args.commonroad, &args.mcap) {
@@ -29,11 +17,13 @@ pub fn criticality(args: CriticalityArgs) -> CliResult {
     };
     let measures =
         scenario_criticality(&scenario, args.ego).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
-    match args.format {
-        Format::Csv => write_csv(&measures),
-        Format::Json => print_json(&Report { scenario: &scenario.benchmark_id, measures: &measures }),
-        Format::Table => print_pairs(&measures),
-    }
+    let format = match args.format {
+        Format::Csv => ReportFormat::Csv,
+        Format::Json => ReportFormat::Json,
+        Format::Table => return print_pairs(&measures),
+    };
+    let out = std::io::BufWriter::new(std::io::stdout().lock());
+    write_report(out, format, &scenario.benchmark_id, &measures).map_err(CliError::runtime)
 }
 
 /// Reads and parses a CommonRoad file; every problem is an input error naming the file.
@@ -48,27 +38,6 @@ fn read_recording(path: &std::path::Path) -> CliResult<Scenario> {
     let file =
         std::fs::File::open(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
     read_scenario(std::io::BufReader::new(file)).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
-}
-
-fn write_csv(m: &ScenarioCriticality) -> CliResult {
-    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-    let mut write = || -> std::io::Result<()> {
-        writeln!(out, "{CSV_HEADER}")?;
-        for c in &m.cells {
-            writeln!(
-                out,
-                "{},{},{},{},{},{}",
-                c.time_step,
-                c.other_id,
-                csv_float(c.hw_m),
-                csv_float(c.thw_s),
-                csv_float(c.ttc_s),
-                csv_float(c.a_long_req_mps2)
-            )?;
-        }
-        out.flush()
-    };
-    write().map_err(CliError::runtime)
 }
 
 /// One line per other: the worst value of each measure over the scenario.

@@ -1,0 +1,157 @@
+//! The `criticality` role: collects the road map and the obstacle states of a site from the live
+//! stream (a `risktwin import commonroad` recording republished by `risktwin edge replay`), and
+//! when the stream ends (the cloud's shutdown) rebuilds the scenario with the offline path's
+//! [`ScenarioCollector`] and writes its criticality with the offline report writer — so the
+//! file equals `risktwin criticality` on the same scenario.
+//!
+//! Every message is decoded as the ingest decodes it; one that fails is counted by reason and
+//! dropped. Messages are collected per site; the report needs exactly one site with a map
+//! (`--site` picks one when several are on the network).
+
+use crate::criticality::{Pushed, RebuildError, ReportFormat, ScenarioCollector, write_report};
+use risktwin_common::commonroad::criticality::{CriticalityError, scenario_criticality};
+use risktwin_transport::zenoh::Session;
+use risktwin_transport::zenoh::pubsub::Subscriber;
+use risktwin_transport::zenoh::sample::Locality;
+use risktwin_transport::{SiteId, TransportError, keyexpr};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Instant;
+use thiserror::Error;
+
+/// Where the role writes and for which ego.
+#[derive(Debug, Clone)]
+pub struct CriticalityConfig {
+    /// The report file, `.csv` or `.json` (the formats of `risktwin criticality`).
+    pub out: PathBuf,
+    /// The ego obstacle; `None`: the scenario's first dynamic obstacle.
+    pub ego: Option<u64>,
+}
+
+impl CriticalityConfig {
+    /// The report format the file name asks for.
+    pub fn format(&self) -> Result<ReportFormat, CriticalityRoleError> {
+        ReportFormat::from_path(&self.out)
+            .ok_or_else(|| CriticalityRoleError::Format { path: self.out.display().to_string() })
+    }
+}
+
+/// Why the role could not produce its report.
+#[derive(Debug, Error)]
+pub enum CriticalityRoleError {
+    #[error("--criticality-out {path}: the file must end in .csv or .json")]
+    Format { path: String },
+    #[error("criticality: no road map arrived from any site (nothing to compute)")]
+    NoSite,
+    #[error("criticality: several sites sent a road map ({sites}); give --site")]
+    SeveralSites { sites: String },
+    #[error("criticality of site {site}: {source}")]
+    Rebuild { site: String, source: RebuildError },
+    #[error("criticality of site {site}: {source}")]
+    Measures { site: String, source: CriticalityError },
+    #[error("writing {path}: {source}")]
+    Write { path: String, source: std::io::Error },
+}
+
+/// What the role saw and wrote, in the cloud's JSON summary.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
+pub struct CriticalitySummary {
+    /// Road maps taken, all sites.
+    pub maps: u64,
+    /// Obstacle states taken, all sites.
+    pub states: u64,
+    /// Dropped messages per reason ([`crate::criticality::Rejected::reason`]).
+    pub dropped: BTreeMap<String, u64>,
+    /// The site the report is about.
+    pub site: Option<String>,
+    /// The ego the measures are relative to.
+    pub ego_id: Option<u64>,
+    /// Rows of the report (time step, other) and the file written.
+    pub cells: u64,
+    pub out: String,
+}
+
+/// The collectors and counts; behind a mutex shared with the Zenoh callback.
+#[derive(Default)]
+pub(crate) struct CriticalityCollect {
+    sites: BTreeMap<String, ScenarioCollector>,
+    summary: CriticalitySummary,
+    last_sample: Option<Instant>,
+}
+
+impl CriticalityCollect {
+    /// Takes one message received on `key`; a rejected one is counted and dropped.
+    pub(crate) fn handle(&mut self, key: &str, payload: &[u8]) {
+        self.last_sample = Some(Instant::now());
+        // The site chunk follows the root; the collector checks the rest of the key.
+        let Some(site) = key.strip_prefix(keyexpr::ROOT).and_then(|r| r.strip_prefix('/')?.split('/').next()) else {
+            return;
+        };
+        let collector = match self.sites.get_mut(site) {
+            Some(c) => c,
+            None => self.sites.entry(site.to_owned()).or_default(),
+        };
+        match collector.push(key, payload) {
+            Ok(Pushed::Map) => self.summary.maps += 1,
+            Ok(Pushed::State) => self.summary.states += 1,
+            Ok(Pushed::Skipped) => {}
+            Err(rejected) => *self.summary.dropped.entry(rejected.reason.to_owned()).or_default() += 1,
+        }
+    }
+
+    /// When the last message (taken or not) arrived.
+    pub(crate) fn last_sample(&self) -> Option<Instant> {
+        self.last_sample
+    }
+
+    /// Rebuilds the scenario of the one site with a map, computes its criticality and writes the
+    /// report.
+    pub(crate) fn finish(self, config: &CriticalityConfig) -> Result<CriticalitySummary, CriticalityRoleError> {
+        let format = config.format()?;
+        let mut summary = self.summary;
+        let mut with_map: Vec<(String, ScenarioCollector)> =
+            self.sites.into_iter().filter(|(_, c)| c.has_map()).collect();
+        let (site, collector) = match with_map.len() {
+            0 => return Err(CriticalityRoleError::NoSite),
+            1 => with_map.remove(0),
+            _ => {
+                let sites = with_map.iter().map(|(s, _)| s.as_str()).collect::<Vec<_>>().join(", ");
+                return Err(CriticalityRoleError::SeveralSites { sites });
+            }
+        };
+        let scenario =
+            collector.finish().map_err(|source| CriticalityRoleError::Rebuild { site: site.clone(), source })?;
+        let measures = scenario_criticality(&scenario, config.ego)
+            .map_err(|source| CriticalityRoleError::Measures { site: site.clone(), source })?;
+        let path = config.out.display().to_string();
+        let write_error = |source| CriticalityRoleError::Write { path: path.clone(), source };
+        let file = std::fs::File::create(&config.out).map_err(write_error)?;
+        write_report(std::io::BufWriter::new(file), format, &scenario.benchmark_id, &measures).map_err(write_error)?;
+        summary.site = Some(site);
+        summary.ego_id = Some(measures.ego_id);
+        summary.cells = measures.cells.len() as u64;
+        summary.out = path;
+        Ok(summary)
+    }
+}
+
+/// Subscribes the role to every key of the shape `risktwin/v1/<site|*>/*/*` (edge streams and
+/// road maps; the collector skips the rest).
+pub(crate) async fn subscribe(
+    session: &Session,
+    site: Option<&SiteId>,
+    collect: Arc<Mutex<CriticalityCollect>>,
+) -> Result<Subscriber<()>, TransportError> {
+    let key = keyexpr::edge_streams_all(site);
+    session
+        .declare_subscriber(key.clone())
+        .allowed_origin(Locality::Remote)
+        .callback(move |sample| {
+            let payload = sample.payload().to_bytes();
+            collect.lock().unwrap_or_else(PoisonError::into_inner).handle(sample.key_expr().as_str(), &payload);
+        })
+        .await
+        .map_err(|e| TransportError::Declare { what: "criticality subscriber", key, reason: e.to_string() })
+}

@@ -23,16 +23,8 @@ pub fn print_json<T: Serialize>(value: &T) -> CliResult {
     writeln!(out, "{text}").map_err(CliError::runtime)
 }
 
-/// A float for CSV cells: `inf`, `-inf`, `nan` spelled out, otherwise shortest round-trip form.
-pub fn csv_float(x: f64) -> String {
-    if x.is_nan() {
-        "nan".into()
-    } else if x.is_infinite() {
-        if x > 0.0 { "inf".into() } else { "-inf".into() }
-    } else {
-        format!("{x}")
-    }
-}
+/// CSV cells spell out `inf`, `-inf` and `nan` (shared with the cloud's criticality report).
+pub use risktwin_cloud::criticality::report::csv_float;
 
 /// Prints a left-aligned text table.
 pub fn print_table(header: &[&str], rows: &[Vec<String>]) -> CliResult {

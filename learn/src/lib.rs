@@ -14,6 +14,7 @@
 pub mod activation;
 mod bias;
 mod cpu;
+pub mod drive;
 pub mod envs;
 pub mod gae;
 pub mod gru;

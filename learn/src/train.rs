@@ -12,7 +12,7 @@ use crate::policy::{Algo, PolicyNet};
 use crate::ppo::{Ppo, PpoConfig, PpoTimings};
 use crate::sac::{Sac, SacConfig};
 use rayon::prelude::*;
-use risktwin_common::env::{ACT_DIM, OBS_DIM, ObsPolicy, ScenarioSource, Variant, VecEnv, benign_specs};
+use risktwin_common::env::{ScenarioSource, Variant, VecEnv, benign_specs};
 use risktwin_common::episode;
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::rng::Rng;
@@ -169,33 +169,12 @@ pub fn risk_ranked_specs(seed: u64, per_kind: usize) -> Vec<ScenarioSpec> {
     scored.into_iter().map(|(_, s)| s).collect()
 }
 
-/// Drives each spec with the policy's deterministic action through `episode::run`.
+/// Drives each spec with the policy's deterministic action ([`crate::drive::drive`]).
 pub fn evaluate_policy(policy: &PolicyNet, specs: &[ScenarioSpec], variant: Variant) -> Vec<EpisodeMetrics> {
     let weights = variant.weights();
-    // Feed-forward policies act through a host-side snapshot (no tensors per step).
-    let host = policy.host().ok().flatten();
     specs
         .par_iter()
-        .map(|spec| {
-            let mut world = build(spec);
-            if let Some(host) = &host {
-                let mut scratch = host.scratch();
-                let act = |o: &[f32; OBS_DIM]| host.act_deterministic(o, &mut scratch);
-                let mut p = ObsPolicy::new(act, world.desired_speed_mps, world.dt_s);
-                return episode::run(&mut world, &mut p, &weights).metrics;
-            }
-            let mut state = vec![0.0f32; policy.state_dim()];
-            let act = |o: &[f32; OBS_DIM]| {
-                let mut a = [0.0f32; ACT_DIM];
-                // A failed forward pass (never expected for a well-formed net) coasts.
-                if policy.act_deterministic(o, &mut state, &mut a).is_err() {
-                    a = [0.0; ACT_DIM];
-                }
-                a
-            };
-            let mut p = ObsPolicy::new(act, world.desired_speed_mps, world.dt_s);
-            episode::run(&mut world, &mut p, &weights).metrics
-        })
+        .map(|spec| crate::drive::drive(policy, &mut build(spec), &weights, &mut |_, _| {}).metrics)
         .collect()
 }
 

@@ -39,7 +39,7 @@ struct Report<'a> {
 }
 
 /// A float for CSV cells: `inf`, `-inf`, `nan` spelled out, otherwise shortest round-trip form.
-fn csv_float(x: f64) -> String {
+pub fn csv_float(x: f64) -> String {
     if x.is_nan() {
         "nan".into()
     } else if x.is_infinite() {

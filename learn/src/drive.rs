@@ -1,0 +1,37 @@
+//! Driving a policy's deterministic action through `episode::run_observed`: the one path behind
+//! `risktwin train`'s evaluation and the run's held-out evaluation, re-scoring and recording,
+//! so their metrics and risk terms are exactly those of `simulate`.
+
+use crate::PolicyNet;
+use risktwin_common::env::{ACT_DIM, OBS_DIM, ObsPolicy};
+use risktwin_common::episode::{self, EpisodeResult};
+use risktwin_common::metrics::RewardWeights;
+use risktwin_common::world::{StepReport, World};
+
+/// Drives a built world with the policy's deterministic action, scoring with `weights` and
+/// calling `observe` after every step.
+pub fn drive(
+    policy: &PolicyNet,
+    world: &mut World,
+    weights: &RewardWeights,
+    observe: &mut dyn FnMut(&World, &StepReport),
+) -> EpisodeResult {
+    // Feed-forward policies act through a host-side snapshot (no tensors per step).
+    if let Ok(Some(host)) = policy.host() {
+        let mut scratch = host.scratch();
+        let act = |o: &[f32; OBS_DIM]| host.act_deterministic(o, &mut scratch);
+        let mut p = ObsPolicy::new(act, world.desired_speed_mps, world.dt_s);
+        return episode::run_observed(world, &mut p, weights, observe);
+    }
+    let mut state = vec![0.0f32; policy.state_dim()];
+    let act = |o: &[f32; OBS_DIM]| {
+        let mut a = [0.0f32; ACT_DIM];
+        // A failed forward pass (never expected for a well-formed net) coasts.
+        if policy.act_deterministic(o, &mut state, &mut a).is_err() {
+            a = [0.0; ACT_DIM];
+        }
+        a
+    };
+    let mut p = ObsPolicy::new(act, world.desired_speed_mps, world.dt_s);
+    episode::run_observed(world, &mut p, weights, observe)
+}

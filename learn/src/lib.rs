@@ -19,6 +19,7 @@ pub mod envs;
 pub mod gae;
 pub mod gru;
 pub mod host;
+pub mod learner;
 pub mod nn;
 mod optim;
 pub mod policy;

@@ -8,9 +8,10 @@
 //! stand-in for the scenario library until the loop feeds it (`TrainConfig::scenarios`).
 
 use crate::LearnError;
+use crate::learner::Learner;
 use crate::policy::{Algo, PolicyNet};
-use crate::ppo::{Ppo, PpoConfig, PpoTimings};
-use crate::sac::{Sac, SacConfig};
+use crate::ppo::{PpoConfig, PpoTimings};
+use crate::sac::SacConfig;
 use rayon::prelude::*;
 use risktwin_common::env::{ScenarioSource, Variant, VecEnv, benign_specs};
 use risktwin_common::episode;
@@ -178,12 +179,6 @@ pub fn evaluate_policy(policy: &PolicyNet, specs: &[ScenarioSpec], variant: Vari
         .collect()
 }
 
-/// The learner behind an algorithm.
-enum Learner {
-    Ppo(Box<Ppo>),
-    Sac(Box<Sac>),
-}
-
 /// Trains as configured; `progress(done, total)` is called after each learner iteration.
 pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<TrainReport, LearnError> {
     if cfg.steps == 0 || cfg.n_envs == 0 {
@@ -199,32 +194,17 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
     let benign = if cfg.benign_eval > 0 { benign_specs(cfg.seed ^ 0xBE91_6000, cfg.benign_eval) } else { Vec::new() };
     let start = Instant::now();
     let mut env = VecEnv::new(cfg.n_envs, source, cfg.variant.training_weights())?;
-    let mut learner = match cfg.algo {
-        Algo::Ppo | Algo::PpoGru => {
-            let pc = PpoConfig { recurrent: cfg.algo == Algo::PpoGru, ..cfg.ppo.clone() };
-            Learner::Ppo(Box::new(Ppo::new(pc, cfg.n_envs, cfg.seed)?))
-        }
-        Algo::Sac => Learner::Sac(Box::new(Sac::new(cfg.sac.clone(), cfg.n_envs, cfg.seed)?)),
-    };
+    let mut learner = Learner::new(cfg.algo, &cfg.ppo, &cfg.sac, cfg.n_envs, cfg.seed)?;
     let mut done_steps = 0u64;
     let mut curve = Vec::new();
     let mut acc: Vec<EpisodeMetrics> = Vec::new();
     let mut next_benign = 0u64;
     let mut benign_90 = None;
     while done_steps < cfg.steps {
-        let n = match &mut learner {
-            Learner::Ppo(p) => {
-                p.learn_rollout(&mut env)?;
-                p.rollout_steps() as u64
-            }
-            Learner::Sac(s) => s.learn_steps(&mut env)?,
-        };
+        let n = learner.step(&mut env)?;
         done_steps += n;
         env.drain_finished(|_, s| acc.push(s.metrics));
-        let policy = match &learner {
-            Learner::Ppo(p) => p.policy(),
-            Learner::Sac(s) => s.policy(),
-        };
+        let policy = learner.policy();
         let benign_success = if !benign.is_empty() && done_steps >= next_benign {
             next_benign = done_steps + cfg.benign_every;
             let m = evaluate_policy(policy, &benign, cfg.variant);
@@ -254,14 +234,8 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
         progress(done_steps.min(cfg.steps), cfg.steps);
     }
     let wall_s = start.elapsed().as_secs_f64();
-    let timings = match &learner {
-        Learner::Ppo(p) => p.timings(),
-        Learner::Sac(_) => PpoTimings::default(),
-    };
-    let policy = match learner {
-        Learner::Ppo(p) => p.policy().clone(),
-        Learner::Sac(s) => s.policy().clone(),
-    };
+    let timings = learner.timings();
+    let policy = learner.policy().clone();
     let final_metrics =
         FinalMetrics::average(&evaluate_policy(&policy, &held_out_specs(cfg.seed, cfg.eval_per_kind), cfg.variant));
     Ok(TrainReport {

@@ -10,9 +10,10 @@ use crate::library::ScenarioLibrary;
 use risktwin_common::env::{ScenarioSource, Variant, VecEnv};
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::rng::Rng;
-use risktwin_learn::ppo::{Ppo, PpoConfig};
-use risktwin_learn::sac::{Sac, SacConfig};
-use risktwin_learn::{Algo, PolicyNet};
+use risktwin_learn::PolicyNet;
+use risktwin_learn::learner::Learner;
+use risktwin_learn::ppo::PpoConfig;
+use risktwin_learn::sac::SacConfig;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -43,41 +44,6 @@ pub struct TrainedPolicy {
     pub policy: PolicyNet,
     /// Wall time of training (measurement; not part of deterministic output).
     pub wall_s: f64,
-}
-
-enum Learner {
-    Ppo(Box<Ppo>),
-    Sac(Box<Sac>),
-}
-
-impl Learner {
-    fn new(algo: Algo, n_envs: usize, seed: u64) -> Result<Self, TrainerError> {
-        Ok(match algo {
-            Algo::Ppo | Algo::PpoGru => {
-                let pc = PpoConfig { recurrent: algo == Algo::PpoGru, ..PpoConfig::default() };
-                Learner::Ppo(Box::new(Ppo::new(pc, n_envs, seed)?))
-            }
-            Algo::Sac => Learner::Sac(Box::new(Sac::new(SacConfig::default(), n_envs, seed)?)),
-        })
-    }
-
-    /// One learner iteration; returns the environment steps taken.
-    fn step(&mut self, env: &mut VecEnv) -> Result<u64, TrainerError> {
-        Ok(match self {
-            Learner::Ppo(p) => {
-                p.learn_rollout(env)?;
-                p.rollout_steps() as u64
-            }
-            Learner::Sac(s) => s.learn_steps(env)?,
-        })
-    }
-
-    fn policy(&self) -> &PolicyNet {
-        match self {
-            Learner::Ppo(p) => p.policy(),
-            Learner::Sac(s) => s.policy(),
-        }
-    }
 }
 
 fn curve_point(env_steps: u64, acc: &[EpisodeMetrics]) -> CurvePoint {
@@ -116,7 +82,7 @@ pub fn train_variant(
         Variant::Base | Variant::RiskOnly => ScenarioSource::all_kinds(Rng::derive(seed, 0x5A4D_504C).next_u64()),
     };
     let mut env = VecEnv::new(plan.n_envs, source, variant.weights())?;
-    let mut learner = Learner::new(plan.algo, plan.n_envs, seed)?;
+    let mut learner = Learner::new(plan.algo, &PpoConfig::default(), &SacConfig::default(), plan.n_envs, seed)?;
     let checkpoint = plan.steps.div_ceil(plan.curve_points.max(1) as u64).max(1);
     let phase_steps = plan.steps.div_ceil(u64::from(plan.phases.max(1)));
     let (mut done, mut next_checkpoint) = (0u64, checkpoint);

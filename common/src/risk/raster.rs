@@ -86,6 +86,14 @@ impl RiskGrid {
         }
         (best.0 % self.cols, best.0 / self.cols)
     }
+
+    /// Maximum, mean and the world position of the maximum.
+    pub fn stats(&self) -> (f64, f64, Vec2) {
+        let max = self.cells.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        let mean = self.cells.iter().map(|&c| f64::from(c)).sum::<f64>() / self.cells.len().max(1) as f64;
+        let (col, row) = self.argmax();
+        (f64::from(max), mean, self.cell_centre(col, row))
+    }
 }
 
 /// α_l·R_l + α_b·R_b of one road on a world-aligned lattice, computed once per road.

@@ -23,13 +23,9 @@ pub struct CommonRoadField {
 }
 
 impl CommonRoadField {
-    /// Maximum, mean and the world position of the maximum.
+    /// Maximum, mean and the world position of the maximum (see [`RiskGrid::stats`]).
     pub fn stats(&self) -> (f64, f64, Vec2) {
-        let cells = &self.grid.cells;
-        let max = cells.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-        let mean = cells.iter().map(|&c| f64::from(c)).sum::<f64>() / cells.len().max(1) as f64;
-        let (col, row) = self.grid.argmax();
-        (f64::from(max), mean, self.grid.cell_centre(col, row))
+        self.grid.stats()
     }
 }
 

@@ -3,9 +3,10 @@
 //! measures success on benign scenarios, and evaluates the final policy on held-out scenarios
 //! of all five kinds through `episode::run` (the metrics of `simulate`).
 //!
-//! Scenario sources: `base` and `risk-only` sample the five kinds uniformly; `full` trains on a
-//! risk-ranked list — candidates scored by the reference driver, highest S_risk first — a
-//! stand-in for the scenario library until the loop feeds it (`TrainConfig::scenarios`).
+//! Scenario sources: `base` and `risk-only` sample the five kinds uniformly; `full` replays half
+//! its episodes from a risk-ranked list — candidates scored by the reference driver, highest
+//! S_risk first, the library's stand-in here (`risktwin run` feeds the real library) — and
+//! samples the other half fresh ([`DEFAULT_REPLAY_SHARE`]).
 
 use crate::LearnError;
 use crate::learner::Learner;
@@ -13,7 +14,7 @@ use crate::policy::{Algo, PolicyNet};
 use crate::ppo::{PpoConfig, PpoTimings};
 use crate::sac::SacConfig;
 use rayon::prelude::*;
-use risktwin_common::env::{ScenarioSource, Variant, VecEnv, benign_specs};
+use risktwin_common::env::{DEFAULT_REPLAY_SHARE, ScenarioSource, Variant, VecEnv, benign_specs};
 use risktwin_common::episode;
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::rng::Rng;
@@ -186,9 +187,11 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
     }
     let source = match &cfg.scenarios {
         Some(s) => s.clone(),
-        None if cfg.variant == Variant::Full => {
-            ScenarioSource::List { seed: cfg.seed, specs: risk_ranked_specs(cfg.seed, 40) }
-        }
+        None if cfg.variant == Variant::Full => ScenarioSource::Replay {
+            seed: cfg.seed,
+            specs: risk_ranked_specs(cfg.seed, 40),
+            share: DEFAULT_REPLAY_SHARE,
+        },
         None => ScenarioSource::all_kinds(cfg.seed),
     };
     let benign = if cfg.benign_eval > 0 { benign_specs(cfg.seed ^ 0xBE91_6000, cfg.benign_eval) } else { Vec::new() };

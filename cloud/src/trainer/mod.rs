@@ -61,6 +61,9 @@ pub struct TrainingPlan {
     pub replay_top: usize,
     /// Ordinary library scenarios drawn uniformly into `full`'s set.
     pub background: usize,
+    /// Probability that a `full` training episode replays a library scenario rather than a
+    /// fresh sample of the five kinds.
+    pub replay_share: f64,
     /// Mutated children around failures per refresh.
     pub mutations: usize,
     /// Mutation step as a share of each parameter's range.
@@ -83,6 +86,9 @@ impl TrainingPlan {
                 "mutation_radius {} is out of range (0, 1]",
                 self.mutation_radius
             )));
+        }
+        if !(0.0..=1.0).contains(&self.replay_share) {
+            return Err(TrainerError::BadPlan(format!("replay_share {} is out of range [0, 1]", self.replay_share)));
         }
         if self.replay_top + self.background == 0 {
             return Err(TrainerError::BadPlan("replay_top + background must be positive".into()));

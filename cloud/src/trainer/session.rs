@@ -75,13 +75,14 @@ pub fn train_variant(
     let threads = plan.threads.max(1);
     let mut curriculum = Curriculum::new(seed);
     let source = match variant {
-        Variant::Full => ScenarioSource::List {
+        Variant::Full => ScenarioSource::Replay {
             seed: Rng::derive(seed, 0).next_u64(),
             specs: curriculum.initial(library, plan, held_out)?,
+            share: plan.replay_share,
         },
         Variant::Base | Variant::RiskOnly => ScenarioSource::all_kinds(Rng::derive(seed, 0x5A4D_504C).next_u64()),
     };
-    let mut env = VecEnv::new(plan.n_envs, source, variant.weights())?;
+    let mut env = VecEnv::new(plan.n_envs, source, variant.training_weights())?;
     let mut learner = Learner::new(plan.algo, &PpoConfig::default(), &SacConfig::default(), plan.n_envs, seed)?;
     let checkpoint = plan.steps.div_ceil(plan.curve_points.max(1) as u64).max(1);
     let phase_steps = plan.steps.div_ceil(u64::from(plan.phases.max(1)));
@@ -110,7 +111,8 @@ pub fn train_variant(
             let label = format!("{}-full-seed{seed}-phase{phase}", plan.algo.name());
             let (specs, refresh) =
                 curriculum.refresh(library, learner.policy(), &label, phase, plan, held_out, threads)?;
-            env.set_source(ScenarioSource::List { seed: Rng::derive(seed, u64::from(phase) + 1).next_u64(), specs })?;
+            let seed = Rng::derive(seed, u64::from(phase) + 1).next_u64();
+            env.set_source(ScenarioSource::Replay { seed, specs, share: plan.replay_share })?;
             refreshes.push(refresh);
         }
     }

@@ -20,6 +20,7 @@ fn plan() -> TrainingPlan {
         curve_points: 2,
         replay_top: 12,
         background: 6,
+        replay_share: 0.5,
         mutations: 10,
         mutation_radius: 0.1,
         threads: 2,

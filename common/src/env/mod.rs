@@ -12,8 +12,8 @@
 //!
 //! Variants (mission.md §3) differ only in the reward weights here ([`Variant::weights`];
 //! learners train with [`Variant::training_weights`], whose terminal penalties are scaled down);
-//! `full` additionally draws its training scenarios from the scenario library, which the
-//! trainer supplies as a [`ScenarioSource::List`]. The observation is the same for every
+//! `full` additionally draws half its training episodes from the scenario library, which the
+//! trainer supplies as a [`ScenarioSource::Replay`]. The observation is the same for every
 //! variant, so policies stay comparable and only the training signal differs.
 
 mod driving;
@@ -25,7 +25,7 @@ mod vec_env;
 pub use driving::{DrivingEnv, EpisodeSummary, StepOutcome};
 pub use observe::{ACT_DIM, OBS_DIM, Observer, action_to_controls};
 pub use policy::ObsPolicy;
-pub use source::{BENIGN_MIN_TTC_S, ScenarioSource, SourceError, benign_specs};
+pub use source::{BENIGN_MIN_TTC_S, DEFAULT_REPLAY_SHARE, ScenarioSource, SourceError, benign_specs};
 pub use vec_env::VecEnv;
 
 use crate::metrics::RewardWeights;

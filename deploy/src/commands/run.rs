@@ -204,6 +204,7 @@ fn plan(config: &RunConfig, algo: Algo, threads: usize) -> TrainingPlan {
         curve_points: config.curve_points,
         replay_top: config.replay_top,
         background: config.background,
+        replay_share: config.replay_share,
         mutations: config.failure_mutations,
         mutation_radius: config.mutation_radius,
         threads,

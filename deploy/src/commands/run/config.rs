@@ -1,6 +1,7 @@
 //! The knobs of `risktwin run`: defaults sized for ≤ 10 minutes on 2 cores, `--quick` for a
 //! smoke test under a minute, any of them overridable from a `--config` JSON file.
 
+use risktwin_common::env::DEFAULT_REPLAY_SHARE;
 use serde::{Deserialize, Serialize};
 
 /// The knobs of a run; a `--config` JSON file may set any of them.
@@ -33,6 +34,9 @@ pub struct RunConfig {
     pub replay_top: usize,
     /// Ordinary library scenarios drawn uniformly into `full`'s training set.
     pub background: usize,
+    /// Probability that a `full` training episode replays a library scenario rather than a
+    /// fresh sample of the five kinds (prioritised level replay).
+    pub replay_share: f64,
     /// Mutated children around the policy's failures per refresh.
     pub failure_mutations: usize,
     /// Held-out evaluation scenarios per kind.
@@ -55,6 +59,7 @@ impl Default for RunConfig {
             curve_points: 16,
             replay_top: 60,
             background: 60,
+            replay_share: DEFAULT_REPLAY_SHARE,
             failure_mutations: 40,
             eval_per_kind: 12,
         }
@@ -116,6 +121,9 @@ impl RunConfig {
                 "replay_top {} + background {} must be in [1, 200000]",
                 self.replay_top, self.background
             ));
+        }
+        if !(0.0..=1.0).contains(&self.replay_share) {
+            return Err(format!("replay_share {} is out of range [0, 1]", self.replay_share));
         }
         if self.failure_mutations > 100_000 {
             return Err(format!("failure_mutations {} is too large (≤ 100000)", self.failure_mutations));

@@ -20,6 +20,10 @@ pub struct EvalMetrics {
     pub longitudinal_smoothness: f64,
     /// Mean scenario S_risk of the episodes (lower is safer).
     pub risk_score: f64,
+    /// Episodes that left the road.
+    pub offroad_rate: f64,
+    /// Episodes that ended at the horizon, unharmed but short of the route's end (too slow).
+    pub timeout_rate: f64,
 }
 
 /// Names of the metrics in [`EvalMetrics::values`] order.
@@ -52,6 +56,8 @@ impl EvalMetrics {
             steering_smoothness: mean(&|m| m.steering_smoothness),
             longitudinal_smoothness: mean(&|m| m.longitudinal_smoothness),
             risk_score: mean(&|m| m.risk_score),
+            offroad_rate: mean(&|m| f64::from(u8::from(m.offroad))),
+            timeout_rate: mean(&|m| f64::from(u8::from(!(m.success || m.collision || m.offroad)))),
         }
     }
 
@@ -112,6 +118,8 @@ pub struct EvalSpread {
     pub steering_smoothness: Spread,
     pub longitudinal_smoothness: Spread,
     pub risk_score: Spread,
+    pub offroad_rate: Spread,
+    pub timeout_rate: Spread,
 }
 
 impl EvalSpread {
@@ -128,6 +136,8 @@ impl EvalSpread {
             steering_smoothness: s(|m| m.steering_smoothness),
             longitudinal_smoothness: s(|m| m.longitudinal_smoothness),
             risk_score: s(|m| m.risk_score),
+            offroad_rate: s(|m| m.offroad_rate),
+            timeout_rate: s(|m| m.timeout_rate),
         }
     }
 
@@ -177,6 +187,7 @@ mod tests {
         };
         let e = EvalMetrics::average(&[m(true, false), m(false, true), m(false, true), m(false, false)]);
         assert_eq!((e.episodes, e.collision_rate, e.success_rate), (4, 0.25, 0.5));
+        assert_eq!((e.offroad_rate, e.timeout_rate), (0.0, 0.25));
         assert!((e.route_completion - 0.75).abs() < 1e-12);
     }
 }

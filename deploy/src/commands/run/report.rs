@@ -58,6 +58,23 @@ fn ablation_section(s: &mut String, m: &RunMetrics) {
         }
         let _ = writeln!(s, "| {kind} | idm | {} |", plain_cells(reference));
     }
+    let _ = writeln!(
+        s,
+        "\n### How the episodes ended\n\nShares of the held-out episodes (mean ± std over seeds); out of time = \
+         unharmed at the horizon but short of the route's end.\n\n| variant | success | collision | off the road | \
+         out of time |\n|---|---|---|---|---|"
+    );
+    for v in &ab.variants {
+        let e = &v.overall;
+        let cells = [e.success_rate, e.collision_rate, e.offroad_rate, e.timeout_rate].map(|x| pm(&x)).join(" | ");
+        let _ = writeln!(s, "| {} | {cells} |", v.variant);
+    }
+    let r = &ab.reference.overall;
+    let _ = writeln!(
+        s,
+        "| idm (reference driver) | {:.3} | {:.3} | {:.3} | {:.3} |",
+        r.success_rate, r.collision_rate, r.offroad_rate, r.timeout_rate
+    );
     let _ = writeln!(s, "\n## What the numbers show\n");
     match &m.verdict {
         Some(v) => {

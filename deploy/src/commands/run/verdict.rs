@@ -112,6 +112,23 @@ pub fn judge(ab: &AblationReport) -> Option<Verdict> {
         if wins.is_empty() { "no kind".to_string() } else { wins.join(", ") },
         if losses.is_empty() { "no kind".to_string() } else { losses.join(", ") }
     ));
+    let ended = |e: &risktwin_cloud::trainer::EvalSpread| {
+        format!(
+            "{:.2} success, {:.2} collision, {:.2} off the road, {:.2} out of time",
+            e.success_rate.mean, e.collision_rate.mean, e.offroad_rate.mean, e.timeout_rate.mean
+        )
+    };
+    s.push(format!(
+        "How the held-out episodes ended — full: {}; base: {}.{}",
+        ended(f),
+        ended(b),
+        if f.timeout_rate.mean > b.timeout_rate.mean && !completion_equal_or_better {
+            " Full turns crashes into episodes that end at the horizon short of the route's end: it drives too \
+             slowly rather than unsafely."
+        } else {
+            ""
+        }
+    ));
     if let Some(r) = ab.variant(Variant::RiskOnly) {
         let rc = r.overall.collision_rate.mean;
         s.push(format!(

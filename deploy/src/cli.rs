@@ -1,7 +1,7 @@
 //! Command-line grammar (cli.md, contract v1). Only parsing lives here.
 
 use crate::output::Format;
-use clap::{Args, Parser, Subcommand};
+use clap::{ArgGroup, Args, Parser, Subcommand};
 use std::path::PathBuf;
 
 #[derive(Debug, Parser)]
@@ -97,17 +97,18 @@ pub struct RankArgs {
     pub db: PathBuf,
     #[arg(long)]
     pub top: Option<usize>,
-    /// Restrict to one kind (or `all`).
+    /// Restrict to one kind (or `all`); `commonroad` ranks the recorded cases instead.
     #[arg(long)]
     pub kind: Option<String>,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }
 
-/// Where a scenario comes from: a library entry or a spec file.
+/// Where a scenario comes from: a library entry, a spec file or a CommonRoad file.
 #[derive(Debug, Args)]
 #[group(required = true, multiple = true)]
 pub struct ScenarioSource {
+    /// A scenario library; `--id` names a generated scenario or a recorded case in it.
     #[arg(long, requires = "id", conflicts_with = "spec")]
     pub db: Option<PathBuf>,
     #[arg(long, requires = "db")]
@@ -279,12 +280,20 @@ pub enum ImportCommand {
 }
 
 #[derive(Debug, Args)]
+#[command(group(ArgGroup::new("destination").required(true).multiple(true).args(["out", "db"])))]
 pub struct ImportCommonRoadArgs {
     /// The CommonRoad XML scenario (2020a).
     pub scenario: PathBuf,
     /// The MCAP recording to write.
     #[arg(long)]
-    pub out: PathBuf,
+    pub out: Option<PathBuf>,
+    /// A scenario library to store the scenario in as a recorded validation case (created if
+    /// missing), with the replayed ego's metrics as its reference outcome.
+    #[arg(long)]
+    pub db: Option<PathBuf>,
+    /// The case's ego (dynamic-obstacle id; default: the planning problem's, else the first).
+    #[arg(long, requires = "db")]
+    pub ego: Option<u64>,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

@@ -11,6 +11,7 @@ mod contract_scenarios;
 mod criticality;
 mod determinism;
 mod real_data;
+mod recorded;
 mod run;
 mod same_scenario;
 mod support;

@@ -39,6 +39,8 @@ pub enum RecordError {
     EmptyPolicy,
     #[error("a {origin} scenario {expectation}")]
     Lineage { origin: &'static str, expectation: &'static str },
+    #[error("recorded case from '{0}' has no scenario text")]
+    EmptyScenario(String),
     #[error("parent '{0}' is not in the library")]
     UnknownParent(String),
     #[error("parent is a {parent} scenario, the child a {child} one: mutation keeps the kind")]

@@ -9,7 +9,7 @@
 //! or a newer schema fails with a typed [`LibraryError`] naming the path; such files are never
 //! written to. Every batch is one transaction.
 //!
-//! # Schema (version 1; all tables `STRICT`)
+//! # Schema (version 2; all tables `STRICT`)
 //! - `scenarios(id TEXT PK, kind TEXT, seed INTEGER, params TEXT, parent_id TEXT NULL → scenarios,
 //!   generation INTEGER, origin TEXT, created_seq INTEGER UNIQUE)`:
 //!   `id` is the content id ([`content_id`]: FNV-1a 64 of kind, seed and parameter bits, 16 hex
@@ -28,11 +28,27 @@
 //!   `Infeasible::code`, for reports.
 //! - `regression(scenario_id PK → scenarios, reason 'collision'|'manual', marked_seq)`: the
 //!   regression set. Any outcome with a collision adds its scenario automatically.
+//! - `recorded(id TEXT PK, kind 'commonroad', source_name, benchmark_id, ego_id INTEGER, xml TEXT,
+//!   created_seq INTEGER UNIQUE)` (version 2): recorded validation cases. `id` is
+//!   [`recorded_id`] (FNV-1a 64 of kind, XML bytes and ego id), so importing a file twice is
+//!   one row; the XML is stored whole, so the file needs nothing else to replay it; `ego_id` is
+//!   the u64 obstacle id stored bit for bit.
+//! - `recorded_outcomes(seq INTEGER PK, case_id → recorded, <the outcome columns>)` (version 2):
+//!   as `outcomes`, for recorded cases; policy `replay` ([`REPLAY_POLICY`]) is the reference
+//!   outcome. An outcome equal to its policy's latest is not written again. Collisions here do
+//!   not enter `regression` (that set holds generated scenarios).
+//!
+//! # Versions
+//! `schema::MIGRATIONS[v]` takes a file from version `v` to `v + 1` inside one IMMEDIATE
+//! transaction at open; a new file runs them all, so new and upgraded files are the same.
+//! Migrations only add tables: a version-1 file opens, keeps every row, and gains the
+//! recorded tables (after which builds that read version 1 only refuse it).
 
 mod error;
 mod query;
 mod rank;
 mod record;
+mod recorded;
 mod regression;
 mod schema;
 mod store;
@@ -45,6 +61,7 @@ pub use rank::{RankOutcome, RankedScenario};
 pub use record::{
     DEFAULT_POLICY, InsertSummary, KindCounts, Origin, Outcome, Rejection, ScenarioRecord, StoredScenario, content_id,
 };
+pub use recorded::{COMMONROAD_KIND, REPLAY_POLICY, RankedCase, RecordedCase, RecordedInsert, StoredCase, recorded_id};
 pub use regression::{RegressionCase, RegressionReason};
 pub use schema::{APPLICATION_ID, SCHEMA_VERSION};
 

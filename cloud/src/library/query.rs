@@ -15,7 +15,7 @@ pub(super) const OUTCOME_COLUMNS: &str = "policy, collision, offroad, success, r
      steering_smoothness, longitudinal_smoothness, min_ttc_s, min_distance_m, episode_risk_score, reward, steps, \
      risk_score, risk_ttc, risk_dist, risk_lane, risk_jerk, risk_collision";
 
-fn outcome_from_row(r: &Row<'_>) -> rusqlite::Result<Outcome> {
+pub(super) fn outcome_from_row(r: &Row<'_>) -> rusqlite::Result<Outcome> {
     let steps: i64 = r.get(12)?;
     Ok(Outcome {
         policy: r.get(0)?,

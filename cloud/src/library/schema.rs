@@ -9,29 +9,16 @@ use std::time::Duration;
 /// `PRAGMA application_id` of a RiskTwin library: "RTWL" in ASCII.
 pub const APPLICATION_ID: i32 = 0x5254_574C;
 /// `PRAGMA user_version`: bumped whenever the tables change.
-pub const SCHEMA_VERSION: i64 = 1;
+pub const SCHEMA_VERSION: i64 = 2;
 /// How long a writer waits for another connection's lock (the cloud role and the CLI may share
 /// a file) before reporting SQLITE_BUSY.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
 
-const DDL: &str = "
-CREATE TABLE scenarios (
-    id          TEXT PRIMARY KEY NOT NULL,
-    kind        TEXT NOT NULL CHECK (kind IN ('cut-in', 'emergency-braking', 'pedestrian-crossing',
-                                              'sensor-occlusion', 'low-friction')),
-    seed        INTEGER NOT NULL,
-    params      TEXT NOT NULL,
-    parent_id   TEXT REFERENCES scenarios(id),
-    generation  INTEGER NOT NULL CHECK (generation >= 0),
-    origin      TEXT NOT NULL CHECK (origin IN ('sampled', 'mutated', 'imported', 'regression')),
-    created_seq INTEGER NOT NULL UNIQUE
-) STRICT;
-CREATE INDEX scenarios_by_parent ON scenarios(parent_id);
-CREATE INDEX scenarios_by_kind ON scenarios(kind);
-
-CREATE TABLE outcomes (
-    seq                     INTEGER PRIMARY KEY,
-    scenario_id             TEXT NOT NULL REFERENCES scenarios(id),
+/// The column definitions of one outcome (every field of `EpisodeMetrics` and `RiskTerms`),
+/// shared by the outcomes of generated scenarios and of recorded cases.
+macro_rules! outcome_columns {
+    () => {
+        "
     policy                  TEXT NOT NULL CHECK (policy <> ''),
     collision               INTEGER NOT NULL CHECK (collision IN (0, 1)),
     offroad                 INTEGER NOT NULL CHECK (offroad IN (0, 1)),
@@ -51,7 +38,33 @@ CREATE TABLE outcomes (
     risk_lane               REAL NOT NULL CHECK (risk_lane BETWEEN 0 AND 1),
     risk_jerk               REAL NOT NULL CHECK (risk_jerk BETWEEN 0 AND 1),
     risk_collision          REAL NOT NULL CHECK (risk_collision BETWEEN 0 AND 1)
+"
+    };
+}
+
+/// Version 1: generated scenarios, their outcomes, rejection counts, the regression set.
+const V1_DDL: &str = concat!(
+    "
+CREATE TABLE scenarios (
+    id          TEXT PRIMARY KEY NOT NULL,
+    kind        TEXT NOT NULL CHECK (kind IN ('cut-in', 'emergency-braking', 'pedestrian-crossing',
+                                              'sensor-occlusion', 'low-friction')),
+    seed        INTEGER NOT NULL,
+    params      TEXT NOT NULL,
+    parent_id   TEXT REFERENCES scenarios(id),
+    generation  INTEGER NOT NULL CHECK (generation >= 0),
+    origin      TEXT NOT NULL CHECK (origin IN ('sampled', 'mutated', 'imported', 'regression')),
+    created_seq INTEGER NOT NULL UNIQUE
 ) STRICT;
+CREATE INDEX scenarios_by_parent ON scenarios(parent_id);
+CREATE INDEX scenarios_by_kind ON scenarios(kind);
+
+CREATE TABLE outcomes (
+    seq                     INTEGER PRIMARY KEY,
+    scenario_id             TEXT NOT NULL REFERENCES scenarios(id),
+",
+    outcome_columns!(),
+    ") STRICT;
 CREATE INDEX outcomes_latest ON outcomes(scenario_id, policy, seq);
 
 CREATE TABLE rejected (
@@ -66,7 +79,36 @@ CREATE TABLE regression (
     reason      TEXT NOT NULL CHECK (reason IN ('collision', 'manual')),
     marked_seq  INTEGER NOT NULL
 ) STRICT;
-";
+"
+);
+
+/// Version 2: recorded validation cases (a CommonRoad XML scenario with its ego) and their
+/// outcomes, one row per policy run; the reference outcome is the recorded ego replayed.
+const V2_DDL: &str = concat!(
+    "
+CREATE TABLE recorded (
+    id           TEXT PRIMARY KEY NOT NULL,
+    kind         TEXT NOT NULL CHECK (kind = 'commonroad'),
+    source_name  TEXT NOT NULL,
+    benchmark_id TEXT NOT NULL,
+    ego_id       INTEGER NOT NULL,
+    xml          TEXT NOT NULL CHECK (xml <> ''),
+    created_seq  INTEGER NOT NULL UNIQUE
+) STRICT;
+
+CREATE TABLE recorded_outcomes (
+    seq                     INTEGER PRIMARY KEY,
+    case_id                 TEXT NOT NULL REFERENCES recorded(id),
+",
+    outcome_columns!(),
+    ") STRICT;
+CREATE INDEX recorded_outcomes_latest ON recorded_outcomes(case_id, policy, seq);
+"
+);
+
+/// `MIGRATIONS[v]` takes a file from version `v` to `v + 1`; a new file runs them all, so new
+/// and upgraded files have the same schema. Frozen once released: add, never edit.
+const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [V1_DDL, V2_DDL];
 
 /// Maps the first error that reading a file raises to "not SQLite" when SQLite says so.
 fn read_error(path: &Path, err: rusqlite::Error) -> LibraryError {
@@ -93,13 +135,12 @@ pub fn prepare(conn: &mut Connection, path: &Path) -> Result<(), LibraryError> {
         let rows = stmt.query_map([], |r| r.get(0)).map_err(|e| read_error(path, e))?;
         rows.collect::<Result<_, _>>().map_err(|e| read_error(path, e))?
     };
+    let unsupported =
+        |found: i64| LibraryError::UnsupportedVersion { path: path.to_path_buf(), found, expected: SCHEMA_VERSION };
     if app_id == APPLICATION_ID {
-        if version != SCHEMA_VERSION {
-            return Err(LibraryError::UnsupportedVersion {
-                path: path.to_path_buf(),
-                found: version,
-                expected: SCHEMA_VERSION,
-            });
+        // Older versions are upgraded below; a newer one is another build's file.
+        if !(1..=SCHEMA_VERSION).contains(&version) {
+            return Err(unsupported(version));
         }
     } else if app_id != 0 || version != 0 || !objects.is_empty() {
         let shown: Vec<&str> = objects.iter().take(5).map(String::as_str).collect();
@@ -118,16 +159,21 @@ pub fn prepare(conn: &mut Connection, path: &Path) -> Result<(), LibraryError> {
     let _mode: String = conn.pragma_update_and_check(None, "journal_mode", "WAL", |r| r.get(0))?;
     conn.pragma_update(None, "synchronous", "NORMAL")?;
     conn.pragma_update(None, "foreign_keys", true)?;
-    if app_id == 0 {
-        // IMMEDIATE plus a second look: two processes creating the same new file do not both
-        // run the DDL.
+    if app_id == 0 || version < SCHEMA_VERSION {
+        // IMMEDIATE plus a second look: two processes creating or upgrading the same file do
+        // not both run the DDL. Upgrades only add tables, so an upgraded file reads as before.
         let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
         let app_id_now: i32 = tx.pragma_query_value(None, "application_id", |r| r.get(0))?;
-        if app_id_now != APPLICATION_ID {
-            tx.execute_batch(DDL)?;
-            tx.pragma_update(None, "application_id", APPLICATION_ID)?;
-            tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
+        let version_now: i64 = tx.pragma_query_value(None, "user_version", |r| r.get(0))?;
+        let from = if app_id_now == APPLICATION_ID { version_now } else { 0 };
+        let pending = usize::try_from(from).ok().and_then(|v| MIGRATIONS.get(v..)).ok_or_else(|| unsupported(from))?;
+        for ddl in pending {
+            tx.execute_batch(ddl)?;
         }
+        if app_id_now != APPLICATION_ID {
+            tx.pragma_update(None, "application_id", APPLICATION_ID)?;
+        }
+        tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
         tx.commit()?;
     }
     Ok(())
@@ -212,6 +258,51 @@ mod tests {
         assert_eq!(tables, 1, "no library table was created");
         let mode: String = raw.pragma_query_value(None, "journal_mode", |r| r.get(0)).expect("pragma");
         assert_eq!(mode, "delete", "journal mode left as it was");
+    }
+
+    /// Every object's SQL, by name: what makes two files the same schema.
+    fn schema_of(conn: &Connection) -> Vec<(String, Option<String>)> {
+        let mut stmt = conn.prepare("SELECT name, sql FROM sqlite_schema ORDER BY name").expect("schema");
+        stmt.query_map([], |r| Ok((r.get(0)?, r.get(1)?))).expect("rows").collect::<Result<_, _>>().expect("read")
+    }
+
+    #[test]
+    fn a_version_1_file_is_upgraded_and_keeps_its_rows() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("v1.db");
+        {
+            // A version-1 file as that build wrote it: its DDL, its pragmas, one scenario.
+            let raw = Connection::open(&path).expect("raw");
+            raw.execute_batch(V1_DDL).expect("v1 ddl");
+            raw.pragma_update(None, "application_id", APPLICATION_ID).expect("app id");
+            raw.pragma_update(None, "user_version", 1).expect("version");
+        }
+        let rec = sampled(ScenarioKind::CutIn, 0, 0.625, true);
+        {
+            // Write the row through a v1-shaped connection: the library would upgrade first.
+            let raw = Connection::open(&path).expect("raw");
+            raw.execute(
+                "INSERT INTO scenarios VALUES (?1, 'cut-in', ?2, ?3, NULL, 0, 'sampled', 1)",
+                rusqlite::params![
+                    crate::library::content_id(&rec.spec),
+                    rec.spec.seed as i64,
+                    serde_json::to_string(&rec.spec.params).expect("params")
+                ],
+            )
+            .expect("v1 row");
+        }
+        let lib = ScenarioLibrary::open(&path).expect("a version-1 file opens");
+        let version: i64 = lib.conn.pragma_query_value(None, "user_version", |r| r.get(0)).expect("pragma");
+        assert_eq!(version, SCHEMA_VERSION);
+        let stored = lib.get(&crate::library::content_id(&rec.spec)).expect("get").expect("kept");
+        assert_eq!(stored.spec, rec.spec);
+        let (_fresh_dir, fresh) = file_library();
+        assert_eq!(schema_of(&lib.conn), schema_of(&fresh.conn), "upgraded and new files have one schema");
+        assert!(schema_of(&lib.conn).iter().any(|(name, _)| name == "recorded"));
+        drop(lib);
+        // Opening again runs nothing more.
+        let again = ScenarioLibrary::open(&path).expect("reopen");
+        assert_eq!(again.rank(None, None).expect("rank").len(), 0, "the v1 row has no outcome");
     }
 
     #[test]

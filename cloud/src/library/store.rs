@@ -4,8 +4,8 @@
 use super::ScenarioLibrary;
 use super::error::{LibraryError, RecordError};
 use super::query::{OUTCOME_COLUMNS, decode_kind};
-use super::record::{InsertSummary, Rejection, ScenarioRecord, content_id, ttc_for_storage, validate_record};
-use rusqlite::{OptionalExtension, TransactionBehavior, params};
+use super::record::{InsertSummary, Outcome, Rejection, ScenarioRecord, content_id, ttc_for_storage, validate_record};
+use rusqlite::{OptionalExtension, Statement, TransactionBehavior, params};
 
 impl ScenarioLibrary {
     /// Stores a batch of scenarios and their outcomes in one transaction: all or nothing.
@@ -37,10 +37,7 @@ impl ScenarioLibrary {
                 "INSERT INTO scenarios (id, kind, seed, params, parent_id, generation, origin, created_seq) \
                  VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8) ON CONFLICT (id) DO NOTHING",
             )?;
-            let mut outcome_stmt = tx.prepare_cached(&format!(
-                "INSERT INTO outcomes (scenario_id, {OUTCOME_COLUMNS}) VALUES \
-                 (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20)"
-            ))?;
+            let mut outcome_stmt = tx.prepare_cached(&outcome_insert_sql("outcomes", "scenario_id"))?;
             let mut regression_stmt = tx.prepare_cached(
                 "INSERT INTO regression (scenario_id, reason, marked_seq) VALUES (?1, 'collision', ?2) \
                  ON CONFLICT (scenario_id) DO NOTHING",
@@ -82,33 +79,9 @@ impl ScenarioLibrary {
                     summary.duplicates += 1;
                 }
                 if let Some(o) = &rec.outcome {
-                    let (m, r) = (&o.metrics, &o.risk);
-                    let min_ttc_s = ttc_for_storage(m.min_ttc_s).map_err(invalid)?;
-                    let steps = i64::try_from(m.steps).map_err(|_| invalid(RecordError::StepsTooLarge(m.steps)))?;
-                    outcome_stmt.execute(params![
-                        id,
-                        o.policy,
-                        m.collision,
-                        m.offroad,
-                        m.success,
-                        m.route_completion,
-                        m.avg_speed_mps,
-                        m.steering_smoothness,
-                        m.longitudinal_smoothness,
-                        min_ttc_s,
-                        m.min_distance_m,
-                        m.risk_score,
-                        m.reward,
-                        steps,
-                        r.score,
-                        r.ttc,
-                        r.dist,
-                        r.lane,
-                        r.jerk,
-                        r.collision,
-                    ])?;
+                    insert_outcome(&mut outcome_stmt, id, o)?;
                     summary.outcomes += 1;
-                    if m.collision && regression_stmt.execute(params![id, marked_seq + 1])? == 1 {
+                    if o.metrics.collision && regression_stmt.execute(params![id, marked_seq + 1])? == 1 {
                         marked_seq += 1;
                     }
                 }
@@ -147,6 +120,45 @@ impl ScenarioLibrary {
         out.sort_by(|a, b| (a.kind, &a.reason).cmp(&(b.kind, &b.reason)));
         Ok(out)
     }
+}
+
+/// `INSERT` of one outcome row into `table`, owned by the row `owner_column` names.
+pub(super) fn outcome_insert_sql(table: &str, owner_column: &str) -> String {
+    format!(
+        "INSERT INTO {table} ({owner_column}, {OUTCOME_COLUMNS}) VALUES \
+         (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20)"
+    )
+}
+
+/// Runs a statement of [`outcome_insert_sql`] for outcome `o` of `owner_id`.
+pub(super) fn insert_outcome(stmt: &mut Statement<'_>, owner_id: &str, o: &Outcome) -> Result<(), LibraryError> {
+    let invalid = |source| LibraryError::InvalidRecord { id: owner_id.to_string(), source };
+    let (m, r) = (&o.metrics, &o.risk);
+    let min_ttc_s = ttc_for_storage(m.min_ttc_s).map_err(invalid)?;
+    let steps = i64::try_from(m.steps).map_err(|_| invalid(RecordError::StepsTooLarge(m.steps)))?;
+    stmt.execute(params![
+        owner_id,
+        o.policy,
+        m.collision,
+        m.offroad,
+        m.success,
+        m.route_completion,
+        m.avg_speed_mps,
+        m.steering_smoothness,
+        m.longitudinal_smoothness,
+        min_ttc_s,
+        m.min_distance_m,
+        m.risk_score,
+        m.reward,
+        steps,
+        r.score,
+        r.ttc,
+        r.dist,
+        r.lane,
+        r.jerk,
+        r.collision,
+    ])?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@ mod criticality;
 mod edge;
 mod import;
 pub mod push;
+mod recorded;
 mod risk_field;
 mod risk_field_commonroad;
 mod router;

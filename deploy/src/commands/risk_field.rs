@@ -1,5 +1,6 @@
 //! `risktwin risk-field`: the risk field around the ego at a moment of a scenario.
 
+use super::recorded::commonroad_input;
 use super::risk_field_commonroad::commonroad_field;
 use super::source;
 use crate::cli::RiskFieldArgs;
@@ -32,8 +33,8 @@ pub fn risk_field(args: RiskFieldArgs) -> CliResult {
     if !(args.time >= 0.0 && args.time.is_finite()) {
         return Err(CliError::input(format!("--time {} must be a non-negative number of seconds", args.time)));
     }
-    if let Some(path) = &args.source.commonroad {
-        return commonroad_field(&args, path);
+    if let Some(input) = commonroad_input(&args.source)? {
+        return commonroad_field(&args, &input);
     }
     let spec = source::load(&args.source)?;
     let snap: FieldSnapshot = field_snapshot(&spec, args.time, args.resolution, args.cells).map_err(CliError::input)?;

@@ -1,15 +1,15 @@
-//! `risktwin risk-field --commonroad FILE [--ego ID]`: the field around the recorded ego over the
-//! real lanelet map, and S_risk of the recorded ego trajectory.
+//! `risktwin risk-field --commonroad FILE [--ego ID]` (or `--db FILE --id ID` of a recorded
+//! case): the field around the recorded ego over the real lanelet map, and S_risk of the
+//! recorded ego trajectory.
 
-use super::criticality::read_commonroad;
+use super::recorded::CommonRoadInput;
 use super::risk_field::{FieldSummary, print_summary};
+use super::simulate_commonroad::resimulate_input;
 use crate::cli::RiskFieldArgs;
 use crate::error::{CliError, CliResult};
 use crate::png_out::write_png;
-use risktwin_common::commonroad::twin::{EgoMode, field_at, render_field, resimulate};
-use risktwin_common::world::STEP_S;
+use risktwin_common::commonroad::twin::{field_at, render_field};
 use serde::Serialize;
-use std::path::Path;
 
 /// cli.md's summary plus what only a recording has.
 #[derive(Serialize)]
@@ -21,17 +21,14 @@ struct CommonRoadSummary<'a> {
     risk_score: f64,
 }
 
-pub fn commonroad_field(args: &RiskFieldArgs, path: &Path) -> CliResult {
-    let scenario = read_commonroad(path)?;
-    let shown = path.display();
-    let ego_id = args.source.ego.or_else(|| scenario.default_ego_id());
-    let field = field_at(&scenario, ego_id, args.time, args.resolution, args.cells)
+pub fn commonroad_field(args: &RiskFieldArgs, input: &CommonRoadInput) -> CliResult {
+    let (scenario, ego_id, shown) = (&input.scenario, input.ego_id, &input.shown);
+    let field = field_at(scenario, ego_id, args.time, args.resolution, args.cells)
         .map_err(|e| CliError::input(format!("{shown}: {e}")))?;
     if let Some(png) = &args.png {
         write_png(png, &render_field(&field, &scenario.lanelets, 4))?;
     }
-    let replay =
-        resimulate(&scenario, ego_id, EgoMode::Replay, STEP_S).map_err(|e| CliError::input(format!("{shown}: {e}")))?;
+    let replay = resimulate_input(input, "replay")?;
     let (max, mean, argmax) = field.stats();
     let g = &field.grid;
     let summary = FieldSummary {

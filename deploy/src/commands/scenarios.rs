@@ -5,7 +5,11 @@ use crate::cli::{GenerateArgs, RankArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_cloud::generate::{generate as generate_batch, store};
-use risktwin_cloud::library::{RankedScenario, ScenarioLibrary};
+use risktwin_cloud::library::{
+    COMMONROAD_KIND, REPLAY_POLICY, RankOutcome, RankedCase, RankedScenario, ScenarioLibrary,
+};
+use risktwin_common::risk::RiskTerms;
+use serde::Serialize;
 
 /// Worker threads for episode batches: all cores.
 pub fn worker_threads() -> usize {
@@ -43,56 +47,107 @@ pub fn generate(args: GenerateArgs) -> CliResult {
 
 pub fn rank(args: RankArgs) -> CliResult {
     let kind = match args.kind.as_deref() {
+        Some(COMMONROAD_KIND) => {
+            // Recorded cases, by S_risk of their reference outcome (the replayed ego).
+            let library = open_existing_library(&args.db)?;
+            let ranked = library.rank_recorded(REPLAY_POLICY, args.top).map_err(CliError::runtime)?;
+            return print_ranked(&ranked, args.format);
+        }
         None | Some("all") => None,
         Some(k) => Some(parse_kinds(k)?[0]),
     };
     let library = open_existing_library(&args.db)?;
     let ranked = library.rank(args.top, kind).map_err(CliError::runtime)?;
-    match args.format {
-        Format::Json => print_json(&ranked),
-        Format::Csv => {
-            println!("id,kind,seed,score,ttc,dist,lane,jerk,collision_term,collision,min_ttc_s,min_distance_m");
-            for r in &ranked {
-                println!("{}", csv_row(r));
-            }
-            Ok(())
-        }
-        Format::Table => print_table(
-            &["rank", "id", "kind", "score", "collision", "min_ttc_s", "min_distance_m"],
-            &ranked
-                .iter()
-                .enumerate()
-                .map(|(i, r)| {
-                    vec![
-                        (i + 1).to_string(),
-                        r.id.clone(),
-                        r.kind.to_string(),
-                        format!("{:.3}", r.risk.score),
-                        r.outcome.collision.to_string(),
-                        r.outcome.min_ttc_s.map_or("inf".into(), |t| format!("{t:.2}")),
-                        format!("{:.2}", r.outcome.min_distance_m),
-                    ]
-                })
-                .collect::<Vec<_>>(),
-        ),
+    print_ranked(&ranked, args.format)
+}
+
+/// How one ranked item prints besides JSON: what names it, then its risk and outcome.
+trait RankItem: Serialize {
+    /// CSV and table columns that name the item.
+    const NAME_COLUMNS: &'static [&'static str];
+    /// CSV-only naming columns after `NAME_COLUMNS`.
+    const CSV_EXTRA: &'static [&'static str];
+    fn name_cells(&self) -> Vec<String>;
+    fn csv_extra(&self) -> Vec<String>;
+    fn risk(&self) -> &RiskTerms;
+    fn outcome(&self) -> &RankOutcome;
+}
+
+impl RankItem for RankedScenario {
+    const NAME_COLUMNS: &'static [&'static str] = &["id", "kind"];
+    const CSV_EXTRA: &'static [&'static str] = &["seed"];
+    fn name_cells(&self) -> Vec<String> {
+        vec![self.id.clone(), self.kind.to_string()]
+    }
+    fn csv_extra(&self) -> Vec<String> {
+        vec![self.seed.to_string()]
+    }
+    fn risk(&self) -> &RiskTerms {
+        &self.risk
+    }
+    fn outcome(&self) -> &RankOutcome {
+        &self.outcome
     }
 }
 
-fn csv_row(r: &RankedScenario) -> String {
-    let f = csv_float;
-    format!(
-        "{},{},{},{},{},{},{},{},{},{},{},{}",
-        r.id,
-        r.kind,
-        r.seed,
-        f(r.risk.score),
-        f(r.risk.ttc),
-        f(r.risk.dist),
-        f(r.risk.lane),
-        f(r.risk.jerk),
-        f(r.risk.collision),
-        r.outcome.collision,
-        r.outcome.min_ttc_s.map_or("inf".into(), f),
-        f(r.outcome.min_distance_m)
-    )
+impl RankItem for RankedCase {
+    const NAME_COLUMNS: &'static [&'static str] = &["id", "benchmark_id", "ego_id"];
+    const CSV_EXTRA: &'static [&'static str] = &[];
+    fn name_cells(&self) -> Vec<String> {
+        vec![self.id.clone(), self.benchmark_id.clone(), self.ego_id.to_string()]
+    }
+    fn csv_extra(&self) -> Vec<String> {
+        Vec::new()
+    }
+    fn risk(&self) -> &RiskTerms {
+        &self.risk
+    }
+    fn outcome(&self) -> &RankOutcome {
+        &self.outcome
+    }
+}
+
+/// `ranked` in `format`: JSON as stored, CSV with every term, a table with the main ones.
+fn print_ranked<T: RankItem>(ranked: &[T], format: Format) -> CliResult {
+    match format {
+        Format::Json => print_json(&ranked),
+        Format::Csv => {
+            let terms =
+                ["score", "ttc", "dist", "lane", "jerk", "collision_term", "collision", "min_ttc_s", "min_distance_m"];
+            let header: Vec<&str> = [T::NAME_COLUMNS, T::CSV_EXTRA, &terms].into_iter().flatten().copied().collect();
+            println!("{}", header.join(","));
+            for r in ranked {
+                let (risk, outcome, f) = (r.risk(), r.outcome(), csv_float);
+                let mut cells = r.name_cells();
+                cells.extend(r.csv_extra());
+                cells.extend([risk.score, risk.ttc, risk.dist, risk.lane, risk.jerk, risk.collision].map(f));
+                cells.push(outcome.collision.to_string());
+                cells.push(outcome.min_ttc_s.map_or("inf".into(), f));
+                cells.push(f(outcome.min_distance_m));
+                println!("{}", cells.join(","));
+            }
+            Ok(())
+        }
+        Format::Table => {
+            let tail = ["score", "collision", "min_ttc_s", "min_distance_m"];
+            let header: Vec<&str> = [&["rank"], T::NAME_COLUMNS, &tail].into_iter().flatten().copied().collect();
+            let rows: Vec<Vec<String>> = ranked
+                .iter()
+                .enumerate()
+                .map(|(i, r)| {
+                    let outcome = r.outcome();
+                    let mut row = vec![(i + 1).to_string()];
+                    row.extend(r.name_cells());
+                    row.extend([
+                        format!("{:.3}", r.risk().score),
+                        outcome.collision.to_string(),
+                        outcome.min_ttc_s.map_or("inf".into(), |t| format!("{t:.2}")),
+                        format!("{:.2}", outcome.min_distance_m),
+                    ]);
+                    row
+                })
+                .collect();
+            print_table(&header, &rows)
+        }
+    }
 }

@@ -1,5 +1,6 @@
 //! `risktwin simulate`: one episode of a scenario with the reference driver.
 
+use super::recorded::commonroad_input;
 use super::source;
 use crate::cli::SimulateArgs;
 use crate::error::{CliError, CliResult};
@@ -10,8 +11,8 @@ use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
 use risktwin_common::world::{StepReport, World};
 
 pub fn simulate(args: SimulateArgs) -> CliResult {
-    if let Some(path) = &args.source.commonroad {
-        let run = super::simulate_commonroad::simulate(&args, path)?;
+    if let Some(mut input) = commonroad_input(&args.source)? {
+        let run = super::simulate_commonroad::simulate(&args, &mut input)?;
         return match args.format {
             Format::Json => print_json(&run.metrics),
             Format::Table | Format::Csv => print_metrics(&run.metrics, args.format),

@@ -1,16 +1,17 @@
-//! `risktwin simulate --commonroad FILE [--ego ID] [--policy idm|replay]`: a recorded scenario
-//! re-run in the twin — recorded traffic played back, the ego replayed or driven closed-loop by
-//! the reference driver from its recorded initial state — measured like any episode.
+//! `risktwin simulate --commonroad FILE [--ego ID] [--policy idm|replay]` (or `--db FILE --id ID`
+//! of a recorded case): a recorded scenario re-run in the twin — recorded traffic played back,
+//! the ego replayed or driven closed-loop by the reference driver from its recorded initial
+//! state — measured like any episode.
 
-use super::criticality::read_commonroad;
+use super::recorded::CommonRoadInput;
 use crate::cli::SimulateArgs;
 use crate::error::{CliError, CliResult};
+use risktwin_cloud::library::Outcome;
 use risktwin_common::commonroad::twin::{EgoMode, Resimulation, resimulate};
 use risktwin_common::world::STEP_S;
-use std::path::Path;
 
-/// Re-runs the scenario at `path` with the ego driven by `policy` (`idm` or `replay`).
-pub fn resimulate_file(path: &Path, ego: Option<u64>, policy: &str) -> CliResult<Resimulation> {
+/// Re-runs `input` with the ego driven by `policy` (`idm` or `replay`).
+pub fn resimulate_input(input: &CommonRoadInput, policy: &str) -> CliResult<Resimulation> {
     let mode = match policy {
         "idm" => EgoMode::ReferenceDriver,
         "replay" => EgoMode::Replay,
@@ -20,14 +21,23 @@ pub fn resimulate_file(path: &Path, ego: Option<u64>, policy: &str) -> CliResult
             )));
         }
     };
-    let scenario = read_commonroad(path)?;
-    let ego = ego.or_else(|| scenario.default_ego_id());
-    resimulate(&scenario, ego, mode, STEP_S).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
+    resimulate(&input.scenario, input.ego_id, mode, STEP_S)
+        .map_err(|e| CliError::input(format!("{}: {e}", input.shown)))
 }
 
-pub fn simulate(args: &SimulateArgs, path: &Path) -> CliResult<Resimulation> {
+/// The run as a library outcome under its policy label.
+pub fn outcome_of(run: &Resimulation, policy: &str) -> Outcome {
+    Outcome { policy: policy.to_string(), metrics: run.metrics.clone(), risk: run.risk }
+}
+
+/// Runs `input`; a recorded case of a library gets the run's outcome under the policy's label.
+pub fn simulate(args: &SimulateArgs, input: &mut CommonRoadInput) -> CliResult<Resimulation> {
     if args.trace.is_some() || args.record.is_some() {
-        return Err(CliError::input("--trace and --record are not available with --commonroad"));
+        return Err(CliError::input("--trace and --record are not available with a CommonRoad scenario"));
     }
-    resimulate_file(path, args.source.ego, &args.policy)
+    let run = resimulate_input(input, &args.policy)?;
+    if let Some((library, id)) = &mut input.case {
+        library.add_recorded_outcome(id, &outcome_of(&run, &args.policy)).map_err(CliError::runtime)?;
+    }
+    Ok(run)
 }

@@ -126,7 +126,7 @@ fn outcome_fields(o: &Value) -> (bool, bool, f64) {
 
 /// The push phase: the top `n` scenarios went to the edge over Zenoh under the reference driver
 /// and again under the pushed `full` policy; the edge's results are those of its own code run
-/// in-process (bit for bit), the policy run's S_risk at the world step is the re-score's, and the
+/// in-process (exactly), the policy run's S_risk at the world step is the re-score's, and the
 /// cloud recorded the vehicle's streams in loop.mcap.
 fn assert_closed_loop(m: &Value, folder: &Path, algo: &str, n: usize) {
     let cl = &m["closed_loop"];
@@ -154,7 +154,7 @@ fn assert_closed_loop(m: &Value, folder: &Path, algo: &str, n: usize) {
     let report = std::fs::read_to_string(folder.join("report.md")).unwrap();
     assert!(report.contains("## Closed loop over Zenoh"), "no closed-loop section");
     assert!(report.contains(&format!("`{algo}-full-final` v1 | edge |")), "the report names the driving policy");
-    assert!(report.contains("Every edge result equals the edge code run here, bit for bit."));
+    assert!(report.contains("Every edge result equals the edge code run here, exactly."));
     assert!(!report.contains("shown by the pipeline tests; the embedded run"), "the old 'Not in this run' bullet");
     let mcap = std::fs::read(folder.join("loop.mcap")).expect("loop.mcap");
     let mut states = 0;

@@ -5,7 +5,7 @@
 //! Two in-process references per pushed episode:
 //! - the edge's own code (`edge::scene::Tape`: the world at the edge's 20 ms step, the policy
 //!   loaded from the pushed safetensors bytes as a `HostPolicy`), which the edge's result must
-//!   equal bit for bit — anything else means the spec or the weights changed on the wire;
+//!   equal exactly, every field — anything else means the spec or the weights changed on the wire;
 //! - the run's own episode at the world's 50 ms step (the library's reference-driver outcome and
 //!   the re-score of the `full` policy), which is the same simulation at another step, so it
 //!   agrees only approximately.
@@ -71,8 +71,8 @@ pub struct Compared {
     pub edge: LoopOutcome,
     /// The edge's code run here on the same spec and weights (20 ms step).
     pub edge_code_here: LoopOutcome,
-    /// Whether the edge's metrics and risk terms equal those of the edge's code run here, bit
-    /// for bit (every field, not only those shown).
+    /// Whether the edge's metrics and risk terms equal those of the edge's code run here, every
+    /// field (not only those shown) and exactly (f64 equality: the wire carries doubles).
     pub edge_equals_here: bool,
     /// The run's own episode (50 ms step): the library's outcome, or the re-score.
     pub run: LoopOutcome,
@@ -169,34 +169,9 @@ fn compare(edge: &ScenarioPushReport, here: &Tape, run: &EpisodeResult) -> Compa
         driven_by: edge.policy.clone(),
         edge: LoopOutcome::new(&edge.metrics, &edge.risk, edge_step_s),
         edge_code_here: LoopOutcome::new(&here.result.metrics, &here.result.risk, edge_step_s),
-        edge_equals_here: bits(&edge.metrics, &edge.risk) == bits(&here.result.metrics, &here.result.risk),
+        edge_equals_here: edge.metrics == here.result.metrics && edge.risk == here.result.risk,
         run: LoopOutcome::new(&run.metrics, &run.risk, STEP_S),
     }
-}
-
-/// Every number of an outcome as bits (so that NaN and ±0 compare as they were sent).
-fn bits(m: &EpisodeMetrics, r: &RiskTerms) -> Vec<u64> {
-    let flags = [m.collision, m.offroad, m.success].map(u64::from);
-    let numbers = [
-        m.route_completion,
-        m.avg_speed_mps,
-        m.steering_smoothness,
-        m.longitudinal_smoothness,
-        m.min_ttc_s.unwrap_or(f64::NAN),
-        m.min_distance_m,
-        m.risk_score,
-        m.reward,
-        r.score,
-        r.ttc,
-        r.dist,
-        r.lane,
-        r.jerk,
-        r.collision,
-    ];
-    let mut out: Vec<u64> = flags.to_vec();
-    out.extend(numbers.iter().map(|x| x.to_bits()));
-    out.extend([u64::from(m.min_ttc_s.is_some()), m.steps]);
-    out
 }
 
 fn cells(o: &LoopOutcome) -> String {
@@ -240,7 +215,7 @@ pub fn section(s: &mut String, closed: &ClosedLoop, traffic: Option<&LoopOutput>
         "Each episode three ways: **edge** — what the vehicle reported; **edge code here** — the vehicle's own \
          episode code (`edge::scene::Tape`, 20 ms step) run in this process on the same spec and weights; **run** — \
          this run's episode at the world's 50 ms step (the library's reference-driver outcome, or the re-score \
-         above). Edge and edge code here must agree bit for bit (same code, same inputs: the spec and the weights \
+         above). Edge and edge code here must agree exactly, every field (same code, same inputs: the spec and the weights \
          crossed the wire unchanged). Run differs from both by the step: the edge simulates at 20 ms because its \
          streams are 50 Hz, the library at 50 ms, and a policy trained at 50 ms sees different observations at \
          20 ms, so outcomes agree only approximately and can differ in kind.\n"
@@ -270,7 +245,7 @@ pub fn section(s: &mut String, closed: &ClosedLoop, traffic: Option<&LoopOutput>
         s,
         "\n{} Against the 50 ms run, {same_kind} of {} episodes ended the same way (collision and success).",
         if all_equal {
-            "Every edge result equals the edge code run here, bit for bit."
+            "Every edge result equals the edge code run here, exactly."
         } else {
             "Some edge results differ from the edge code run here (marked **no**): the wire changed an input."
         },

@@ -1,8 +1,9 @@
 //! `risktwin run`: the report folder of a quick run (every file, PNGs that decode, per-variant
-//! per-kind metrics with their spread over seeds, the computed verdict), byte-identical
-//! metrics.json for the same seed, and SAC by flag.
+//! per-kind metrics with their spread over seeds, the computed verdict, the closed loop over
+//! Zenoh with its edge results), byte-identical metrics.json for the same seed, SAC by flag
+//! (its policy pushed to the edge too), and the push phase switched off.
 
-use crate::support::{risktwin, shown, write_file};
+use crate::support::{assert_input_error, risktwin, shown, write_file};
 use serde_json::Value;
 use std::path::Path;
 use tempfile::tempdir;
@@ -109,11 +110,83 @@ fn quick_run_writes_the_report_folder_and_repeats_byte_for_byte() {
     let what = m["recording"].as_str().expect("metrics.json says what was recorded");
     assert!(what.contains("full policy") && report.contains(what), "{what}");
 
+    assert_closed_loop(&m, &folder, "ppo", 1);
+
     let bytes = |out: &str| std::fs::read(dir.path().join(out).join("metrics.json")).unwrap();
     run_ok(dir.path(), &["run", "--quick", "--seed", "7", "--out", "B"]);
     assert!(bytes("A") == bytes("B"), "metrics.json differs between two runs with --seed 7");
     run_ok(dir.path(), &["run", "--quick", "--seed", "8", "--out", "C"]);
     assert!(bytes("A") != bytes("C"), "--seed 7 and --seed 8 give the same metrics.json");
+}
+
+/// One ranked scenario's outcome in the comparison, as metrics.json has it.
+fn outcome_fields(o: &Value) -> (bool, bool, f64) {
+    (o["collision"].as_bool().unwrap(), o["success"].as_bool().unwrap(), o["risk_score"].as_f64().unwrap())
+}
+
+/// The push phase: the top `n` scenarios went to the edge over Zenoh under the reference driver
+/// and again under the pushed `full` policy; the edge's results are those of its own code run
+/// in-process (exactly), the policy run's S_risk at the world step is the re-score's, and the
+/// cloud recorded the vehicle's streams in loop.mcap.
+fn assert_closed_loop(m: &Value, folder: &Path, algo: &str, n: usize) {
+    let cl = &m["closed_loop"];
+    let policy = serde_json::json!({"policy_id": format!("{algo}-full-final"), "version": 1});
+    assert_eq!(cl["policy"], policy, "{cl}");
+    assert_eq!(cl["edge"], "run/veh-1");
+    let scenarios = cl["scenarios"].as_array().expect("closed_loop.scenarios");
+    assert_eq!(scenarios.len(), n, "{cl}");
+    let rescore = m["rescore"].as_array().unwrap();
+    let full = rescore.iter().find(|r| r["policy"] == format!("{algo}-full-final").as_str()).expect("full re-scored");
+    for (i, sc) in scenarios.iter().enumerate() {
+        assert_eq!(sc["id"], m["top"][i]["id"], "pushed in ranking order");
+        assert_eq!(sc["reference"]["driven_by"], Value::Null, "the edge's reference driver drove first: {sc}");
+        assert_eq!(sc["policy"]["driven_by"], policy, "the pushed policy version drove second: {sc}");
+        for c in [&sc["reference"], &sc["policy"]] {
+            assert_eq!(c["edge_equals_here"], true, "{c}");
+            assert_eq!(c["edge"], c["edge_code_here"], "{c}");
+            assert!(c["edge"]["duration_s"].as_f64().unwrap() > 0.0, "{c}");
+        }
+        let (_, _, run_risk) = outcome_fields(&sc["policy"]["run"]);
+        assert_eq!(run_risk, full["risk"][i].as_f64().unwrap(), "the 50 ms run is the re-score");
+        let (collision, _, _) = outcome_fields(&sc["reference"]["run"]);
+        assert_eq!(collision, m["top"][i]["outcome"]["collision"].as_bool().unwrap(), "the 50 ms run is the library's");
+    }
+    let report = std::fs::read_to_string(folder.join("report.md")).unwrap();
+    assert!(report.contains("## Closed loop over Zenoh"), "no closed-loop section");
+    assert!(report.contains(&format!("`{algo}-full-final` v1 | edge |")), "the report names the driving policy");
+    assert!(report.contains("Every edge result equals the edge code run here, exactly."));
+    assert!(!report.contains("shown by the pipeline tests; the embedded run"), "the old 'Not in this run' bullet");
+    let mcap = std::fs::read(folder.join("loop.mcap")).expect("loop.mcap");
+    let mut states = 0;
+    for message in mcap::MessageStream::new(&mcap).expect("an MCAP file") {
+        states += usize::from(message.expect("a readable message").channel.topic == "risktwin/v1/run/veh-1/state");
+    }
+    // At least every step of the pushed episodes went through ingest into the recording.
+    let steps: f64 = scenarios
+        .iter()
+        .flat_map(|sc| [&sc["reference"], &sc["policy"]])
+        .map(|c| c["edge"]["duration_s"].as_f64().unwrap() / 0.02)
+        .sum();
+    assert!(states as f64 >= steps.round(), "{states} recorded states for {steps} pushed steps");
+}
+
+#[test]
+fn push_phase_switched_off_or_out_of_range() {
+    let dir = tempdir().unwrap();
+    write_file(dir.path(), "big.json", r#"{"push_scenarios": 101}"#);
+    assert_input_error(dir.path(), &["run", "--config", "big.json", "--out", "X"], "push_scenarios 101");
+    write_file(
+        dir.path(),
+        "off.json",
+        r#"{"count_per_kind": 3, "iterations": 0, "train_steps": 64, "seeds": 1, "n_envs": 4, "phases": 1,
+            "curve_points": 1, "replay_top": 2, "background": 1, "failure_mutations": 0, "eval_per_kind": 1,
+            "top_k": 2, "heatmaps": 0, "push_scenarios": 0}"#,
+    );
+    let m = run_ok(dir.path(), &["run", "--config", "off.json", "--seed", "2", "--out", "O"]);
+    assert_eq!(m["closed_loop"], Value::Null);
+    assert!(!dir.path().join("O/loop.mcap").exists());
+    let report = std::fs::read_to_string(dir.path().join("O/report.md")).unwrap();
+    assert!(!report.contains("## Closed loop over Zenoh") && report.contains("`push_scenarios` is 0"));
 }
 
 #[test]
@@ -129,6 +202,8 @@ fn sac_by_flag_with_a_tiny_config() {
     let m = run_ok(dir.path(), &["run", "--config", "tiny.json", "--algo", "sac", "--seed", "3", "--out", "S"]);
     assert_eq!(m["ablation"]["algo"], "sac");
     assert!(dir.path().join("S/policy_full.safetensors").is_file());
+    // push_scenarios defaults to 3, capped by top_k 2; the edge drives with the SAC policy.
+    assert_closed_loop(&m, &dir.path().join("S"), "sac", 2);
     let sentences = m["verdict"]["sentences"].as_array().unwrap();
     assert!(
         sentences.iter().any(|s| s.as_str().unwrap().contains("Only 1 seed")),

@@ -10,7 +10,10 @@ use risktwin_common::telemetry::{Frame, Header, PolicyRef, PolicyUpdate, Scenari
 use risktwin_protos::{decode, encode};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report};
 use risktwin_transport::zenoh::Session;
+use risktwin_transport::zenoh::handlers::FifoChannelHandler;
+use risktwin_transport::zenoh::pubsub::Subscriber;
 use risktwin_transport::zenoh::qos::CongestionControl;
+use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Shutdown, SiteId, SourceId, TransportConfig, TransportError, close, connect};
 use serde::Serialize;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -115,6 +118,105 @@ async fn deliver(
     Ok(())
 }
 
+/// One session to one edge, kept open across pushes, with the subscriber of the edge's
+/// results declared once: a caller pushing many scenarios to the same edge (the closed loop of
+/// `risktwin run`) does not open a session and re-declare that subscriber per push, so no
+/// result can go to a subscriber that is still being declared or undeclared.
+pub struct EdgeLink {
+    session: Session,
+    target: PushTarget,
+    result_key: String,
+    results: Subscriber<FifoChannelHandler<Sample>>,
+}
+
+impl EdgeLink {
+    /// Opens the session and subscribes to the edge's results.
+    pub async fn open(target: &PushTarget) -> Result<Self, PushError> {
+        let session = connect(&target.transport).await?;
+        let result_key = edge_report(&target.site, &target.edge, EdgeReport::ScenarioResult);
+        // Subscribed before any push goes out, so that a quick result cannot be missed.
+        let results =
+            session.declare_subscriber(result_key.clone()).await.map_err(declare_err("subscriber", &result_key))?;
+        Ok(EdgeLink { session, target: target.clone(), result_key, results })
+    }
+
+    /// Pushes `spec` (library id `spec_id`) and waits up to `wait_for_result` for its outcome
+    /// (results of other scenarios are skipped).
+    pub async fn scenario(
+        &self,
+        spec_id: &str,
+        spec: &ScenarioSpec,
+        wait_for_result: Duration,
+        mut shutdown: Shutdown,
+    ) -> Result<ScenarioPushReport, PushError> {
+        let target = &self.target;
+        let push = ScenarioPush { header: header(0), spec_id: spec_id.to_owned(), spec: spec.clone() };
+        deliver(&self.session, target, CloudToEdge::Scenario, encode(&push), shutdown.clone()).await?;
+        eprintln!("pushed scenario {spec_id} to {}/{}", target.site, target.edge);
+        let wait = async {
+            while let Ok(sample) = self.results.recv_async().await {
+                match decode::<ScenarioResult>(&sample.payload().to_bytes()) {
+                    Ok(r) if r.spec_id == spec_id => return Some(r),
+                    Ok(r) => eprintln!("push: result of another scenario ({}) ignored", r.spec_id),
+                    Err(e) => eprintln!("push: undecodable result ignored: {e}"),
+                }
+            }
+            None
+        };
+        let result = tokio::select! {
+            r = tokio::time::timeout(wait_for_result, wait) => r.ok().flatten(),
+            () = shutdown.wait() => return Err(PushError::Interrupted),
+        };
+        let result = result.ok_or_else(|| PushError::NoResult {
+            target: target.edge.to_string(),
+            spec_id: spec_id.to_owned(),
+            waited_s: wait_for_result.as_secs_f64(),
+        })?;
+        Ok(ScenarioPushReport {
+            site: target.site.to_string(),
+            edge: target.edge.to_string(),
+            spec_id: result.spec_id,
+            metrics: result.metrics,
+            risk: result.risk,
+            policy: result.policy,
+        })
+    }
+
+    /// Pushes a policy update (delivered once the edge subscribes; the edge validates it and
+    /// reports what it holds in its own summary).
+    pub async fn policy(
+        &self,
+        policy_id: &str,
+        version: u32,
+        algo: &str,
+        weights: Vec<u8>,
+        shutdown: Shutdown,
+    ) -> Result<PolicyPushReport, PushError> {
+        let update = PolicyUpdate {
+            header: header(u64::from(version)),
+            policy_id: policy_id.to_owned(),
+            version,
+            algo: algo.to_owned(),
+            weights,
+        };
+        deliver(&self.session, &self.target, CloudToEdge::Policy, encode(&update), shutdown).await?;
+        Ok(PolicyPushReport {
+            site: self.target.site.to_string(),
+            edge: self.target.edge.to_string(),
+            policy_id: policy_id.to_owned(),
+            version,
+            delivered: true,
+        })
+    }
+
+    /// Undeclares the result subscriber and closes the session.
+    pub async fn close(self) -> Result<(), PushError> {
+        self.results.undeclare().await.map_err(declare_err("undeclare", &self.result_key))?;
+        close(self.session).await?;
+        Ok(())
+    }
+}
+
 /// Pushes `spec` (library id `spec_id`) to the edge and waits up to `wait_for_result` for its
 /// outcome.
 pub async fn push_scenario(
@@ -122,45 +224,12 @@ pub async fn push_scenario(
     spec_id: &str,
     spec: &ScenarioSpec,
     wait_for_result: Duration,
-    mut shutdown: Shutdown,
+    shutdown: Shutdown,
 ) -> Result<ScenarioPushReport, PushError> {
-    let session = connect(&target.transport).await?;
-    let result_key = edge_report(&target.site, &target.edge, EdgeReport::ScenarioResult);
-    // Subscribed before the push goes out, so that a quick result cannot be missed.
-    let results =
-        session.declare_subscriber(result_key.clone()).await.map_err(declare_err("subscriber", &result_key))?;
-    let push = ScenarioPush { header: header(0), spec_id: spec_id.to_owned(), spec: spec.clone() };
-    deliver(&session, target, CloudToEdge::Scenario, encode(&push), shutdown.clone()).await?;
-    eprintln!("pushed scenario {spec_id} to {}/{}", target.site, target.edge);
-    let wait = async {
-        while let Ok(sample) = results.recv_async().await {
-            match decode::<ScenarioResult>(&sample.payload().to_bytes()) {
-                Ok(r) if r.spec_id == spec_id => return Some(r),
-                Ok(r) => eprintln!("push: result of another scenario ({}) ignored", r.spec_id),
-                Err(e) => eprintln!("push: undecodable result ignored: {e}"),
-            }
-        }
-        None
-    };
-    let result = tokio::select! {
-        r = tokio::time::timeout(wait_for_result, wait) => r.ok().flatten(),
-        () = shutdown.wait() => return Err(PushError::Interrupted),
-    };
-    results.undeclare().await.map_err(declare_err("undeclare", &result_key))?;
-    close(session).await?;
-    let result = result.ok_or_else(|| PushError::NoResult {
-        target: target.edge.to_string(),
-        spec_id: spec_id.to_owned(),
-        waited_s: wait_for_result.as_secs_f64(),
-    })?;
-    Ok(ScenarioPushReport {
-        site: target.site.to_string(),
-        edge: target.edge.to_string(),
-        spec_id: result.spec_id,
-        metrics: result.metrics,
-        risk: result.risk,
-        policy: result.policy,
-    })
+    let link = EdgeLink::open(target).await?;
+    let report = link.scenario(spec_id, spec, wait_for_result, shutdown).await;
+    link.close().await?;
+    report
 }
 
 /// Pushes a policy update to the edge (delivered once the edge subscribes; the edge validates
@@ -173,21 +242,8 @@ pub async fn push_policy(
     weights: Vec<u8>,
     shutdown: Shutdown,
 ) -> Result<PolicyPushReport, PushError> {
-    let session = connect(&target.transport).await?;
-    let update = PolicyUpdate {
-        header: header(u64::from(version)),
-        policy_id: policy_id.to_owned(),
-        version,
-        algo: algo.to_owned(),
-        weights,
-    };
-    deliver(&session, target, CloudToEdge::Policy, encode(&update), shutdown).await?;
-    close(session).await?;
-    Ok(PolicyPushReport {
-        site: target.site.to_string(),
-        edge: target.edge.to_string(),
-        policy_id: policy_id.to_owned(),
-        version,
-        delivered: true,
-    })
+    let link = EdgeLink::open(target).await?;
+    let report = link.policy(policy_id, version, algo, weights, shutdown).await;
+    link.close().await?;
+    report
 }

@@ -1,10 +1,12 @@
 //! `risktwin run`: the main job, embedded. Generate → simulate → score → rank → mutate around
 //! the failures (reference driver), then train the three variants (base / risk-only / full; PPO,
 //! or SAC with `--algo sac`) over several seeds through the trainer role, evaluate them on a
-//! held-out set, re-score the library's top scenarios with the trained policies, and write the
-//! report folder (report.md, metrics.json, training_curves.png, ablation.png, risk-field
-//! heatmaps, library.db, one policy per variant, recording.mcap of the top scenario driven by
-//! the `full` policy).
+//! held-out set, re-score the library's top scenarios with the trained policies, push the top
+//! scenarios and the `full` policy over Zenoh to an edge vehicle in this process and compare
+//! what it reports (`closed_loop`), and write the report folder (report.md, metrics.json,
+//! training_curves.png, ablation.png, risk-field heatmaps, library.db, one policy per variant,
+//! recording.mcap of the top scenario driven by the `full` policy, loop.mcap of what the cloud
+//! ingested during the push phase).
 
 use super::scenarios::worker_threads;
 use crate::cli::RunArgs;
@@ -27,13 +29,16 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod charts;
+mod closed_loop;
 mod config;
 mod progress;
+mod push_loop;
 mod recording;
 mod report;
 mod rescore;
 mod verdict;
 
+use closed_loop::ClosedLoop;
 pub use config::RunConfig;
 use progress::ProgressBar;
 use rescore::Rescore;
@@ -80,6 +85,9 @@ pub struct RunMetrics {
     pub rescore: Vec<Rescore>,
     /// What `recording.mcap` holds (absent when nothing was recorded).
     pub recording: Option<String>,
+    /// The push phase: what an edge vehicle reported over Zenoh, against the same episodes run
+    /// here (absent when `push_scenarios` is 0).
+    pub closed_loop: Option<ClosedLoop>,
     /// Files of the report folder.
     pub files: Vec<String>,
 }
@@ -246,24 +254,24 @@ pub fn run(args: RunArgs) -> CliResult {
         *lap = Instant::now();
     };
 
-    eprintln!("[1/6] generating {} candidates per kind on {threads} threads", config.count_per_kind);
+    eprintln!("[1/7] generating {} candidates per kind on {threads} threads", config.count_per_kind);
     let batch = generate(&ScenarioKind::ALL, config.count_per_kind, args.seed, threads);
     let generation = store(&mut library, &ScenarioKind::ALL, &batch).map_err(CliError::runtime)?;
     let mut rng = Rng::derive(args.seed, 0x4D55_5441);
     let mut rounds = Vec::new();
     let mut bar = ProgressBar::default();
     for round in 1..=config.iterations {
-        bar.update("[2/6] mutation rounds (reference driver)", u64::from(round) - 1, u64::from(config.iterations));
+        bar.update("[2/7] mutation rounds (reference driver)", u64::from(round) - 1, u64::from(config.iterations));
         rounds.push(mutation_round(&mut library, &config, round, &mut rng).map_err(CliError::runtime)?);
     }
-    bar.update("[2/6] mutation rounds (reference driver)", 1, 1);
+    bar.update("[2/7] mutation rounds (reference driver)", 1, 1);
     bar.finish();
     mark("generate, score and mutate", &mut lap);
 
     let seeds = training_seeds(args.seed, config.seeds);
     let held_out = HeldOut::new(args.seed, config.eval_per_kind);
     eprintln!(
-        "[3/6] training {} variants × {} seeds × {} steps ({algo}); held-out set: {} scenarios",
+        "[3/7] training {} variants × {} seeds × {} steps ({algo}); held-out set: {} scenarios",
         Variant::ALL.len(),
         seeds.len(),
         config.train_steps,
@@ -281,7 +289,7 @@ pub fn run(args: RunArgs) -> CliResult {
     bar.finish();
     mark("train and evaluate", &mut lap);
 
-    eprintln!("[4/6] re-scoring the top {} scenarios with the trained policies", config.top_k);
+    eprintln!("[4/7] re-scoring the top {} scenarios with the trained policies", config.top_k);
     let top = library.rank(Some(config.top_k), None).map_err(CliError::runtime)?;
     let rescore =
         rescore::rescore(&mut library, &top, &ablation.policies, algo.name(), threads).map_err(CliError::runtime)?;
@@ -296,16 +304,23 @@ pub fn run(args: RunArgs) -> CliResult {
     if recorded.is_some() {
         files.push(recording::FILE.to_string());
     }
+    mark("re-score and recording", &mut lap);
 
-    eprintln!("[5/6] drawing risk fields and charts");
+    let (closed_loop, traffic) = push_phase(&library, &top, &ablation.policies, &config, algo, &out)?;
+    if closed_loop.is_some() {
+        files.push(closed_loop::FILE.to_string());
+        mark("closed loop over Zenoh", &mut lap);
+    }
+
+    eprintln!("[6/7] drawing risk fields and charts");
     let heatmaps = draw_heatmaps(&library, &top, config.heatmaps, &out)?;
     write_png(&out.join("training_curves.png"), &charts::training_curves(&ablation))?;
     write_png(&out.join("ablation.png"), &charts::ablation(&ablation))?;
     files.extend(["training_curves.png".to_string(), "ablation.png".to_string()]);
     files.extend(heatmaps.iter().cloned());
-    mark("re-score, heatmaps and charts", &mut lap);
+    mark("heatmaps and charts", &mut lap);
 
-    eprintln!("[6/6] writing the report to {}", out.display());
+    eprintln!("[7/7] writing the report to {}", out.display());
     let by_kind = summarise(&library).map_err(CliError::runtime)?;
     let verdict = verdict::judge(&ablation);
     let metrics = RunMetrics {
@@ -321,12 +336,14 @@ pub fn run(args: RunArgs) -> CliResult {
         verdict,
         rescore,
         recording: recorded,
+        closed_loop,
         files,
     };
     let json = serde_json::to_string_pretty(&metrics).map_err(CliError::runtime)?;
     std::fs::write(out.join("metrics.json"), json + "\n").map_err(CliError::runtime)?;
     timings.push(("total".to_string(), started.elapsed().as_secs_f64()));
-    std::fs::write(out.join("report.md"), report::markdown(&metrics, &timings)).map_err(CliError::runtime)?;
+    std::fs::write(out.join("report.md"), report::markdown(&metrics, traffic.as_ref(), &timings))
+        .map_err(CliError::runtime)?;
 
     match args.format {
         Format::Json => print_json(&metrics),
@@ -338,6 +355,43 @@ pub fn run(args: RunArgs) -> CliResult {
             println!("report: {}", out.join("report.md").display());
             Ok(())
         }
+    }
+}
+
+type PushPhase = (Option<ClosedLoop>, Option<push_loop::LoopOutput>);
+
+/// Phase 5: the top scenarios and the `full` policy (as saved in the report folder) pushed to an
+/// edge vehicle over Zenoh, in this process.
+fn push_phase(
+    library: &ScenarioLibrary,
+    top: &[RankedScenario],
+    policies: &[(Variant, risktwin_learn::PolicyNet)],
+    config: &RunConfig,
+    algo: Algo,
+    out: &Path,
+) -> CliResult<PushPhase> {
+    let n = config.push_scenarios.min(top.len());
+    let full = policies.iter().find(|(v, _)| *v == Variant::Full);
+    let Some((variant, policy)) = full.filter(|_| n > 0) else {
+        eprintln!("[5/7] closed loop over Zenoh: skipped (push_scenarios {}, no full policy or no top scenario)", n);
+        return Ok((None, None));
+    };
+    eprintln!(
+        "[5/7] closed loop over Zenoh: router, cloud ingest and edge vehicle {}/{} in this process; pushing {n} \
+         scenario(s), then the {variant} policy, then the scenario(s) again",
+        push_loop::SITE,
+        push_loop::VEHICLE
+    );
+    let weights_path = out.join(format!("policy_{variant}.safetensors"));
+    let weights = std::fs::read(&weights_path)
+        .map_err(|e| CliError::runtime(format!("cannot read {}: {e}", weights_path.display())))?;
+    let record = Some(out.join(closed_loop::FILE));
+    let mut progress = |line: &str| eprintln!("      {line}");
+    match closed_loop::push_phase(library, top, n, policy, weights, algo.name(), record, &mut progress)
+        .map_err(CliError::runtime)?
+    {
+        Some((closed, traffic)) => Ok((Some(closed), Some(traffic))),
+        None => Ok((None, None)),
     }
 }
 

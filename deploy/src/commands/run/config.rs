@@ -41,6 +41,9 @@ pub struct RunConfig {
     pub failure_mutations: usize,
     /// Held-out evaluation scenarios per kind.
     pub eval_per_kind: usize,
+    /// Top scenarios (at most `top_k`) pushed over Zenoh to an in-process edge vehicle, before
+    /// and after the `full` policy; 0 skips the closed-loop phase.
+    pub push_scenarios: usize,
 }
 
 impl Default for RunConfig {
@@ -62,6 +65,7 @@ impl Default for RunConfig {
             replay_share: DEFAULT_REPLAY_SHARE,
             failure_mutations: 40,
             eval_per_kind: 12,
+            push_scenarios: 3,
         }
     }
 }
@@ -83,6 +87,7 @@ impl RunConfig {
             background: 8,
             failure_mutations: 8,
             eval_per_kind: 2,
+            push_scenarios: 1,
             ..Self::default()
         }
     }
@@ -127,6 +132,9 @@ impl RunConfig {
         }
         if self.failure_mutations > 100_000 {
             return Err(format!("failure_mutations {} is too large (≤ 100000)", self.failure_mutations));
+        }
+        if self.push_scenarios > 100 {
+            return Err(format!("push_scenarios {} is too large (≤ 100)", self.push_scenarios));
         }
         if !(1..=10_000).contains(&self.eval_per_kind) {
             return Err(format!("eval_per_kind {} is out of range [1, 10000]", self.eval_per_kind));

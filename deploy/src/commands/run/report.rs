@@ -1,7 +1,8 @@
 //! `report.md`: what the run measured, in tables a person reads, the findings computed from the
 //! numbers (see `verdict`), and what the run does not cover.
 
-use super::{RunMetrics, verdict};
+use super::push_loop::LoopOutput;
+use super::{RunMetrics, closed_loop, verdict};
 use risktwin_cloud::trainer::stats::METRIC_NAMES;
 use risktwin_cloud::trainer::{EvalMetrics, EvalSpread, Spread};
 use std::fmt::Write;
@@ -215,11 +216,14 @@ fn library_section(s: &mut String, m: &RunMetrics) {
 
 /// The report; `timings` (what, seconds) are measurements and appear only here, never in
 /// metrics.json.
-pub fn markdown(m: &RunMetrics, timings: &[(String, f64)]) -> String {
+pub fn markdown(m: &RunMetrics, traffic: Option<&LoopOutput>, timings: &[(String, f64)]) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# RiskTwin run (seed {})\n", m.seed);
     ablation_section(&mut s, m);
     library_section(&mut s, m);
+    if let Some(closed) = &m.closed_loop {
+        closed_loop::section(&mut s, closed, traffic);
+    }
     let _ = writeln!(s, "\n## Wall time (this machine; not in metrics.json)\n\n| phase | s |\n|---|---|");
     for (what, secs) in timings {
         let _ = writeln!(s, "| {what} | {secs:.1} |");
@@ -231,12 +235,14 @@ pub fn markdown(m: &RunMetrics, timings: &[(String, f64)]) -> String {
     if let Some(what) = &m.recording {
         let _ = writeln!(s, "\n## Recording\n\n{what}: open it in Foxglove (states, scene boxes, risk grid at 2 Hz).");
     }
-    let _ = writeln!(
-        s,
-        "\n## Not in this run\n\n- Pushing the mutated scenarios and the new policies to edge vehicles over Zenoh \
-         (`risktwin push scenario|policy`) is the distributed loop, shown by the pipeline tests; the embedded run \
-         drives every episode in-process.\n- Files: {}.",
-        m.files.join(", ")
-    );
+    let loop_line = if m.closed_loop.is_some() {
+        "The closed loop above runs every role in this one process on loopback, with one edge vehicle; roles as \
+         separate processes or machines (`risktwin router`, `cloud`, `edge vehicle`, `push scenario|policy`), a \
+         fleet of vehicles and the twin and risk roles on the pushed streams are shown by the pipeline tests."
+    } else {
+        "Pushing scenarios and policies to an edge vehicle over Zenoh (`push_scenarios` is 0, or nothing was \
+         trained to push): shown by the pipeline tests with separate processes."
+    };
+    let _ = writeln!(s, "\n## Not in this run\n\n- {loop_line}\n- Files: {}.", m.files.join(", "));
     s
 }

@@ -1,6 +1,6 @@
 //! `simulate` and `risk-field`: the fields and types cli.md promises, and a readable heatmap.
 
-use crate::support::{GOOD_SPEC, keys, num, ok_json, ok_stdout, uint, write_file};
+use crate::support::{GOOD_SPEC, SIMULATE_KEYS, keys, num, ok_json, ok_stdout, uint, write_file};
 use tempfile::tempdir;
 
 #[test]
@@ -8,20 +8,7 @@ fn simulate_json_has_the_contract_fields() {
     let dir = tempdir().unwrap();
     write_file(dir.path(), "s.json", GOOD_SPEC);
     let m = ok_json(dir.path(), &["simulate", "--spec", "s.json", "--format", "json"]);
-    let mut expected = vec![
-        "collision",
-        "offroad",
-        "success",
-        "route_completion",
-        "avg_speed_mps",
-        "steering_smoothness",
-        "longitudinal_smoothness",
-        "min_ttc_s",
-        "min_distance_m",
-        "risk_score",
-        "reward",
-        "steps",
-    ];
+    let mut expected = SIMULATE_KEYS.to_vec();
     expected.sort_unstable();
     assert_eq!(keys(&m), expected);
     for flag in ["collision", "offroad", "success"] {

@@ -1,7 +1,7 @@
 //! `risktwin risk-field --commonroad` and `risktwin simulate --commonroad`: the risk field over a
 //! real lanelet map, S_risk of the recorded ego, and the recorded scenario re-run in the twin.
 
-use crate::support::{assert_input_error, ok_json, ok_stdout};
+use crate::support::{SIMULATE_KEYS, assert_input_error, ok_json, ok_stdout};
 use std::path::PathBuf;
 use tempfile::tempdir;
 
@@ -66,21 +66,7 @@ fn simulate_replays_or_drives_a_recorded_scenario() {
                 &["simulate", "--commonroad", &xml, "--ego", ego, "--policy", policy, "--format", "json"],
             );
             // cli.md's simulate document, every key.
-            let keys = [
-                "collision",
-                "offroad",
-                "success",
-                "route_completion",
-                "avg_speed_mps",
-                "steering_smoothness",
-                "longitudinal_smoothness",
-                "min_ttc_s",
-                "min_distance_m",
-                "risk_score",
-                "reward",
-                "steps",
-            ];
-            for key in keys {
+            for key in SIMULATE_KEYS {
                 assert!(v.get(key).is_some(), "{name} {policy}: missing {key} in {v}");
             }
             assert!(v["steps"].as_u64().unwrap() > 0, "{name} {policy}: {v}");

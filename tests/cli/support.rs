@@ -88,6 +88,22 @@ pub fn rank(dir: &Path, db: &str) -> Vec<Value> {
     }
 }
 
+/// The keys of cli.md's `simulate` JSON document.
+pub const SIMULATE_KEYS: [&str; 12] = [
+    "collision",
+    "offroad",
+    "success",
+    "route_completion",
+    "avg_speed_mps",
+    "steering_smoothness",
+    "longitudinal_smoothness",
+    "min_ttc_s",
+    "min_distance_m",
+    "risk_score",
+    "reward",
+    "steps",
+];
+
 /// The keys of a JSON object, sorted.
 pub fn keys(v: &Value) -> Vec<&str> {
     let mut k: Vec<&str> =

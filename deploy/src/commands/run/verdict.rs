@@ -9,7 +9,7 @@
 //! let a noisy comparison pass. A collision difference no larger than one seed standard
 //! deviation (the larger of the two variants') is reported as within seed noise.
 
-use risktwin_cloud::trainer::{AblationReport, Spread};
+use risktwin_cloud::trainer::{AblationReport, EvalSpread, Spread};
 use risktwin_common::env::Variant;
 use risktwin_common::scenario::ScenarioKind;
 use serde::Serialize;
@@ -112,7 +112,7 @@ pub fn judge(ab: &AblationReport) -> Option<Verdict> {
         if wins.is_empty() { "no kind".to_string() } else { wins.join(", ") },
         if losses.is_empty() { "no kind".to_string() } else { losses.join(", ") }
     ));
-    let ended = |e: &risktwin_cloud::trainer::EvalSpread| {
+    let ended = |e: &EvalSpread| {
         format!(
             "{:.2} success, {:.2} collision, {:.2} off the road, {:.2} out of time",
             e.success_rate.mean, e.collision_rate.mean, e.offroad_rate.mean, e.timeout_rate.mean

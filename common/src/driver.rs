@@ -30,6 +30,11 @@ pub trait Policy {
     fn act(&mut self, view: &DriverView) -> Controls;
 }
 
+/// How far ahead a driver at `speed_mps` looks for bends: 10 m + 3 s of travel.
+pub fn braking_preview_m(speed_mps: f64) -> f64 {
+    10.0 + 3.0 * speed_mps.max(0.0)
+}
+
 /// The nearest perceived object in a lane ahead of (or behind) the ego.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Neighbour {
@@ -152,14 +157,7 @@ impl ReferenceDriver {
 
     /// Desired speed lowered for the sharpest bend within the braking preview.
     fn bend_speed(&self, road: &Road, lane: LaneId, s: f64, v: f64) -> f64 {
-        let l = road.lane(lane);
-        let preview_m = 10.0 + 3.0 * v;
-        let mut kappa: f64 = 0.0;
-        let mut d = 0.0;
-        while d <= preview_m {
-            kappa = kappa.max(l.curvature_at(s + d).abs());
-            d += 5.0;
-        }
+        let kappa = road.lane(lane).sharpest_curvature_ahead(s, braking_preview_m(v)).abs();
         if kappa > 1e-6 {
             self.idm.desired_speed_mps.min((self.comfort_lat_accel_mps2 / kappa).sqrt())
         } else {

@@ -19,18 +19,28 @@
 //! | 9 | ρ_TTC | min(1, 2 s / TTC) to the front object at constant speeds, 0 when not closing | as is |
 //! | 10 | v_ref | desired speed (extension: the reward's target) | / 20 m/s |
 //! | 11 | κ | lane curvature at the ego (extension: bends) | × 25 m |
+//! | 12 | κ_ahead | the sharpest lane curvature within the braking preview 10 m + 3 s·v ahead, signed (extension: what the reference driver slows for) | × 25 m |
+//! | 13 | μ | road friction under the ego (extension: the twin's friction estimate) | as is |
+//! | 14, 19 | lane_L, lane_R | 1 when a lane exists to the left / right, else 0 (extension: room to pass) | as is |
+//! | 15, 20 | d_f | gap to the nearest perceived object ahead in that lane, 1 when none or no lane | / 100 m, ≤ 1 |
+//! | 16, 21 | Δv_f | closing speed to it, 0 when none | / 10 m/s |
+//! | 17, 22 | d_r | gap to the nearest perceived object behind in that lane, 1 when none or no lane | / 100 m, ≤ 1 |
+//! | 18, 23 | Δv_r | its closing speed (its along-lane speed minus the ego's), 0 when none | / 10 m/s |
+//!
+//! The side-lane features let a policy pass a stopped or slow car (the reference driver does
+//! so with MOBIL); without them a lane change is blind.
 //!
 //! Actions are three numbers in [−1, 1]: steering δ = a₀·[`STEER_SCALE_RAD`] (a servo command,
 //! rate-limited by the actuator), throttle = max(a₁, 0), brake = max(a₂, 0). A zero action is
 //! "straight, coast"; both pedals at once give their sum, as on the vehicle.
 
-use crate::driver::DriverView;
+use crate::driver::{DriverView, braking_preview_m};
 use crate::geometry::{Vec2, wrap_angle};
 use crate::risk::{EgoKinematics, FieldObject, RiskFieldParams, field::footprint_samples};
 use crate::vehicle::Controls;
 
 /// Length of the observation vector.
-pub const OBS_DIM: usize = 12;
+pub const OBS_DIM: usize = 24;
 /// Length of the action vector: steering, throttle, brake.
 pub const ACT_DIM: usize = 3;
 /// Steering angle at a₀ = ±1, rad: twice what the tightest bend (κ = 0.04 1/m) needs, and
@@ -75,25 +85,57 @@ impl Default for Observer {
     }
 }
 
-/// Front object in the ego lane: gap and closing speed.
-fn front_object(view: &DriverView, lane: usize, s_ego_m: f64) -> Option<(f64, f64)> {
-    let l = view.road.lane(lane);
-    let half_w = 0.5 * l.width_m;
-    let ego_half_len = 0.5 * view.ego_footprint.length_m;
-    let mut best: Option<(f64, f64)> = None;
-    for o in view.perceived {
-        let f = l.project(o.obb.centre);
-        let half_len = o.obb.half_length_m.max(o.obb.half_width_m);
-        if f.s_m < s_ego_m || f.e_y_m.abs() - o.obb.half_width_m.min(o.obb.half_length_m) > half_w {
-            continue;
+/// The nearest perceived objects ahead and behind in one lane: (gap, closing speed) each.
+#[derive(Debug, Clone, Copy, Default)]
+struct LaneGaps {
+    front: Option<(f64, f64)>,
+    rear: Option<(f64, f64)>,
+}
+
+impl LaneGaps {
+    /// Scans `view.perceived` for objects in `lane` around the ego at arc length `s_ego_m`.
+    /// An object overlapping the ego lengthwise counts as ahead (or behind) at gap 0.
+    fn scan(view: &DriverView, lane: usize, s_ego_m: f64) -> Self {
+        let l = view.road.lane(lane);
+        let half_w = 0.5 * l.width_m;
+        let ego_half_len = 0.5 * view.ego_footprint.length_m;
+        let mut out = LaneGaps::default();
+        for o in view.perceived {
+            let f = l.project(o.obb.centre);
+            if f.e_y_m.abs() - o.obb.half_width_m.min(o.obb.half_length_m) > half_w {
+                continue;
+            }
+            let half_len = o.obb.half_length_m.max(o.obb.half_width_m);
+            let along_mps = o.velocity.dot(&Vec2::new(f.lane_heading_rad.cos(), f.lane_heading_rad.sin()));
+            if f.s_m >= s_ego_m {
+                let gap_m = (f.s_m - half_len - s_ego_m - ego_half_len).max(0.0);
+                if out.front.is_none_or(|b| gap_m < b.0) {
+                    out.front = Some((gap_m, view.ego_speed_mps - along_mps));
+                }
+            } else {
+                let gap_m = (s_ego_m - ego_half_len - f.s_m - half_len).max(0.0);
+                if out.rear.is_none_or(|b| gap_m < b.0) {
+                    out.rear = Some((gap_m, along_mps - view.ego_speed_mps));
+                }
+            }
         }
-        let gap_m = (f.s_m - half_len - s_ego_m - ego_half_len).max(0.0);
-        if best.is_none_or(|b| gap_m < b.0) {
-            let dir = Vec2::new(f.lane_heading_rad.cos(), f.lane_heading_rad.sin());
-            best = Some((gap_m, view.ego_speed_mps - o.velocity.dot(&dir)));
-        }
+        out
     }
-    best
+}
+
+/// (gap, closing) as features: gap / range capped at 1 and 1 when none; closing / scale, 0 when none.
+fn gap_features(g: Option<(f64, f64)>) -> (f64, f64) {
+    g.map_or((1.0, 0.0), |(gap, closing)| ((gap / FRONT_RANGE_M).min(1.0), closing / CLOSING_SCALE_MPS))
+}
+
+/// Features 14–18 (or 19–23) for the lane beside the ego, if any.
+fn side_lane_features(view: &DriverView, side: Option<usize>) -> [f64; 5] {
+    let Some(lane) = side else { return [0.0, 1.0, 0.0, 1.0, 0.0] };
+    let s_m = view.road.lane(lane).project(view.ego_pose.position()).s_m;
+    let gaps = LaneGaps::scan(view, lane, s_m);
+    let (d_f, dv_f) = gap_features(gaps.front);
+    let (d_r, dv_r) = gap_features(gaps.rear);
+    [1.0, d_f, dv_f, d_r, dv_r]
 }
 
 impl Observer {
@@ -110,7 +152,7 @@ impl Observer {
         let at = view.road.locate_heading(pose.position(), pose.heading_rad);
         let lane = view.road.lane(at.lane);
         let e_psi = wrap_angle(pose.heading_rad - at.frenet.lane_heading_rad);
-        let (d_f, dv_f, rho_ttc) = match front_object(view, at.lane, at.frenet.s_m) {
+        let (d_f, dv_f, rho_ttc) = match LaneGaps::scan(view, at.lane, at.frenet.s_m).front {
             Some((gap, closing)) => {
                 let ttc = if closing > 1e-6 { gap / closing } else { f64::INFINITY };
                 ((gap / FRONT_RANGE_M).min(1.0), closing / CLOSING_SCALE_MPS, (TTC_REF_S / ttc).min(1.0))
@@ -144,8 +186,12 @@ impl Observer {
             rho_ttc,
             desired_speed_mps / SPEED_SCALE_MPS,
             lane.curvature_at(at.frenet.s_m) * CURVATURE_SCALE_M,
+            lane.sharpest_curvature_ahead(at.frenet.s_m, braking_preview_m(view.ego_speed_mps)) * CURVATURE_SCALE_M,
+            view.road.friction_at(pose.position()),
         ];
-        for (o, f) in out.iter_mut().zip(features) {
+        let left = side_lane_features(view, lane.left);
+        let right = side_lane_features(view, lane.right);
+        for (o, f) in out.iter_mut().zip(features.into_iter().chain(left).chain(right)) {
             // Clamped so a far off-road state cannot feed huge numbers to the network.
             *o = f.clamp(-10.0, 10.0) as f32;
         }

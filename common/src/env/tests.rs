@@ -46,6 +46,40 @@ fn observations_are_finite_and_scaled() {
     assert!(obs[3].abs() < 0.05 && obs[4].abs() < 0.05, "starts centred and aligned: {obs:?}");
 }
 
+/// A slippery bend with a lead ahead in the ego lane and an empty lane beside it: the
+/// preview, friction and side-lane features say so.
+#[test]
+fn observations_show_the_bend_ahead_the_friction_and_the_free_lane_beside() {
+    let s = spec(
+        ScenarioKind::LowFriction,
+        &[
+            ("curvature_1pm", 0.02),
+            ("entry_speed_mps", 18.0),
+            ("friction_mu", 0.3),
+            ("lead_decel_mps2", 0.0),
+            ("lead_gap_m", 30.0),
+        ],
+    );
+    let mut obs = [0.0; OBS_DIM];
+    let mut env = DrivingEnv::new(&s, Variant::Base.weights(), &mut obs);
+    // The ego starts 50 m before the bend, within its 10 m + 3 s × 18 m/s preview.
+    assert!(obs[11].abs() < 1e-6, "straight lead-in under the ego: {obs:?}");
+    assert!((obs[12].abs() - 0.02 * 25.0).abs() < 1e-3, "the bend ahead: {obs:?}");
+    let dry = env.world().road.friction_at(env.world().ego.pose().position());
+    assert!(dry > 0.5 && (obs[13] as f64 - dry).abs() < 1e-6, "dry lead-in: {obs:?}");
+    assert!((0.25..0.35).contains(&obs[5]), "the lead 30 m ahead, bumper to bumper: {}", obs[5]);
+    let (left, right) = (&obs[14..19], &obs[19..24]);
+    assert_eq!(left[0] + right[0], 1.0, "two lanes: exactly one beside the ego: {obs:?}");
+    let (beside, other) = if left[0] == 1.0 { (left, right) } else { (right, left) };
+    assert_eq!(beside, [1.0, 1.0, 0.0, 1.0, 0.0], "the lane beside is empty");
+    assert_eq!(other, [0.0, 1.0, 0.0, 1.0, 0.0], "no lane on the other side");
+    // Past the start of the patch (60 m) the observation carries its μ.
+    while env.world().time_s < 3.0 {
+        env.step(&keep_lane(&obs), &mut obs);
+    }
+    assert!((obs[13] - 0.3).abs() < 1e-6, "on the patch: {obs:?}");
+}
+
 #[test]
 fn full_throttle_into_a_braking_lead_collides_and_terminates() {
     let mut obs = [0.0; OBS_DIM];

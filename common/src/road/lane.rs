@@ -123,6 +123,21 @@ impl Lane {
         let ds = 0.5 * (self.cum_s[(i + 1).min(self.cum_s.len() - 1)] - self.cum_s[i - 1]);
         if ds > 0.0 { wrap_angle(h1 - h0) / ds } else { 0.0 }
     }
+
+    /// The sharpest signed curvature within `preview_m` ahead of `s_m`, sampled every 5 m: the
+    /// bend a driver must slow down for (the reference driver's preview, and the policies').
+    pub fn sharpest_curvature_ahead(&self, s_m: f64, preview_m: f64) -> f64 {
+        let mut sharpest = 0.0f64;
+        let mut d = 0.0;
+        while d <= preview_m {
+            let k = self.curvature_at(s_m + d);
+            if k.abs() > sharpest.abs() {
+                sharpest = k;
+            }
+            d += 5.0;
+        }
+        sharpest
+    }
 }
 
 #[cfg(test)]

@@ -134,6 +134,7 @@ impl PushSummary {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use risktwin_common::env::OBS_DIM;
     use risktwin_common::net::PolicyKind;
     use risktwin_common::scenario::ScenarioKind;
     use risktwin_common::telemetry::{Frame, Header};
@@ -177,9 +178,10 @@ mod tests {
         assert!(log.policy(&policy(2, "sac", weights())).is_none(), "a ppo file pushed as sac");
         // A file whose observation width is not this build's: refused, never a panic.
         let mut wide = weights();
-        let key = br#""obs_dim":"12""#;
+        let key = format!(r#""obs_dim":"{OBS_DIM}""#).into_bytes();
         let at = wide.windows(key.len()).position(|w| w == key).expect("the metadata holds obs_dim");
-        wide[at + key.len() - 2] = b'3';
+        // Same length, another width: the last digit changed.
+        wide[at + key.len() - 2] ^= 1;
         assert!(log.policy(&policy(2, "ppo", wide)).is_none(), "wrong observation width");
         let sac = crate::scene::tests::policy_file(PolicyKind::Squashed, &[0.0; 6]);
         assert!(log.policy(&policy(3, "sac", sac)).is_some());

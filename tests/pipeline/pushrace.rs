@@ -48,18 +48,7 @@ fn a_push_waits_for_an_edge_that_comes_up_after_it_despite_the_ingest_subscriber
     push.wait_line(STEP, |l| l.starts_with("push: waiting up to 60 s for edge track/veh-late"));
     let mut vehicle = Proc::spawn(
         "veh",
-        &[
-            "edge",
-            "vehicle",
-            "--id",
-            "veh-late",
-            "--site",
-            "track",
-            "--connect",
-            &locator,
-            "--rate-hz",
-            "500",
-        ],
+        &["edge", "vehicle", "--id", "veh-late", "--site", "track", "--connect", &locator, "--rate-hz", "500"],
     );
 
     let pushed: Value = push.exit_json(STEP);

@@ -1,8 +1,8 @@
 //! Cloud→edge pushes (`risktwin push scenario|policy`): one message on the edge's own push key
 //! (`risktwin/v1/<site>/<id>/{scenario,policy}`), reliable, sent only once the edge is up — its
 //! liveliness token visible, which implies its push subscriber (Zenoh drops what nobody
-//! subscribes to); for a scenario, the edge's
-//! `ScenarioResult` with the same `spec_id` is then awaited on `…/<id>/scenario_result`.
+//! subscribes to); for a scenario, the edge's `ScenarioResult` with the same `spec_id` is then
+//! awaited on `…/<id>/scenario_result`.
 
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;

@@ -149,7 +149,6 @@ pub async fn run_producer(
         opened = connect(&config.transport) => opened?,
         _ = stop.wait() => return Ok(SentSummary::new(config, streams.iter().map(|s| (*s, 0)))),
     };
-    let token = declare_alive(&session, &config.site, &config.id).await?;
     let mut publishers = Vec::with_capacity(streams.len());
     for stream in &streams {
         publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, *stream).await?);
@@ -164,6 +163,16 @@ pub async fn run_producer(
         })?;
         push_subscribers.push((push, subscriber));
     }
+    // The token comes after the push subscribers: a cloud pushing to this edge waits for the
+    // token (cloud/src/transport/push.rs), and seeing it must mean the subscribers exist. Zenoh
+    // 1.10 sends every declaration of a session (subscriber, token) at the same `Control`
+    // priority, hence in declaration order over each link, and each node's routing tables apply
+    // and forward a face's declarations in arrival order; a link that comes up later (a peer met
+    // through gossip) is sent the existing subscribers before the tokens (hat/peer/mod.rs,
+    // `new_transport_unicast_face`). So wherever the token is seen, the subscribers reached the
+    // same node first. The cloud's edge watcher (cloud/src/transport/edges.rs) only declares
+    // this edge's stream keys on a token, an optimisation that works whenever it comes.
+    let token = declare_alive(&session, &config.site, &config.id).await?;
     let mut report_publishers: Vec<(EdgeReport, Publisher<'static>)> = Vec::new();
     let mut reports = Vec::new();
     for publisher in &publishers {

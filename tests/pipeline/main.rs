@@ -12,6 +12,7 @@ mod fleet;
 #[path = "../interop/peer_python.rs"]
 mod peer_python;
 mod policyloop;
+mod pushrace;
 mod python_zenoh;
 mod shm_gateway;
 mod support;

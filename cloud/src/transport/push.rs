@@ -1,14 +1,16 @@
 //! Cloud→edge pushes (`risktwin push scenario|policy`): one message on the edge's own push key
-//! (`risktwin/v1/<site>/<id>/{scenario,policy}`), reliable, sent only once the edge's
-//! subscriber is there (Zenoh drops what nobody subscribes to); for a scenario, the edge's
-//! `ScenarioResult` with the same `spec_id` is then awaited on `…/<id>/scenario_result`.
+//! (`risktwin/v1/<site>/<id>/{scenario,policy}`), reliable, sent only once the edge is up — its
+//! liveliness token visible, which implies its push subscriber (Zenoh drops what nobody
+//! subscribes to); for a scenario, the edge's `ScenarioResult` with the same `spec_id` is then
+//! awaited on `…/<id>/scenario_result`.
 
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{Frame, Header, PolicyRef, PolicyUpdate, ScenarioPush, ScenarioResult};
 use risktwin_protos::{decode, encode};
-use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report};
+use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report, liveliness_token};
+use risktwin_transport::stream::watch_edge_alive;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::handlers::FifoChannelHandler;
 use risktwin_transport::zenoh::pubsub::Subscriber;
@@ -18,12 +20,13 @@ use risktwin_transport::{Shutdown, SiteId, SourceId, TransportConfig, TransportE
 use serde::Serialize;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use thiserror::Error;
+use tokio::sync::watch;
 
 /// Why a push failed.
 #[derive(Debug, Error)]
 pub enum PushError {
     #[error(
-        "edge {target} did not subscribe to {key} within {waited_s} s (is `risktwin edge vehicle --id {target}` running?)"
+        "edge {target} was not up (liveliness token and subscriber of {key}) within {waited_s} s (is `risktwin edge vehicle --id {target}` running?)"
     )]
     NoEdge { target: String, key: String, waited_s: f64 },
     #[error("edge {target} sent no result for scenario {spec_id} within {waited_s} s")]
@@ -76,10 +79,18 @@ fn declare_err(what: &'static str, key: &str) -> impl FnOnce(risktwin_transport:
     move |e| TransportError::Declare { what, key, reason: e.to_string() }
 }
 
-/// Publishes `payload` on `target`'s `push` key once the edge subscribes.
+/// Publishes `payload` on `target`'s `push` key once the edge is there: its liveliness token
+/// is visible and the key's publisher matches.
+///
+/// Matching alone is not enough: a cloud ingest role's wildcard subscription
+/// (`risktwin/v1/<site>/*/*`) matches the push keys too, so the publisher can match before the
+/// edge has subscribed, and the push would be lost. The edge declares its push subscribers
+/// before its token (edge/src/publish.rs), and Zenoh carries one session's declarations in
+/// order, so a visible token means the subscribers are declared along the same path.
 async fn deliver(
     session: &Session,
     target: &PushTarget,
+    alive: &watch::Receiver<bool>,
     push: CloudToEdge,
     payload: Vec<u8>,
     mut shutdown: Shutdown,
@@ -91,27 +102,40 @@ async fn deliver(
         .await
         .map_err(declare_err("publisher", &key))?;
     let listener = publisher.matching_listener().await.map_err(declare_err("matching listener", &key))?;
-    let matched = publisher.matching_status().await.map_err(declare_err("matching status", &key))?.matching();
-    if !matched {
-        let wait = async {
-            while let Ok(status) = listener.recv_async().await {
-                if status.matching() {
-                    return true;
-                }
-            }
-            false
-        };
-        let found = tokio::select! {
-            m = tokio::time::timeout(target.wait_for_edge, wait) => m.unwrap_or(false),
-            () = shutdown.wait() => return Err(PushError::Interrupted),
-        };
-        if !found {
-            return Err(PushError::NoEdge {
-                target: target.edge.to_string(),
-                key,
-                waited_s: target.wait_for_edge.as_secs_f64(),
-            });
+    if !*alive.borrow() {
+        eprintln!(
+            "push: waiting up to {} s for edge {}/{} to come up",
+            target.wait_for_edge.as_secs_f64(),
+            target.site,
+            target.edge
+        );
+    }
+    let mut alive = alive.clone();
+    let reachable = async {
+        if alive.wait_for(|up| *up).await.is_err() {
+            return Ok(false);
         }
+        // The status is read after the listener exists, so that no change falls between them.
+        if publisher.matching_status().await.map_err(declare_err("matching status", &key))?.matching() {
+            return Ok(true);
+        }
+        while let Ok(status) = listener.recv_async().await {
+            if status.matching() {
+                return Ok(true);
+            }
+        }
+        Ok::<_, TransportError>(false)
+    };
+    let found = tokio::select! {
+        m = tokio::time::timeout(target.wait_for_edge, reachable) => m.unwrap_or(Ok(false))?,
+        () = shutdown.wait() => return Err(PushError::Interrupted),
+    };
+    if !found {
+        return Err(PushError::NoEdge {
+            target: target.edge.to_string(),
+            key,
+            waited_s: target.wait_for_edge.as_secs_f64(),
+        });
     }
     publisher.put(payload).await.map_err(|e| TransportError::Put { key: key.clone(), reason: e.to_string() })?;
     publisher.undeclare().await.map_err(declare_err("undeclare", &key))?;
@@ -127,17 +151,21 @@ pub struct EdgeLink {
     target: PushTarget,
     result_key: String,
     results: Subscriber<FifoChannelHandler<Sample>>,
+    /// Whether the edge's liveliness token exists, kept current by `alive_watch`.
+    alive: watch::Receiver<bool>,
+    alive_watch: Subscriber<()>,
 }
 
 impl EdgeLink {
-    /// Opens the session and subscribes to the edge's results.
+    /// Opens the session, subscribes to the edge's results and watches its liveliness token.
     pub async fn open(target: &PushTarget) -> Result<Self, PushError> {
         let session = connect(&target.transport).await?;
         let result_key = edge_report(&target.site, &target.edge, EdgeReport::ScenarioResult);
         // Subscribed before any push goes out, so that a quick result cannot be missed.
         let results =
             session.declare_subscriber(result_key.clone()).await.map_err(declare_err("subscriber", &result_key))?;
-        Ok(EdgeLink { session, target: target.clone(), result_key, results })
+        let (alive_watch, alive) = watch_edge_alive(&session, &target.site, &target.edge).await?;
+        Ok(EdgeLink { session, target: target.clone(), result_key, results, alive, alive_watch })
     }
 
     /// Pushes `spec` (library id `spec_id`) and waits up to `wait_for_result` for its outcome
@@ -151,7 +179,7 @@ impl EdgeLink {
     ) -> Result<ScenarioPushReport, PushError> {
         let target = &self.target;
         let push = ScenarioPush { header: header(0), spec_id: spec_id.to_owned(), spec: spec.clone() };
-        deliver(&self.session, target, CloudToEdge::Scenario, encode(&push), shutdown.clone()).await?;
+        deliver(&self.session, target, &self.alive, CloudToEdge::Scenario, encode(&push), shutdown.clone()).await?;
         eprintln!("pushed scenario {spec_id} to {}/{}", target.site, target.edge);
         let wait = async {
             while let Ok(sample) = self.results.recv_async().await {
@@ -199,7 +227,7 @@ impl EdgeLink {
             algo: algo.to_owned(),
             weights,
         };
-        deliver(&self.session, &self.target, CloudToEdge::Policy, encode(&update), shutdown).await?;
+        deliver(&self.session, &self.target, &self.alive, CloudToEdge::Policy, encode(&update), shutdown).await?;
         Ok(PolicyPushReport {
             site: self.target.site.to_string(),
             edge: self.target.edge.to_string(),
@@ -209,8 +237,10 @@ impl EdgeLink {
         })
     }
 
-    /// Undeclares the result subscriber and closes the session.
+    /// Undeclares the subscribers and closes the session.
     pub async fn close(self) -> Result<(), PushError> {
+        let alive_key = liveliness_token(&self.target.site, &self.target.edge);
+        self.alive_watch.undeclare().await.map_err(declare_err("undeclare", &alive_key))?;
         self.results.undeclare().await.map_err(declare_err("undeclare", &self.result_key))?;
         close(self.session).await?;
         Ok(())

@@ -34,7 +34,7 @@ pub struct PushTo {
     pub site: String,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
-    /// Seconds to wait for the edge to subscribe.
+    /// Seconds to wait for the edge to come up (its liveliness token and push subscriber).
     #[arg(long, default_value_t = 10.0)]
     pub wait_for_edge_s: f64,
 }

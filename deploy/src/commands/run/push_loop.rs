@@ -9,10 +9,9 @@
 //!
 //! Order: each scenario pushed under the edge's reference driver, then the policy update, then
 //! each scenario again, through one cloud session ([`EdgeLink`]). Every wait is bounded and on a
-//! real event (the router's listening callback, the ingest's ready callback, the edge's first
-//! state message arriving through the router, the edge's push subscriber matching, the edge
-//! accepting the policy, the `ScenarioResult` arriving); any failure shuts every role down and
-//! comes back as an error.
+//! real event (the router's listening callback, the ingest's ready callback, the edge's
+//! liveliness token and push subscriber matching, the edge accepting the policy, the
+//! `ScenarioResult` arriving); any failure shuts every role down and comes back as an error.
 
 use risktwin_cloud::transport::push::{EdgeLink, PushTarget, ScenarioPushReport};
 use risktwin_cloud::transport::{CloudConfig, CloudSummary};
@@ -21,10 +20,10 @@ use risktwin_edge::publish::run_producer;
 use risktwin_edge::vehicle::push::{PolicyLine, PushSummary};
 use risktwin_edge::vehicle::{Vehicle, VehicleSummary};
 use risktwin_edge::{EdgeConfig, EdgeError, Producer, Stamper};
-use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, edge_stream};
+use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport};
 use risktwin_transport::router::RouterConfig;
 use risktwin_transport::shutdown::channel;
-use risktwin_transport::{EdgeStream, Mode, Shutdown, SiteId, SourceId, TransportConfig, close, connect};
+use risktwin_transport::{EdgeStream, Mode, Shutdown, SiteId, SourceId, TransportConfig};
 use std::future::Future;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -162,7 +161,7 @@ async fn roles(request: &LoopRequest, progress: &mut dyn FnMut(&str)) -> Result<
     };
     progress(&format!("router on {locator}"));
     // Clients of the router: no session listens, and every message goes through the router,
-    // in order per link (which `edge_reachable` relies on).
+    // in order per link (which waiting for the edge's liveliness token before a push relies on).
     let transport =
         TransportConfig { mode: Mode::Client, connect: vec![locator.clone()], ..TransportConfig::default() };
     let site = SiteId::new(SITE).map_err(|e| e.to_string())?;
@@ -276,8 +275,9 @@ async fn pushes(
 ) -> Result<Pushed, String> {
     // Nothing interrupts the pushes but their own bounds (Ctrl-C ends the whole run).
     let (_never, shutdown) = channel();
-    edge_reachable(target).await?;
-    // One cloud session for every push, its result subscriber declared once.
+    // One cloud session for every push, its result subscriber declared once; each push waits
+    // for the edge's liveliness token, which the edge declares after its push subscribers (the
+    // ingest role's wildcard subscription makes matching status alone unreliable).
     let link = EdgeLink::open(target).await.map_err(|e| format!("closed loop: cloud push session: {e}"))?;
     let pushed = push_rounds(request, &link, &shutdown, &mut seen, progress).await;
     let closed = link.close().await.map_err(|e| format!("closed loop: closing the cloud push session: {e}"));
@@ -320,34 +320,6 @@ async fn push_rounds(
     progress(&format!("edge drives with policy {} version {}", held.policy_id, held.version));
     let by_policy = push_all(request, link, shutdown, progress, "pushed policy").await?;
     Ok(Pushed { by_reference, by_policy, held })
-}
-
-/// Waits for the edge's first `state` message to arrive through the router. The edge declares
-/// its push subscribers before it publishes anything, on the same link, so once the router has
-/// forwarded a state message it routes pushes to the edge. Matching status alone is not enough
-/// here: the ingest role's wildcard subscription (`risktwin/v1/<site>/*/*`) also matches the push
-/// keys, so a push publisher matches before the edge has subscribed and its message is lost.
-async fn edge_reachable(target: &PushTarget) -> Result<(), String> {
-    let key = edge_stream(&target.site, &target.edge, EdgeStream::State);
-    let fail = |e: &dyn std::fmt::Display| format!("closed loop: waiting for the edge's state on {key}: {e}");
-    let session = connect(&target.transport).await.map_err(|e| fail(&e))?;
-    // A callback that only hands the first sample on: a bounded channel filling up would block
-    // Zenoh's receive path, and with it (reliable, blocking publishers) the edge.
-    let (first_tx, first_rx) = oneshot::channel();
-    let first_tx = std::sync::Mutex::new(Some(first_tx));
-    let states = session
-        .declare_subscriber(key.clone())
-        .callback(move |_| {
-            if let Some(tx) = first_tx.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take() {
-                let _ = tx.send(());
-            }
-        })
-        .await
-        .map_err(|e| fail(&e))?;
-    let first = bounded("the edge vehicle published nothing", WAIT, first_rx).await;
-    states.undeclare().await.map_err(|e| fail(&e))?;
-    close(session).await.map_err(|e| fail(&e))?;
-    first?.map_err(|e| fail(&e))
 }
 
 /// Pushes every scenario of `request` in turn, each awaiting its result (for a few times the

@@ -55,7 +55,7 @@ impl Default for RunConfig {
             mutation_radius: 0.1,
             top_k: 10,
             heatmaps: 3,
-            train_steps: 196_608,
+            train_steps: 589_824,
             seeds: 3,
             n_envs: 32,
             phases: 4,

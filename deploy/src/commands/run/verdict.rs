@@ -118,17 +118,28 @@ pub fn judge(ab: &AblationReport) -> Option<Verdict> {
             e.success_rate.mean, e.collision_rate.mean, e.offroad_rate.mean, e.timeout_rate.mean
         )
     };
-    s.push(format!(
-        "How the held-out episodes ended — full: {}; base: {}.{}",
-        ended(f),
-        ended(b),
-        if f.timeout_rate.mean > b.timeout_rate.mean && !completion_equal_or_better {
-            " Full turns crashes into episodes that end at the horizon short of the route's end: it drives too \
-             slowly rather than unsafely."
+    // Where full's avoided crashes went: the non-collision failures it has more of than base.
+    let mut more = Vec::new();
+    if f.offroad_rate.mean > b.offroad_rate.mean {
+        more.push(format!("off the road ({:.2} vs {:.2})", f.offroad_rate.mean, b.offroad_rate.mean));
+    }
+    if f.timeout_rate.mean > b.timeout_rate.mean {
+        more.push(format!(
+            "out of time short of the route's end ({:.2} vs {:.2})",
+            f.timeout_rate.mean, b.timeout_rate.mean
+        ));
+    }
+    let trade = if f.collision_rate.mean < b.collision_rate.mean && !completion_equal_or_better && !more.is_empty() {
+        let slow = if more.len() == 1 && f.timeout_rate.mean > b.timeout_rate.mean {
+            ": it drives too slowly rather than unsafely"
         } else {
             ""
-        }
-    ));
+        };
+        format!(" Full trades crashes for episodes that end {}{slow}.", more.join(" and "))
+    } else {
+        String::new()
+    };
+    s.push(format!("How the held-out episodes ended — full: {}; base: {}.{trade}", ended(f), ended(b)));
     if let Some(r) = ab.variant(Variant::RiskOnly) {
         let rc = r.overall.collision_rate.mean;
         s.push(format!(

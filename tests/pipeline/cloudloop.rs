@@ -3,7 +3,7 @@
 //! library queryable answering a real Zenoh get. The test's own Zenoh session (a peer connected
 //! to the router) subscribes, publishes bad pushes and queries.
 
-use crate::support::{Proc, start_router};
+use crate::support::{Proc, cut_in_library, run_json, start_router};
 use prost::Message;
 use risktwin_common::telemetry::RiskReport;
 use risktwin_protos::foxglove::Grid;
@@ -28,10 +28,6 @@ async fn session(router: &str) -> Session {
 }
 
 /// The JSON of a finished `risktwin …` run that must succeed.
-fn run_json(args: &[&str]) -> Value {
-    Proc::spawn(args[0], args).exit_json(STEP)
-}
-
 #[test]
 fn twin_and_risk_publish_and_record_grid_report_and_scene() {
     let (router, locator) = start_router();
@@ -130,19 +126,11 @@ print(json.dumps(counts))
     assert_eq!(decoded["foxglove.Grid"].as_u64(), Some(assessments));
 }
 
-/// A library with a few evaluated cut-ins; returns the path and the ranking as the CLI prints it.
-fn library(dir: &std::path::Path) -> (String, Value) {
-    let db = dir.join("lib.db").to_str().expect("a UTF-8 path").to_owned();
-    run_json(&["scenarios", "generate", "--kind", "cut-in", "--count", "6", "--db", &db, "--format", "json"]);
-    let ranked = run_json(&["scenarios", "rank", "--db", &db, "--kind", "cut-in", "--format", "json"]);
-    (db, ranked)
-}
-
 #[test]
 fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
     let (router, locator) = start_router();
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let (db, ranked) = library(dir.path());
+    let (db, ranked) = cut_in_library(dir.path(), 6);
     let id = ranked[0]["id"].as_str().expect("a ranked id").to_owned();
 
     // 10× real time, so that a 15 s episode plays in 1.5 s; no cloud, so no waiting for one.
@@ -255,7 +243,7 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
 fn the_library_queryable_answers_a_zenoh_get() {
     let (router, locator) = start_router();
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let (db, ranked) = library(dir.path());
+    let (db, ranked) = cut_in_library(dir.path(), 6);
     let mut cloud = Proc::spawn("cloud", &["cloud", "--roles", "library", "--db", &db, "--connect", &locator]);
     cloud.wait_line(STEP, |l| l == "ready");
 

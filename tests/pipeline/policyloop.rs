@@ -5,7 +5,7 @@
 //! driven by that policy version (the result says which), and its streams, found in the
 //! recording by their sequence numbers, trace a different trajectory.
 
-use crate::support::{Proc, start_router};
+use crate::support::{Proc, cut_in_library, run_json, start_router};
 use risktwin_common::telemetry::VehicleStateSample;
 use risktwin_protos::decode;
 use risktwin_protos::recording::read_messages;
@@ -13,10 +13,6 @@ use serde_json::Value;
 use std::time::Duration;
 
 const STEP: Duration = Duration::from_secs(60);
-
-fn run_json(args: &[&str]) -> Value {
-    Proc::spawn(args[0], args).exit_json(STEP)
-}
 
 /// The ego trajectory (x, y) of the `state` messages numbered `first..=last`, in order.
 fn trajectory(states: &[VehicleStateSample], seqs: &Value) -> Vec<(f64, f64)> {
@@ -32,9 +28,7 @@ fn trajectory(states: &[VehicleStateSample], seqs: &Value) -> Vec<(f64, f64)> {
 fn a_trained_policy_pushed_to_the_edge_drives_the_next_pushed_scenario() {
     let (router, locator) = start_router();
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let db = dir.path().join("lib.db").to_str().expect("a UTF-8 path").to_owned();
-    run_json(&["scenarios", "generate", "--kind", "cut-in", "--count", "4", "--db", &db, "--format", "json"]);
-    let ranked = run_json(&["scenarios", "rank", "--db", &db, "--kind", "cut-in", "--format", "json"]);
+    let (db, ranked) = cut_in_library(dir.path(), 4);
     let id = ranked[0]["id"].as_str().expect("a ranked id").to_owned();
     let out = dir.path().join("train");
     let out_dir = out.to_str().expect("a UTF-8 path");

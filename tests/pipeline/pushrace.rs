@@ -4,30 +4,36 @@
 //! result. The pusher must wait for the edge itself (its liveliness token) and deliver when it
 //! comes up.
 
-use crate::support::{Proc, start_router};
+use crate::support::{Proc, cut_in_library, start_router};
 use serde_json::Value;
 use std::time::Duration;
 
 const STEP: Duration = Duration::from_secs(60);
 
-/// A small library of cut-ins; returns its path and the top-ranked id.
-fn library(dir: &std::path::Path) -> (String, String) {
-    let db = dir.join("lib.db").to_str().expect("a UTF-8 path").to_owned();
-    let generate = ["scenarios", "generate", "--kind", "cut-in", "--count", "2", "--db", &db, "--format", "json"];
-    Proc::spawn("generate", &generate).exit_json(STEP);
-    let ranked = Proc::spawn("rank", &["scenarios", "rank", "--db", &db, "--format", "json"]).exit_json(STEP);
+/// A router, a cloud ingest role on site `track` (ready) and a library of two cut-ins.
+struct Site {
+    router: Proc,
+    locator: String,
+    cloud: Proc,
+    db: String,
+    /// The top-ranked scenario.
+    id: String,
+    _dir: tempfile::TempDir,
+}
+
+fn site_with_ingest() -> Site {
+    let (router, locator) = start_router();
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (db, ranked) = cut_in_library(dir.path(), 2);
     let id = ranked[0]["id"].as_str().expect("a ranked id").to_owned();
-    (db, id)
+    let mut cloud = Proc::spawn("cloud", &["cloud", "--roles", "ingest", "--site", "track", "--connect", &locator]);
+    cloud.wait_line(STEP, |l| l == "ready");
+    Site { router, locator, cloud, db, id, _dir: dir }
 }
 
 #[test]
 fn a_push_waits_for_an_edge_that_comes_up_after_it_despite_the_ingest_subscriber() {
-    let (router, locator) = start_router();
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let (db, id) = library(dir.path());
-
-    let mut cloud = Proc::spawn("cloud", &["cloud", "--roles", "ingest", "--site", "track", "--connect", &locator]);
-    cloud.wait_line(STEP, |l| l == "ready");
+    let Site { router, locator, mut cloud, db, id, _dir } = site_with_ingest();
 
     // Long enough for the edge to start; short enough that a lost push fails the test quickly
     // (the episode plays at 10× real time, in about 1.5 s).
@@ -76,12 +82,7 @@ fn a_push_waits_for_an_edge_that_comes_up_after_it_despite_the_ingest_subscriber
 
 #[test]
 fn a_push_to_an_edge_that_never_comes_up_fails_as_no_edge_despite_the_ingest_subscriber() {
-    let (router, locator) = start_router();
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let (db, id) = library(dir.path());
-
-    let mut cloud = Proc::spawn("cloud", &["cloud", "--roles", "ingest", "--site", "track", "--connect", &locator]);
-    cloud.wait_line(STEP, |l| l == "ready");
+    let Site { router, locator, mut cloud, db, id, _dir } = site_with_ingest();
     let mut push = Proc::spawn(
         "push",
         &[

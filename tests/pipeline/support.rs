@@ -126,3 +126,18 @@ pub fn start_router() -> (Proc, String) {
     assert!(!locator.ends_with(":0"), "the router reported port 0: {line}");
     (router, locator)
 }
+
+/// Runs `risktwin args…` to its exit (within a minute) and returns its JSON output.
+pub fn run_json(args: &[&str]) -> Value {
+    Proc::spawn(args[0], args).exit_json(Duration::from_secs(60))
+}
+
+/// A library of `count` generated cut-ins in `dir`: its path and the ranking as `scenarios rank`
+/// prints it (best first).
+pub fn cut_in_library(dir: &std::path::Path, count: usize) -> (String, Value) {
+    let db = dir.join("lib.db").to_str().expect("a UTF-8 path").to_owned();
+    let count = count.to_string();
+    run_json(&["scenarios", "generate", "--kind", "cut-in", "--count", &count, "--db", &db, "--format", "json"]);
+    let ranked = run_json(&["scenarios", "rank", "--db", &db, "--kind", "cut-in", "--format", "json"]);
+    (db, ranked)
+}

@@ -2,13 +2,14 @@
 //! policy improves (mission.md §3, "risk-aware scenario library feeding training").
 //!
 //! The first phase trains on the library's risk-ranked replay (the reference driver's riskiest
-//! scenarios) mixed with an equal share of ordinary library scenarios drawn uniformly, so the
+//! scenarios among those it survives, see [`solvable_replay`]) mixed with an equal share of ordinary library scenarios drawn uniformly, so the
 //! policy still sees the distribution it is evaluated on. After each phase the current policy
 //! drives the replay set and the previous children; its outcomes are stored in the library under
 //! the phase's policy label, its failures (collision or leaving the road; the riskiest episodes
 //! when it has none) are mutated — neighbourhood search — and the children are stored with their
 //! lineage, driven by the policy and by the reference driver. The next phase trains on the
-//! policy's own risk ranking, the failures, their children and the background share.
+//! policy's own risk ranking, the failures, their children and the background share (children
+//! the reference driver crashes in are stored but not trained on).
 //! Held-out scenarios never enter: every list is checked against [`HeldOut`].
 
 use super::drive::drive_all;
@@ -56,6 +57,25 @@ fn dedup(specs: impl IntoIterator<Item = ScenarioSpec>, held_out: &HeldOut) -> V
     specs.into_iter().filter(|s| !held_out.contains(s) && seen.insert(content_id(s))).collect()
 }
 
+/// The risk-ranked replay: the reference driver's `plan.replay_top` riskiest scenarios among
+/// those it survives. A scenario it crashes in has no known way through, so replaying it teaches
+/// a policy only how to fail cheaply (leaving the road instead of colliding, or crawling);
+/// prioritised level replay likewise replays the levels with learning potential, not the hardest.
+fn solvable_replay(library: &ScenarioLibrary, plan: &TrainingPlan) -> Result<Vec<ScenarioSpec>, TrainerError> {
+    let mut specs = Vec::with_capacity(plan.replay_top);
+    for r in library.rank(None, None)? {
+        if specs.len() == plan.replay_top {
+            break;
+        }
+        if !r.outcome.collision
+            && let Some(s) = library.get(&r.id)?
+        {
+            specs.push(s.spec);
+        }
+    }
+    Ok(specs)
+}
+
 impl Curriculum {
     /// A curriculum for the training seed `seed`.
     pub fn new(seed: u64) -> Self {
@@ -87,12 +107,7 @@ impl Curriculum {
         plan: &TrainingPlan,
         held_out: &HeldOut,
     ) -> Result<Vec<ScenarioSpec>, TrainerError> {
-        let mut specs = Vec::new();
-        for r in library.rank(Some(plan.replay_top), None)? {
-            if let Some(s) = library.get(&r.id)? {
-                specs.push(s.spec);
-            }
-        }
+        let mut specs = solvable_replay(library, plan)?;
         specs.extend(self.background(library, plan)?);
         let specs = dedup(specs, held_out);
         if specs.is_empty() {
@@ -115,12 +130,7 @@ impl Curriculum {
         held_out: &HeldOut,
         threads: usize,
     ) -> Result<(Vec<ScenarioSpec>, Refresh), TrainerError> {
-        let mut candidates = Vec::new();
-        for r in library.rank(Some(plan.replay_top), None)? {
-            if let Some(s) = library.get(&r.id)? {
-                candidates.push(s.spec);
-            }
-        }
+        let mut candidates = solvable_replay(library, plan)?;
         candidates.extend(std::mem::take(&mut self.children));
         let candidates = dedup(candidates, held_out);
         held_out.check_disjoint(&candidates)?;
@@ -185,14 +195,25 @@ impl Curriculum {
         );
         library.insert_batch(&child_records)?;
 
+        // Children the reference driver does not survive carry no learning signal (no known
+        // way through); they stay in the library but are not trained on.
+        let unsolved: BTreeSet<String> =
+            child_specs.iter().zip(&reference).filter(|(_, e)| failed(&e.result)).map(|(c, _)| content_id(c)).collect();
         let mut next: Vec<ScenarioSpec> = Vec::new();
-        for r in library.rank_for_policy(label, Some(plan.replay_top), None)? {
-            if let Some(s) = library.get(&r.id)? {
+        for r in library.rank_for_policy(label, None, None)? {
+            if next.len() == plan.replay_top {
+                break;
+            }
+            if !unsolved.contains(&r.id)
+                && let Some(s) = library.get(&r.id)?
+            {
                 next.push(s.spec);
             }
         }
         next.extend(failures.iter().map(|&i| candidates[i].clone()));
-        next.extend(child_specs.iter().cloned());
+        let solvable_children: Vec<ScenarioSpec> =
+            child_specs.iter().filter(|c| !unsolved.contains(&content_id(c))).cloned().collect();
+        next.extend(solvable_children.iter().cloned());
         next.extend(self.background(library, plan)?);
         let next = dedup(next, held_out);
         held_out.check_disjoint(&next)?;
@@ -209,7 +230,7 @@ impl Curriculum {
             training_set: next.len(),
             policy_mean_risk: results.iter().map(|r| r.risk.score).sum::<f64>() / results.len().max(1) as f64,
         };
-        self.children = child_specs;
+        self.children = solvable_children;
         Ok((next, report))
     }
 }

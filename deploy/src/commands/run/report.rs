@@ -30,8 +30,9 @@ fn ablation_section(s: &mut String, m: &RunMetrics) {
         "Each variant was trained with {} for {} environment steps per seed, seeds {:?}. `base` has no risk term in \
          its reward; `risk-only` adds the risk-field term; `full` also trains on scenarios from the library: each \
          training episode replays, with probability {}, a scenario from its library set — the riskiest scenarios \
-         (risk-ranked replay) and an equal share of ordinary ones, refreshed after each of {} phases with the \
-         current policy's failures and mutations around them — and otherwise drives a fresh sample of the five \
+         the reference driver survives (risk-ranked replay) and an equal share of ordinary ones, refreshed after \
+         each of {} phases with the current policy's failures and the mutations around them that the reference \
+         driver survives — and otherwise drives a fresh sample of the five \
          kinds, as `base` and `risk-only` always do (prioritised level replay, Jiang et al. 2021).\n",
         ab.algo, ab.steps_per_run, m.training_seeds, m.config.replay_share, m.config.phases
     );

@@ -128,7 +128,7 @@ fn gap_features(g: Option<(f64, f64)>) -> (f64, f64) {
     g.map_or((1.0, 0.0), |(gap, closing)| ((gap / FRONT_RANGE_M).min(1.0), closing / CLOSING_SCALE_MPS))
 }
 
-/// Features 14–18 (or 19–23) for the lane beside the ego, if any.
+/// Features 14–18 (or 19–23) for the lane beside the ego, if any (no lane: no room either way).
 fn side_lane_features(view: &DriverView, side: Option<usize>) -> [f64; 5] {
     let Some(lane) = side else { return [0.0, 1.0, 0.0, 1.0, 0.0] };
     let s_m = view.road.lane(lane).project(view.ego_pose.position()).s_m;
@@ -152,13 +152,12 @@ impl Observer {
         let at = view.road.locate_heading(pose.position(), pose.heading_rad);
         let lane = view.road.lane(at.lane);
         let e_psi = wrap_angle(pose.heading_rad - at.frenet.lane_heading_rad);
-        let (d_f, dv_f, rho_ttc) = match LaneGaps::scan(view, at.lane, at.frenet.s_m).front {
-            Some((gap, closing)) => {
-                let ttc = if closing > 1e-6 { gap / closing } else { f64::INFINITY };
-                ((gap / FRONT_RANGE_M).min(1.0), closing / CLOSING_SCALE_MPS, (TTC_REF_S / ttc).min(1.0))
-            }
-            None => (1.0, 0.0, 0.0),
-        };
+        let front = LaneGaps::scan(view, at.lane, at.frenet.s_m).front;
+        let (d_f, dv_f) = gap_features(front);
+        let rho_ttc = front.map_or(0.0, |(gap, closing)| {
+            let ttc = if closing > 1e-6 { gap / closing } else { f64::INFINITY };
+            (TTC_REF_S / ttc).min(1.0)
+        });
         self.objects.clear();
         self.objects.extend(view.perceived.iter().map(|o| FieldObject { obb: o.obb, velocity: o.velocity }));
         let ego = EgoKinematics {

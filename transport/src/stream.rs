@@ -3,8 +3,6 @@
 use crate::keyexpr::{self, EdgeStream, SiteId, SourceId};
 use crate::session::TransportError;
 use crate::shutdown::Shutdown;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 use tokio::sync::watch;
 use zenoh::Session;
@@ -206,53 +204,22 @@ where
         .map_err(|e| TransportError::Declare { what: "liveliness subscriber", key, reason: e.to_string() })
 }
 
-/// Watches the liveliness token of one edge: the receiver holds whether the token exists, from
-/// when this returns (its initial value answers a liveliness get) and as it comes and goes.
-///
-/// The subscriber is declared before the get, so a token declared in between reaches one of
-/// the two. Keep the returned subscriber alive as long as the receiver is read.
+/// Watches the liveliness token of one edge: the receiver holds whether the token exists, as
+/// [`watch_liveliness`] reports it (tokens already alive included). Keep the returned
+/// subscriber alive as long as the receiver is read.
 pub async fn watch_edge_alive(
     session: &Session,
     site: &SiteId,
     source: &SourceId,
 ) -> Result<(Subscriber<()>, watch::Receiver<bool>), TransportError> {
-    let key = keyexpr::liveliness_token(site, source);
     let (alive_tx, alive) = watch::channel(false);
-    let alive_tx = Arc::new(alive_tx);
-    // Set by the subscriber before it sends: once it has seen a change, that is at least as
-    // recent as the get's answer, which then must not overwrite it.
-    let changed = Arc::new(AtomicBool::new(false));
-    let (on_change, seen) = (Arc::clone(&alive_tx), Arc::clone(&changed));
-    let subscriber = session
-        .liveliness()
-        .declare_subscriber(key.clone())
-        .callback(move |sample| {
-            seen.store(true, Ordering::SeqCst);
-            on_change.send_replace(sample.kind() == SampleKind::Put);
-        })
-        .await
-        .map_err(|e| TransportError::Declare {
-            what: "liveliness subscriber",
-            key: key.clone(),
-            reason: e.to_string(),
-        })?;
-    let replies = session.liveliness().get(key.clone()).await.map_err(|e| TransportError::Declare {
-        what: "liveliness get",
-        key: key.clone(),
-        reason: e.to_string(),
-    })?;
-    // The replies end with the get's final answer (or Zenoh's query timeout).
-    let mut found = false;
-    while let Ok(reply) = replies.recv_async().await {
-        found |= reply.result().is_ok();
-    }
-    // Under the watch's lock, so that a change the subscriber delivers from here on is applied
-    // after this and wins.
-    alive_tx.send_if_modified(|alive| {
-        let raise = found && !changed.load(Ordering::SeqCst) && !*alive;
-        *alive |= raise;
-        raise
-    });
+    let source = source.to_string();
+    let subscriber = watch_liveliness(session, Some(site), move |change| {
+        if change.source == source {
+            alive_tx.send_replace(change.alive);
+        }
+    })
+    .await?;
     Ok((subscriber, alive))
 }
 

@@ -237,6 +237,15 @@ impl EdgeLink {
         })
     }
 
+    /// Closes the link after one push and returns that push's outcome: its own error, if any,
+    /// says more than a failure to close after it.
+    async fn close_after<T>(self, outcome: Result<T, PushError>) -> Result<T, PushError> {
+        let closed = self.close().await;
+        let value = outcome?;
+        closed?;
+        Ok(value)
+    }
+
     /// Undeclares the subscribers and closes the session.
     pub async fn close(self) -> Result<(), PushError> {
         let alive_key = liveliness_token(&self.target.site, &self.target.edge);
@@ -258,8 +267,7 @@ pub async fn push_scenario(
 ) -> Result<ScenarioPushReport, PushError> {
     let link = EdgeLink::open(target).await?;
     let report = link.scenario(spec_id, spec, wait_for_result, shutdown).await;
-    link.close().await?;
-    report
+    link.close_after(report).await
 }
 
 /// Pushes a policy update to the edge (delivered once the edge subscribes; the edge validates
@@ -274,6 +282,5 @@ pub async fn push_policy(
 ) -> Result<PolicyPushReport, PushError> {
     let link = EdgeLink::open(target).await?;
     let report = link.policy(policy_id, version, algo, weights, shutdown).await;
-    link.close().await?;
-    report
+    link.close_after(report).await
 }

@@ -1,13 +1,23 @@
 //! The driving risk field R(p, t) = α_o·R_o + α_l·R_l + α_b·R_b + α_c·R_c (paper §3.4,
-//! mission.md §3), evaluated exactly at a point, over the ego footprint and along a trajectory.
+//! docs/method.md §4), evaluated exactly at a point, over the ego footprint and along a trajectory.
 //!
 //! These are the reference evaluations: plain `f64`, no cut-off, no tables. The fast grid fill
 //! in [`super::raster`] approximates them within [`RiskFieldParams::grid_error_bound`].
 
-use super::raster::FieldError;
 use crate::geometry::{Footprint, Obb, Pose, Vec2};
 use crate::road::Road;
 use serde::{Deserialize, Serialize};
+
+/// Why field parameters, a grid or a raster were rejected.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FieldError {
+    #[error("invalid grid: resolution {resolution_m} m, {cols}×{rows} cells (need resolution > 0 and cells > 0)")]
+    InvalidGrid { resolution_m: f64, cols: usize, rows: usize },
+    #[error("grid of {cells} cells exceeds the limit of {max}")]
+    TooLarge { cells: usize, max: usize },
+    #[error("invalid risk-field parameter {name} = {value} (expected {expected})")]
+    InvalidParam { name: &'static str, value: f64, expected: &'static str },
+}
 
 /// Weights and shape parameters of the risk field; every default carries its reason.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -94,7 +104,7 @@ impl EgoKinematics {
 
 /// Closing speed Δv_i of `object` towards the ego (m/s, ≥ 0): the component of the relative
 /// velocity along the ego→object direction û, negated, so Δv = max(0, −(v_i − v_ego)·û).
-/// Only approaching objects raise risk (mission.md §3); a receding one counts like a static
+/// Only approaching objects raise risk (docs/method.md §4); a receding one counts like a static
 /// one. When the centres coincide (a collision) the full relative speed counts.
 pub fn closing_speed_mps(object: &FieldObject, ego: &EgoKinematics) -> f64 {
     let rel_v = object.velocity - ego.velocity;

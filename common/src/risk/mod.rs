@@ -1,4 +1,4 @@
-//! The driving risk field (mission.md §3), criticality measures and the scenario risk score.
+//! The driving risk field (docs/method.md §4), criticality measures and the scenario risk score.
 //!
 //! - [`field`]: R(p, t) = α_o·R_o + α_l·R_l + α_b·R_b + α_c·R_c, exact at a point, over the ego
 //!   footprint and along a trajectory.
@@ -20,9 +20,9 @@ pub use bench::{BenchScene, bench_scene};
 pub use criticality::{
     EgoLaneFrame, LaneState, PairMeasures, VehicleState, pair_measures, ttc_constant_accel_s, ttc_jansson_s,
 };
-pub use field::{EgoKinematics, FieldObject, RiskFieldParams};
+pub use field::{EgoKinematics, FieldError, FieldObject, RiskFieldParams};
 pub use kernel::GaussTable;
-pub use raster::{FieldError, GridEvaluator, RiskGrid, RoadRaster};
+pub use raster::{GridEvaluator, RiskGrid, RoadRaster};
 pub use render::{RgbImage, render_heatmap};
 pub use score::{
     PairExtremes, RiskAccumulator, RiskStep, RiskSummary, RiskTerms, RiskWeights, ScoreError, ScoreReferences,

@@ -9,7 +9,7 @@
 //! σ_d·sqrt(2 ln(1/ε)) of its footprint. (3) The Gaussian comes from a table over d²
 //! ([`GaussTable`]), and d² to the box is updated incrementally along a row.
 
-use super::field::{EgoKinematics, FieldObject, RiskFieldParams, footprint_max, trajectory_mean};
+use super::field::{EgoKinematics, FieldError, FieldObject, RiskFieldParams, footprint_max, trajectory_mean};
 use super::kernel::GaussTable;
 use crate::geometry::Pose;
 use crate::geometry::Vec2;
@@ -17,17 +17,6 @@ use crate::road::Road;
 
 /// Largest raster or grid the field builds (cells), so a wild resolution cannot exhaust memory.
 pub const MAX_CELLS: usize = 16 << 20;
-
-/// Why a grid or raster could not be built.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum FieldError {
-    #[error("invalid grid: resolution {resolution_m} m, {cols}×{rows} cells (need resolution > 0 and cells > 0)")]
-    InvalidGrid { resolution_m: f64, cols: usize, rows: usize },
-    #[error("grid of {cells} cells exceeds the limit of {max}")]
-    TooLarge { cells: usize, max: usize },
-    #[error("invalid risk-field parameter {name} = {value} (expected {expected})")]
-    InvalidParam { name: &'static str, value: f64, expected: &'static str },
-}
 
 fn check_shape(resolution_m: f64, cols: usize, rows: usize) -> Result<usize, FieldError> {
     if !(resolution_m.is_finite() && resolution_m > 0.0) || cols == 0 || rows == 0 {

@@ -17,11 +17,10 @@
 //! is the footprint centre, offset by `params.centre_ahead_of_cog_m` along the heading.
 
 use super::actuator::{Controls, accel_demand_mps2, steering_rate_radps};
+use super::cr_state::{BETA, CrState, DELTA, PSI, V, YAW_RATE};
 use super::kinematic::{kinematic_slip_rad, kinematic_yaw_rate_radps, ks_cog_rhs};
 use super::params::{GRAVITY_MPS2, VehicleParams};
-use super::single_track::{
-    BETA, CrState, DELTA, KINEMATIC_SWITCH_MPS, PSI, V, YAW_RATE, lateral_forces_n, rk4, st_rhs,
-};
+use super::single_track::{KINEMATIC_SWITCH_MPS, lateral_forces_n, rk4, st_rhs};
 use crate::geometry::{Obb, Pose, Vec2, wrap_angle};
 
 /// Lowest friction coefficient accepted; NaN or smaller values are raised to it (worst case).

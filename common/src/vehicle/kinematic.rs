@@ -6,8 +6,8 @@
 //! reference point with the dynamic single-track model (which uses it below 0.1 m/s). The wheels
 //! do not slip; the body slip angle β is fixed by the steering angle.
 
+use super::cr_state::{CrState, DELTA, PSI, V};
 use super::params::VehicleParams;
-use super::single_track::{CrState, DELTA, PSI, V};
 
 /// Body slip angle of the kinematic model, rad: β = atan(tan δ · l_r / l).
 pub fn kinematic_slip_rad(p: &VehicleParams, steer_rad: f64) -> f64 {

@@ -2,10 +2,11 @@
 //!
 //! [`params`] holds a real car (CommonRoad vehicle 2, BMW 320i); [`actuator`] turns steering,
 //! throttle and brake commands into the CommonRoad inputs; [`kinematic`] and [`single_track`]
-//! are the CommonRoad KS and ST models; [`dynamics`] ties them into one [`Vehicle`] stepped
-//! with RK4 on a road of given friction.
+//! are the CommonRoad KS and ST models over the state vector of [`cr_state`]; [`dynamics`]
+//! ties them into one [`Vehicle`] stepped with RK4 on a road of given friction.
 
 pub mod actuator;
+pub mod cr_state;
 pub mod dynamics;
 pub mod kinematic;
 pub mod params;

@@ -24,21 +24,9 @@
 //! kinematic model (reference point the centre of gravity) with its yaw-rate and slip dynamics.
 
 use super::actuator::{commonroad_accel_constraint, commonroad_steering_constraint};
+use super::cr_state::{BETA, CrState, DELTA, PSI, V, YAW_RATE};
 use super::kinematic::ks_cog_rhs;
 use super::params::{GRAVITY_MPS2, VehicleParams};
-
-/// CommonRoad single-track state `[x_m, y_m, δ_rad, v_mps, ψ_rad, ψ'_radps, β_rad]`.
-pub type CrState = [f64; 7];
-/// Index of the steering angle δ in [`CrState`].
-pub const DELTA: usize = 2;
-/// Index of the speed v in [`CrState`].
-pub const V: usize = 3;
-/// Index of the yaw angle ψ in [`CrState`].
-pub const PSI: usize = 4;
-/// Index of the yaw rate ψ' in [`CrState`].
-pub const YAW_RATE: usize = 5;
-/// Index of the slip angle β in [`CrState`].
-pub const BETA: usize = 6;
 
 /// Speed below which the model switches to kinematic equations, m/s (CommonRoad's value).
 pub const KINEMATIC_SWITCH_MPS: f64 = 0.1;

@@ -164,4 +164,14 @@ mod tests {
         assert!((wrap_angle(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
         assert!((wrap_angle(-0.5) + 0.5).abs() < 1e-12);
     }
+
+    #[test]
+    fn wrap_is_half_open() {
+        use std::f64::consts::PI;
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        assert!(close(wrap_angle(PI), PI));
+        assert!(close(wrap_angle(-PI), PI));
+        assert!(close(wrap_angle(3.0 * PI + 0.5), -PI + 0.5));
+        assert!(close(wrap_angle(-0.25), -0.25));
+    }
 }

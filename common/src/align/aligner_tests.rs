@@ -46,7 +46,7 @@ fn continuous_streams_interpolate_and_discrete_ones_are_as_of() {
     for k in 0..30 {
         let t = 1_000 * MS + k * 20 * MS;
         let heading = 3.1 + 0.01 * k as f64;
-        feed(&mut a, &mut out, t + 5 * MS, S0, POSE, t, pose(k as f64, crate::align::interp::wrap_angle(heading)));
+        feed(&mut a, &mut out, t + 5 * MS, S0, POSE, t, pose(k as f64, crate::geometry::wrap_angle(heading)));
         if k % 5 == 1 {
             feed(&mut a, &mut out, t + 7 * MS, S0, OBJECTS, t, pose(100.0 + k as f64, 0.0));
         }
@@ -61,7 +61,7 @@ fn continuous_streams_interpolate_and_discrete_ones_are_as_of() {
     assert_eq!(p.age_ns, 10 * MS);
     let v = p.value.expect("value");
     assert!((v.x_m - 7.5).abs() < 1e-12, "x {}", v.x_m);
-    let expected_heading = crate::align::interp::wrap_angle(3.1 + 0.075);
+    let expected_heading = crate::geometry::wrap_angle(3.1 + 0.075);
     assert!((v.heading_rad - expected_heading).abs() < 1e-9, "heading {} vs {expected_heading}", v.heading_rad);
     assert!(v.heading_rad < 0.0, "3.175 rad wrapped past π");
     // Objects sampled at 1020, 1120, 1220 ms: at 1150 the one of 1120 ms, as of.

@@ -2,11 +2,12 @@
 //!
 //! Positions, speeds and other real-valued signals interpolate linearly. Angles do not: a
 //! heading going from 179° to −179° crossed 2°, not 358°, so headings, yaws and steering angles
-//! must use [`lerp_angle`], which takes the shorter way round and returns a value in (−π, π].
+//! must use [`lerp_angle`], which takes the shorter way round and returns a value in (−π, π]
+//! (wrapped by [`crate::geometry::wrap_angle`], the one angle wrap of the crate).
 //! A pose type implements [`Interpolate`] with `lerp` for x and y and `lerp_angle` for the
 //! heading (the `TestPose` of this module's tests shows the pattern).
 
-use std::f64::consts::{PI, TAU};
+use crate::geometry::wrap_angle;
 
 /// A value that can be interpolated between two samples of a continuous signal.
 pub trait Interpolate: Sized {
@@ -26,13 +27,6 @@ impl Interpolate for f32 {
     }
 }
 
-/// Wraps an angle into (−π, π].
-pub fn wrap_angle(angle_rad: f64) -> f64 {
-    let w = (angle_rad + PI).rem_euclid(TAU) - PI;
-    // rem_euclid maps +π to −π; keep the half-open range (−π, π].
-    if w <= -PI { w + TAU } else { w }
-}
-
 /// Interpolates between two angles the shorter way round; the result lies in (−π, π].
 pub fn lerp_angle(a_rad: f64, b_rad: f64, frac: f64) -> f64 {
     let diff = wrap_angle(b_rad - a_rad);
@@ -42,6 +36,7 @@ pub fn lerp_angle(a_rad: f64, b_rad: f64, frac: f64) -> f64 {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use std::f64::consts::{PI, TAU};
 
     /// A planar pose: the pattern for any state with a heading.
     #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,14 +78,6 @@ pub(crate) mod tests {
         assert!(close(lerp_angle(a, b, 0.75), (-179.5f64).to_radians()));
         assert!(close(lerp_angle(0.1, 0.3, 0.5), 0.2));
         assert!(close(lerp_angle(-0.1, 0.1, 0.5), 0.0));
-    }
-
-    #[test]
-    fn wrap_is_half_open() {
-        assert!(close(wrap_angle(PI), PI));
-        assert!(close(wrap_angle(-PI), PI));
-        assert!(close(wrap_angle(3.0 * PI + 0.5), -PI + 0.5));
-        assert!(close(wrap_angle(-0.25), -0.25));
     }
 
     #[test]

@@ -25,7 +25,7 @@ pub use aligner::{AlignConfig, AlignCounts, Aligner, DEFAULT_LATENESS_NS, PushOu
 pub use clock::{ClockConfig, ClockEstimator};
 pub use dedupe::{DedupConfig, Deduper, SeqCounts, Verdict};
 pub use ingest::{Accepted, Incoming, IngestConfig, IngestCore, SequenceScope};
-pub use interp::{Interpolate, lerp_angle, wrap_angle};
+pub use interp::{Interpolate, lerp_angle};
 pub use reason::{DropCounts, DropReason};
 pub use snapshot::{Aligned, Snapshot, StreamIndex, ValueStatus};
 pub use source::{SourceIndex, SourceTable, TooManySources};

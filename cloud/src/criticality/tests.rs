@@ -11,30 +11,10 @@ use risktwin_protos::encode;
 
 const MAP_KEY: &str = "risktwin/v1/two/map/map";
 
-/// A 200 m lanelet along +x; cars 1 (x = 10 m, 20 m/s) and 2 (x = 40 m, 10 m/s), 11 steps of 0.1 s.
+/// A 200 m lanelet along +x; cars 1 (x = 10 m, 20 m/s) and 2 (x = 40 m, 10 m/s), 21 steps of 0.1 s
+/// (the fixture common's criticality tests use too).
 fn two_cars() -> Scenario {
-    let car = |id: u64, x0: f64, v: f64| {
-        let st = |tag: &str, k: i64| {
-            format!(
-                "<{tag}><position><point><x>{}</x><y>1.5</y></point></position><orientation><exact>0</exact></orientation>\
-                 <time><exact>{k}</exact></time><velocity><exact>{v}</exact></velocity></{tag}>",
-                x0 + v * 0.1 * k as f64
-            )
-        };
-        let traj: String = (1..=10).map(|k| st("state", k)).collect();
-        format!(
-            r#"<dynamicObstacle id="{id}"><type>car</type><shape><rectangle><length>4</length><width>2</width></rectangle></shape>{}<trajectory>{traj}</trajectory></dynamicObstacle>"#,
-            st("initialState", 0)
-        )
-    };
-    let lanelet = r#"<lanelet id="1"><leftBound><point><x>0</x><y>3</y></point><point><x>200</x><y>3</y></point></leftBound>
-        <rightBound><point><x>0</x><y>0</y></point><point><x>200</x><y>0</y></point></rightBound></lanelet>"#;
-    let xml = format!(
-        r#"<commonRoad timeStepSize="0.1" benchmarkID="two" commonRoadVersion="2020a">{lanelet}{}{}</commonRoad>"#,
-        car(1, 10.0, 20.0),
-        car(2, 40.0, 10.0)
-    );
-    parse_scenario(&xml).expect("the test scenario parses")
+    parse_scenario(include_str!("../../../tests/fixtures/two_cars.xml")).expect("the test scenario parses")
 }
 
 fn header(source: &str, seq: u64, time_ns: i64) -> Header {
@@ -46,9 +26,9 @@ fn messages(s: &Scenario) -> Vec<(String, Vec<u8>)> {
     let (road, _) = road_from_lanelets(&s.lanelets).expect("the lanelet converts");
     let map = RoadMap { header: header("map", 0, 0), road, lanelets: s.lanelets.clone() };
     let mut out = vec![(MAP_KEY.to_owned(), encode(&map))];
-    for step in 0..=10 {
+    for step in 0..=20 {
         for o in &s.dynamic_obstacles {
-            let st = o.states().nth(step).expect("11 states");
+            let st = o.states().nth(step).expect("21 states");
             let source = format!("dyn-{}", o.id);
             let pose = Pose::new(st.position.x, st.position.y, st.orientation_rad);
             let speed_mps = st.velocity_mps.unwrap_or(0.0);
@@ -89,7 +69,7 @@ fn a_rebuilt_scenario_has_the_criticality_of_the_original() {
     write_report(&mut csv_a, ReportFormat::Csv, "x", &a).expect("in memory");
     write_report(&mut csv_b, ReportFormat::Csv, "x", &b).expect("in memory");
     assert_eq!(String::from_utf8_lossy(&csv_a), String::from_utf8_lossy(&csv_b));
-    assert!(csv_a.starts_with(CSV_HEADER.as_bytes()) && a.cells.len() == 11, "{}", a.cells.len());
+    assert!(csv_a.starts_with(CSV_HEADER.as_bytes()) && a.cells.len() == 21, "{}", a.cells.len());
 }
 
 #[test]

@@ -96,30 +96,9 @@ mod tests {
     use crate::commonroad::parse_scenario;
 
     /// A 200 m lanelet along +x; ego (id 1) at x = 10 m, 20 m/s; other (id 2) at x = 40 m,
-    /// 10 m/s; both 4 m long, 21 steps of 0.1 s.
+    /// 10 m/s; both 4 m long, 21 steps of 0.1 s (the fixture the cloud's collector tests share).
     fn two_cars() -> Scenario {
-        let car = |id: u64, x0: f64, v: f64| {
-            let st = |tag: &str, k: i64| {
-                format!(
-                    "<{tag}><position><point><x>{}</x><y>1.5</y></point></position><orientation><exact>0</exact></orientation>\
-                     <time><exact>{k}</exact></time><velocity><exact>{v}</exact></velocity></{tag}>",
-                    x0 + v * 0.1 * k as f64
-                )
-            };
-            let traj: String = (1..=20).map(|k| st("state", k)).collect();
-            format!(
-                r#"<dynamicObstacle id="{id}"><type>car</type><shape><rectangle><length>4</length><width>2</width></rectangle></shape>{}<trajectory>{traj}</trajectory></dynamicObstacle>"#,
-                st("initialState", 0)
-            )
-        };
-        let lanelet = r#"<lanelet id="1"><leftBound><point><x>0</x><y>3</y></point><point><x>200</x><y>3</y></point></leftBound>
-            <rightBound><point><x>0</x><y>0</y></point><point><x>200</x><y>0</y></point></rightBound></lanelet>"#;
-        let text = format!(
-            r#"<commonRoad timeStepSize="0.1">{lanelet}{}{}</commonRoad>"#,
-            car(1, 10.0, 20.0),
-            car(2, 40.0, 10.0)
-        );
-        parse_scenario(&text).unwrap()
+        parse_scenario(include_str!("../../../../tests/fixtures/two_cars.xml")).unwrap()
     }
 
     #[test]

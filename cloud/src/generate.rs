@@ -60,7 +60,7 @@ pub fn evaluate_all(specs: Vec<ScenarioSpec>, threads: usize) -> Vec<Evaluated> 
     specs.into_iter().zip(results).map(|(spec, result)| Evaluated { spec, result }).collect()
 }
 
-/// Per-kind counts of one batch (cli.md `scenarios generate` → `by_kind`).
+/// Per-kind counts of one batch (docs/cli.md `scenarios generate` → `by_kind`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct KindReport {
     pub stored: u64,

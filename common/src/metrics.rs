@@ -1,4 +1,4 @@
-//! Episode metrics (paper table 1) and the per-step reward (mission.md §3).
+//! Episode metrics (paper table 1, docs/method.md §9) and the per-step reward (docs/method.md §7).
 //!
 //! Definitions, chosen to be comparable across scenario kinds:
 //! - route completion: progress along the route lane / route length, clamped to [0, 1];
@@ -9,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-/// What one episode measured; field names and units follow cli.md (`simulate`).
+/// What one episode measured; field names and units follow docs/cli.md (`simulate`).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct EpisodeMetrics {
     pub collision: bool,

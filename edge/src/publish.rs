@@ -44,7 +44,7 @@ pub struct EdgeConfig {
 }
 
 impl EdgeConfig {
-    /// A config with the defaults of cli.md for `id` at `site`.
+    /// A config with the defaults of docs/cli.md for `id` at `site`.
     pub fn new(site: SiteId, id: SourceId, rate_hz: f64) -> Self {
         EdgeConfig {
             site,

@@ -35,7 +35,7 @@ fn out_of_range_parameter() {
     let dir = tempdir().unwrap();
     write_file(dir.path(), "range.json", &text);
     let line = assert_input_error(dir.path(), &["simulate", "--spec", "range.json"], "'ego_speed_mps'");
-    // The bad value and the allowed range, as cli.md's "what and where" asks.
+    // The bad value and the allowed range, as docs/cli.md's "what and where" asks.
     assert!(line.contains("99") && line.contains("[10, 35]"), "{line}");
 }
 

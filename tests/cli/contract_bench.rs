@@ -1,4 +1,4 @@
-//! `bench sim` and `bench risk-field` with tiny sizes: the fields cli.md promises and sane rates.
+//! `bench sim` and `bench risk-field` with tiny sizes: the fields docs/cli.md promises and sane rates.
 
 use crate::support::{keys, num, ok_json, uint};
 use tempfile::tempdir;

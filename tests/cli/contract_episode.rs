@@ -1,4 +1,4 @@
-//! `simulate` and `risk-field`: the fields and types cli.md promises, and a readable heatmap.
+//! `simulate` and `risk-field`: the fields and types docs/cli.md promises, and a readable heatmap.
 
 use crate::support::{GOOD_SPEC, SIMULATE_KEYS, keys, num, ok_json, ok_stdout, uint, write_file};
 use tempfile::tempdir;
@@ -48,7 +48,7 @@ fn simulate_csv_is_a_header_and_one_row() {
         let v = &json[*h];
         match v {
             serde_json::Value::Bool(b) => assert_eq!(*cell, b.to_string(), "{h}"),
-            // cli.md: null in JSON (no time to collision) is `inf` in CSV.
+            // docs/cli.md: null in JSON (no time to collision) is `inf` in CSV.
             serde_json::Value::Null => assert_eq!(*cell, "inf", "{h}"),
             _ => assert_eq!(cell.parse::<f64>().ok(), v.as_f64(), "{h}"),
         }

@@ -1,4 +1,4 @@
-//! `scenarios generate` and `scenarios rank`: the fields, types and arithmetic cli.md promises.
+//! `scenarios generate` and `scenarios rank`: the fields, types and arithmetic docs/cli.md promises.
 
 use crate::support::{generate, keys, num, ok_json, ok_stdout, rank, uint};
 use serde_json::Value;
@@ -61,7 +61,7 @@ fn generate_one_kind_reports_only_that_kind() {
     assert!(rank(dir.path(), "p.db").iter().all(|r| r["kind"] == "pedestrian-crossing"));
 }
 
-/// Checks one rank element against cli.md and returns its score.
+/// Checks one rank element against docs/cli.md and returns its score.
 fn check_ranked(r: &Value) -> f64 {
     assert_eq!(keys(r), ["id", "kind", "outcome", "params", "risk", "seed"], "{r}");
     assert!(r["id"].as_str().is_some_and(|s| !s.is_empty()), "id is a non-empty string: {r}");
@@ -143,7 +143,7 @@ fn rank_csv_has_a_header_then_one_row_per_scenario() {
         assert_eq!(row.len(), header.len(), "{row:?}");
         assert_eq!(row[col("id")], r["id"].as_str().unwrap());
         assert_eq!(row[col("score")].parse::<f64>().unwrap(), num(&r["risk"], "score"));
-        // cli.md: an infinite value (no time to collision) is `inf` in CSV and null in JSON.
+        // docs/cli.md: an infinite value (no time to collision) is `inf` in CSV and null in JSON.
         match r["outcome"]["min_ttc_s"].as_f64() {
             None => {
                 assert_eq!(row[col("min_ttc_s")], "inf");

@@ -1,4 +1,4 @@
-//! `risktwin criticality --commonroad FILE`: the CSV/JSON contract of cli.md, bad files, and
+//! `risktwin criticality --commonroad FILE`: the CSV/JSON contract of docs/cli.md, bad files, and
 //! agreement with CommonRoad-CriMe 0.4.5 on the reference CSVs in tests/fixtures/crime/
 //! (made by tests/peers/crime_reference.py, see the README there).
 

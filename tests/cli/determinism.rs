@@ -1,4 +1,4 @@
-//! Same inputs and same seed give byte-identical output (cli.md); a different seed does not.
+//! Same inputs and same seed give byte-identical output (docs/cli.md); a different seed does not.
 
 use crate::support::{GOOD_SPEC, ok_stdout, shown, write_file};
 use std::path::Path;

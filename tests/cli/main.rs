@@ -1,5 +1,5 @@
 //! Cross-process tests: the `risktwin` binary driven as a user would, checked against the
-//! contract in `shared/docs/cli.md`.
+//! contract in `docs/cli.md`.
 
 mod bad_db;
 mod bad_run;

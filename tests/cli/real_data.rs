@@ -65,7 +65,7 @@ fn simulate_replays_or_drives_a_recorded_scenario() {
                 dir.path(),
                 &["simulate", "--commonroad", &xml, "--ego", ego, "--policy", policy, "--format", "json"],
             );
-            // cli.md's simulate document, every key.
+            // docs/cli.md's simulate document, every key.
             for key in SIMULATE_KEYS {
                 assert!(v.get(key).is_some(), "{name} {policy}: missing {key} in {v}");
             }

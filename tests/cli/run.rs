@@ -8,6 +8,10 @@ use serde_json::Value;
 use std::path::Path;
 use tempfile::tempdir;
 
+/// The metric keys of metrics.json. Spelled out here on purpose rather than taken from
+/// `risktwin_cloud::trainer::stats::METRIC_NAMES`: the file's keys are the output contract
+/// (docs/cli.md), and a test that read the list from the library would follow a rename instead
+/// of catching it.
 const METRICS: [&str; 8] = [
     "reward",
     "success_rate",

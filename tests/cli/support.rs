@@ -88,7 +88,7 @@ pub fn rank(dir: &Path, db: &str) -> Vec<Value> {
     }
 }
 
-/// The keys of cli.md's `simulate` JSON document.
+/// The keys of docs/cli.md's `simulate` JSON document.
 pub const SIMULATE_KEYS: [&str; 12] = [
     "collision",
     "offroad",

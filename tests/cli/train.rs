@@ -36,6 +36,8 @@ fn ppo_writes_policy_curves_and_the_contract_json() {
     assert!(v["env_steps_per_s"].as_f64().unwrap() > 0.0);
     assert!(v["profile_s"]["update"].as_f64().unwrap() > 0.0, "{v}");
     let f = &v["final"];
+    // The contract's keys (docs/cli.md, `train`), spelled out: not taken from the library, so a
+    // rename there fails here.
     for key in [
         "success_rate",
         "collision_rate",

@@ -8,7 +8,7 @@ stdout with the header of `risktwin criticality --format csv` plus one diagnosti
     time_step,other_id,hw,thw,ttc,a_long_req,other_a
 
 `other_a` is the other's longitudinal acceleration as CriMe preprocesses it
-(numpy.gradient of the recorded speeds over time, shared/docs/criticality.md §1); the agreement
+(numpy.gradient of the recorded speeds over time, docs/criticality.md); the agreement
 check uses it to tell braking others (< 0) apart for TTC.  Values are printed with repr(), so
 `inf`/`nan` are spelled as in our CSV.
 
@@ -16,7 +16,7 @@ Timing mode (`--time`): runs CriMe's own whole-scenario evaluation,
 CriMeInterface.evaluate_scenario([HW, THW, TTC, ALongReq], first, last) for the ego, and prints
 one line `crime_seconds=<wall seconds>`.
 
-Version issue (criticality.md §8): with commonroad-clcs 2025.x the CLCS raises
+Version issue (see docs/criticality.md): with commonroad-clcs 2025.x the CLCS raises
 CartesianProjectionDomainError where CriMe 0.4.5 catches ValueError; the ego CLCS is wrapped so
 that its projection errors become the ValueError CriMe's source intends.  Any other exception
 from a measure gives NaN for that cell, as CriMe's crash would.

@@ -1,5 +1,5 @@
 //! The criticality report as `risktwin criticality` prints it and the cloud's `criticality` role
-//! writes it: the CSV of cli.md, or the JSON document with the pair summaries. One writer, so
+//! writes it: the CSV of docs/cli.md, or the JSON document with the pair summaries. One writer, so
 //! the offline and the fleet outputs can be compared byte for byte.
 
 use risktwin_common::commonroad::criticality::ScenarioCriticality;
@@ -7,7 +7,7 @@ use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
 
-/// The CSV header of cli.md, exactly.
+/// The CSV header of docs/cli.md, exactly.
 pub const CSV_HEADER: &str = "time_step,other_id,hw,thw,ttc,a_long_req";
 
 /// The two file formats.

@@ -1,4 +1,4 @@
-//! The high-risk scenario library (mission.md §3): every evaluated scenario with its spec, its
+//! The high-risk scenario library (docs/method.md §8): every evaluated scenario with its spec, its
 //! outcomes and risk terms, and its lineage, in one SQLite file; ranked by risk and used to pick
 //! scenarios for replay, mutation and regression.
 //!
@@ -23,7 +23,7 @@
 //!   risk_dist, risk_lane, risk_jerk, risk_collision)`: every field of `EpisodeMetrics` and
 //!   `RiskTerms`. A scenario may have many outcomes; the one with the highest `seq` for a policy
 //!   is its latest. `min_ttc_s` is NULL when no pair closed in (an infinite or NaN TTC is stored
-//!   as NULL too, as cli.md writes both as null). Risk terms carry a `CHECK` for [0, 1].
+//!   as NULL too, as docs/cli.md writes both as null). Risk terms carry a `CHECK` for [0, 1].
 //! - `rejected(kind, reason, count)`, primary key (kind, reason): infeasible candidates by
 //!   `Infeasible::code`, for reports.
 //! - `regression(scenario_id PK → scenarios, reason 'collision'|'manual', marked_seq)`: the

@@ -14,7 +14,7 @@ use risktwin_common::scenario::ScenarioKind;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// One element of `scenarios rank --format json` (cli.md), field for field.
+/// One element of `scenarios rank --format json` (docs/cli.md), field for field.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RankedScenario {
     pub id: String,

@@ -6,7 +6,7 @@ use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
 
-/// The policy whose outcomes rank the library: the reference driver of cli.md.
+/// The policy whose outcomes rank the library: the reference driver of docs/cli.md.
 pub const DEFAULT_POLICY: &str = "idm";
 
 /// How a scenario entered the library.

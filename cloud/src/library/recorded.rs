@@ -67,7 +67,7 @@ pub struct RecordedInsert {
     pub outcome_added: bool,
 }
 
-/// One element of `scenarios rank --kind commonroad --format json`: cli.md's rank item where it
+/// One element of `scenarios rank --kind commonroad --format json`: docs/cli.md's rank item where it
 /// applies (no seed; `params` is empty, a recording has no generator parameters) plus what
 /// names the recording.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -1,5 +1,5 @@
 //! The `full` variant's training scenarios, fed from the scenario library and refreshed as the
-//! policy improves (mission.md §3, "risk-aware scenario library feeding training").
+//! policy improves (docs/method.md §7, "risk-aware scenario library feeding training").
 //!
 //! The first phase trains on the library's risk-ranked replay (the reference driver's riskiest
 //! scenarios among those it survives, see [`solvable_replay`]) mixed with an equal share of ordinary library scenarios drawn uniformly, so the

@@ -1,5 +1,5 @@
 //! The trainer role: retrains driving policies against the scenario library and evaluates them
-//! (mission.md §3, the ablation of base / risk-only / full).
+//! (docs/method.md §7–9, the ablation of base / risk-only / full).
 //!
 //! - [`session`]: one training run (PPO or SAC from `risktwin-learn`) of a variant and a seed, in
 //!   phases, with training curves.

@@ -28,7 +28,7 @@ pub struct RiskConfig {
     pub grid_cells: usize,
     /// Cell size, m.
     pub resolution_m: f64,
-    /// Field parameters (mission.md §3 defaults).
+    /// Field parameters (docs/method.md §4 defaults).
     pub params: RiskFieldParams,
     /// Minimum twin time between two assessments of a site, ns (2 Hz by default).
     pub period_ns: i64,

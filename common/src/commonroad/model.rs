@@ -70,7 +70,7 @@ impl Scenario {
         self.tags.iter().any(|t| t.eq_ignore_ascii_case(tag))
     }
 
-    /// The ego by cli.md's default: the dynamic obstacle whose id is a planning problem's id,
+    /// The ego by docs/cli.md's default: the dynamic obstacle whose id is a planning problem's id,
     /// else the first dynamic obstacle in the file; `None` when there is no dynamic obstacle.
     pub fn default_ego_id(&self) -> Option<u64> {
         self.planning_problems

@@ -1,4 +1,4 @@
-//! The driving environment for reinforcement learning over the twin (mission.md §3).
+//! The driving environment for reinforcement learning over the twin (docs/method.md §7).
 //!
 //! - [`observe`]: the observation s_t (table of features and their normalisation) and the
 //!   action mapping [steering, throttle, brake] → actuator commands.
@@ -10,7 +10,7 @@
 //! - [`ObsPolicy`]: any observation → action function as a [`crate::driver::Policy`], so a
 //!   learned policy is evaluated by `episode::run` with the same metrics as `simulate`.
 //!
-//! Variants (mission.md §3) differ only in the reward weights here ([`Variant::weights`];
+//! Variants (docs/method.md §7) differ only in the reward weights here ([`Variant::weights`];
 //! learners train with [`Variant::training_weights`], whose terminal penalties are scaled down);
 //! `full` additionally draws half its training episodes from the scenario library, which the
 //! trainer supplies as a [`ScenarioSource::Replay`]. The observation is the same for every
@@ -41,7 +41,7 @@ use std::str::FromStr;
 /// (a crash then costs about one episode's earnings, still the dominant single event).
 pub const TRAIN_PENALTY_SCALE: f64 = 0.1;
 
-/// The ablation variants of mission.md §3.
+/// The ablation variants of docs/method.md §7.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Variant {
     /// No risk terms: w_r = 0.

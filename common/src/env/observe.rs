@@ -1,4 +1,4 @@
-//! The observation s_t (mission.md §3) and the action mapping, computed only from what a
+//! The observation s_t (docs/method.md §7) and the action mapping, computed only from what a
 //! policy may know: a [`DriverView`] (the ego's own state and what its sensor perceives) and
 //! the desired speed. The same code feeds training ([`super::DrivingEnv`]) and evaluation
 //! through `episode::run` ([`super::ObsPolicy`]), so a policy sees identical inputs in both.

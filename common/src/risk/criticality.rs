@@ -1,13 +1,13 @@
 //! Pairwise criticality measures along the ego's lane: headway distance HW, time headway THW,
 //! time-to-collision TTC (Jansson's constant-acceleration model) and the required longitudinal
-//! acceleration a_long,req (DRAC), after /work/shared/docs/criticality.md §6.
+//! acceleration a_long,req (DRAC), after CommonRoad-CriMe 0.4.5 (docs/criticality.md).
 //!
-//! RiskTwin computes the physically correct definitions (criticality.md, "Our policy"): HW is
+//! RiskTwin computes the physically correct definitions (docs/criticality.md): HW is
 //! bumper to bumper along the ego's lane, speeds and accelerations are signed along the lane
 //! direction, a braking leader brakes. Departures from CommonRoad-CriMe 0.4.5: THW = HW/v_ego
 //! instead of walking the ego's recorded future; TTC's constant-velocity branch is taken only
 //! for |Δa| < 1e-9 m/s² (CriMe: 0.1); a_long,req only adds the v_rel² term when the gap closes.
-//! The inf/0/NaN conventions follow criticality.md §7.
+//! The inf/0/NaN conventions follow CriMe's (docs/criticality.md).
 
 use super::field::footprint_samples;
 use crate::geometry::{Obb, Vec2};
@@ -37,8 +37,8 @@ pub struct PairMeasures {
 }
 
 impl PairMeasures {
-    /// The values of a pair that is not in the ego's lane (criticality.md §7, "not in same
-    /// lanelet").
+    /// The values of a pair that is not in the ego's lane (CriMe's "not in same
+    /// lanelet" values, docs/criticality.md).
     pub const NOT_IN_LANE: PairMeasures =
         PairMeasures { hw_m: f64::INFINITY, thw_s: f64::INFINITY, ttc_s: f64::INFINITY, a_long_req_mps2: 0.0 };
 }
@@ -51,7 +51,7 @@ pub fn ttc_constant_accel_s(gap_m: f64, dv_mps: f64, da_mps2: f64) -> f64 {
 
 /// [`ttc_constant_accel_s`] with a constant-velocity band: while closing (Δv < 0) and
 /// |Δa| ≤ `cv_band_mps2`, TTC = d/−Δv. CommonRoad-CriMe uses a 0.1 m/s² band (`ttc.py`,
-/// criticality.md §6.3, branch 1), which keeps acceleration noise of differentiated recorded
+/// its first branch), which keeps acceleration noise of differentiated recorded
 /// speeds from swinging TTC; the simulator's exact accelerations use 1e-9.
 pub fn ttc_jansson_s(gap_m: f64, dv_mps: f64, da_mps2: f64, cv_band_mps2: f64) -> f64 {
     if !(gap_m.is_finite() && dv_mps.is_finite() && da_mps2.is_finite()) {
@@ -74,8 +74,8 @@ pub fn ttc_jansson_s(gap_m: f64, dv_mps: f64, da_mps2: f64, cv_band_mps2: f64) -
 }
 
 /// The measures of `other` ahead of `ego` on the same lane (both already projected on it).
-/// An other whose bumper gap is negative is not a headway pair (CriMe §6.1: h < 0 gives inf);
-/// then a_long,req is min(a_other, 0), the x = inf limit of §6.4.
+/// An other whose bumper gap is negative is not a headway pair (CriMe's HW: h < 0 gives inf);
+/// then a_long,req is min(a_other, 0), the x = inf limit of CriMe's `a_long_req.py`.
 pub fn pair_measures(ego: &LaneState, other: &LaneState) -> PairMeasures {
     let hw = other.s_m - 0.5 * other.length_m - (ego.s_m + 0.5 * ego.length_m);
     if hw.is_nan() {
@@ -87,7 +87,7 @@ pub fn pair_measures(ego: &LaneState, other: &LaneState) -> PairMeasures {
     let thw = if ego.speed_mps > 0.0 { hw / ego.speed_mps } else { f64::INFINITY };
     let dv = other.speed_mps - ego.speed_mps;
     let ttc = ttc_constant_accel_s(hw, dv, other.accel_mps2 - ego.accel_mps2);
-    // a_req = a_lead − v_rel²/(2·HW) when closing (CriMe mode 1, §6.4); an opening gap only
+    // a_req = a_lead − v_rel²/(2·HW) when closing (CriMe's `a_long_req.py`, acceleration mode 1); an opening gap only
     // requires matching the leader's deceleration.
     let a_req = if dv < 0.0 {
         if hw > 0.0 { (other.accel_mps2 - dv * dv / (2.0 * hw)).min(0.0) } else { f64::NAN }
@@ -131,7 +131,7 @@ impl EgoLaneFrame {
     /// The pair measures of `other`, or [`PairMeasures::NOT_IN_LANE`] when its footprint does
     /// not overlap the ego's lane strip laterally. The test projects the footprint's nine sample
     /// points on the lane and asks whether their e_y range meets [−w/2, w/2]; like CriMe's
-    /// "same lanelet" test (§3) a car straddling the lane line counts, one fully in the next
+    /// "same lanelet" test a car straddling the lane line counts, one fully in the next
     /// lane does not, and there is no heading condition (a crossing pedestrian counts).
     pub fn measure(&self, road: &Road, other: &VehicleState) -> PairMeasures {
         let (state, lo, hi) = project(road, self.lane, other);

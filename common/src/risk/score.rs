@@ -1,5 +1,5 @@
 //! The scalar scenario risk score S_risk = β1·S_TTC + β2·S_dist + β3·S_lane + β4·S_jerk +
-//! β5·S_col (paper §3.4, mission.md §3) and the accumulator that reduces an episode to it.
+//! β5·S_col (paper §3.4, docs/method.md §5) and the accumulator that reduces an episode to it.
 
 use super::criticality::{EgoLaneFrame, PairMeasures, VehicleState};
 use crate::road::Road;

@@ -1,4 +1,4 @@
-//! The five scenario kinds and their parameter spaces (mission.md §3).
+//! The five scenario kinds and their parameter spaces (docs/method.md §2).
 //!
 //! Ranges are chosen so each space holds both benign corners (the reference driver copes) and
 //! critical ones (it collides); the feasibility filter removes physically impossible points.
@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::str::FromStr;
 
-/// One kind of risky scenario; spelled as in cli.md.
+/// One kind of risky scenario; spelled as in docs/cli.md.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ScenarioKind {

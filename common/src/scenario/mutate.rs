@@ -1,4 +1,4 @@
-//! Mutation: a seeded neighbourhood search around a failing scenario (mission.md §3: failures
+//! Mutation: a seeded neighbourhood search around a failing scenario (docs/method.md §8: failures
 //! are "replayed, mutated (neighbourhood search around failures) and kept for regression").
 //!
 //! A child moves every parameter of its parent by a Gaussian step whose standard deviation is

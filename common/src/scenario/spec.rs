@@ -4,7 +4,7 @@ use super::kind::{ScenarioKind, UnknownKind};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// A validated scenario description (the `--spec` file format of cli.md).
+/// A validated scenario description (the `--spec` file format of docs/cli.md).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ScenarioSpec {
     pub kind: ScenarioKind,

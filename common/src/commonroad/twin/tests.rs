@@ -119,11 +119,11 @@ fn cropping_the_map_keeps_the_field_of_the_whole_map() {
 }
 
 /// Cost of one field over a real map (release: `cargo test --release -p risktwin-common --lib
-/// field_speed -- --ignored --nocapture`); scenarios from ../shared/data/commonroad when present.
+/// field_speed -- --ignored --nocapture`) over the scenarios of data/commonroad/.
 #[test]
 #[ignore = "timing, prints"]
 fn field_speed_on_real_maps() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/commonroad");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/commonroad");
     let Ok(entries) = std::fs::read_dir(&dir) else { return };
     let mut files: Vec<_> =
         entries.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|x| x == "xml")).collect();

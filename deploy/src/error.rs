@@ -37,3 +37,13 @@ impl fmt::Display for CliError {
 impl std::error::Error for CliError {}
 
 pub type CliResult<T = ()> = Result<T, CliError>;
+
+impl From<risktwin_bench::BenchError> for CliError {
+    /// A benchmark's bad input exits 2, anything else 1.
+    fn from(e: risktwin_bench::BenchError) -> Self {
+        match e {
+            risktwin_bench::BenchError::Input(what) => CliError::Input(what),
+            risktwin_bench::BenchError::Runtime(what) => CliError::Runtime(what),
+        }
+    }
+}

@@ -5,6 +5,7 @@ mod cli;
 mod commands;
 mod commonroad_recording;
 mod error;
+mod logging;
 mod output;
 mod plot;
 mod png_out;
@@ -14,6 +15,7 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    logging::init();
     // Like any Unix filter, stop quietly when the reader of stdout goes away (`| head`).
     // SAFETY: called once at start-up, before any other thread exists.
     unsafe {

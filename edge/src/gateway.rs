@@ -12,13 +12,14 @@
 //! stops the producer too, which then ends its stream), then forwards what is queued and stops;
 //! a producer still running learns that its gateway left.
 
+use crate::clock::EdgeClock;
+use crate::error::EdgeError;
 use crate::publish::EdgeConfig;
 use crate::scene::{Scene, detected, feasible_spec};
 use crate::shm::{
     ControlEvent, ShmCanFrame, ShmControl, ShmError, ShmObjectList, ShmPayload, ShmPayloadError, ShmQos, ShmSample,
     ShmSubscriber, ShmVehicleState,
 };
-use crate::{EdgeClock, EdgeError};
 use risktwin_common::sensor::PerceivedObject;
 use risktwin_common::telemetry::{CanFrame, Frame, Header, ObjectList, VehicleStateSample};
 use risktwin_common::vehicle::Vehicle;
@@ -176,7 +177,7 @@ impl Reader {
         *count += 1;
         if *count <= LOGGED_REJECTS {
             let source = error.source().map(|s| format!(": {s}")).unwrap_or_default();
-            eprintln!("gateway {}: rejected {} sample: {error}{source}", self.source, stream.as_str());
+            tracing::warn!("gateway {}: rejected {} sample: {error}{source}", self.source, stream.as_str());
         }
     }
 
@@ -302,7 +303,7 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
     }
     for publisher in &publishers {
         if !publisher.wait_for_subscriber(config.wait_for_cloud, shutdown.clone()).await? && !shutdown.is_fired() {
-            eprintln!("gateway {}: no subscriber on {} yet, forwarding anyway", config.id, publisher.key());
+            tracing::warn!("gateway {}: no subscriber on {} yet, forwarding anyway", config.id, publisher.key());
         }
     }
 
@@ -326,7 +327,7 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
         .spawn(move || read_loop(&id, reader, &flag, ready_tx))
         .map_err(|e| EdgeError::Shutdown { reason: format!("cannot start the shared-memory reader: {e}") })?;
     match ready_rx.await {
-        Ok(Ok(())) => eprintln!("gateway {}: ready", config.id),
+        Ok(Ok(())) => tracing::info!("gateway {}: ready", config.id),
         Ok(Err(e)) => return Err(e.into()),
         Err(_) => return Err(ShmRoleError::ReaderPanicked),
     }

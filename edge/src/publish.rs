@@ -5,7 +5,8 @@
 //! (`risktwin/v1/<site>/<id>/{scenario,policy,…}`) and its reports about them are published.
 
 use crate::clock::{ClockModel, EdgeClock};
-use crate::{EdgeError, SentSummary};
+use crate::error::EdgeError;
+use crate::summary::SentSummary;
 use risktwin_common::telemetry::{Frame, Header};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report};
 use risktwin_transport::zenoh::pubsub::Publisher;
@@ -164,20 +165,20 @@ pub async fn run_producer(
         push_subscribers.push((push, subscriber));
     }
     // The token comes after the push subscribers: a cloud pushing to this edge waits for the
-    // token (cloud/src/transport/push.rs), and seeing it must mean the subscribers exist. Zenoh
+    // token (cloud/src/network/push.rs), and seeing it must mean the subscribers exist. Zenoh
     // 1.10 sends every declaration of a session (subscriber, token) at the same `Control`
     // priority, hence in declaration order over each link, and each node's routing tables apply
     // and forward a face's declarations in arrival order; a link that comes up later (a peer met
     // through gossip) is sent the existing subscribers before the tokens (hat/peer/mod.rs,
     // `new_transport_unicast_face`). So wherever the token is seen, the subscribers reached the
-    // same node first. The cloud's edge watcher (cloud/src/transport/edges.rs) only declares
+    // same node first. The cloud's edge watcher (cloud/src/network/edges.rs) only declares
     // this edge's stream keys on a token, an optimisation that works whenever it comes.
     let token = declare_alive(&session, &config.site, &config.id).await?;
     let mut report_publishers: Vec<(EdgeReport, Publisher<'static>)> = Vec::new();
     let mut reports = Vec::new();
     for publisher in &publishers {
         if !publisher.wait_for_subscriber(config.wait_for_cloud, shutdown.clone()).await? && !shutdown.is_fired() {
-            eprintln!("edge {}: no subscriber on {} yet, publishing anyway", config.id, publisher.key());
+            tracing::warn!("edge {}: no subscriber on {} yet, publishing anyway", config.id, publisher.key());
         }
     }
 
@@ -251,7 +252,7 @@ pub async fn run_producer(
             break;
         }
         if tick == 0 {
-            eprintln!("edge {}: publishing", config.id);
+            tracing::info!("edge {}: publishing", config.id);
         }
         tick += 1;
     }
@@ -269,4 +270,15 @@ pub async fn run_producer(
     token.undeclare().await.map_err(|e| EdgeError::Shutdown { reason: e.to_string() })?;
     close(session).await?;
     result.map(|()| summary)
+}
+
+impl SentSummary {
+    /// The summary of what the edge of `config` sent, per stream.
+    pub(crate) fn new(config: &EdgeConfig, sent: impl IntoIterator<Item = (EdgeStream, u64)>) -> Self {
+        SentSummary {
+            site: config.site.to_string(),
+            source: config.id.to_string(),
+            sent: sent.into_iter().map(|(s, n)| (s.as_str().to_owned(), n)).collect(),
+        }
+    }
 }

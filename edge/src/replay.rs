@@ -3,7 +3,7 @@
 //! same key scheme as topics) is republished on its recorded key, in file order, paced by its log time divided by `speed` (0: as fast as the transport takes it),
 //! with its recorded receive time attached (see [`run`]).
 
-use crate::EdgeError;
+use crate::error::EdgeError;
 use risktwin_protos::recording::{MessageCursor, RecordingError, encode_replay_time};
 use risktwin_transport::keyexpr::{parse_edge_key, parse_edge_map_key};
 use risktwin_transport::zenoh::Session;

@@ -2,9 +2,10 @@
 //! 12 m beside the ego's start, published as `RsuObservation` on `rsu`, and a fixed-time traffic
 //! signal's `SignalPhase` on `signal`; both at the base rate (10 Hz, the usual SPaT rate).
 
+use crate::error::EdgeError;
 use crate::publish::{EdgeConfig, Producer, Stamper, run_producer};
 use crate::scene::{STEP_S, Scene, detected, feasible_spec};
-use crate::{EdgeError, SentSummary};
+use crate::summary::SentSummary;
 use risktwin_common::geometry::Pose;
 use risktwin_common::rng::Rng;
 use risktwin_common::sensor::{PerceivedObject, SceneObject, Sensor, SensorParams};

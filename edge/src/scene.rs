@@ -9,7 +9,7 @@
 //! step by step into a [`Tape`] that the vehicle then plays out on its
 //! streams in real time; the outcome is reported when the tape has been played.
 
-use crate::EdgeError;
+use crate::error::EdgeError;
 use risktwin_common::driver::{Policy, ReferenceDriver};
 use risktwin_common::episode::{EpisodeResult, run_observed, with_reference_driver};
 use risktwin_common::geometry::{Footprint, Pose};

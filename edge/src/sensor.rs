@@ -12,6 +12,8 @@
 //! ([`crate::shm::ShmControl`]). A gateway that leaves mid-run stops the producer with an error.
 
 use crate::cadence::{TICKS_PER_STEP, VehicleOutlet, ego_signals, vehicle_tick};
+use crate::clock::EdgeClock;
+use crate::error::EdgeError;
 use crate::gateway::ShmRoleError;
 use crate::publish::EdgeConfig;
 use crate::scene::{Scene, feasible_spec};
@@ -19,7 +21,7 @@ use crate::shm::{
     ControlEvent, OBJECT_LIST_CAPACITY, ShmCanFrame, ShmControl, ShmError, ShmObjectList, ShmPublisher, ShmQos,
     ShmStream, ShmVehicleState,
 };
-use crate::{EdgeClock, EdgeError, SentSummary};
+use crate::summary::SentSummary;
 use risktwin_common::telemetry::{CAN_DLC, CanSignals};
 use risktwin_transport::{EdgeStream, Shutdown};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -146,7 +148,7 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<SentSummary,
     let mut stop = shutdown.clone();
     let waited = Instant::now();
     if sensor.publishers.without_subscriber().is_some() {
-        eprintln!("sensor {id}: waiting for the gateway");
+        tracing::info!("sensor {id}: waiting for the gateway");
     }
     while let Some(service) = sensor.publishers.without_subscriber() {
         if waited.elapsed() >= config.wait_for_cloud {
@@ -206,7 +208,7 @@ async fn publish_loop(config: &EdgeConfig, sensor: &mut Sensor, mut stop: Shutdo
             return Err(ShmRoleError::GatewayLeft { service: service.to_owned() });
         }
         if tick == 0 {
-            eprintln!("sensor {}: publishing", config.id);
+            tracing::info!("sensor {}: publishing", config.id);
         }
         tick += 1;
     }

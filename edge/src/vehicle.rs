@@ -14,9 +14,10 @@
 pub mod push;
 
 use crate::cadence::{TICKS_PER_STEP, VehicleOutlet, ego_signals, vehicle_tick};
+use crate::error::EdgeError;
 use crate::publish::{EdgeConfig, Producer, Stamper, run_producer};
 use crate::scene::{ActivePolicy, Scene, Tape, detected, feasible_spec};
-use crate::{EdgeError, SentSummary};
+use crate::summary::SentSummary;
 use push::{PushSummary, ResultLine};
 use risktwin_common::telemetry::{
     CAN_DLC, CanFrame, CanSignals, DetectedObject, ObjectList, ScenarioResult, VehicleStateSample,
@@ -129,7 +130,7 @@ impl Vehicle {
             .policy
             .as_ref()
             .map_or("reference driver".to_owned(), |p| format!("policy {} version {}", p.policy_id, p.version));
-        eprintln!(
+        tracing::info!(
             "edge {}: scenario {} done ({driver}): collision {}, min TTC {:?} s",
             stamper.source(),
             result.spec_id,
@@ -170,7 +171,7 @@ impl Producer for Vehicle {
         match push {
             CloudToEdge::Scenario => {
                 if let Some(p) = self.pushes.scenario(payload) {
-                    eprintln!("edge: running pushed scenario {}", p.spec_id);
+                    tracing::info!("edge: running pushed scenario {}", p.spec_id);
                     // A push while another one plays replaces it (its result is not reported).
                     let tape = Tape::record(&p.spec, self.policy.as_ref());
                     self.pushed = Some(Pushed { spec_id: p.spec_id, tape, state_seqs: None });
@@ -179,9 +180,10 @@ impl Producer for Vehicle {
             CloudToEdge::Policy => {
                 if let Some(policy) = self.pushes.policy(payload) {
                     let kind = policy.net.kind().algo();
-                    eprintln!(
+                    tracing::info!(
                         "edge: driving with policy {} version {} ({kind})",
-                        policy.id.policy_id, policy.id.version
+                        policy.id.policy_id,
+                        policy.id.version
                     );
                     // The own scene switches now; a pushed episode already recorded keeps its driver.
                     self.scene.set_policy(policy.clone());

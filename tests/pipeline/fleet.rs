@@ -1,9 +1,10 @@
 //! N vehicles + M RSUs + one cloud around one router.
 
 use crate::support::{Proc, start_router};
-use risktwin_cloud::ingest::{IngestWorker, SnapshotDigest, Stream};
+use risktwin_cloud::ingest::{IngestWorker, SnapshotDigest};
 use risktwin_common::align::IngestConfig;
 use risktwin_protos::recording::read_messages;
+use risktwin_transport::EdgeStream;
 use serde_json::Value;
 use std::time::Duration;
 
@@ -121,7 +122,7 @@ fn vehicles_and_rsu_through_a_router_lose_nothing() {
     let mut digest = SnapshotDigest::default();
     for m in &recorded {
         let mut parts = m.topic.rsplit('/');
-        let stream = parts.next().and_then(Stream::from_name).expect("a known stream");
+        let stream = parts.next().and_then(EdgeStream::from_chunk).expect("a known stream");
         let source = parts.next().expect("a source segment");
         let receive_ns = i64::try_from(m.log_time_ns).expect("a log time in range");
         replay.handle(source, stream, &m.topic, &m.data, receive_ns, |s| digest.add(s)).expect("no recorder, no I/O");

@@ -3,15 +3,13 @@
 //! liveliness, and the shutdown signal every role obeys.
 //!
 //! Boundary: this crate moves opaque payload bytes on typed keys. It knows nothing of what a
-//! vehicle or the twin is; message encoding belongs to `risktwin-protos` (the [`standin`] record
-//! is only the payload of the transport benchmark). The edge and cloud crates depend on it; `common`
-//! never does (it stays free of async and network code).
+//! vehicle or the twin is; message encoding belongs to `risktwin-protos`. The edge and cloud
+//! crates depend on it; `common` never does (it stays free of async and network code).
 
 pub mod keyexpr;
 pub mod router;
 pub mod session;
 pub mod shutdown;
-pub mod standin;
 pub mod stream;
 
 pub use keyexpr::{EdgeStream, KeyError, SiteId, SourceId};

@@ -44,7 +44,7 @@ impl Shutdown {
     }
 
     /// A signal fired by SIGINT or SIGTERM (Ctrl-C elsewhere); must be called inside a tokio
-    /// runtime. The name of the signal is reported on stderr when it arrives.
+    /// runtime. The name of the signal is logged (`info`) when it arrives.
     pub fn on_signals() -> std::io::Result<Shutdown> {
         let (trigger, shutdown) = channel();
         #[cfg(unix)]
@@ -57,7 +57,7 @@ impl Shutdown {
                     _ = sigint.recv() => "SIGINT",
                     _ = sigterm.recv() => "SIGTERM",
                 };
-                eprintln!("{name} received, shutting down");
+                tracing::info!("{name} received, shutting down");
                 trigger.fire();
             });
         }

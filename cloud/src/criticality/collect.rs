@@ -16,6 +16,7 @@
 //! rectangles (their bounding rectangle), absent velocities and accelerations (0), planning
 //! problems (so the default ego of a rebuilt scenario is its first dynamic obstacle).
 
+use risktwin_common::align::DropReason;
 use risktwin_common::commonroad::{DynamicObstacle, ObstacleState, Scenario, Shape, StaticObstacle};
 use risktwin_common::geometry::Vec2;
 use risktwin_common::telemetry::{RoadMap, VehicleStateSample};
@@ -38,13 +39,24 @@ pub enum RebuildError {
     Scenario(#[from] risktwin_common::commonroad::CommonRoadError),
 }
 
+/// A message from another site than the collector's (the first message fixed it).
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("site '{site}' is not this collector's '{mine}'")]
+pub struct OtherSite {
+    /// The message's site.
+    pub site: String,
+    /// The collector's site.
+    pub mine: String,
+}
+
 /// Why one message was not taken; the collector is unchanged.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 #[error("{topic}: {detail}")]
 pub struct Rejected {
-    /// A short, stable code for counting: the decoder's (`malformed`, `missing_field`,
-    /// `invalid_field`), the ingest's `source-mismatch` (the payload names another source than its
-    /// key), `bad-source` (not `dyn-<id>`/`static-<id>`), `other-site`, `stale-seq`.
+    /// A short, stable code for counting: the ingest's [`DropReason`] codes of the decoder
+    /// (`malformed`, `missing-field`, `invalid-field`) and `source-mismatch` (the payload names
+    /// another source than its key), and this collector's own `bad-source` (not
+    /// `dyn-<id>`/`static-<id>`), `other-site`, `stale-seq`.
     pub reason: &'static str,
     /// The key the message came on.
     pub topic: String,
@@ -103,7 +115,7 @@ impl ScenarioCollector {
     pub fn push(&mut self, topic: &str, payload: &[u8]) -> Result<Pushed, Rejected> {
         let reject = |reason: &'static str, detail: String| Rejected { reason, topic: topic.to_owned(), detail };
         if let Some((site, _)) = parse_edge_map_key(topic) {
-            self.check_site(site).map_err(|d| reject("other-site", d))?;
+            self.check_site(site).map_err(|e| reject("other-site", e.to_string()))?;
             let map: RoadMap = decode(payload).map_err(|e| reject(e.reason(), e.to_string()))?;
             self.site.get_or_insert_with(|| site.to_owned());
             self.map = Some(map);
@@ -112,11 +124,11 @@ impl ScenarioCollector {
         let Some(key) = parse_edge_key(topic).filter(|k| k.stream == EdgeStream::State) else {
             return Ok(Pushed::Skipped);
         };
-        self.check_site(key.site).map_err(|d| reject("other-site", d))?;
+        self.check_site(key.site).map_err(|e| reject("other-site", e.to_string()))?;
         let s: VehicleStateSample = decode(payload).map_err(|e| reject(e.reason(), e.to_string()))?;
         if s.header.source != key.source {
             let detail = format!("the payload names source '{}'", s.header.source);
-            return Err(reject("source-mismatch", detail));
+            return Err(reject(DropReason::SourceMismatch.code(), detail));
         }
         let index = match self.by_source.get(key.source) {
             Some(&i) => i,
@@ -153,9 +165,9 @@ impl ScenarioCollector {
         Ok(Pushed::State)
     }
 
-    fn check_site(&self, site: &str) -> Result<(), String> {
+    fn check_site(&self, site: &str) -> Result<(), OtherSite> {
         match &self.site {
-            Some(mine) if mine != site => Err(format!("site '{site}' is not this collector's '{mine}'")),
+            Some(mine) if mine != site => Err(OtherSite { site: site.to_owned(), mine: mine.clone() }),
             _ => Ok(()),
         }
     }

@@ -3,14 +3,12 @@
 mod digest;
 mod replay;
 mod sample;
-mod stream;
-pub mod synth;
+pub mod stream;
 mod worker;
 
 pub use digest::SnapshotDigest;
 pub use replay::{ReplayCounts, replay_into};
-pub use sample::{Kinematics, TwinSample};
-pub use stream::Stream;
+pub use sample::{ObservedKinematics, TwinSample};
 pub use worker::{IngestStats, IngestWorker};
 #[cfg(test)]
 mod tests;

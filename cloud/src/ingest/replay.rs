@@ -4,11 +4,11 @@
 //! Each channel's topic is parsed once (source, stream) and cached by channel id, so a message
 //! costs the cursor's copy plus the worker; nothing is allocated per message here.
 
-use super::TwinSample;
-use super::stream::Stream;
+use super::sample::TwinSample;
 use super::worker::IngestWorker;
 use risktwin_common::align::Snapshot;
 use risktwin_protos::recording::{MessageCursor, RecordingError};
+use risktwin_transport::EdgeStream;
 use risktwin_transport::keyexpr::parse_edge_key;
 use std::io::{Read, Seek, Write};
 
@@ -22,7 +22,7 @@ pub struct ReplayCounts {
 }
 
 /// Where a channel's messages go: `None` for a topic outside the edge scheme.
-type Route = Option<(Box<str>, Stream)>;
+type Route = Option<(Box<str>, EdgeStream)>;
 
 /// Feeds every edge-stream message of `cursor` through `worker` at its log time.
 pub fn replay_into<R: Read, W: Write + Seek>(
@@ -38,9 +38,7 @@ pub fn replay_into<R: Read, W: Write + Seek>(
         if routes.len() <= slot {
             routes.resize(slot + 1, None);
         }
-        let route = routes[slot].get_or_insert_with(|| {
-            parse_edge_key(m.topic).and_then(|k| Some((k.source.into(), Stream::from_name(k.stream.as_str())?)))
-        });
+        let route = routes[slot].get_or_insert_with(|| parse_edge_key(m.topic).map(|k| (k.source.into(), k.stream)));
         let (Some((source, stream)), Ok(receive_ns)) = (route.as_ref(), i64::try_from(m.log_time_ns)) else {
             counts.skipped += 1;
             continue;

@@ -5,9 +5,11 @@ use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::telemetry::{DetectedObject, Phase};
 use std::sync::Arc;
 
-/// Kinematic state of a vehicle, interpolated between samples.
+/// A vehicle's kinematics as observed on its `state` stream (and interpolated between its
+/// samples by the aligner): what the twin knows of a remote vehicle, as opposed to the
+/// simulator's own state arrays or the risk field's `EgoKinematics` input.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Kinematics {
+pub struct ObservedKinematics {
     pub pose: Pose,
     pub velocity: Vec2,
     pub speed_mps: f64,
@@ -18,7 +20,7 @@ pub struct Kinematics {
 /// One aligned value.
 #[derive(Debug, Clone, PartialEq)]
 pub enum TwinSample {
-    State(Kinematics),
+    State(ObservedKinematics),
     /// Decoded CAN signals by frame id: (can_id, raw payload).
     Can {
         can_id: u32,
@@ -41,7 +43,7 @@ impl Interpolate for TwinSample {
     /// interpolated — the nearer sample is kept should the aligner ask.
     fn lerp(a: &Self, b: &Self, t: f64) -> Self {
         match (a, b) {
-            (TwinSample::State(x), TwinSample::State(y)) => TwinSample::State(Kinematics {
+            (TwinSample::State(x), TwinSample::State(y)) => TwinSample::State(ObservedKinematics {
                 pose: Pose::new(
                     lerp(x.pose.x_m, y.pose.x_m, t),
                     lerp(x.pose.y_m, y.pose.y_m, t),

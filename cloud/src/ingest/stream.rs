@@ -1,79 +1,49 @@
-//! The edge→cloud streams the ingest role understands, and what each carries.
+//! What the ingest needs to know of each edge→cloud stream beyond its key: the protobuf type it
+//! carries and how the aligner treats it. The streams themselves are
+//! [`risktwin_transport::EdgeStream`], defined once with the key scheme.
 
 use risktwin_common::align::{StreamIndex, StreamMode, StreamSpec};
 use risktwin_common::telemetry::{CanFrame, ObjectList, RsuObservation, SignalPhase, VehicleStateSample};
 use risktwin_protos::WireMessage;
+use risktwin_transport::EdgeStream;
 
-/// One edge→cloud stream; its name is the last segment of its key expression.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Stream {
-    /// `VehicleState`, 50 Hz, interpolated.
-    State,
-    /// `CanFrame`, 100 Hz, as-of.
-    Can,
-    /// `ObjectList` from a vehicle's perception, 10 Hz, as-of.
-    Perception,
-    /// `RsuObservation`, 10 Hz, as-of.
-    Rsu,
-    /// `SignalPhase`, as-of.
-    Signal,
+/// The protobuf message type `stream` carries (its schema name in a recording).
+pub fn proto_name(stream: EdgeStream) -> &'static str {
+    match stream {
+        EdgeStream::State => VehicleStateSample::PROTO_NAME,
+        EdgeStream::Can => CanFrame::PROTO_NAME,
+        EdgeStream::Perception => ObjectList::PROTO_NAME,
+        EdgeStream::Rsu => RsuObservation::PROTO_NAME,
+        EdgeStream::Signal => SignalPhase::PROTO_NAME,
+    }
 }
 
-impl Stream {
-    pub const ALL: [Stream; 5] = [Stream::State, Stream::Can, Stream::Perception, Stream::Rsu, Stream::Signal];
+/// Position of `stream` in the aligner's stream table (its [`EdgeStream::index`]).
+pub fn aligner_index(stream: EdgeStream) -> StreamIndex {
+    StreamIndex(stream.index() as u16)
+}
 
-    /// The key-expression segment (`risktwin/v1/<site>/<source>/<name>`).
-    pub fn name(self) -> &'static str {
-        match self {
-            Stream::State => "state",
-            Stream::Can => "can",
-            Stream::Perception => "perception",
-            Stream::Rsu => "rsu",
-            Stream::Signal => "signal",
-        }
+/// Nominal period of `stream`, used for staleness: state 50 Hz, CAN 100 Hz, perception and RSU
+/// 10 Hz, signal phases 1 Hz.
+pub fn period_ns(stream: EdgeStream) -> i64 {
+    match stream {
+        EdgeStream::State => 20_000_000,
+        EdgeStream::Can => 10_000_000,
+        EdgeStream::Perception | EdgeStream::Rsu => 100_000_000,
+        EdgeStream::Signal => 1_000_000_000,
     }
+}
 
-    /// The stream named by a key-expression segment.
-    pub fn from_name(name: &str) -> Option<Stream> {
-        Stream::ALL.into_iter().find(|s| s.name() == name)
-    }
-
-    /// The protobuf message type the stream carries (its schema name in a recording).
-    pub fn proto_name(self) -> &'static str {
-        match self {
-            Stream::State => VehicleStateSample::PROTO_NAME,
-            Stream::Can => CanFrame::PROTO_NAME,
-            Stream::Perception => ObjectList::PROTO_NAME,
-            Stream::Rsu => RsuObservation::PROTO_NAME,
-            Stream::Signal => SignalPhase::PROTO_NAME,
-        }
-    }
-
-    /// Position in the aligner's stream table.
-    pub fn index(self) -> StreamIndex {
-        StreamIndex(self as u16)
-    }
-
-    /// Nominal period, used for staleness.
-    pub fn period_ns(self) -> i64 {
-        match self {
-            Stream::State => 20_000_000,
-            Stream::Can => 10_000_000,
-            Stream::Perception | Stream::Rsu => 100_000_000,
-            Stream::Signal => 1_000_000_000,
-        }
-    }
-
-    /// The aligner specification of every stream, in index order.
-    pub fn specs() -> Vec<StreamSpec> {
-        Stream::ALL
-            .into_iter()
-            .map(|s| StreamSpec {
-                mode: if s == Stream::State { StreamMode::Interpolated } else { StreamMode::AsOf },
-                period_ns: s.period_ns(),
-            })
-            .collect()
-    }
+/// The aligner specification of every stream, in index order: state interpolated, the rest
+/// as-of.
+pub fn aligner_specs() -> Vec<StreamSpec> {
+    EdgeStream::ALL
+        .into_iter()
+        .map(|s| StreamSpec {
+            mode: if s == EdgeStream::State { StreamMode::Interpolated } else { StreamMode::AsOf },
+            period_ns: period_ns(s),
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -81,12 +51,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn names_round_trip_and_indices_follow_the_table() {
-        for (i, s) in Stream::ALL.into_iter().enumerate() {
-            assert_eq!(Stream::from_name(s.name()), Some(s));
-            assert_eq!(s.index(), StreamIndex(i as u16));
+    fn indices_follow_the_table() {
+        for (i, s) in EdgeStream::ALL.into_iter().enumerate() {
+            assert_eq!(aligner_index(s), StreamIndex(i as u16));
+            assert_eq!(aligner_specs()[i].period_ns, period_ns(s));
         }
-        assert_eq!(Stream::from_name("bogus"), None);
-        assert_eq!(Stream::specs().len(), Stream::ALL.len());
+        assert_eq!(aligner_specs().len(), EdgeStream::ALL.len());
+        assert_eq!(aligner_specs()[0].mode, StreamMode::Interpolated);
     }
 }

@@ -5,9 +5,10 @@ use crate::test_fixtures::state;
 use risktwin_common::align::IngestConfig;
 use risktwin_protos::encode;
 use risktwin_protos::recording::{Recorder, read_messages};
+use risktwin_transport::EdgeStream;
 use std::io::Cursor;
 
-type Message = (String, Stream, String, Vec<u8>, i64);
+type Message = (String, EdgeStream, String, Vec<u8>, i64);
 
 /// Three vehicles at 50 Hz for 4 s with a 2–5 ms delay and 30 ms clock offsets, plus planted
 /// bad input: garbage, a NaN field, a duplicate, a source mismatch.
@@ -20,24 +21,24 @@ fn fleet() -> Vec<Message> {
             let t = 1_000_000_000 + seq as i64 * 20_000_000;
             let sample = state(&source, seq, t + 30_000_000 * v as i64);
             let receive = t + 2_000_000 + ((seq * 7 + v) % 4) as i64 * 1_000_000;
-            msgs.push((source.clone(), Stream::State, topic.clone(), encode(&sample), receive));
+            msgs.push((source.clone(), EdgeStream::State, topic.clone(), encode(&sample), receive));
         }
     }
     let t0 = 2_000_000_000;
-    msgs.push(("veh-0".into(), Stream::State, "risktwin/v1/test/veh-0/state".into(), vec![0xff; 17], t0));
+    msgs.push(("veh-0".into(), EdgeStream::State, "risktwin/v1/test/veh-0/state".into(), vec![0xff; 17], t0));
     let mut nan = state("veh-1", 500, t0);
     nan.speed_mps = f64::NAN;
-    msgs.push(("veh-1".into(), Stream::State, "risktwin/v1/test/veh-1/state".into(), encode(&nan), t0));
+    msgs.push(("veh-1".into(), EdgeStream::State, "risktwin/v1/test/veh-1/state".into(), encode(&nan), t0));
     msgs.push((
         "veh-2".into(),
-        Stream::State,
+        EdgeStream::State,
         "risktwin/v1/test/veh-2/state".into(),
         encode(&state("veh-2", 10, t0)),
         t0 + 1,
     ));
     msgs.push((
         "veh-0".into(),
-        Stream::State,
+        EdgeStream::State,
         "risktwin/v1/test/veh-0/state".into(),
         encode(&state("veh-9", 600, t0)),
         t0 + 2,
@@ -56,7 +57,7 @@ fn bad_input_is_counted_by_reason_and_the_worker_goes_on() {
     assert_eq!(s.received, 604);
     assert_eq!(s.accepted, 600, "{s:?}");
     assert_eq!(s.dropped.get("malformed"), Some(&1));
-    assert_eq!(s.dropped.get("invalid_field"), Some(&1));
+    assert_eq!(s.dropped.get("invalid-field"), Some(&1));
     assert_eq!(s.dropped.get("duplicate"), Some(&1));
     assert_eq!(s.dropped.get("source-mismatch"), Some(&1));
     assert_eq!(s.received, s.accepted + s.dropped_total(), "nothing lost silently");
@@ -81,7 +82,7 @@ fn replaying_the_recording_reproduces_the_snapshots() {
     let mut replay_digest = SnapshotDigest::default();
     for m in &recorded {
         let mut parts = m.topic.rsplit('/');
-        let stream = parts.next().and_then(Stream::from_name).expect("known stream");
+        let stream = parts.next().and_then(EdgeStream::from_chunk).expect("known stream");
         let source = parts.next().expect("source segment");
         replay
             .handle(source, stream, &m.topic, &m.data, m.log_time_ns as i64, |s| replay_digest.add(s))

@@ -2,16 +2,18 @@
 //! recording of what was accepted. Transport-free: whoever receives a message calls
 //! [`IngestWorker::handle`] with the source and stream its key expression names.
 //!
-//! Nothing that arrives stops the worker: a message that fails any check is counted under a
-//! stable reason code and dropped. Accepted messages are recorded byte for byte as received,
-//! so a recording replayed through a worker reproduces the live snapshots.
+//! Nothing that arrives stops the worker: a message that fails any check is counted under its
+//! [`DropReason`] code and dropped. Accepted messages are recorded byte for byte as received,
+//! so a recording replayed through a worker reproduces the live snapshots. The recorder is the
+//! cloud's only one: the twin's outputs go into it too ([`IngestWorker::recorder_mut`]).
 
-use super::sample::{Kinematics, TwinSample};
-use super::stream::Stream;
-use risktwin_common::align::{Incoming, IngestConfig, IngestCore, PushOutcome, Snapshot, SourceTable};
+use super::sample::{ObservedKinematics, TwinSample};
+use super::stream::{aligner_index, aligner_specs, proto_name};
+use risktwin_common::align::{DropReason, Incoming, IngestConfig, IngestCore, PushOutcome, Snapshot, SourceTable};
 use risktwin_common::telemetry::{CanFrame, Header, ObjectList, RsuObservation, SignalPhase, VehicleStateSample};
 use risktwin_protos::recording::{Recorder, RecordingError};
-use risktwin_protos::{WireMessage, decode};
+use risktwin_protos::{DecodeError, WireMessage, decode};
+use risktwin_transport::EdgeStream;
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
 use std::sync::Arc;
@@ -30,6 +32,7 @@ pub struct IngestStats {
     pub late: u64,
     /// Of those, the ones no coming tick could use, so the twin never saw them.
     pub late_dropped: u64,
+    /// Drops by [`DropReason::code`].
     pub dropped: BTreeMap<String, u64>,
 }
 
@@ -48,15 +51,15 @@ pub struct IngestWorker<W: Write + Seek> {
     stats: IngestStats,
 }
 
-fn decoded<T: WireMessage>(payload: &[u8]) -> Result<T, &'static str> {
-    decode::<T>(payload).map_err(|e| e.reason())
+fn decoded<T: WireMessage>(payload: &[u8]) -> Result<T, DropReason> {
+    decode::<T>(payload).map_err(|e: DecodeError| e.drop_reason())
 }
 
 impl<W: Write + Seek> IngestWorker<W> {
     /// A worker that records accepted messages into `recorder` when one is given.
     pub fn new(config: IngestConfig, recorder: Option<Recorder<W>>) -> Self {
         Self {
-            core: IngestCore::new(config, &Stream::specs()),
+            core: IngestCore::new(config, &aligner_specs()),
             sources: SourceTable::with_limit(MAX_SOURCES),
             recorder,
             stats: IngestStats::default(),
@@ -65,34 +68,35 @@ impl<W: Write + Seek> IngestWorker<W> {
 
     /// Handles one message from `source` on `stream`, received at `receive_ns` (cloud clock).
     /// `topic` names it in the recording. Snapshots that become due are passed to `on_snapshot`.
+    /// `Ok(true)` when the message was accepted (and recorded), `Ok(false)` when it was dropped.
     pub fn handle(
         &mut self,
         source: &str,
-        stream: Stream,
+        stream: EdgeStream,
         topic: &str,
         payload: &[u8],
         receive_ns: i64,
         on_snapshot: impl FnMut(&Snapshot<TwinSample>),
-    ) -> Result<(), RecordingError> {
+    ) -> Result<bool, RecordingError> {
         self.stats.received += 1;
         let (header, sample) = match Self::decode(stream, payload) {
             Ok(v) => v,
             Err(reason) => {
                 self.drop_for(reason);
-                return Ok(());
+                return Ok(false);
             }
         };
         if header.source != source {
-            self.drop_for("source-mismatch");
-            return Ok(());
+            self.drop_for(DropReason::SourceMismatch);
+            return Ok(false);
         }
         let Ok(src) = self.sources.index_of(source) else {
-            self.drop_for("too-many-sources");
-            return Ok(());
+            self.drop_for(DropReason::TooManySources);
+            return Ok(false);
         };
         let incoming = Incoming {
             source: src,
-            stream: stream.index(),
+            stream: aligner_index(stream),
             seq: header.seq,
             capture_ns: header.capture_time_ns,
             receive_ns,
@@ -106,7 +110,10 @@ impl<W: Write + Seek> IngestWorker<W> {
         });
         self.stats.snapshots += snapshots;
         match verdict {
-            Err(reason) => self.drop_for(reason.code()),
+            Err(reason) => {
+                self.drop_for(reason);
+                Ok(false)
+            }
             Ok(accepted) => {
                 self.stats.accepted += 1;
                 match accepted.push {
@@ -118,13 +125,25 @@ impl<W: Write + Seek> IngestWorker<W> {
                     PushOutcome::Buffered | PushOutcome::SameTime => {}
                 }
                 if let Some(rec) = self.recorder.as_mut() {
-                    let channel = rec.channel(topic, stream.proto_name())?;
+                    let channel = rec.channel(topic, proto_name(stream))?;
                     rec.write(channel, receive_ns.max(0) as u64, header.publish_time_ns.max(0) as u64, payload)?;
                     self.stats.recorded += 1;
                 }
+                Ok(true)
             }
         }
-        Ok(())
+    }
+
+    /// Counts a message dropped before it reached the worker (its key or its attachment was
+    /// wrong), so that every drop is counted in one place.
+    pub fn reject(&mut self, reason: DropReason) {
+        self.stats.received += 1;
+        self.drop_for(reason);
+    }
+
+    /// The recording, when the worker records: the twin's outputs are written into it too.
+    pub fn recorder_mut(&mut self) -> Option<&mut Recorder<W>> {
+        self.recorder.as_mut()
     }
 
     /// Emits snapshots that are due by `now_ns` even when no message arrives (an idle timer).
@@ -153,15 +172,21 @@ impl<W: Write + Seek> IngestWorker<W> {
         Ok((self.stats, writer))
     }
 
-    fn drop_for(&mut self, reason: &str) {
-        *self.stats.dropped.entry(reason.to_string()).or_default() += 1;
+    fn drop_for(&mut self, reason: DropReason) {
+        // Look up by &str first so that a known reason costs no allocation.
+        match self.stats.dropped.get_mut(reason.code()) {
+            Some(n) => *n += 1,
+            None => {
+                self.stats.dropped.insert(reason.code().to_owned(), 1);
+            }
+        }
     }
 
-    fn decode(stream: Stream, payload: &[u8]) -> Result<(Header, TwinSample), &'static str> {
+    fn decode(stream: EdgeStream, payload: &[u8]) -> Result<(Header, TwinSample), DropReason> {
         Ok(match stream {
-            Stream::State => {
+            EdgeStream::State => {
                 let s: VehicleStateSample = decoded(payload)?;
-                let k = Kinematics {
+                let k = ObservedKinematics {
                     pose: s.pose,
                     velocity: s.velocity,
                     speed_mps: s.speed_mps,
@@ -170,19 +195,19 @@ impl<W: Write + Seek> IngestWorker<W> {
                 };
                 (s.header, TwinSample::State(k))
             }
-            Stream::Can => {
+            EdgeStream::Can => {
                 let f: CanFrame = decoded(payload)?;
                 (f.header, TwinSample::Can { can_id: f.can_id, data: f.data })
             }
-            Stream::Perception => {
+            EdgeStream::Perception => {
                 let l: ObjectList = decoded(payload)?;
                 (l.header, TwinSample::Objects(Arc::from(l.objects)))
             }
-            Stream::Rsu => {
+            EdgeStream::Rsu => {
                 let o: RsuObservation = decoded(payload)?;
                 (o.header, TwinSample::Objects(Arc::from(o.objects)))
             }
-            Stream::Signal => {
+            EdgeStream::Signal => {
                 let p: SignalPhase = decoded(payload)?;
                 (p.header, TwinSample::Signal { signal_id: p.signal_id, phase: p.phase })
             }

@@ -1,7 +1,7 @@
 //! Reading scenarios back: lookup by id with every outcome, lineage, per-kind counts, and the
 //! decoding (with re-validation) of stored rows.
 
-use super::ScenarioLibrary;
+use super::connection::ScenarioLibrary;
 use super::error::LibraryError;
 use super::record::{DEFAULT_POLICY, KindCounts, Origin, Outcome, StoredScenario};
 use risktwin_common::metrics::EpisodeMetrics;

@@ -4,7 +4,7 @@
 //! default): highest `risk.score` first, ties by id, so the order never depends on insertion
 //! order or on SQLite's plan.
 
-use super::ScenarioLibrary;
+use super::connection::ScenarioLibrary;
 use super::error::LibraryError;
 use super::query::decode_spec;
 use super::record::{DEFAULT_POLICY, fnv1a64};

@@ -3,7 +3,7 @@
 //! recorded ego replayed) and the outcome of every policy run on it, ranked by S_risk as
 //! generated scenarios are.
 
-use super::ScenarioLibrary;
+use super::connection::ScenarioLibrary;
 use super::error::{LibraryError, RecordError};
 use super::query::{OUTCOME_COLUMNS, outcome_from_row};
 use super::rank::RankOutcome;

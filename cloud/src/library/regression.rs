@@ -1,7 +1,7 @@
 //! The regression set: scenarios kept to re-run against every new policy. Any outcome with a
 //! collision adds its scenario (in `insert_batch`); `mark_regression` adds others by hand.
 
-use super::ScenarioLibrary;
+use super::connection::ScenarioLibrary;
 use super::error::LibraryError;
 use super::query::decode_spec;
 use risktwin_common::scenario::ScenarioSpec;

@@ -1,7 +1,7 @@
 //! Writing scenarios: batch inserts in one transaction (validated first, all or nothing) and
 //! rejection counts.
 
-use super::ScenarioLibrary;
+use super::connection::ScenarioLibrary;
 use super::error::{LibraryError, RecordError};
 use super::query::{OUTCOME_COLUMNS, decode_kind};
 use super::record::{InsertSummary, Outcome, Rejection, ScenarioRecord, content_id, ttc_for_storage, validate_record};

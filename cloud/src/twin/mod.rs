@@ -7,16 +7,20 @@
 //! twin shows only what it may trust at this tick. Jerk and lateral acceleration are derived
 //! from consecutive ticks of the same vehicle, since the state stream carries neither.
 //!
-//! [`risk`] evaluates the risk field and report of an ego on a site's twin.
+//! [`risk`] evaluates the risk field and report of an ego on a site's twin; [`outputs`] turns
+//! each tick into the scene and risk outputs the network side records and publishes.
 
+pub mod outputs;
 pub mod risk;
 
-use crate::ingest::{Kinematics, Stream, TwinSample};
+use crate::ingest::stream::aligner_index;
+use crate::ingest::{ObservedKinematics, TwinSample};
 use risktwin_common::align::{Snapshot, SourceIndex, ValueStatus};
 use risktwin_common::geometry::wrap_angle;
 use risktwin_common::road::Road;
 use risktwin_common::scenario::{ScenarioKind, build, check_feasible, sample};
 use risktwin_common::telemetry::DetectedObject;
+use risktwin_transport::EdgeStream;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -26,7 +30,7 @@ pub struct TwinVehicle {
     /// The vehicle's source id.
     pub source: Arc<str>,
     /// Its kinematics at the tick (interpolated between its state samples).
-    pub kinematics: Kinematics,
+    pub kinematics: ObservedKinematics,
     /// Longitudinal jerk since the previous tick, m/s³ (0 on its first tick).
     pub jerk_mps3: f64,
     /// Lateral acceleration from the heading rate, m/s² (0 on its first tick).
@@ -104,7 +108,7 @@ impl Twin {
                 Some(t) => t,
                 None => self.sites.entry(Arc::clone(site)).or_default(),
             };
-            if let Some(TwinSample::State(k)) = current(snapshot, src, Stream::State) {
+            if let Some(TwinSample::State(k)) = current(snapshot, src, EdgeStream::State) {
                 let (jerk_mps3, lateral_accel_mps2) = match self.previous[index] {
                     Some(p) if snapshot.tick_ns > p.tick_ns => {
                         let dt_s = (snapshot.tick_ns - p.tick_ns) as f64 * 1e-9;
@@ -127,7 +131,7 @@ impl Twin {
             } else {
                 self.previous[index] = None;
             }
-            for stream in [Stream::Perception, Stream::Rsu] {
+            for stream in [EdgeStream::Perception, EdgeStream::Rsu] {
                 if let Some(TwinSample::Objects(list)) = current(snapshot, src, stream) {
                     twin.objects.extend(list.iter().map(|o| TwinObject { observer: Arc::clone(source), object: *o }));
                 }
@@ -168,8 +172,8 @@ pub fn scenario_road(kind: ScenarioKind) -> Road {
 }
 
 /// The value of `stream` of `src` when it is current (interpolated or as-of, not stale).
-fn current(snapshot: &Snapshot<TwinSample>, src: SourceIndex, stream: Stream) -> Option<&TwinSample> {
-    let aligned = snapshot.get(src, stream.index())?;
+fn current(snapshot: &Snapshot<TwinSample>, src: SourceIndex, stream: EdgeStream) -> Option<&TwinSample> {
+    let aligned = snapshot.get(src, aligner_index(stream))?;
     match aligned.status {
         ValueStatus::Interpolated | ValueStatus::AsOf => aligned.value.as_ref(),
         ValueStatus::NoData | ValueStatus::Stale => None,

@@ -25,7 +25,9 @@ fn twin_of_two() -> Twin {
             let topic = format!("risktwin/v1/site/{source}/state");
             let mut snapshots = Vec::new();
             worker
-                .handle(source, Stream::State, &topic, &encode(&sample), t + 2_000_000, |s| snapshots.push(s.clone()))
+                .handle(source, EdgeStream::State, &topic, &encode(&sample), t + 2_000_000, |s| {
+                    snapshots.push(s.clone())
+                })
                 .expect("no recorder");
             for i in 0..2 {
                 if let Some(name) = worker.source_name(i) {

@@ -1,4 +1,10 @@
-//! Why the ingest core turned a message away, with stable codes for counters and logs.
+//! Why the ingest turned a message away, with stable codes for counters, logs and the cloud's
+//! JSON summary (all kebab-case; docs/keyexpr.md lists them next to the keys).
+//!
+//! One list for the whole ingest path: the transport side (`bad-key`, `no-replay-time`), the
+//! decoder (`malformed`, `missing-field`, `invalid-field`), the payload check
+//! (`source-mismatch`) and the ingest core itself (the rest; [`crate::align::IngestCore`] only
+//! ever returns those).
 
 /// Why a message was not taken into the twin; [`DropReason::code`] is stable across releases.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -15,16 +21,34 @@ pub enum DropReason {
     TooManySources,
     /// The stream index is not one the aligner was built with.
     UnknownStream,
+    /// The key is not an edge stream of the scheme (`risktwin/v1/<site>/<source>/<stream>`).
+    BadKey,
+    /// Replay-ingest mode, and the message carries no replay-time attachment.
+    NoReplayTime,
+    /// The payload is not a protobuf message of the stream's type.
+    Malformed,
+    /// The message lacks a field it must carry.
+    MissingField,
+    /// A field holds a value outside its domain (NaN, out of range, unknown enum).
+    InvalidField,
+    /// The payload's header names another source than its key.
+    SourceMismatch,
 }
 
 impl DropReason {
     /// Every reason, in code order; `DropCounts` is indexed by position in this list.
-    pub const ALL: [DropReason; 5] = [
+    pub const ALL: [DropReason; 11] = [
         DropReason::Duplicate,
         DropReason::TooOld,
         DropReason::FutureTimestamp,
         DropReason::TooManySources,
         DropReason::UnknownStream,
+        DropReason::BadKey,
+        DropReason::NoReplayTime,
+        DropReason::Malformed,
+        DropReason::MissingField,
+        DropReason::InvalidField,
+        DropReason::SourceMismatch,
     ];
 
     /// The stable, kebab-case code used in counters, logs and reports.
@@ -35,6 +59,12 @@ impl DropReason {
             DropReason::FutureTimestamp => "future-timestamp",
             DropReason::TooManySources => "too-many-sources",
             DropReason::UnknownStream => "unknown-stream",
+            DropReason::BadKey => "bad-key",
+            DropReason::NoReplayTime => "no-replay-time",
+            DropReason::Malformed => "malformed",
+            DropReason::MissingField => "missing-field",
+            DropReason::InvalidField => "invalid-field",
+            DropReason::SourceMismatch => "source-mismatch",
         }
     }
 
@@ -89,7 +119,22 @@ mod tests {
     #[test]
     fn codes_are_stable_unique_and_round_trip() {
         let codes: Vec<&str> = DropReason::ALL.iter().map(|r| r.code()).collect();
-        assert_eq!(codes, ["duplicate", "too-old", "future-timestamp", "too-many-sources", "unknown-stream"]);
+        assert_eq!(
+            codes,
+            [
+                "duplicate",
+                "too-old",
+                "future-timestamp",
+                "too-many-sources",
+                "unknown-stream",
+                "bad-key",
+                "no-replay-time",
+                "malformed",
+                "missing-field",
+                "invalid-field",
+                "source-mismatch"
+            ]
+        );
         for r in DropReason::ALL {
             assert_eq!(DropReason::from_code(r.code()), Some(r));
             assert_eq!(DropReason::ALL[r.slot()], r, "ALL must be in slot order");

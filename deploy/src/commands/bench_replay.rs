@@ -1,24 +1,11 @@
 //! `risktwin bench replay`: unpaced MCAP replay into ingest, in-process, against the raw `mcap`
-//! reader as the peer.
-//!
-//! One run times, alternating, per round: the `mcap` crate's own `MessageStream` over the
-//! recording's bytes (the peer: it only reads), our [`MessageCursor`] alone, and our cursor
-//! feeding every message through an [`IngestWorker`] (decode, validate, exactly-once, clock
-//! estimation, alignment into snapshots) at its recorded receive time. Medians are compared.
-//! Without `--file` (or with a `--file` that does not exist yet) a synthetic fleet recording is
-//! written first: `--vehicles` × `--seconds` of state (50 Hz), CAN (100 Hz) and perception (10 Hz).
+//! reader as the peer. The benchmark is [`risktwin_bench::replay`].
 
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use clap::Args;
-use risktwin_cloud::ingest::synth::{FleetConfig, SyntheticFleet};
-use risktwin_cloud::ingest::{IngestWorker, SnapshotDigest, replay_into};
-use risktwin_common::align::IngestConfig;
-use risktwin_protos::recording::{MessageCursor, Recorder};
-use serde::Serialize;
-use std::io::{BufWriter, Cursor};
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use risktwin_bench::replay::{ReplayConfig, replay as run_replay};
+use std::path::PathBuf;
 
 #[derive(Debug, Args)]
 pub struct BenchReplayArgs {
@@ -38,69 +25,13 @@ pub struct BenchReplayArgs {
     pub format: Format,
 }
 
-#[derive(Serialize)]
-struct ReplayReport {
-    file: String,
-    file_bytes: u64,
-    messages: u64,
-    raw_mcap_msgs_per_s: f64,
-    cursor_msgs_per_s: f64,
-    ingest_msgs_per_s: f64,
-    /// Ingest over the raw reader alone (the raw reader does no ingest work).
-    ratio_ingest_vs_raw_reader: f64,
-    cursor_vs_raw_reader: f64,
-    accepted: u64,
-    dropped: u64,
-    snapshots: u64,
-    snapshot_digest: String,
-}
-
 pub fn replay(args: BenchReplayArgs) -> CliResult {
     if args.rounds == 0 {
         return Err(CliError::input("--rounds must be positive"));
     }
-    let temp;
-    let path = match &args.file {
-        Some(p) => p.clone(),
-        None => {
-            temp = TempFile(std::env::temp_dir().join(format!("risktwin-bench-replay-{}.mcap", std::process::id())));
-            temp.0.clone()
-        }
-    };
-    if !path.exists() {
-        if args.vehicles == 0 || args.seconds == 0 {
-            return Err(CliError::input("--vehicles and --seconds must be positive"));
-        }
-        let n = write_fleet(&path, args.vehicles, args.seconds)?;
-        eprintln!("wrote {n} messages of {} vehicles × {} s to {}", args.vehicles, args.seconds, path.display());
-    }
-    let bytes = std::fs::read(&path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
-
-    let (mut raw, mut cursor, mut ingest) = (Vec::new(), Vec::new(), Vec::new());
-    let mut last = None;
-    for _ in 0..args.rounds {
-        raw.push(time_raw(&bytes)?);
-        cursor.push(time_cursor(&bytes)?);
-        let (rate, outcome) = time_ingest(&bytes)?;
-        ingest.push(rate);
-        last = Some(outcome);
-    }
-    let outcome = last.expect("rounds > 0");
-    let (raw, cursor, ingest) = (median(&mut raw), median(&mut cursor), median(&mut ingest));
-    let report = ReplayReport {
-        file: path.display().to_string(),
-        file_bytes: bytes.len() as u64,
-        messages: outcome.messages,
-        raw_mcap_msgs_per_s: raw,
-        cursor_msgs_per_s: cursor,
-        ingest_msgs_per_s: ingest,
-        ratio_ingest_vs_raw_reader: ingest / raw,
-        cursor_vs_raw_reader: cursor / raw,
-        accepted: outcome.accepted,
-        dropped: outcome.dropped,
-        snapshots: outcome.snapshots,
-        snapshot_digest: outcome.digest,
-    };
+    let config = ReplayConfig { file: args.file, vehicles: args.vehicles, seconds: args.seconds, rounds: args.rounds };
+    let report = run_replay(&config)?;
+    let (raw, cursor, ingest) = (report.raw_mcap_msgs_per_s, report.cursor_msgs_per_s, report.ingest_msgs_per_s);
     match args.format {
         Format::Json => print_json(&report),
         _ => print_table(
@@ -119,93 +50,4 @@ pub fn replay(args: BenchReplayArgs) -> CliResult {
             ],
         ),
     }
-}
-
-/// Removes the synthetic recording when the benchmark ends.
-struct TempFile(PathBuf);
-
-impl Drop for TempFile {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.0);
-    }
-}
-
-fn write_fleet(path: &Path, vehicles: usize, seconds: u64) -> CliResult<u64> {
-    let file = std::fs::File::create(path).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
-    let mut recorder = Recorder::new(BufWriter::new(file)).map_err(CliError::runtime)?;
-    let config = FleetConfig { can: true, perception: true, ..FleetConfig::states_only(vehicles) };
-    let mut fleet = SyntheticFleet::new(config, "bench");
-    let mut written = 0u64;
-    let mut failure = None;
-    for tick in 0..seconds * 100 {
-        fleet.tick(tick, |m| {
-            let result = recorder
-                .channel(m.key, m.stream.proto_name())
-                .and_then(|channel| recorder.write(channel, m.receive_ns as u64, m.receive_ns as u64, m.payload));
-            match result {
-                Ok(()) => written += 1,
-                Err(e) => failure = Some(e),
-            }
-        });
-        if let Some(e) = failure.take() {
-            return Err(CliError::runtime(e));
-        }
-    }
-    recorder.finish().map_err(CliError::runtime)?;
-    Ok(written)
-}
-
-fn time_raw(bytes: &[u8]) -> CliResult<f64> {
-    let start = Instant::now();
-    let (mut n, mut total) = (0u64, 0usize);
-    for m in mcap::MessageStream::new(bytes).map_err(CliError::input)? {
-        let m = m.map_err(CliError::input)?;
-        total += m.data.len();
-        n += 1;
-    }
-    std::hint::black_box(total);
-    Ok(n as f64 / start.elapsed().as_secs_f64())
-}
-
-fn time_cursor(bytes: &[u8]) -> CliResult<f64> {
-    let start = Instant::now();
-    let (mut n, mut total) = (0u64, 0usize);
-    let mut cursor = MessageCursor::new(bytes);
-    while let Some(m) = cursor.next_message() {
-        total += m.map_err(CliError::input)?.data.len();
-        n += 1;
-    }
-    std::hint::black_box(total);
-    Ok(n as f64 / start.elapsed().as_secs_f64())
-}
-
-struct IngestOutcome {
-    messages: u64,
-    accepted: u64,
-    dropped: u64,
-    snapshots: u64,
-    digest: String,
-}
-
-fn time_ingest(bytes: &[u8]) -> CliResult<(f64, IngestOutcome)> {
-    let start = Instant::now();
-    let mut worker: IngestWorker<Cursor<Vec<u8>>> = IngestWorker::new(IngestConfig::default(), None);
-    let mut digest = SnapshotDigest::default();
-    let counts =
-        replay_into(&mut MessageCursor::new(bytes), &mut worker, |s| digest.add(s)).map_err(CliError::input)?;
-    let rate = (counts.fed + counts.skipped) as f64 / start.elapsed().as_secs_f64();
-    let stats = worker.stats();
-    let outcome = IngestOutcome {
-        messages: counts.fed + counts.skipped,
-        accepted: stats.accepted,
-        dropped: stats.dropped_total(),
-        snapshots: stats.snapshots,
-        digest: digest.hex(),
-    };
-    Ok((rate, outcome))
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }

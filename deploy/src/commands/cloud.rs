@@ -9,10 +9,10 @@ use super::router::{transport_config, with_signals};
 use crate::cli::{BenchZenohArgs, CloudArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
-use risktwin_cloud::transport::bench::{BenchConfig, throughput};
-use risktwin_cloud::transport::bench_latency::{LatencyConfig, latency};
-use risktwin_cloud::transport::criticality::{CriticalityConfig, CriticalityRoleError};
-use risktwin_cloud::transport::{CloudConfig, Role, run};
+use risktwin_bench::latency::{LatencyConfig, latency};
+use risktwin_bench::zenoh_throughput::{BenchConfig, throughput};
+use risktwin_cloud::network::criticality::{CriticalityConfig, CriticalityRoleError};
+use risktwin_cloud::network::{CloudConfig, CloudError, Role, run};
 use risktwin_common::align::IngestConfig;
 use risktwin_common::scenario::ScenarioKind;
 use risktwin_transport::SiteId;
@@ -31,11 +31,9 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     config.road = risktwin_cloud::twin::scenario_road(road_kind);
     let summary = with_signals(|shutdown| async move {
         run(&config, shutdown, || eprintln!("ready")).await.map_err(|e| match e {
-            risktwin_cloud::transport::CloudError::Transport(t) => CliError::runtime(t),
-            risktwin_cloud::transport::CloudError::Record(r) => CliError::runtime(r),
-            risktwin_cloud::transport::CloudError::Criticality(w @ CriticalityRoleError::Write { .. }) => {
-                CliError::runtime(w)
-            }
+            CloudError::Transport(t) => CliError::runtime(t),
+            CloudError::Record(r) => CliError::runtime(r),
+            CloudError::Criticality(w @ CriticalityRoleError::Write { .. }) => CliError::runtime(w),
             other => CliError::input(other),
         })
     })?;

@@ -11,7 +11,7 @@ use crate::error::{CliError, CliResult};
 use crate::output::print_json;
 use clap::{Args, Subcommand};
 use risktwin_cloud::library::content_id;
-use risktwin_cloud::transport::push::{PushError, PushTarget, push_policy, push_scenario};
+use risktwin_cloud::network::push::{PushError, PushTarget, push_policy, push_scenario};
 use risktwin_transport::{SiteId, SourceId};
 use std::path::PathBuf;
 use std::time::Duration;

@@ -6,30 +6,14 @@
 //! an object's orientation travels as a heading angle, so its unit axis is recomputed (≤ 1 ulp).
 
 use risktwin_common::geometry::{Footprint, Obb, Pose, Vec2};
-use risktwin_common::sensor::{ObjectKind, PerceivedObject};
+use risktwin_common::sensor::PerceivedObject;
 use risktwin_common::vehicle::VehicleState;
 
 use super::error::ShmPayloadError;
-use super::payload::{OBJECT_LIST_CAPACITY, ShmObject, ShmObjectList, ShmPayload, ShmVehicleState};
-
-/// The wire code of an object kind (0 is reserved as invalid).
-pub const fn object_kind_code(kind: ObjectKind) -> u32 {
-    match kind {
-        ObjectKind::Vehicle => 1,
-        ObjectKind::Pedestrian => 2,
-        ObjectKind::Parked => 3,
-    }
-}
-
-/// The object kind of a wire code, `None` for an unknown code.
-pub(super) const fn object_kind_from_code(code: u32) -> Option<ObjectKind> {
-    match code {
-        1 => Some(ObjectKind::Vehicle),
-        2 => Some(ObjectKind::Pedestrian),
-        3 => Some(ObjectKind::Parked),
-        _ => None,
-    }
-}
+use super::payload::{
+    OBJECT_LIST_CAPACITY, ShmObject, ShmObjectList, ShmPayload, ShmVehicleState, object_kind_code,
+    object_kind_from_code,
+};
 
 impl ShmVehicleState {
     /// The shared-memory form of a vehicle's state and footprint (extents narrowed to f32).
@@ -145,6 +129,7 @@ impl ShmObjectList {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use risktwin_common::sensor::ObjectKind;
 
     fn state() -> VehicleState {
         VehicleState {

@@ -10,7 +10,7 @@ use iceoryx2::service::builder::event::EventOpenOrCreateError;
 use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError;
 use iceoryx2::service::service_name::ServiceNameError;
 
-use super::naming::ShmStream;
+use super::stream::ShmStream;
 
 /// Why a payload read from shared memory was rejected.
 ///

@@ -28,12 +28,14 @@ mod error;
 mod naming;
 mod payload;
 mod port;
+mod stream;
 
 pub use control::{ControlEvent, ShmControl};
-pub use convert::object_kind_code;
 pub use error::{ShmError, ShmPayloadError};
-pub use naming::{MAX_VEHICLE_ID_LEN, ShmStream, service_name, validate_vehicle_id};
+pub use naming::{MAX_VEHICLE_ID_LEN, service_name, validate_vehicle_id};
 pub use payload::{
     MAX_CAN_ID, OBJECT_LIST_CAPACITY, ShmCanFrame, ShmObject, ShmObjectList, ShmPayload, ShmVehicleState,
+    object_kind_code,
 };
 pub use port::{Delivery, ShmPublisher, ShmQos, ShmSample, ShmSubscriber};
+pub use stream::ShmStream;

@@ -1,39 +1,10 @@
 //! Service names: one iceoryx2 service per vehicle and stream, `risktwin/<vehicle_id>/<stream>`.
 
-use std::fmt;
-
 use super::error::ShmError;
+use super::stream::ShmStream;
 
 /// Longest accepted vehicle id, in bytes (keeps service names far below iceoryx2's limit).
 pub const MAX_VEHICLE_ID_LEN: usize = 64;
-
-/// The streams a vehicle's sensor producer publishes to its gateway.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum ShmStream {
-    /// Ego vehicle state ([`super::ShmVehicleState`]).
-    State,
-    /// CAN-like signal frames ([`super::ShmCanFrame`]).
-    Can,
-    /// Perceived object lists ([`super::ShmObjectList`]).
-    Objects,
-}
-
-impl ShmStream {
-    /// The last segment of the service name.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            ShmStream::State => "state",
-            ShmStream::Can => "can",
-            ShmStream::Objects => "objects",
-        }
-    }
-}
-
-impl fmt::Display for ShmStream {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
 
 /// Checks that `id` is 1..=[`MAX_VEHICLE_ID_LEN`] bytes of `[A-Za-z0-9_-]`.
 ///

@@ -7,9 +7,10 @@
 //! does not break a deployed producer. Bump the name's version when a layout changes.
 
 use iceoryx2::prelude::ZeroCopySend;
+use risktwin_common::sensor::ObjectKind;
 
 use super::error::ShmPayloadError;
-use super::naming::ShmStream;
+use super::stream::ShmStream;
 
 /// How many objects one [`ShmObjectList`] holds at most.
 ///
@@ -25,6 +26,25 @@ const MAX_SPEED_MPS: f64 = 150.0;
 /// Smallest and largest plausible vehicle or object extent, m.
 const MIN_EXTENT_M: f64 = 1e-3;
 const MAX_EXTENT_M: f64 = 50.0;
+
+/// The wire code of an object kind (0 is reserved as invalid).
+pub const fn object_kind_code(kind: ObjectKind) -> u32 {
+    match kind {
+        ObjectKind::Vehicle => 1,
+        ObjectKind::Pedestrian => 2,
+        ObjectKind::Parked => 3,
+    }
+}
+
+/// The object kind of a wire code, `None` for an unknown code.
+pub(super) const fn object_kind_from_code(code: u32) -> Option<ObjectKind> {
+    match code {
+        1 => Some(ObjectKind::Vehicle),
+        2 => Some(ObjectKind::Pedestrian),
+        3 => Some(ObjectKind::Parked),
+        _ => None,
+    }
+}
 
 /// A payload that can travel through a [`super::ShmPublisher`]: plain old data with a sequence
 /// number and a validation that the receiving side runs before trusting it.
@@ -148,7 +168,7 @@ impl ShmObject {
 
     /// Checks the object found at `index` of its list.
     pub fn validate_at(&self, index: usize) -> Result<(), ShmPayloadError> {
-        if super::convert::object_kind_from_code(self.kind).is_none() {
+        if object_kind_from_code(self.kind).is_none() {
             return Err(ShmPayloadError::UnknownObjectKind { index, code: self.kind });
         }
         let fields = [

@@ -160,7 +160,7 @@ impl<T: ShmPayload> ShmPublisher<T> {
     /// sends it. When `fill` fails the chunk goes back unsent and the error names the sample.
     pub fn publish_with<F>(&self, fill: F) -> Result<(), ShmError>
     where
-        F: FnOnce(&mut T) -> Result<(), super::ShmPayloadError>,
+        F: FnOnce(&mut T) -> Result<(), super::error::ShmPayloadError>,
     {
         let sample = self.publisher.loan_uninit().map_err(|source| ShmError::Loan { stream: T::STREAM, source })?;
         let mut sample = sample.write_payload(T::EMPTY);

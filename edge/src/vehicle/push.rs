@@ -60,7 +60,7 @@ pub struct PushSummary {
 
 impl PushSummary {
     fn refuse(map: &mut BTreeMap<String, u64>, what: &str, reason: &str, detail: &str) {
-        eprintln!("edge: refused {what}: {reason}: {detail}");
+        tracing::warn!("edge: refused {what}: {reason}: {detail}");
         *map.entry(reason.to_owned()).or_default() += 1;
     }
 

@@ -21,6 +21,7 @@ mod vehicle;
 pub(crate) mod tests;
 
 use prost::Message;
+use risktwin_common::align::DropReason;
 use risktwin_common::telemetry;
 
 /// Why a wire message is not a valid domain value.
@@ -42,14 +43,19 @@ pub enum DecodeError {
 }
 
 impl DecodeError {
-    /// A short, stable label for counting rejections by reason (`malformed`, `missing_field`,
-    /// `invalid_field`).
-    pub fn reason(&self) -> &'static str {
+    /// Why the ingest drops such a message.
+    pub fn drop_reason(&self) -> DropReason {
         match self {
-            DecodeError::Malformed(_) => "malformed",
-            DecodeError::Invalid(ConvertError::MissingField { .. }) => "missing_field",
-            DecodeError::Invalid(ConvertError::InvalidField { .. }) => "invalid_field",
+            DecodeError::Malformed(_) => DropReason::Malformed,
+            DecodeError::Invalid(ConvertError::MissingField { .. }) => DropReason::MissingField,
+            DecodeError::Invalid(ConvertError::InvalidField { .. }) => DropReason::InvalidField,
         }
+    }
+
+    /// A short, stable label for counting rejections by reason: the [`DropReason`] code
+    /// (`malformed`, `missing-field`, `invalid-field`).
+    pub fn reason(&self) -> &'static str {
+        self.drop_reason().code()
     }
 }
 

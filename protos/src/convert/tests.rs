@@ -344,7 +344,7 @@ fn garbage_bytes_are_errors_not_panics() {
     // An empty buffer is a valid empty message, which lacks its header.
     let err = decode::<VehicleStateSample>(&[]).expect_err("empty message has no header");
     assert_eq!(err, DecodeError::Invalid(missing("VehicleState", "header")));
-    assert_eq!(err.reason(), "missing_field");
+    assert_eq!(err.reason(), "missing-field");
     // Truncations of a valid message and pseudo-random bytes, through every decoder.
     let valid = encode(&vehicle_state());
     let mut state = 0x9E37_79B9_7F4A_7C15u64;

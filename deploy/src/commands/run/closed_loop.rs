@@ -15,8 +15,8 @@
 
 use super::push_loop::{self, LoopOutput, LoopRequest};
 use risktwin_cloud::library::{RankedScenario, ScenarioLibrary};
+use risktwin_cloud::network::push::ScenarioPushReport;
 use risktwin_cloud::trainer::drive::drive;
-use risktwin_cloud::transport::push::ScenarioPushReport;
 use risktwin_common::episode::{EpisodeResult, evaluate};
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::net::HostPolicy;

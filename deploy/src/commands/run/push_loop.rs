@@ -13,8 +13,8 @@
 //! liveliness token and push subscriber matching, the edge accepting the policy, the
 //! `ScenarioResult` arriving); any failure shuts every role down and comes back as an error.
 
-use risktwin_cloud::transport::push::{EdgeLink, PushTarget, ScenarioPushReport};
-use risktwin_cloud::transport::{CloudConfig, CloudSummary};
+use risktwin_cloud::network::push::{EdgeLink, PushTarget, ScenarioPushReport};
+use risktwin_cloud::network::{CloudConfig, CloudSummary};
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_edge::publish::run_producer;
 use risktwin_edge::vehicle::push::{PolicyLine, PushSummary};
@@ -173,7 +173,7 @@ async fn roles(request: &LoopRequest, progress: &mut dyn FnMut(&str)) -> Result<
     cloud_config.site = Some(site.clone());
     cloud_config.record.clone_from(&request.record);
     let cloud = tokio::spawn(async move {
-        risktwin_cloud::transport::run(&cloud_config, cloud_shutdown, move || {
+        risktwin_cloud::network::run(&cloud_config, cloud_shutdown, move || {
             let _ = ready_tx.send(());
         })
         .await

@@ -7,11 +7,11 @@
 //! Messages come out tick by tick (10 ms), vehicles in index order, receive times
 //! non-decreasing, which is the order a recording holds them in and a publisher sends them.
 
-use super::stream::Stream;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::sensor::ObjectKind;
 use risktwin_common::telemetry::{CanFrame, DetectedObject, Frame, Header, ObjectList, VehicleStateSample};
 use risktwin_protos::encode_into;
+use risktwin_transport::EdgeStream;
 
 /// The base period of the fleet: every stream's period is a multiple of it.
 pub const FLEET_TICK_NS: i64 = 10_000_000;
@@ -71,7 +71,7 @@ struct SynthVehicle {
 pub struct FleetMessage<'a> {
     /// Index of the sending vehicle.
     pub vehicle: usize,
-    pub stream: Stream,
+    pub stream: EdgeStream,
     /// `risktwin/v1/<site>/<source>/<stream>`.
     pub key: &'a str,
     /// The encoded protobuf message.
@@ -150,10 +150,10 @@ impl SyntheticFleet {
             let capture_ns = t_ns + v.offset_ns + (t_ns - self.config.start_ns) / 1_000_000 * v.drift_ppm;
             let receive_ns = t_ns + v.delay_ns;
             let x_m = v.speed_mps * elapsed_s;
-            let mut send = |stream: Stream, payload: &[u8]| {
+            let mut send = |stream: EdgeStream, payload: &[u8]| {
                 key.clear();
                 key.push_str(&v.key_prefix);
-                key.push_str(stream.name());
+                key.push_str(stream.as_str());
                 emit(FleetMessage { vehicle: index, stream, key, payload, receive_ns });
             };
             if tick.is_multiple_of(self.config.state_every_ticks.max(1)) {
@@ -165,7 +165,7 @@ impl SyntheticFleet {
                 buf.clear();
                 encode_into(&*s, buf);
                 s.header.seq += 1;
-                send(Stream::State, buf);
+                send(EdgeStream::State, buf);
             }
             if self.config.can {
                 let f = &mut v.can;
@@ -175,7 +175,7 @@ impl SyntheticFleet {
                 buf.clear();
                 encode_into(&*f, buf);
                 f.header.seq += 1;
-                send(Stream::Can, buf);
+                send(EdgeStream::Can, buf);
             }
             if self.config.perception && tick.is_multiple_of(10) {
                 let l = &mut v.perception;
@@ -186,7 +186,7 @@ impl SyntheticFleet {
                 buf.clear();
                 encode_into(&*l, buf);
                 l.header.seq += 1;
-                send(Stream::Perception, buf);
+                send(EdgeStream::Perception, buf);
             }
         }
     }
@@ -200,7 +200,7 @@ fn stamp(header: &mut Header, capture_ns: i64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ingest::IngestWorker;
+    use risktwin_cloud::ingest::IngestWorker;
     use risktwin_common::align::IngestConfig;
     use std::io::Cursor;
 

@@ -1,8 +1,15 @@
-//! The cloud's side of the Zenoh pipeline: the `risktwin cloud` role.
+//! The cloud on the Zenoh network: the `risktwin cloud` roles' subscriptions, queryables and
+//! publications, and the cloud→edge pushes ([`push`]).
 //!
-//! - `ingest`: subscribe to every edge→cloud stream, run each sample through the
-//!   [`crate::ingest::IngestWorker`], optionally record what was accepted to MCAP, watch
-//!   liveliness;
+//! Named for what it is — the cloud's network side — rather than `zenoh` (which would shadow
+//! the crate) or `transport` (the `risktwin-transport` crate it builds on). Everything here only
+//! moves bytes in and out and keeps counts: what the cloud computes lives in
+//! [`crate::ingest`] (decode, validate, align), [`crate::twin`] (the twin, its per-tick scene
+//! and risk outputs), [`crate::criticality`] and [`crate::library`].
+//!
+//! - `ingest`: subscribe to every edge→cloud stream, hand each sample to [`LiveIngest`] (which
+//!   runs the [`crate::ingest::IngestWorker`]), optionally record what was accepted to MCAP,
+//!   watch liveliness;
 //! - `twin` (needs `ingest`): the [`crate::twin::Twin`] follows every ingest snapshot, and the
 //!   site's vehicles go out as `foxglove.SceneUpdate` boxes on `…/cloud/scene` each tick;
 //! - `risk` (needs `twin`): at 2 Hz of twin time per site, the risk field around every vehicle
@@ -15,28 +22,23 @@
 //! With `--record`, the twin's scene and risk outputs are recorded next to the accepted edge
 //! messages, under their keys. `trainer` is not built yet.
 
-pub mod bench;
-pub mod bench_latency;
 pub mod criticality;
-mod edges;
-pub mod ingest;
+pub mod edges;
 pub mod library;
-mod live;
-mod liveliness;
-pub mod outputs;
+pub mod liveliness;
 mod publisher;
 pub mod push;
+mod receive;
 #[cfg(test)]
 mod wire_tests;
 
 use crate::library::ScenarioLibrary;
+use crate::twin::outputs::{TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
 use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, CriticalitySummary};
 use library::LibrarySummary;
-use live::LiveIngest;
-pub use live::{IngestSummary, RecordError};
 use liveliness::LivenessLog;
-use outputs::{TwinOutputs, TwinSummary};
+pub use receive::{IngestSummary, LiveIngest, OUTPUT_SCHEMAS, RecordError, RecordingFile};
 use risktwin_common::road::Road;
 use risktwin_protos::recording::decode_replay_time;
 use risktwin_transport::zenoh::sample::Sample;
@@ -239,14 +241,16 @@ pub async fn run(
     };
 
     let (publish_tx, publish_rx) = tokio::sync::mpsc::unbounded_channel();
-    let outputs = config.has(Role::Twin).then(|| TwinOutputs::new(risk, Some(publish_tx)));
+    let outputs = config.has(Role::Twin).then(|| TwinOutputs::new(risk));
     let publisher = tokio::spawn(publisher::publish_outputs(session.clone(), publish_rx));
     let queryable = match library {
         Some(lib) => Some((library::declare(&session, config.site.as_ref()).await?, lib)),
         None => None,
     };
-    let ingest =
-        Arc::new(Mutex::new(LiveIngest::new(config.record.as_deref(), outputs)?.with_replay_time(config.replay_time)));
+    let ingest = LiveIngest::new(config.record.as_deref(), outputs)?
+        .with_replay_time(config.replay_time)
+        .with_publisher(config.has(Role::Twin).then_some(publish_tx));
+    let ingest = Arc::new(Mutex::new(ingest));
     let subscriber = if config.has(Role::Ingest) {
         Some(
             risktwin_transport::subscribe_edge_streams(
@@ -291,15 +295,13 @@ pub async fn run(
         Some(task) => Some(task.await.map_err(|e| join_error("library", e))??),
         None => None,
     };
-    // The publisher task ends once the twin lets go of its sender and the queue is empty.
-    if let Some(outputs) = ingest.lock().unwrap_or_else(PoisonError::into_inner).outputs_mut() {
-        outputs.close_publisher();
-    }
+    // The publisher task ends once the ingest lets go of its sender and the queue is empty.
+    ingest.lock().unwrap_or_else(PoisonError::into_inner).close_publisher();
     publisher.await.map_err(|e| join_error("publisher", e))??;
     close(session).await?;
     // The subscriber is undeclared, so its callback (the other owner) is gone by now; should a
     // straggler still hold it, the summary waits for nothing and the error says so.
-    let (ingest, outputs) = Arc::try_unwrap(ingest)
+    let (ingest, twin) = Arc::try_unwrap(ingest)
         .map_err(|_| CloudError::Transport(TransportError::Close { reason: "ingest still in use".to_owned() }))?
         .into_inner()
         .unwrap_or_else(PoisonError::into_inner)
@@ -314,7 +316,7 @@ pub async fn run(
         }
         None => None,
     };
-    Ok(CloudSummary { ingest, liveliness, twin: outputs.map(|o| o.summary()), library: library_summary, criticality })
+    Ok(CloudSummary { ingest, liveliness, twin, library: library_summary, criticality })
 }
 
 fn join_error(what: &str, e: tokio::task::JoinError) -> CloudError {
@@ -333,7 +335,7 @@ fn ingest_sink(
         // Drops are counted inside; only a failing recording comes back, and the receive path
         // cannot stop for it: say so and go on counting.
         if let Err(e) = ingest.handle(sample.key_expr().as_str(), &payload, replay_ns) {
-            eprintln!("cloud: {e}");
+            tracing::error!("cloud: {e}");
         }
     }
 }

@@ -1,5 +1,5 @@
 //! Which edges the cloud has seen alive, from their liveliness tokens; joins and leaves are
-//! logged on stderr as they happen (tests wait on those lines).
+//! logged (`info`) as they happen (tests wait on those lines on stderr).
 
 use risktwin_transport::Liveness;
 use serde::Serialize;
@@ -18,23 +18,25 @@ pub struct LivenessSummary {
 
 /// The running record.
 #[derive(Debug, Default)]
-pub(crate) struct LivenessLog(LivenessSummary);
+pub struct LivenessLog(LivenessSummary);
 
 impl LivenessLog {
-    pub(crate) fn record(&mut self, change: &Liveness) {
+    /// Notes one join or leave.
+    pub fn record(&mut self, change: &Liveness) {
         let name = format!("{}/{}", change.site, change.source);
         if change.alive {
-            eprintln!("edge joined: {name}");
+            tracing::info!("edge joined: {name}");
             self.0.joined.insert(name.clone());
             self.0.alive.insert(name);
         } else {
-            eprintln!("edge left: {name}");
+            tracing::info!("edge left: {name}");
             self.0.alive.remove(&name);
             self.0.left.insert(name);
         }
     }
 
-    pub(crate) fn summary(&self) -> LivenessSummary {
+    /// Everything seen so far.
+    pub fn summary(&self) -> LivenessSummary {
         self.0.clone()
     }
 }

@@ -2,7 +2,7 @@
 //! Outputs are latest-value data: a slow subscriber makes Zenoh drop them rather than stall
 //! the cloud (`CongestionControl::Drop`).
 
-use super::outputs::Publication;
+use super::receive::Publication;
 use risktwin_transport::TransportError;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Publisher;

@@ -1,22 +1,26 @@
-//! Ingest bookkeeping: every sample from an edge stream is either counted as received (per
-//! source and stream) or dropped with a named reason. Nothing a sample carries can stop it.
+//! The stand-in ingest of `bench zenoh`: every [`StandIn`](crate::standin::StandIn) sample is
+//! either counted as received (per source and stream) or dropped with a named reason, with no
+//! protobuf decoding or alignment, so that the figure stays comparable with raw Zenoh. The
+//! cloud's real ingest is `risktwin_cloud::ingest::IngestWorker`.
 //!
-//! Sequence policy (until the reorder window of the full ingest lands): per source and stream,
-//! a sequence number at or above the next expected one is accepted (a jump is counted as a
-//! gap); one below it is a duplicate or a late reordering and is dropped as `stale_seq`.
+//! Sequence policy: per source and stream, a sequence number at or above the next expected one
+//! is accepted (a jump is counted as a gap); one below it is a duplicate or a late reordering
+//! and is dropped as `stale-seq`. Codes are the cloud's [`DropReason`] codes where they mean
+//! the same.
 
+use crate::standin::{self, StandInError};
+use risktwin_common::align::DropReason;
 use risktwin_transport::EdgeStream;
 use risktwin_transport::keyexpr::parse_edge_key;
-use risktwin_transport::standin::{self, StandInError};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::time::Instant;
 
 const STREAMS: usize = EdgeStream::ALL.len();
 
-/// Why a sample was dropped.
+/// Why the stand-in ingest dropped a sample.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum DropReason {
+pub enum StandInDrop {
     /// The key does not parse as an edge stream of the scheme.
     BadKey,
     /// The payload did not decode.
@@ -27,14 +31,14 @@ pub enum DropReason {
     StaleSeq,
 }
 
-impl DropReason {
+impl StandInDrop {
     /// A short, stable name for the summary.
     pub const fn name(&self) -> &'static str {
         match self {
-            DropReason::BadKey => "bad_key",
-            DropReason::Payload(e) => e.reason(),
-            DropReason::SourceMismatch => "source_mismatch",
-            DropReason::StaleSeq => "stale_seq",
+            StandInDrop::BadKey => DropReason::BadKey.code(),
+            StandInDrop::Payload(e) => e.reason(),
+            StandInDrop::SourceMismatch => DropReason::SourceMismatch.code(),
+            StandInDrop::StaleSeq => "stale-seq",
         }
     }
 }
@@ -46,17 +50,17 @@ struct SourceCounters {
     gaps: [u64; STREAMS],
 }
 
-/// Counters of one ingest worker.
+/// Counters of the stand-in ingest.
 #[derive(Debug, Default)]
-pub struct IngestCounters {
+pub struct StandInCounters {
     sources: HashMap<String, SourceCounters>,
     dropped: BTreeMap<&'static str, u64>,
     last_sample: Option<Instant>,
 }
 
-/// What the ingest saw, as printed in the cloud's JSON summary.
+/// What the stand-in ingest saw.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Default)]
-pub struct IngestSummary {
+pub struct StandInSummary {
     /// Accepted messages per source, per stream (streams with none are left out).
     pub received: BTreeMap<String, BTreeMap<String, u64>>,
     /// Sequence numbers skipped per source, per stream (only non-zero entries).
@@ -69,10 +73,10 @@ pub struct IngestSummary {
     pub total_dropped: u64,
 }
 
-impl IngestCounters {
+impl StandInCounters {
     /// Accounts for one sample received on `key` at `now`; `Err` says why it was dropped (it
     /// has been counted either way).
-    pub fn accept(&mut self, key: &str, payload: &[u8], now: Instant) -> Result<(), DropReason> {
+    pub fn accept(&mut self, key: &str, payload: &[u8], now: Instant) -> Result<(), StandInDrop> {
         self.last_sample = Some(now);
         let result = self.check(key, payload);
         if let Err(reason) = &result {
@@ -81,11 +85,11 @@ impl IngestCounters {
         result
     }
 
-    fn check(&mut self, key: &str, payload: &[u8]) -> Result<(), DropReason> {
-        let parsed = parse_edge_key(key).ok_or(DropReason::BadKey)?;
-        let record = standin::decode(payload).map_err(DropReason::Payload)?;
+    fn check(&mut self, key: &str, payload: &[u8]) -> Result<(), StandInDrop> {
+        let parsed = parse_edge_key(key).ok_or(StandInDrop::BadKey)?;
+        let record = standin::decode(payload).map_err(StandInDrop::Payload)?;
         if record.source != parsed.source {
-            return Err(DropReason::SourceMismatch);
+            return Err(StandInDrop::SourceMismatch);
         }
         // Look up by &str first so that a known source costs no allocation.
         let counters = match self.sources.get_mut(parsed.source) {
@@ -94,7 +98,7 @@ impl IngestCounters {
         };
         let i = parsed.stream.index();
         if record.seq < counters.next_seq[i] {
-            return Err(DropReason::StaleSeq);
+            return Err(StandInDrop::StaleSeq);
         }
         counters.gaps[i] += record.seq - counters.next_seq[i];
         counters.next_seq[i] = record.seq + 1;
@@ -108,7 +112,7 @@ impl IngestCounters {
     }
 
     /// The counts so far.
-    pub fn summary(&self) -> IngestSummary {
+    pub fn summary(&self) -> StandInSummary {
         let per_stream = |counts: &[u64; STREAMS]| -> BTreeMap<String, u64> {
             EdgeStream::ALL
                 .iter()
@@ -117,7 +121,7 @@ impl IngestCounters {
                 .map(|(s, n)| (s.as_str().to_owned(), *n))
                 .collect()
         };
-        let mut summary = IngestSummary::default();
+        let mut summary = StandInSummary::default();
         for (source, c) in &self.sources {
             summary.received.insert(source.clone(), per_stream(&c.received));
             let gaps = per_stream(&c.gaps);
@@ -135,7 +139,7 @@ impl IngestCounters {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use risktwin_transport::standin::StandIn;
+    use crate::standin::StandIn;
 
     fn rec(source: &str, seq: u64) -> Vec<u8> {
         StandIn { source, seq, capture_time_ns: 1, publish_time_ns: 2 }.encode(48).unwrap()
@@ -143,27 +147,27 @@ mod tests {
 
     #[test]
     fn counts_by_source_and_stream_and_drops_by_reason() {
-        let mut c = IngestCounters::default();
+        let mut c = StandInCounters::default();
         let t = Instant::now();
         let state = "risktwin/v1/s/veh-1/state";
         assert_eq!(c.accept(state, &rec("veh-1", 0), t), Ok(()));
         assert_eq!(c.accept(state, &rec("veh-1", 1), t), Ok(()));
-        assert_eq!(c.accept(state, &rec("veh-1", 1), t), Err(DropReason::StaleSeq));
+        assert_eq!(c.accept(state, &rec("veh-1", 1), t), Err(StandInDrop::StaleSeq));
         assert_eq!(c.accept(state, &rec("veh-1", 5), t), Ok(()));
         assert_eq!(c.accept("risktwin/v1/s/veh-1/can", &rec("veh-1", 0), t), Ok(()));
-        assert_eq!(c.accept(state, &rec("veh-2", 9), t), Err(DropReason::SourceMismatch));
-        assert_eq!(c.accept(state, b"garbage", t).map_err(|r| r.name()), Err("too_short"));
-        assert_eq!(c.accept("risktwin/v1/s/cloud/snapshot", &rec("veh-1", 0), t), Err(DropReason::BadKey));
+        assert_eq!(c.accept(state, &rec("veh-2", 9), t), Err(StandInDrop::SourceMismatch));
+        assert_eq!(c.accept(state, b"garbage", t).map_err(|r| r.name()), Err("too-short"));
+        assert_eq!(c.accept("risktwin/v1/s/cloud/snapshot", &rec("veh-1", 0), t), Err(StandInDrop::BadKey));
         let s = c.summary();
         assert_eq!(s.received["veh-1"], BTreeMap::from([("state".into(), 3), ("can".into(), 1)]));
         assert_eq!(s.gaps["veh-1"], BTreeMap::from([("state".into(), 3)]));
         assert_eq!(
             s.dropped,
             BTreeMap::from([
-                ("stale_seq".into(), 1),
-                ("source_mismatch".into(), 1),
-                ("too_short".into(), 1),
-                ("bad_key".into(), 1)
+                ("stale-seq".into(), 1),
+                ("source-mismatch".into(), 1),
+                ("too-short".into(), 1),
+                ("bad-key".into(), 1)
             ])
         );
         assert_eq!((s.total_received, s.total_dropped), (4, 4));

@@ -1,27 +1,30 @@
-//! The ingest role on the live Zenoh receive path: every sample goes through an
-//! [`IngestWorker`] (decode → validate → exactly-once → clock mapping → alignment), stamped with
-//! the cloud's clock; accepted messages are recorded byte for byte; per-source, per-stream
-//! acceptance counts and the snapshot digest are kept for the summary. With the twin role on,
-//! every snapshot updates the [`TwinOutputs`], whose risk and scene outputs go into the same
-//! recording.
+//! The ingest role on the live Zenoh receive path. A sample's key is parsed once into its site,
+//! source and [`EdgeStream`]; the [`IngestWorker`] decodes the payload once (decode → validate →
+//! exactly-once → clock mapping → alignment), stamped with the cloud's clock, and records what
+//! it accepted byte for byte. With the twin role on, every snapshot updates the [`TwinOutputs`],
+//! and what a tick produced (scene boxes, risk) is recorded into the worker's recording (the
+//! cloud's only one) and handed to the publisher task.
 //!
-//! The recorder is held here rather than inside the worker so that the twin's outputs can be
-//! written into the same file; the worker is built without one. Its publish stamp is read from
-//! the accepted payload's header alone (field 1 of every `risktwin.v1` stream message).
+//! Publishing from inside a Zenoh callback could block it: outputs go to the publisher task
+//! through a channel.
 
-use super::outputs::TwinOutputs;
-use crate::ingest::{IngestStats, IngestWorker, SnapshotDigest, Stream};
-use risktwin_common::align::IngestConfig;
+use crate::ingest::{IngestStats, IngestWorker, SnapshotDigest};
+use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
+use risktwin_common::align::{DropReason, IngestConfig};
+use risktwin_common::telemetry::RiskReport;
+use risktwin_protos::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE, risk_grid, vehicle_boxes};
 use risktwin_protos::recording::{Recorder, RecordingError};
-use risktwin_transport::EdgeStream;
-use risktwin_transport::keyexpr::parse_edge_key;
+use risktwin_protos::{WireMessage, encode};
+use risktwin_transport::keyexpr::{CloudOutput, cloud_output, parse_edge_key};
+use risktwin_transport::{EdgeStream, SiteId};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 use thiserror::Error;
+use tokio::sync::mpsc::UnboundedSender;
 
 const STREAMS: usize = EdgeStream::ALL.len();
 
@@ -33,7 +36,7 @@ pub type RecordingFile = BufWriter<File>;
 pub struct IngestSummary {
     /// Accepted messages per source, per stream (streams with none are left out).
     pub received: BTreeMap<String, BTreeMap<String, u64>>,
-    /// Dropped messages per reason: the worker's codes, plus `bad_key` from the transport.
+    /// Dropped messages per [`DropReason`] code.
     pub dropped: BTreeMap<String, u64>,
     /// All accepted messages.
     pub total_received: u64,
@@ -63,48 +66,46 @@ pub enum RecordError {
     Flush(std::io::Error),
 }
 
-/// The header of any `risktwin.v1` stream message, decoded alone (prost skips the rest).
-#[derive(Clone, PartialEq, prost::Message)]
-struct HeaderOnly {
-    #[prost(message, optional, tag = "1")]
-    header: Option<PublishStamp>,
+/// Schema names of the cloud outputs, as recorded (for readers of a recording).
+pub const OUTPUT_SCHEMAS: [(CloudOutput, &str); 3] = [
+    (CloudOutput::RiskField, FOXGLOVE_GRID),
+    (CloudOutput::RiskReport, "risktwin.v1.RiskReport"),
+    (CloudOutput::Scene, FOXGLOVE_SCENE_UPDATE),
+];
+
+/// One message for the publisher task.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Publication {
+    pub(crate) key: String,
+    pub(crate) payload: Vec<u8>,
 }
 
-/// The publish stamp of a `risktwin.v1.Header`.
-#[derive(Clone, PartialEq, prost::Message)]
-struct PublishStamp {
-    #[prost(int64, tag = "4")]
-    publish_time_ns: i64,
-}
-
-/// The worker and the counts around it; lives behind a mutex shared with the Zenoh callback.
-pub(crate) struct LiveIngest {
+/// The worker, the twin and the counts around them; lives behind a mutex shared with the Zenoh
+/// callback.
+pub struct LiveIngest {
     worker: IngestWorker<RecordingFile>,
-    recorder: Option<Recorder<RecordingFile>>,
-    recorded: u64,
     received: HashMap<String, [u64; STREAMS]>,
     /// Each source's site (from the key of its first accepted message).
     sites: HashMap<String, String>,
     named: usize,
     outputs: Option<TwinOutputs>,
-    bad_key: u64,
+    publish: Option<UnboundedSender<Publication>>,
     digest: SnapshotDigest,
     last_receive_ns: i64,
     last_sample: Option<Instant>,
     /// Replay-ingest mode: receive times come from the messages' replay-time attachments.
     replay_time: bool,
-    no_replay_time: u64,
 }
 
 impl LiveIngest {
     /// A worker recording into a new file at `record` when given, feeding `outputs` (the twin
     /// and risk roles) when given.
-    pub(crate) fn new(record: Option<&Path>, outputs: Option<TwinOutputs>) -> Result<Self, RecordError> {
+    pub fn new(record: Option<&Path>, outputs: Option<TwinOutputs>) -> Result<Self, RecordError> {
         Self::with_config(record, outputs, IngestConfig::default())
     }
 
     /// [`LiveIngest::new`] with another ingest configuration (tick, lateness, …).
-    pub(crate) fn with_config(
+    pub fn with_config(
         record: Option<&Path>,
         outputs: Option<TwinOutputs>,
         config: IngestConfig,
@@ -118,25 +119,28 @@ impl LiveIngest {
             None => None,
         };
         Ok(LiveIngest {
-            worker: IngestWorker::new(config, None),
-            recorder,
-            recorded: 0,
+            worker: IngestWorker::new(config, recorder),
             received: HashMap::new(),
             sites: HashMap::new(),
             named: 0,
             outputs,
-            bad_key: 0,
+            publish: None,
             digest: SnapshotDigest::default(),
             last_receive_ns: i64::MIN,
             last_sample: None,
             replay_time: false,
-            no_replay_time: 0,
         })
     }
 
     /// Switches replay-ingest mode on or off (see `CloudConfig::replay_time`).
-    pub(crate) fn with_replay_time(mut self, on: bool) -> Self {
+    pub fn with_replay_time(mut self, on: bool) -> Self {
         self.replay_time = on;
+        self
+    }
+
+    /// Hands the twin's outputs to `publish` (the publisher task) when given.
+    pub(crate) fn with_publisher(mut self, publish: Option<UnboundedSender<Publication>>) -> Self {
+        self.publish = publish;
         self
     }
 
@@ -144,52 +148,34 @@ impl LiveIngest {
     /// system clock and never goes backwards (the aligner needs non-decreasing receive times).
     /// `replay_ns` is the message's replay-time attachment, used instead of the clock in
     /// replay-time mode (and required there).
-    pub(crate) fn handle(&mut self, key: &str, payload: &[u8], replay_ns: Option<i64>) -> Result<(), RecordingError> {
+    pub fn handle(&mut self, key: &str, payload: &[u8], replay_ns: Option<i64>) -> Result<(), RecordingError> {
         let now = Instant::now();
         self.last_sample = Some(now);
         let wall_ns = match (self.replay_time, replay_ns) {
             (false, _) => SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64),
             (true, Some(t)) => t,
             (true, None) => {
-                self.no_replay_time += 1;
+                self.worker.reject(DropReason::NoReplayTime);
                 return Ok(());
             }
         };
         let receive_ns = wall_ns.max(self.last_receive_ns);
         self.last_receive_ns = receive_ns;
         let Some(parsed) = parse_edge_key(key) else {
-            self.bad_key += 1;
+            self.worker.reject(DropReason::BadKey);
             return Ok(());
         };
-        let stream = match Stream::from_name(parsed.stream.as_str()) {
-            Some(s) => s,
-            None => {
-                self.bad_key += 1;
-                return Ok(());
-            }
-        };
-        let accepted_before = self.worker.stats().accepted;
         let digest = &mut self.digest;
         let mut twin = self.outputs.as_mut().map(TwinOutputs::twin_mut);
         let mut ticked = false;
-        self.worker.handle(parsed.source, stream, key, payload, receive_ns, |s| {
+        let accepted = self.worker.handle(parsed.source, parsed.stream, key, payload, receive_ns, |s| {
             digest.add(s);
             if let Some(twin) = twin.as_mut() {
                 twin.update(s);
                 ticked = true;
             }
         })?;
-        if self.worker.stats().accepted > accepted_before {
-            if let Some(recorder) = self.recorder.as_mut() {
-                // Accepted means decoded, so the header is there; 0 only if that ever changed.
-                let publish_ns = <HeaderOnly as prost::Message>::decode(payload)
-                    .ok()
-                    .and_then(|h| h.header)
-                    .map_or(0, |h| h.publish_time_ns);
-                let channel = recorder.channel(key, schema(stream))?;
-                recorder.write(channel, receive_ns.max(0) as u64, publish_ns.max(0) as u64, payload)?;
-                self.recorded += 1;
-            }
+        if accepted {
             if !self.sites.contains_key(parsed.source) {
                 self.sites.insert(parsed.source.to_owned(), parsed.site.to_owned());
             }
@@ -208,8 +194,8 @@ impl LiveIngest {
                 }
                 self.named += 1;
             }
-            if ticked {
-                outputs.after_tick(receive_ns, self.recorder.as_mut())?;
+            if ticked && let Some(tick) = outputs.after_tick(|site| SiteId::new(site).is_ok()) {
+                emit(tick, receive_ns, self.worker.recorder_mut(), self.publish.as_ref())?;
             }
         }
         Ok(())
@@ -220,50 +206,78 @@ impl LiveIngest {
         self.last_sample
     }
 
-    /// The twin outputs, when the twin role runs.
-    pub(crate) fn outputs_mut(&mut self) -> Option<&mut TwinOutputs> {
-        self.outputs.as_mut()
+    /// The twin, when the twin role runs.
+    pub fn twin(&self) -> Option<&crate::twin::Twin> {
+        self.outputs.as_ref().map(TwinOutputs::twin)
+    }
+
+    /// Stops publishing (the publisher task ends once the channel is empty).
+    pub(crate) fn close_publisher(&mut self) {
+        self.publish = None;
     }
 
     /// Closes the recording (so the file is a valid MCAP) and returns the summary, with the
-    /// twin outputs when they ran.
-    pub(crate) fn finish(self) -> Result<(IngestSummary, Option<TwinOutputs>), RecordError> {
-        let (mut stats, _) = self.worker.finish()?;
-        if let Some(recorder) = self.recorder {
-            recorder.finish_into_inner()?.flush().map_err(RecordError::Flush)?;
+    /// twin's when it ran.
+    pub fn finish(self) -> Result<(IngestSummary, Option<TwinSummary>), RecordError> {
+        let (stats, recording) = self.worker.finish()?;
+        if let Some(mut file) = recording {
+            file.flush().map_err(RecordError::Flush)?;
         }
-        stats.recorded = self.recorded;
-        let mut summary = summarize(&stats, &self.received, self.bad_key, &self.digest);
-        if self.no_replay_time > 0 {
-            summary.dropped.insert("no-replay-time".to_owned(), self.no_replay_time);
-            summary.total_dropped += self.no_replay_time;
-        }
-        Ok((summary, self.outputs))
+        let summary = summarize(&stats, &self.received, &self.digest);
+        Ok((summary, self.outputs.as_ref().map(TwinOutputs::summary)))
     }
 }
 
-/// The schema of a stream's messages in the recording.
-fn schema(stream: Stream) -> &'static str {
-    use risktwin_common::telemetry::{CanFrame, ObjectList, RsuObservation, SignalPhase, VehicleStateSample};
-    use risktwin_protos::WireMessage;
-    match stream {
-        Stream::State => VehicleStateSample::PROTO_NAME,
-        Stream::Can => CanFrame::PROTO_NAME,
-        Stream::Perception => ObjectList::PROTO_NAME,
-        Stream::Rsu => RsuObservation::PROTO_NAME,
-        Stream::Signal => SignalPhase::PROTO_NAME,
+/// Records (when recording) and publishes (when publishing) what one tick produced, under the
+/// cloud's output keys; `now_ns` is the cloud time the tick was produced at (its log time).
+fn emit<W: Write + Seek>(
+    tick: TickOutputs<'_>,
+    now_ns: i64,
+    mut recorder: Option<&mut Recorder<W>>,
+    publish: Option<&UnboundedSender<Publication>>,
+) -> Result<(), RecordingError> {
+    let log_ns = now_ns.max(0) as u64;
+    let key = |site: &str, output| SiteId::new(site).ok().map(|id| cloud_output(&id, output));
+    for scene in tick.scenes {
+        let Some(scene_key) = key(&scene.site, CloudOutput::Scene) else { continue };
+        if let Some(rec) = recorder.as_deref_mut() {
+            rec.record_scene(&scene_key, log_ns, &scene.boxes)?;
+        }
+        if let Some(tx) = publish {
+            let update = vehicle_boxes(tick.tick_ns, &scene.boxes);
+            // A closed channel means shutdown: nothing left to publish to.
+            let _ = tx.send(Publication { key: scene_key, payload: prost::Message::encode_to_vec(&update) });
+        }
     }
+    for (site, a) in tick.assessments {
+        let (Some(field_key), Some(report_key)) =
+            (key(site, CloudOutput::RiskField), key(site, CloudOutput::RiskReport))
+        else {
+            continue;
+        };
+        if let Some(rec) = recorder.as_deref_mut() {
+            rec.record_risk_grid(&field_key, log_ns, &a.field)?;
+            let channel = rec.channel(&report_key, RiskReport::PROTO_NAME)?;
+            rec.write(channel, log_ns, log_ns, &encode(&a.report))?;
+        }
+        if let Some(tx) = publish {
+            let grid = prost::Message::encode_to_vec(&risk_grid(&a.field));
+            let _ = tx.send(Publication { key: field_key, payload: grid });
+            let _ = tx.send(Publication { key: report_key, payload: encode(&a.report) });
+        }
+    }
+    Ok(())
 }
 
 fn summarize(
     stats: &IngestStats,
     received: &HashMap<String, [u64; STREAMS]>,
-    bad_key: u64,
     digest: &SnapshotDigest,
 ) -> IngestSummary {
     let mut summary = IngestSummary {
         dropped: stats.dropped.clone(),
         total_received: stats.accepted,
+        total_dropped: stats.dropped_total(),
         recorded: stats.recorded,
         snapshots: stats.snapshots,
         late: stats.late,
@@ -271,10 +285,6 @@ fn summarize(
         snapshot_digest: digest.hex(),
         ..IngestSummary::default()
     };
-    if bad_key > 0 {
-        *summary.dropped.entry("bad_key".to_owned()).or_default() += bad_key;
-    }
-    summary.total_dropped = summary.dropped.values().sum();
     for (source, counts) in received {
         let per_stream = EdgeStream::ALL
             .iter()

@@ -3,29 +3,28 @@
 //! routes its samples from cache instead of matching each one against the wildcard
 //! subscription.
 
-use super::CloudError;
 use super::liveliness::LivenessLog;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
-use risktwin_transport::{SiteId, SourceId, declare_edge_keys, watch_liveliness};
+use risktwin_transport::{SiteId, SourceId, TransportError, declare_edge_keys, watch_liveliness};
 use std::sync::{Arc, Mutex, PoisonError};
 use tokio::sync::{mpsc, watch};
 use tokio::task::JoinHandle;
 
 /// The running watch: drop `subscriber` (or undeclare it) and `declarer` ends by itself.
-pub(crate) struct EdgeWatch {
-    pub(crate) subscriber: Subscriber<()>,
-    pub(crate) declarer: JoinHandle<()>,
+pub struct EdgeWatch {
+    pub subscriber: Subscriber<()>,
+    pub declarer: JoinHandle<()>,
     /// How many edges have had their keys declared so far.
-    pub(crate) declared: watch::Receiver<usize>,
+    pub declared: watch::Receiver<usize>,
 }
 
 /// Starts watching the edges at `site` (every site if `None`), recording joins and leaves.
-pub(crate) async fn watch_edges(
+pub async fn watch_edges(
     session: &Session,
     site: Option<&SiteId>,
     log: Arc<Mutex<LivenessLog>>,
-) -> Result<EdgeWatch, CloudError> {
+) -> Result<EdgeWatch, TransportError> {
     let (joined_tx, mut joined) = mpsc::unbounded_channel();
     let subscriber = watch_liveliness(session, site, move |change| {
         log.lock().unwrap_or_else(PoisonError::into_inner).record(&change);
@@ -45,7 +44,7 @@ pub(crate) async fn watch_edges(
             match declare_edge_keys(&session, &site, &source).await {
                 Ok(declared) => keys.extend(declared),
                 // Only an optimisation: samples still arrive through the wildcard subscription.
-                Err(e) => eprintln!("cloud: {e}"),
+                Err(e) => tracing::warn!("cloud: {e}"),
             }
             declared_tx.send_modify(|n| *n += 1);
         }

@@ -8,15 +8,18 @@
 //! - raw, wildcard: the same with the subscriber on `risktwin/bench/*`, the shape a cloud that
 //!   listens to every source needs (Zenoh then matches every sample against the subscription
 //!   again: its route cache does not help here, as profiling showed);
-//! - ours: the edge's [`StreamPublisher`] puts a freshly encoded stand-in record, the cloud's
-//!   ingest callback decodes, validates and counts it per source and stream.
+//! - ours: the edge's [`StreamPublisher`] puts a freshly encoded [`StandIn`] record, the
+//!   stand-in ingest ([`StandInCounters`]) decodes, validates and counts it per source and
+//!   stream.
 //!
 //! Throughput is messages delivered per second, from the first put until the subscriber has
 //! seen the last message.
 
-use super::CloudError;
-use super::ingest::IngestCounters;
-use risktwin_transport::standin::StandIn;
+use crate::standin::StandIn;
+use crate::standin_ingest::StandInCounters;
+use risktwin_cloud::network::CloudError;
+use risktwin_cloud::network::edges::watch_edges;
+use risktwin_cloud::network::liveliness::LivenessLog;
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::zenoh::{Session, Wait};
 use risktwin_transport::{
@@ -98,7 +101,7 @@ fn median(values: &[f64]) -> f64 {
 }
 
 /// Two peers over TCP loopback: (listening subscriber side, connecting publisher side).
-pub(super) async fn peer_pair() -> Result<(Session, Session), CloudError> {
+pub(crate) async fn peer_pair() -> Result<(Session, Session), CloudError> {
     let listen = TransportConfig { mode: Mode::Peer, listen: vec!["tcp/127.0.0.1:0".into()], ..Default::default() };
     let sub_side = connect(&listen).await?;
     let locators = listening_locators(&sub_side).await;
@@ -184,7 +187,7 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     let (sub_side, pub_side) = peer_pair().await?;
     let site = SiteId::new("bench").map_err(|e| bench_error(e.to_string()))?;
     let source = SourceId::new("veh-0").map_err(|e| bench_error(e.to_string()))?;
-    let counters = Arc::new(Mutex::new(IngestCounters::default()));
+    let counters = Arc::new(Mutex::new(StandInCounters::default()));
     // The bench measures the transport with the stand-in counters (no decoding or alignment),
     // so that its figure stays comparable with raw Zenoh.
     let sink_counters = Arc::clone(&counters);
@@ -202,8 +205,8 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     })
     .await?;
     // As in the cloud: the edge's liveliness token makes the cloud declare its stream keys.
-    let liveness = Arc::new(Mutex::new(super::liveliness::LivenessLog::default()));
-    let mut edges = super::edges::watch_edges(&sub_side, Some(&site), liveness).await?;
+    let liveness = Arc::new(Mutex::new(LivenessLog::default()));
+    let mut edges = watch_edges(&sub_side, Some(&site), liveness).await?;
     let token = declare_alive(&pub_side, &site, &source).await?;
     let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State).await?;
     tokio::time::timeout(Duration::from_secs(10), edges.declared.wait_for(|n| *n >= 1))

@@ -43,14 +43,14 @@ pub enum StandInError {
 }
 
 impl StandInError {
-    /// A short, stable name for counting drops by reason.
+    /// A short, stable, kebab-case name for counting drops by reason.
     pub const fn reason(&self) -> &'static str {
         match self {
-            StandInError::TooShort { .. } => "too_short",
-            StandInError::BadMagic { .. } => "bad_magic",
-            StandInError::LengthMismatch { .. } => "length_mismatch",
-            StandInError::SourceNotUtf8 => "source_not_utf8",
-            StandInError::SourceTooLong { .. } => "source_too_long",
+            StandInError::TooShort { .. } => "too-short",
+            StandInError::BadMagic { .. } => "bad-magic",
+            StandInError::LengthMismatch { .. } => "length-mismatch",
+            StandInError::SourceNotUtf8 => "source-not-utf8",
+            StandInError::SourceTooLong { .. } => "source-too-long",
         }
     }
 }
@@ -139,7 +139,7 @@ mod tests {
         assert_eq!(decode(&good[..63]), Err(StandInError::LengthMismatch { declared: 64, actual: 63 }));
         let mut extra = good.clone();
         extra.push(0);
-        assert_eq!(decode(&extra).map_err(|e| e.reason()), Err("length_mismatch"));
+        assert_eq!(decode(&extra).map_err(|e| e.reason()), Err("length-mismatch"));
         let mut not_utf8 = good;
         not_utf8[FIXED_LEN] = 0xFF;
         assert_eq!(decode(&not_utf8), Err(StandInError::SourceNotUtf8));

@@ -86,7 +86,7 @@ async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
         BTreeMap::from([
             ("malformed".to_owned(), 1),
             ("duplicate".to_owned(), 1),
-            ("invalid_field".to_owned(), 1),
+            ("invalid-field".to_owned(), 1),
             ("source-mismatch".to_owned(), 1),
         ])
     );

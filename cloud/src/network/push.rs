@@ -103,7 +103,7 @@ async fn deliver(
         .map_err(declare_err("publisher", &key))?;
     let listener = publisher.matching_listener().await.map_err(declare_err("matching listener", &key))?;
     if !*alive.borrow() {
-        eprintln!(
+        tracing::info!(
             "push: waiting up to {} s for edge {}/{} to come up",
             target.wait_for_edge.as_secs_f64(),
             target.site,
@@ -180,13 +180,13 @@ impl EdgeLink {
         let target = &self.target;
         let push = ScenarioPush { header: header(0), spec_id: spec_id.to_owned(), spec: spec.clone() };
         deliver(&self.session, target, &self.alive, CloudToEdge::Scenario, encode(&push), shutdown.clone()).await?;
-        eprintln!("pushed scenario {spec_id} to {}/{}", target.site, target.edge);
+        tracing::info!("pushed scenario {spec_id} to {}/{}", target.site, target.edge);
         let wait = async {
             while let Ok(sample) = self.results.recv_async().await {
                 match decode::<ScenarioResult>(&sample.payload().to_bytes()) {
                     Ok(r) if r.spec_id == spec_id => return Some(r),
-                    Ok(r) => eprintln!("push: result of another scenario ({}) ignored", r.spec_id),
-                    Err(e) => eprintln!("push: undecodable result ignored: {e}"),
+                    Ok(r) => tracing::warn!("push: result of another scenario ({}) ignored", r.spec_id),
+                    Err(e) => tracing::warn!("push: undecodable result ignored: {e}"),
                 }
             }
             None

@@ -147,13 +147,13 @@ pub(crate) async fn serve(
             }
             Err(e) => {
                 summary.refused += 1;
-                eprintln!("cloud library: refused a query: {e}");
+                tracing::warn!("cloud library: refused a query: {e}");
                 query.reply_err(e.to_string()).await
             }
         };
         if let Err(e) = sent {
             // The querier may be gone; the next query deserves an answer all the same.
-            eprintln!("cloud library: reply failed: {e}");
+            tracing::warn!("cloud library: reply failed: {e}");
         }
     }
     queryable.undeclare().await.map_err(|e| TransportError::Declare {

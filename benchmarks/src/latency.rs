@@ -7,7 +7,7 @@
 //!   notes the arrival; latency = arrival − put;
 //! - ours: the edge's [`StreamPublisher`] puts an encoded `VehicleState` at the rate (the car
 //!   drives along x at a fixed speed, so the position tells which sample a value reflects); the
-//!   cloud's live ingest path (the role's own `LiveIngest` with the twin) aligns it; after each
+//!   cloud's live ingest path (the role's own [`LiveIngest`] with the twin) aligns it; after each
 //!   message the twin's ego position says up to which sample the newest snapshot reflects, and
 //!   every newly covered sample gets latency = now − its put.
 //!
@@ -16,10 +16,9 @@
 //! spacing above raw; the report gives the tick and lateness used next to the ratio.
 //! The first [`WARMUP`] samples of each side (clock estimate and connection warm-up) are left out.
 
-use super::CloudError;
-use super::bench::peer_pair;
-use super::live::LiveIngest;
-use super::outputs::TwinOutputs;
+use crate::zenoh_throughput::peer_pair;
+use risktwin_cloud::network::{CloudError, LiveIngest};
+use risktwin_cloud::twin::outputs::TwinOutputs;
 use risktwin_common::align::IngestConfig;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
@@ -216,7 +215,7 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     let spacing_m = SPEED_MPS / config.rate_hz;
     let sent: SentAt = Arc::new(Mutex::new(vec![None; n]));
     let latencies = Arc::new(Mutex::new(Vec::with_capacity(n)));
-    let ingest = LiveIngest::with_config(None, Some(TwinOutputs::new(None, None)), config.ingest)?;
+    let ingest = LiveIngest::with_config(None, Some(TwinOutputs::new(None)), config.ingest)?;
     let ingest = Arc::new(Mutex::new(ingest));
     let (sent_cb, lat_cb, ingest_cb) = (Arc::clone(&sent), Arc::clone(&latencies), Arc::clone(&ingest));
     // The next sample not yet seen in a snapshot.
@@ -228,9 +227,8 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
             return;
         }
         let now = Instant::now();
-        let Some(x_m) = ingest
-            .outputs_mut()
-            .and_then(|o| o.twin().site("bench").and_then(|s| s.vehicles.first()).map(|v| v.kinematics.pose.x_m))
+        let Some(x_m) =
+            ingest.twin().and_then(|t| t.site("bench")).and_then(|s| s.vehicles.first()).map(|v| v.kinematics.pose.x_m)
         else {
             return;
         };

@@ -33,7 +33,7 @@ fn main() -> ExitCode {
             Err(e) => return fail(&format!("cannot list data/commonroad: {e}")),
         };
     }
-    if args.len() % 2 != 0 {
+    if !args.len().is_multiple_of(2) {
         return usage("give FILE.xml EGO_ID pairs");
     }
     for pair in args.chunks(2) {
@@ -86,10 +86,10 @@ fn scenarios_with_ego() -> std::io::Result<Vec<String>> {
         let xml = yaml.with_extension("xml");
         let text = std::fs::read_to_string(&yaml)?;
         let ego = text.lines().find_map(|l| l.trim().strip_prefix("ego_id:").map(|v| v.trim().to_string()));
-        if let Some(ego) = ego.filter(|e| !e.is_empty()) {
-            if xml.exists() {
-                args.extend([xml.display().to_string(), ego]);
-            }
+        if let Some(ego) = ego.filter(|e| !e.is_empty())
+            && xml.exists()
+        {
+            args.extend([xml.display().to_string(), ego]);
         }
     }
     Ok(args)

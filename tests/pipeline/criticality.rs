@@ -10,7 +10,7 @@ use std::time::Duration;
 const STEP: Duration = Duration::from_secs(60);
 
 fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/commonroad").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/commonroad").join(name)
 }
 
 fn utf8(p: &Path) -> &str {

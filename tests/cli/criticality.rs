@@ -37,23 +37,37 @@ fn agree(ours: f64, crime: f64, tol: f64) -> bool {
     (ours - crime).abs() <= (0.05 * crime.abs()).max(tol)
 }
 
-/// Share of cells where measure `col` agrees (issue 4's tolerance), over cells `keep` accepts.
+/// Share of cells where measure `col` agrees (issue 4's tolerance), over cells `keep` accepts,
+/// on a fixture scenario and its reference CSV.
 fn agreement(scenario: &str, ego: &str, col: usize, tol: f64, keep: fn(&[f64]) -> bool) -> f64 {
+    let (ok, total) =
+        agreeing_cells(&fixture(&format!("{scenario}.xml")), &fixture(&format!("{scenario}.csv")), ego, col, tol, keep);
+    ok as f64 / total as f64
+}
+
+/// (agreeing, compared) cells of measure `col` between ours on `xml` and the CriMe CSV `reference`.
+fn agreeing_cells(
+    xml: &str,
+    reference: &str,
+    ego: &str,
+    col: usize,
+    tol: f64,
+    keep: fn(&[f64]) -> bool,
+) -> (usize, usize) {
     let dir = tempdir().unwrap();
-    let xml = fixture(&format!("{scenario}.xml"));
-    let ours = ok_stdout(dir.path(), &["criticality", "--commonroad", &xml, "--ego", ego, "--format", "csv"]);
+    let ours = ok_stdout(dir.path(), &["criticality", "--commonroad", xml, "--ego", ego, "--format", "csv"]);
     let (_, ours) = parse_csv(&ours);
-    let reference = std::fs::read_to_string(fixture(&format!("{scenario}.csv"))).expect("reference CSV");
-    let (_, reference) = parse_csv(&reference);
+    let reference_text = std::fs::read_to_string(reference).expect("reference CSV");
+    let (_, reference_rows) = parse_csv(&reference_text);
     assert_eq!(
         ours.keys().collect::<std::collections::BTreeSet<_>>(),
-        reference.keys().collect(),
-        "{scenario}: the (time_step, other_id) cells differ from CriMe's"
+        reference_rows.keys().collect(),
+        "{reference}: the (time_step, other_id) cells differ from CriMe's"
     );
-    let cells: Vec<_> = reference.iter().filter(|(_, r)| keep(r)).collect();
-    assert!(!cells.is_empty(), "{scenario}: no cell to compare");
+    let cells: Vec<_> = reference_rows.iter().filter(|(_, r)| keep(r)).collect();
+    assert!(!cells.is_empty(), "{reference}: no cell to compare");
     let ok = cells.iter().filter(|(k, r)| agree(ours[*k][col], r[col], tol)).count();
-    ok as f64 / cells.len() as f64
+    (ok, cells.len())
 }
 
 const HW: usize = 0;
@@ -75,6 +89,23 @@ fn hw_and_ttc_agree_with_crime_on_a_plus_x_lane() {
     // CriMe drops the sign of the other's acceleration: compare where the other is not braking.
     let ttc = agreement("OSC_CutIn-1_2_T-1", "3", TTC, 0.1, |r| r[4] >= 0.0 || r[4].is_nan());
     assert!(ttc >= 0.95, "TTC agrees on {:.1}% of non-braking cells", 100.0 * ttc);
+}
+
+/// DEU_AAH1-2_7900_T-1049 (docs/criticality.md, kind 6): the ego starts where lanelets 8, 0 and
+/// 4 overlap. CriMe builds its frame on 8, the first of its Python set; we on 4, the closest in
+/// heading, which is also the ego's route (4, then its successor 21). Against CriMe as shipped
+/// THW agrees on 787 of 1,136 cells; against CriMe with its frame on lanelet 4
+/// (`crime_reference.py --initial-lanelet 4`) on 1,130: the initial lanelet is the divergence.
+#[test]
+fn deu_aah1_thw_divergence_is_the_initial_lanelet() {
+    let xml = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/commonroad/DEU_AAH1-2_7900_T-1049.xml");
+    let xml = xml.to_str().expect("data path is UTF-8");
+    let dir = tempdir().unwrap();
+    let doc = ok_json(dir.path(), &["criticality", "--commonroad", xml, "--ego", "10020", "--format", "json"]);
+    assert_eq!(doc["ego_lanelet_id"], 4, "our reference path starts on lanelet 4");
+    let thw = |reference: &str| agreeing_cells(xml, &fixture(reference), "10020", THW, 0.1, |_| true);
+    assert_eq!(thw("DEU_AAH1-2_7900_T-1049.csv"), (787, 1136), "CriMe as shipped (frame on lanelet 8)");
+    assert_eq!(thw("DEU_AAH1-2_7900_T-1049.L0-4.csv"), (1130, 1136), "CriMe with its frame on lanelet 4");
 }
 
 #[test]

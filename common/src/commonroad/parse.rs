@@ -9,14 +9,19 @@ use super::model::{
     DynamicObstacle, Incoming, Intersection, ObstacleState, Occupancy, PlacedShape, PlanningProblem, Scenario, Shape,
     StaticObstacle,
 };
-use super::xml::El;
+use super::xml::{El, Source};
 use crate::geometry::Vec2;
 use std::collections::{HashMap, HashSet};
 
 /// Parses a CommonRoad XML document.
 pub fn parse_scenario(text: &str) -> Result<Scenario, CommonRoadError> {
-    let doc = roxmltree::Document::parse(text)?;
-    let root = El::new(&doc, doc.root_element());
+    let source = Source::new(text);
+    let doc = match roxmltree::Document::parse(&source.compact) {
+        Ok(doc) => doc,
+        // Report the error with the original's positions.
+        Err(e) => return Err(roxmltree::Document::parse(text).err().unwrap_or(e).into()),
+    };
+    let root = El::new(&source, doc.root_element());
     if root.node.tag_name().name() != "commonRoad" {
         return Err(CommonRoadError::NotCommonRoad { root: root.node.tag_name().name().to_string() });
     }
@@ -318,6 +323,21 @@ mod tests {
         // A repeat anywhere else is still a gap.
         let later = car(4, &[(0, 0.0), (1, 1.0), (1, 1.0)]);
         assert!(error(&later).contains("time step 1 where 2 should follow"), "{}", error(&later));
+    }
+
+    #[test]
+    fn lines_are_those_of_the_indented_original() {
+        // Parsed without the blank runs between tags (xml::Source); errors still name the
+        // original lines, and XML errors are roxmltree's on the original.
+        let text = "<commonRoad timeStepSize=\"0.1\">\n  <lanelet id=\"4\">\n    <leftBound>\n      \
+                    <point><x>0</x><y>0</y></point>\n      <point>\r\n\t<x>1</x><y>z</y></point>\n    </leftBound>\n  \
+                    </lanelet>\n</commonRoad>\n";
+        assert_eq!(parse_scenario(text).unwrap_err().to_string(), "<y> (line 6): 'z' is not a finite number");
+        let no_right = text.replace("<y>z</y>", "<y>1</y>");
+        assert_eq!(parse_scenario(&no_right).unwrap_err().to_string(), "<lanelet id=4> (line 2): missing <rightBound>");
+        let truncated = &text[..text.len() - 20];
+        let expected = roxmltree::Document::parse(truncated).unwrap_err();
+        assert_eq!(parse_scenario(truncated).unwrap_err().to_string(), format!("not well-formed XML: {expected}"));
     }
 
     #[test]

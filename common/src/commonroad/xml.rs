@@ -1,20 +1,73 @@
 //! Small typed accessors over roxmltree nodes that turn every absence or bad value into a
-//! [`CommonRoadError`] naming the element, its id and line.
+//! [`CommonRoadError`] naming the element, its id and line, and the compacted text they are
+//! parsed from.
 
 use super::error::CommonRoadError;
 use crate::geometry::Vec2;
-use roxmltree::{Document, Node};
+use roxmltree::Node;
 
-/// An element plus the document, so errors can report the line.
+/// A document's text without the whitespace-only runs between a `>` and the next `<`, and
+/// where they were, so positions map back to lines of the original.
+///
+/// CommonRoad files are indented: half of roxmltree's nodes are those runs, and the node
+/// vector outgrows the capacity roxmltree reserves (one node per `<`), so parsing the original
+/// copied and faulted in the whole tree twice (profile of `risktwin criticality` on
+/// DEU_AAH1-2_7900: roxmltree was 60 % of the process). No element, attribute or non-blank text
+/// changes: a `<` cannot occur inside an attribute value, and blank text reads as empty either
+/// way ([`El::text`] trims).
+pub(crate) struct Source<'t> {
+    original: &'t str,
+    /// The text roxmltree parses.
+    pub compact: String,
+    /// (position in `compact`, bytes removed before it), one entry per removed run, ascending.
+    shifts: Vec<(usize, usize)>,
+}
+
+impl<'t> Source<'t> {
+    pub fn new(original: &'t str) -> Self {
+        let bytes = original.as_bytes();
+        let mut compact = Vec::with_capacity(bytes.len());
+        let mut shifts = Vec::new();
+        let mut removed = 0;
+        let mut i = 0;
+        while let Some(k) = bytes[i..].iter().position(|&b| b == b'>') {
+            let end = i + k + 1;
+            compact.extend_from_slice(&bytes[i..end]);
+            let blank = bytes[end..].iter().take_while(|b| b.is_ascii_whitespace()).count();
+            i = end;
+            if blank > 0 && bytes.get(end + blank) == Some(&b'<') {
+                removed += blank;
+                shifts.push((compact.len(), removed));
+                i += blank;
+            }
+        }
+        compact.extend_from_slice(&bytes[i..]);
+        // Only ASCII whitespace between two ASCII bytes was removed: still UTF-8.
+        let compact = String::from_utf8(compact).expect("removing ASCII runs keeps UTF-8");
+        Self { original, compact, shifts }
+    }
+
+    /// 1-based line, in the original text, of position `pos` of the compacted one.
+    pub fn line_at(&self, pos: usize) -> u32 {
+        let shift = match self.shifts.partition_point(|&(at, _)| at <= pos) {
+            0 => 0,
+            k => self.shifts[k - 1].1,
+        };
+        let end = (pos + shift).min(self.original.len());
+        1 + self.original.as_bytes()[..end].iter().filter(|&&b| b == b'\n').count() as u32
+    }
+}
+
+/// An element plus the source, so errors can report the line.
 #[derive(Clone, Copy)]
 pub(crate) struct El<'a, 'input> {
     pub node: Node<'a, 'input>,
-    doc: &'a Document<'input>,
+    source: &'a Source<'a>,
 }
 
 impl<'a, 'input> El<'a, 'input> {
-    pub fn new(doc: &'a Document<'input>, node: Node<'a, 'input>) -> Self {
-        Self { node, doc }
+    pub fn new(source: &'a Source<'a>, node: Node<'a, 'input>) -> Self {
+        Self { node, source }
     }
 
     /// `name` or `name id=N` of this element.
@@ -28,19 +81,19 @@ impl<'a, 'input> El<'a, 'input> {
 
     /// 1-based line of the element's start tag.
     pub fn line(&self) -> u32 {
-        self.doc.text_pos_at(self.node.range().start).row
+        self.source.line_at(self.node.range().start)
     }
 
     /// Element children named `name`.
     pub fn children(&self, name: &'static str) -> impl Iterator<Item = El<'a, 'input>> + 'a {
-        let doc = self.doc;
-        self.node.children().filter(move |c| c.is_element() && c.has_tag_name(name)).map(move |n| El::new(doc, n))
+        let source = self.source;
+        self.node.children().filter(move |c| c.is_element() && c.has_tag_name(name)).map(move |n| El::new(source, n))
     }
 
     /// All element children.
     pub fn elements(&self) -> impl Iterator<Item = El<'a, 'input>> + 'a {
-        let doc = self.doc;
-        self.node.children().filter(|c| c.is_element()).map(move |n| El::new(doc, n))
+        let source = self.source;
+        self.node.children().filter(|c| c.is_element()).map(move |n| El::new(source, n))
     }
 
     /// The first child named `name`, if any.

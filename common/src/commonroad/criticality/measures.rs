@@ -199,6 +199,8 @@ fn pair_summary(ego: &Track, o: &Track, dt: f64) -> PairSummary {
 /// The smallest |t_ego − t_other| (in steps) over states whose outlines overlap.
 fn pet_steps(ego: &Track, o: &Track) -> Option<u64> {
     let mut best: Option<u64> = None;
+    // Broad phase from arrays: bound_radius_m is a hypot, too dear for the O(T²) loop.
+    let (o_centre, o_radius): (Vec<_>, Vec<_>) = o.body.iter().map(|b| (b.centre(), b.bound_radius_m())).unzip();
     for i in 0..ego.len() {
         let (ce, re) = (ego.body[i].centre(), ego.body[i].bound_radius_m());
         let ti = ego.first_step + i as i64;
@@ -207,8 +209,8 @@ fn pet_steps(ego: &Track, o: &Track) -> Option<u64> {
             if best.is_some_and(|b| lag >= b) {
                 continue;
             }
-            let r = re + o.body[j].bound_radius_m();
-            if (o.body[j].centre() - ce).norm_squared() > r * r {
+            let r = re + o_radius[j];
+            if (o_centre[j] - ce).norm_squared() > r * r {
                 continue;
             }
             if ego.body[i].distance_to(&o.body[j]) == 0.0 {

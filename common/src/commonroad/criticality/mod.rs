@@ -1,7 +1,7 @@
 //! Criticality of a CommonRoad scenario: HW, THW, TTC and a_long,req of the ego against every
 //! other dynamic obstacle at every time step where both have a state, plus PET and the minimum
 //! distance per pair. Definitions, sources and our departures from CommonRoad-CriMe 0.4.5 are in
-//! `docs/criticality.md`; in short (shared/docs/criticality.md, "Our policy"):
+//! `docs/criticality.md`; in short:
 //!
 //! - **Frame.** One reference path per scenario, around the ego's initial lanelet ([`path`],
 //!   CriMe §2). s is the arc length on it.
@@ -124,29 +124,5 @@ mod tests {
         let back = scenario_criticality(&two_cars(), Some(2)).unwrap();
         assert_eq!(back.cells[0].hw_m, f64::INFINITY);
         assert!(scenario_criticality(&two_cars(), Some(9)).unwrap_err().to_string().contains("ego id 9"));
-    }
-}
-
-/// Whole-scenario cost in-process (parse + all pairs, all steps), without the process start-up
-/// `deploy/bench/criticality-vs-crime.sh` includes. Run with
-/// `cargo test --release -p risktwin-common -- --ignored --nocapture criticality_timing`.
-#[cfg(test)]
-mod timing {
-    #[test]
-    #[ignore = "benchmark: prints timings"]
-    fn criticality_timing() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/crime");
-        for (name, ego) in [("OSC_CutIn-1_2_T-1", 3), ("BEL_Putte-8_2_T-1", 33), ("HRV_Pula-27_3_T-1", 34)] {
-            let text = std::fs::read_to_string(dir.join(format!("{name}.xml"))).expect("fixture");
-            let runs = 20;
-            let t0 = std::time::Instant::now();
-            let mut cells = 0;
-            for _ in 0..runs {
-                let s = crate::commonroad::parse_scenario(&text).expect("parses");
-                cells = super::scenario_criticality(&s, Some(ego)).expect("computes").cells.len();
-            }
-            let per_run = t0.elapsed().as_secs_f64() / runs as f64;
-            println!("{name}: parse + criticality {:.2} ms per scenario ({cells} cells)", per_run * 1e3);
-        }
     }
 }

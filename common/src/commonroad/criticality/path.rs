@@ -1,8 +1,8 @@
 //! The ego's reference path: one curvilinear frame per scenario, along which HW and THW are
 //! measured and whose tangent gives "along the lane" for speeds and accelerations.
 //!
-//! Built as CommonRoad-CriMe 0.4.5 builds it (shared/docs/criticality.md §2,
-//! `utility/general.generate_reference_path`): the centreline of the ego's initial lanelet, with
+//! Built as CommonRoad-CriMe 0.4.5 builds it (docs/criticality.md, "How CriMe 0.4.5 computes"
+//! §2, `utility/general.generate_reference_path`): the centreline of the ego's initial lanelet, with
 //! up to two predecessors before and two successors after (first listed link each time),
 //! smoothed by one pass of Chaikin corner cutting (Chaikin 1974). Where we differ: the
 //! projection is the plain orthogonal one onto that polyline (CriMe uses commonroad-clcs'

@@ -1,5 +1,6 @@
 //! Cloud roles. The scenario library (SQLite) lives in `library`.
 
+pub mod commonroad_recording;
 pub mod criticality;
 pub mod episode_recording;
 pub mod generate;

@@ -3,11 +3,8 @@
 
 mod cli;
 mod commands;
-mod commonroad_recording;
 mod error;
 mod output;
-mod plot;
-mod png_out;
 mod process_tuning;
 
 use clap::Parser;

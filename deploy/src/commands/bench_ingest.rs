@@ -11,9 +11,9 @@
 //! wall time from the children's start to the cloud's stop (the children's CPU is not in it).
 
 use super::router::with_signals;
+use crate::cli::BenchIngestArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
-use clap::Args;
 use risktwin_cloud::ingest::synth::{FLEET_TICK_NS, FleetConfig, SyntheticFleet};
 use risktwin_cloud::transport::{CloudConfig, run};
 use risktwin_transport::{EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect};
@@ -21,30 +21,6 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-#[derive(Debug, Args)]
-pub struct BenchIngestArgs {
-    /// Vehicles in the fleet (split evenly over the publishers).
-    #[arg(long, default_value_t = 2000)]
-    pub vehicles: usize,
-    /// State messages per vehicle per second; must divide 100.
-    #[arg(long, default_value_t = 50)]
-    pub rate_hz: u64,
-    /// Seconds of publishing.
-    #[arg(long, default_value_t = 10)]
-    pub seconds: u64,
-    /// Publisher processes (one Zenoh session each).
-    #[arg(long, default_value_t = 1)]
-    pub publishers: usize,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
-    /// Internal: run as one publisher of the fleet, connecting here.
-    #[arg(long, hide = true)]
-    pub fleet_connect: Option<String>,
-    /// Internal: index of this publisher's first vehicle.
-    #[arg(long, hide = true, default_value_t = 0)]
-    pub first_vehicle: usize,
-}
 
 /// What one publisher process sent.
 #[derive(Debug, Serialize, serde::Deserialize)]

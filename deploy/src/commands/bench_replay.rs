@@ -8,9 +8,9 @@
 //! Without `--file` (or with a `--file` that does not exist yet) a synthetic fleet recording is
 //! written first: `--vehicles` × `--seconds` of state (50 Hz), CAN (100 Hz) and perception (10 Hz).
 
+use crate::cli::BenchReplayArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
-use clap::Args;
 use risktwin_cloud::ingest::synth::{FleetConfig, SyntheticFleet};
 use risktwin_cloud::ingest::{IngestWorker, SnapshotDigest, replay_into};
 use risktwin_common::align::IngestConfig;
@@ -19,24 +19,6 @@ use serde::Serialize;
 use std::io::{BufWriter, Cursor};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-#[derive(Debug, Args)]
-pub struct BenchReplayArgs {
-    /// The recording to replay; written first (a synthetic fleet) if it does not exist.
-    #[arg(long)]
-    pub file: Option<PathBuf>,
-    /// Vehicles of the synthetic fleet.
-    #[arg(long, default_value_t = 1000)]
-    pub vehicles: usize,
-    /// Seconds of the synthetic fleet.
-    #[arg(long, default_value_t = 10)]
-    pub seconds: u64,
-    /// Measurements per side, alternating; medians are compared.
-    #[arg(long, default_value_t = 3)]
-    pub rounds: usize,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
-}
 
 #[derive(Serialize)]
 struct ReplayReport {

@@ -13,7 +13,7 @@ const HEIGHT: u32 = 620;
 
 /// Group labels under the axis, in `METRIC_NAMES` order (short, so neighbours do not overlap).
 const SHORT_NAMES: [&str; 8] =
-    ["reward", "success", "completion", "collision ↓", "speed", "steer rate ↓", "jerk ↓", "S_risk ↓"];
+    ["reward", "success", "completion", "collision ↓", "speed m/s", "steer rate ↓", "jerk ↓", "S_risk ↓"];
 
 /// Height of the worst variant's bar, so every bar stays visible.
 const FLOOR: f64 = 0.15;
@@ -71,6 +71,7 @@ pub fn ablation(ab: &AblationReport) -> Result<Bitmap, FigureError> {
         chart
             .configure_mesh()
             .disable_x_mesh()
+            .light_line_style(WHITE)
             .x_labels(SHORT_NAMES.len())
             .x_label_formatter(&|x| {
                 let k = x.round();

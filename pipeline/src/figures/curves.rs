@@ -3,24 +3,29 @@
 
 use super::{Bitmap, FONT, FigureError, PALETTE, register_fonts};
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use risktwin_cloud::trainer::Spread;
 use risktwin_cloud::trainer::ablation::{AblationReport, CurveBand};
 
 const WIDTH: u32 = 1280;
-const HEIGHT: u32 = 900;
+const HEIGHT: u32 = 930;
+/// Height of the legend strip under the title, shared by the four panels (pixels).
+const LEGEND_PX: u32 = 30;
 
-/// One panel: its title, the y axis's name with unit, and the metric.
+/// One panel: its title, the y axis's name with unit, the metric, and whether it is a share
+/// (drawn on [0, 1]).
 struct Panel {
     title: &'static str,
     y_desc: &'static str,
     metric: fn(&CurveBand) -> Spread,
+    share: bool,
 }
 
 const PANELS: [Panel; 4] = [
-    Panel { title: "Training reward", y_desc: "reward per episode", metric: |b| b.reward },
-    Panel { title: "Success rate", y_desc: "share of episodes", metric: |b| b.success_rate },
-    Panel { title: "Route completion", y_desc: "share of the route", metric: |b| b.route_completion },
-    Panel { title: "Average speed", y_desc: "speed (m/s)", metric: |b| b.avg_speed_mps },
+    Panel { title: "Training reward", y_desc: "reward per episode", metric: |b| b.reward, share: false },
+    Panel { title: "Success rate", y_desc: "share of episodes", metric: |b| b.success_rate, share: true },
+    Panel { title: "Route completion", y_desc: "share of the route", metric: |b| b.route_completion, share: true },
+    Panel { title: "Average speed", y_desc: "speed (m/s)", metric: |b| b.avg_speed_mps, share: false },
 ];
 
 /// The four panels in a 2 × 2 grid under one title.
@@ -32,7 +37,9 @@ pub fn training_curves(ab: &AblationReport) -> Result<Bitmap, FigureError> {
         let root = root
             .titled(&format!("Training curves ({}; line: mean over seeds, band: min–max)", ab.algo), (FONT, 24))
             .map_err(FigureError::draw)?;
-        for (area, panel) in root.split_evenly((2, 2)).iter().zip(&PANELS) {
+        let (legend, panels) = root.split_vertically(LEGEND_PX);
+        draw_legend(&legend, ab)?;
+        for (area, panel) in panels.split_evenly((2, 2)).iter().zip(&PANELS) {
             draw_panel(area, panel, ab)?;
         }
         root.present().map_err(FigureError::draw)?;
@@ -55,10 +62,10 @@ fn draw_panel<DB: DrawingBackend>(
             y_hi = y_hi.max(v);
         }
     }
-    if !y_lo.is_finite() {
+    if !y_lo.is_finite() || panel.share {
         (y_lo, y_hi) = (0.0, 1.0);
     }
-    let pad = ((y_hi - y_lo) * 0.08).max(1e-3);
+    let pad = ((y_hi - y_lo) * 0.06).max(0.02 * y_hi.abs().max(y_lo.abs()).max(1.0));
     let mut chart = ChartBuilder::on(area)
         .caption(panel.title, (FONT, 20))
         .margin(12)
@@ -68,6 +75,7 @@ fn draw_panel<DB: DrawingBackend>(
         .map_err(FigureError::draw)?;
     chart
         .configure_mesh()
+        .light_line_style(WHITE)
         .x_desc("environment steps")
         .y_desc(panel.y_desc)
         .label_style((FONT, 14))
@@ -87,21 +95,31 @@ fn draw_panel<DB: DrawingBackend>(
         }
         chart
             .draw_series(LineSeries::new(spreads.iter().map(|(x, s)| (*x, s.mean)), colour.stroke_width(2)))
-            .map_err(FigureError::draw)?
-            .label(v.variant.as_str())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+            .map_err(FigureError::draw)?;
         chart
             .draw_series(spreads.iter().map(|(x, s)| Circle::new((*x, s.mean), 3, colour.filled())))
             .map_err(FigureError::draw)?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .label_font((FONT, 14))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK.mix(0.4))
-        .draw()
-        .map_err(FigureError::draw)
+    Ok(())
+}
+
+/// One legend for all panels, centred in a strip under the title: a line per variant.
+fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    ab: &AblationReport,
+) -> Result<(), FigureError> {
+    const ENTRY_PX: i32 = 150;
+    let (w, h) = area.dim_in_pixel();
+    let y = h as i32 / 2;
+    let mut x = (w as i32 - ENTRY_PX * ab.variants.len() as i32) / 2;
+    for (i, v) in ab.variants.iter().enumerate() {
+        let colour = PALETTE[i % PALETTE.len()];
+        area.draw(&PathElement::new(vec![(x, y), (x + 28, y)], colour.stroke_width(3))).map_err(FigureError::draw)?;
+        let style = TextStyle::from((FONT, 16).into_font()).pos(Pos::new(HPos::Left, VPos::Center));
+        area.draw(&Text::new(v.variant.clone(), (x + 36, y), style)).map_err(FigureError::draw)?;
+        x += ENTRY_PX;
+    }
+    Ok(())
 }
 
 /// `250k`, `1.5M`: step counts short enough not to collide on the axis.

@@ -11,19 +11,22 @@ use risktwin_common::episode::FieldSnapshot;
 use risktwin_common::geometry::{Obb, Vec2};
 use risktwin_common::risk::{HeatmapLayers, RiskGrid, road_layers};
 
-/// Pixels per grid cell, reduced for large grids so an image stays below [`MAX_PIXELS`].
+/// Pixels per grid cell, reduced for large grids so an image stays below [`MAX_PIXELS`], and
+/// raised for small ones so the map keeps [`MIN_MAP_PX`] (room for the legend and the labels).
 const PIXELS_PER_CELL: u32 = 4;
+/// Longest side of the map at least, pixels.
+const MIN_MAP_PX: u32 = 480;
 /// Largest plot area (pixels).
 const MAX_PIXELS: u64 = 1 << 26;
 /// Brightness kept for off-map cells, percent.
 const OFF_MAP_PERCENT: u16 = 35;
 /// Room around the plot area: title, axes and colour bar (pixels).
-const LEFT_PX: u32 = 80;
+const LEFT_PX: u32 = 100;
 const RIGHT_PX: u32 = 150;
 const TOP_PX: u32 = 50;
 const BOTTOM_PX: u32 = 60;
-const Y_LABELS_PX: u32 = LEFT_PX - 8;
-const MAP_MARGIN_PX: u32 = 20;
+const MAP_MARGIN_PX: u32 = 16;
+const Y_LABELS_PX: u32 = LEFT_PX - MAP_MARGIN_PX;
 
 const EDGE: RGBColor = RGBColor(255, 255, 255);
 const CENTRELINE: RGBColor = RGBColor(190, 190, 190);
@@ -71,7 +74,8 @@ fn cell_colour(value: f32, max: f32, on_map: bool) -> RGBColor {
 pub fn heatmap(scene: &HeatmapScene) -> Result<Bitmap, FigureError> {
     register_fonts();
     let grid = scene.grid;
-    let mut ppc = PIXELS_PER_CELL;
+    let long_side = grid.cols.max(grid.rows).max(1) as u32;
+    let mut ppc = PIXELS_PER_CELL.max(MIN_MAP_PX.div_ceil(long_side));
     while ppc > 1 && (grid.cols as u64 * grid.rows as u64) * u64::from(ppc * ppc) > MAX_PIXELS {
         ppc -= 1;
     }
@@ -83,10 +87,11 @@ pub fn heatmap(scene: &HeatmapScene) -> Result<Bitmap, FigureError> {
     {
         let root = BitMapBackend::with_buffer(&mut image.rgb, (width, height)).into_drawing_area();
         // The map's area: its y labels, the plot (plot_w wide) and a margin.
-        let (main, bar) = root.split_horizontally(Y_LABELS_PX + plot_w + MAP_MARGIN_PX);
+        let (main, bar) = root.split_horizontally(MAP_MARGIN_PX + Y_LABELS_PX + plot_w + MAP_MARGIN_PX);
         let mut chart = ChartBuilder::on(&main)
             .caption(&scene.title, (FONT, 18))
             .margin_top(8)
+            .margin_left(MAP_MARGIN_PX)
             .margin_right(MAP_MARGIN_PX)
             .x_label_area_size(BOTTOM_PX - 12)
             .y_label_area_size(Y_LABELS_PX)
@@ -118,37 +123,38 @@ pub fn heatmap(scene: &HeatmapScene) -> Result<Bitmap, FigureError> {
             .ok_or_else(|| FigureError::Draw("the cell bitmap does not fit its size".into()))?;
         chart.draw_series(std::iter::once(bitmap)).map_err(FigureError::draw)?;
 
-        let pts = |line: &[Vec2]| line.iter().map(|p| (p.x, p.y)).collect::<Vec<_>>();
+        // Lines are clipped to the map: plotters would draw their outside parts over the axes.
+        let view = (Vec2::new(x0, y0), Vec2::new(x1, y1));
         let mut labelled = false;
-        for line in &scene.layers.centrelines {
+        for run in scene.layers.centrelines.iter().flat_map(|line| clip(line, view)) {
             let series = chart
-                .draw_series(DashedLineSeries::new(pts(line), 6, 6, CENTRELINE.stroke_width(1)))
+                .draw_series(DashedLineSeries::new(run, 6, 6, CENTRELINE.stroke_width(1)))
                 .map_err(FigureError::draw)?;
             if !std::mem::replace(&mut labelled, true) {
                 series.label("lane centreline").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 8, y)], CENTRELINE));
             }
         }
         labelled = false;
-        for line in &scene.layers.edges {
-            let series =
-                chart.draw_series(LineSeries::new(pts(line), EDGE.stroke_width(1))).map_err(FigureError::draw)?;
+        for run in scene.layers.edges.iter().flat_map(|line| clip(line, view)) {
+            let series = chart.draw_series(LineSeries::new(run, EDGE.stroke_width(1))).map_err(FigureError::draw)?;
             if !std::mem::replace(&mut labelled, true) {
                 series.label("road edge").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], EDGE));
             }
         }
         let outline = |obb: &Obb| {
             let c = obb.corners();
-            (0..=4).map(|k| (c[k % 4].x, c[k % 4].y)).collect::<Vec<_>>()
+            clip(&[c[0], c[1], c[2], c[3], c[0]], view)
         };
-        if !scene.others.is_empty() {
+        let others: Vec<_> = scene.others.iter().flat_map(outline).collect();
+        if !others.is_empty() {
             chart
-                .draw_series(scene.others.iter().map(|o| PathElement::new(outline(o), OTHER.stroke_width(2))))
+                .draw_series(others.into_iter().map(|run| PathElement::new(run, OTHER.stroke_width(2))))
                 .map_err(FigureError::draw)?
                 .label("other road users")
                 .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], OTHER.stroke_width(2)));
         }
         chart
-            .draw_series(std::iter::once(PathElement::new(outline(scene.ego), EGO.stroke_width(2))))
+            .draw_series(outline(scene.ego).into_iter().map(|run| PathElement::new(run, EGO.stroke_width(2))))
             .map_err(FigureError::draw)?
             .label("ego")
             .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], EGO.stroke_width(2)));
@@ -164,6 +170,43 @@ pub fn heatmap(scene: &HeatmapScene) -> Result<Bitmap, FigureError> {
         root.present().map_err(FigureError::draw)?;
     }
     Ok(image)
+}
+
+/// The parts of the polyline `line` inside the box `(lo, hi)`, as runs of points (each segment
+/// clipped by Liang–Barsky).
+fn clip(line: &[Vec2], (lo, hi): (Vec2, Vec2)) -> Vec<Vec<(f64, f64)>> {
+    let mut runs: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut open = false;
+    for w in line.windows(2) {
+        let (a, d) = (w[0], w[1] - w[0]);
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        let inside =
+            [(-d.x, a.x - lo.x), (d.x, hi.x - a.x), (-d.y, a.y - lo.y), (d.y, hi.y - a.y)].iter().all(|&(p, q)| {
+                if p == 0.0 {
+                    return q >= 0.0;
+                }
+                let r = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(r)
+                } else {
+                    t1 = t1.min(r)
+                }
+                t0 <= t1
+            });
+        if !inside {
+            open = false;
+            continue;
+        }
+        let (p0, p1) = (a + d * t0, a + d * t1);
+        if !open || t0 > 0.0 {
+            runs.push(vec![(p0.x, p0.y)]);
+        }
+        if let Some(run) = runs.last_mut() {
+            run.push((p1.x, p1.y));
+        }
+        open = t1 >= 1.0;
+    }
+    runs
 }
 
 /// The colour scale from 0 to `max` with its values, right of the map.
@@ -220,7 +263,8 @@ mod tests {
             ego: &ego,
         };
         let img = heatmap(&scene).expect("draws");
-        assert_eq!((img.width, img.height), (160 + LEFT_PX + RIGHT_PX, 24 + TOP_PX + BOTTOM_PX));
+        // The long side gets MIN_MAP_PX: 12 px per cell.
+        assert_eq!((img.width, img.height), (480 + LEFT_PX + RIGHT_PX, 72 + TOP_PX + BOTTOM_PX));
         let top = ViridisRGB::get_color(1.0);
         let hot: Vec<(u32, u32)> = (0..img.height)
             .flat_map(|y| (0..img.width).map(move |x| (x, y)))
@@ -231,10 +275,20 @@ mod tests {
         let map_hot: Vec<_> = hot.iter().filter(|(x, _)| *x < img.width - RIGHT_PX).collect();
         assert!(!map_hot.is_empty());
         for &&(x, y) in &map_hot {
-            // Cell 39 of 40 at 4 px per cell, the top row of 6.
-            assert!(x >= Y_LABELS_PX + 150 && y < TOP_PX + 12, "hot pixel at ({x}, {y})");
+            // Cell 39 of 40 at 12 px per cell, in the top rows.
+            assert!(x >= LEFT_PX + 39 * 12 - 2 && y < TOP_PX + 36, "hot pixel at ({x}, {y})");
         }
         assert!(img.rgb.chunks(3).any(|p| p == [EGO.0, EGO.1, EGO.2]), "the ego is outlined in red");
+    }
+
+    #[test]
+    fn lines_are_clipped_to_the_map() {
+        let view = (Vec2::new(0.0, 0.0), Vec2::new(10.0, 10.0));
+        let line = [Vec2::new(-5.0, 5.0), Vec2::new(5.0, 5.0), Vec2::new(15.0, 5.0), Vec2::new(20.0, 20.0)];
+        assert_eq!(clip(&line, view), vec![vec![(0.0, 5.0), (5.0, 5.0), (10.0, 5.0)]]);
+        let out_and_back = [Vec2::new(5.0, 5.0), Vec2::new(5.0, 20.0), Vec2::new(6.0, 5.0)];
+        assert_eq!(clip(&out_and_back, view).len(), 2);
+        assert!(clip(&[Vec2::new(20.0, 20.0), Vec2::new(30.0, 20.0)], view).is_empty());
     }
 
     #[test]

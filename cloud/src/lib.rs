@@ -48,6 +48,7 @@
 //! # Ok::<(), risktwin_protos::recording::RecordingError>(())
 //! ```
 
+pub mod commonroad_recording;
 pub mod criticality;
 pub mod episode_recording;
 pub mod generate;

@@ -3,12 +3,9 @@
 
 mod cli;
 mod commands;
-mod commonroad_recording;
 mod error;
 mod logging;
 mod output;
-mod plot;
-mod png_out;
 mod process_tuning;
 
 use clap::Parser;

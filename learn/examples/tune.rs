@@ -29,18 +29,19 @@ fn main() {
     p.init_log_std = var("LOGSTD", p.init_log_std);
     p.ent_coef = var("ENT", p.ent_coef);
     let r = train(&cfg, &mut |_, _| {}).expect("train");
-    for c in &r.curve {
+    for checkpoint in &r.curve {
+        let c = &checkpoint.point;
         println!(
             "{:>7} {:6.1}s ep {:4} rew {:7.2} succ {:.2} compl {:.2} v {:5.1} coll {:.2} benign {:?}",
             c.env_steps,
-            c.wall_s,
+            checkpoint.wall_s,
             c.episodes,
             c.reward,
             c.success_rate,
             c.route_completion,
             c.avg_speed_mps,
             c.collision_rate,
-            c.benign_success
+            checkpoint.benign_success
         );
     }
     let f = &r.final_metrics;

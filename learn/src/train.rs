@@ -65,17 +65,27 @@ impl TrainConfig {
     }
 }
 
-/// One point of the training curves: episodes finished since the previous point.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// One point of the training curves: the training episodes finished since the previous point,
+/// averaged. The one definition for `risktwin train` and the cloud's trainer (whose points go
+/// into `risktwin run`'s metrics.json as they are).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CurvePoint {
     pub env_steps: u64,
-    pub wall_s: f64,
     pub episodes: u64,
+    /// The variant's own training reward (base has no risk term).
     pub reward: f64,
     pub success_rate: f64,
     pub route_completion: f64,
     pub avg_speed_mps: f64,
     pub collision_rate: f64,
+}
+
+/// A curve point of one training run, with when it was taken and, where measured there, the
+/// benign success (measurements: not part of any deterministic output).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Checkpoint {
+    pub point: CurvePoint,
+    pub wall_s: f64,
     /// Success of the deterministic policy on the benign set, where measured at this point.
     pub benign_success: Option<f64>,
 }
@@ -134,7 +144,7 @@ pub struct TrainReport {
     pub wall_s: f64,
     pub env_steps_per_s: f64,
     pub final_metrics: FinalMetrics,
-    pub curve: Vec<CurvePoint>,
+    pub curve: Vec<Checkpoint>,
     /// Wall time at which the benign success first reached 90 %, s.
     pub benign_90_wall_s: Option<f64>,
     pub policy: PolicyNet,
@@ -221,15 +231,17 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
         };
         if !acc.is_empty() || benign_success.is_some() {
             let f = FinalMetrics::average(&acc);
-            curve.push(CurvePoint {
-                env_steps: done_steps,
+            curve.push(Checkpoint {
+                point: CurvePoint {
+                    env_steps: done_steps,
+                    episodes: acc.len() as u64,
+                    reward: f.reward,
+                    success_rate: f.success_rate,
+                    route_completion: f.route_completion,
+                    avg_speed_mps: f.avg_speed_mps,
+                    collision_rate: f.collision_rate,
+                },
                 wall_s: start.elapsed().as_secs_f64(),
-                episodes: acc.len() as u64,
-                reward: f.reward,
-                success_rate: f.success_rate,
-                route_completion: f.route_completion,
-                avg_speed_mps: f.avg_speed_mps,
-                collision_rate: f.collision_rate,
                 benign_success,
             });
             acc.clear();
@@ -256,22 +268,23 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
 }
 
 /// The curves as CSV (header + one row per point; empty benign cells where not measured).
-pub fn curves_csv(curve: &[CurvePoint]) -> String {
+pub fn curves_csv(curve: &[Checkpoint]) -> String {
     let mut s = String::from(
         "env_steps,wall_s,episodes,reward,success_rate,route_completion,avg_speed_mps,collision_rate,benign_success\n",
     );
-    for p in curve {
+    for c in curve {
+        let p = &c.point;
         s.push_str(&format!(
             "{},{:.3},{},{:.6},{:.6},{:.6},{:.6},{:.6},{}\n",
             p.env_steps,
-            p.wall_s,
+            c.wall_s,
             p.episodes,
             p.reward,
             p.success_rate,
             p.route_completion,
             p.avg_speed_mps,
             p.collision_rate,
-            p.benign_success.map(|b| format!("{b:.4}")).unwrap_or_default()
+            c.benign_success.map(|b| format!("{b:.4}")).unwrap_or_default()
         ));
     }
     s

@@ -14,21 +14,8 @@ use risktwin_learn::PolicyNet;
 use risktwin_learn::learner::Learner;
 use risktwin_learn::ppo::PpoConfig;
 use risktwin_learn::sac::SacConfig;
-use serde::Serialize;
+pub use risktwin_learn::train::CurvePoint;
 use std::time::Instant;
-
-/// Training episodes averaged over one checkpoint window.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct CurvePoint {
-    pub env_steps: u64,
-    pub episodes: u64,
-    /// The variant's own training reward (base has no risk term).
-    pub reward: f64,
-    pub success_rate: f64,
-    pub route_completion: f64,
-    pub avg_speed_mps: f64,
-    pub collision_rate: f64,
-}
 
 /// What one training run produced.
 #[derive(Debug, Clone)]

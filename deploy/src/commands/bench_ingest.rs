@@ -4,35 +4,11 @@
 //! (`bench ingest --fleet-connect …`, hidden flags).
 
 use super::router::with_signals;
+use crate::cli::BenchIngestArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
-use clap::Args;
 use risktwin_bench::fleet_ingest::{FleetBenchConfig, FleetShare, cloud_side, publish_share};
 use std::process::Command;
-
-#[derive(Debug, Args)]
-pub struct BenchIngestArgs {
-    /// Vehicles in the fleet (split evenly over the publishers).
-    #[arg(long, default_value_t = 2000)]
-    pub vehicles: usize,
-    /// State messages per vehicle per second; must divide 100.
-    #[arg(long, default_value_t = 50)]
-    pub rate_hz: u64,
-    /// Seconds of publishing.
-    #[arg(long, default_value_t = 10)]
-    pub seconds: u64,
-    /// Publisher processes (one Zenoh session each).
-    #[arg(long, default_value_t = 1)]
-    pub publishers: usize,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
-    /// Internal: run as one publisher of the fleet, connecting here.
-    #[arg(long, hide = true)]
-    pub fleet_connect: Option<String>,
-    /// Internal: index of this publisher's first vehicle.
-    #[arg(long, hide = true, default_value_t = 0)]
-    pub first_vehicle: usize,
-}
 
 pub fn ingest(args: BenchIngestArgs) -> CliResult {
     if args.vehicles == 0 || args.seconds == 0 || args.publishers == 0 || args.publishers > args.vehicles {

@@ -1,29 +1,10 @@
 //! `risktwin bench replay`: unpaced MCAP replay into ingest, in-process, against the raw `mcap`
 //! reader as the peer. The benchmark is [`risktwin_bench::replay`].
 
+use crate::cli::BenchReplayArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
-use clap::Args;
 use risktwin_bench::replay::{ReplayConfig, replay as run_replay};
-use std::path::PathBuf;
-
-#[derive(Debug, Args)]
-pub struct BenchReplayArgs {
-    /// The recording to replay; written first (a synthetic fleet) if it does not exist.
-    #[arg(long)]
-    pub file: Option<PathBuf>,
-    /// Vehicles of the synthetic fleet.
-    #[arg(long, default_value_t = 1000)]
-    pub vehicles: usize,
-    /// Seconds of the synthetic fleet.
-    #[arg(long, default_value_t = 10)]
-    pub seconds: u64,
-    /// Measurements per side, alternating; medians are compared.
-    #[arg(long, default_value_t = 3)]
-    pub rounds: usize,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
-}
 
 pub fn replay(args: BenchReplayArgs) -> CliResult {
     if args.rounds == 0 {

@@ -6,7 +6,7 @@
 //! FILE.csv|json [--ego ID]` the criticality of a replayed CommonRoad scenario, written on exit. Also `risktwin bench zenoh|latency`.
 
 use super::router::{transport_config, with_signals};
-use crate::cli::{BenchZenohArgs, CloudArgs};
+use crate::cli::{BenchLatencyArgs, BenchZenohArgs, CloudArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_bench::latency::{LatencyConfig, latency};
@@ -72,25 +72,6 @@ pub fn bench_zenoh(args: BenchZenohArgs) -> CliResult {
             ],
         ),
     }
-}
-
-/// `risktwin bench latency`.
-#[derive(Debug, clap::Args)]
-pub struct BenchLatencyArgs {
-    /// Messages per side (the first 50 warm up and are not counted).
-    #[arg(long, default_value_t = 1000)]
-    pub messages: u64,
-    /// Publish rate, Hz.
-    #[arg(long, default_value_t = 50.0)]
-    pub rate_hz: f64,
-    /// Snapshot tick of the twin, ms (default: the ingest's 50).
-    #[arg(long)]
-    pub tick_ms: Option<f64>,
-    /// Allowed lateness of the aligner, ms (default: the ingest's 30, `DEFAULT_LATENESS_NS`).
-    #[arg(long)]
-    pub lateness_ms: Option<f64>,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
 }
 
 pub fn bench_latency(args: BenchLatencyArgs) -> CliResult {

@@ -2,9 +2,9 @@
 //! every other dynamic obstacle (cli.md), plus PET and minimum distance per pair in JSON.
 
 use crate::cli::CriticalityArgs;
-use crate::commonroad_recording::read_scenario;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_table};
+use risktwin_cloud::commonroad_recording::read_scenario;
 use risktwin_cloud::criticality::{ReportFormat, write_report};
 use risktwin_common::commonroad::criticality::{ScenarioCriticality, scenario_criticality};
 use risktwin_common::commonroad::{Scenario, parse_scenario};

@@ -1,14 +1,14 @@
 //! `risktwin import commonroad FILE.xml (--out FILE.mcap | --db FILE.db [--ego ID])`: a recorded
 //! CommonRoad scenario as fleet data, replayable with `risktwin edge replay` (layout in
-//! [`crate::commonroad_recording`]), and/or as a recorded validation case in the scenario library
+//! [`risktwin_cloud::commonroad_recording`]), and/or as a recorded validation case in the scenario library
 //! (the XML stored whole, the replayed ego's metrics as its reference outcome).
 
 use super::recorded::{CommonRoadInput, read_xml};
 use super::simulate_commonroad::{outcome_of, resimulate_input};
 use crate::cli::ImportCommonRoadArgs;
-use crate::commonroad_recording::{FleetRecordingError, ImportSummary, write_scenario};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
+use risktwin_cloud::commonroad_recording::{FleetRecordingError, ImportSummary, write_scenario};
 use risktwin_cloud::library::{REPLAY_POLICY, RecordedCase, ScenarioLibrary};
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;

@@ -9,11 +9,11 @@
 //!   scenario's steps (linear in position, speed and acceleration; shortest-arc in heading).
 //! - [`resimulate`]: the scenario re-run at the twin's step with the ego replayed or driven by
 //!   the reference driver from its recorded initial state; episode metrics and S_risk.
-//! - [`field_at`]: the risk field around the ego at one moment, and [`render_field`] draws it
-//!   over the real lanelet bounds.
+//! - [`field_at`]: the risk field around the ego at one moment, and [`lanelet_layers`] what a
+//!   heatmap of it shows over the real lanelet bounds.
 
+mod heatmap;
 mod playback;
-mod render;
 mod resim;
 mod road;
 mod scene;
@@ -21,8 +21,8 @@ mod snapshot;
 #[cfg(test)]
 mod tests;
 
+pub use heatmap::lanelet_layers;
 pub use playback::{Playback, PlaybackState, footprint_of, kind_of};
-pub use render::render_field;
 pub use resim::{EgoMode, ResimSample, Resimulation, resimulate};
 pub use road::road_from_lanelets;
 pub use scene::TwinScene;

@@ -2,7 +2,7 @@
 //! (first seed), recorded with the same topics as `simulate --record` and the pipeline, so it
 //! opens in Foxglove next to a distributed recording.
 
-use crate::error::{CliError, CliResult};
+use crate::error::RunError;
 use risktwin_cloud::episode_recording::EpisodeRecorder;
 use risktwin_cloud::library::{RankedScenario, ScenarioLibrary};
 use risktwin_cloud::trainer::drive::drive;
@@ -21,16 +21,15 @@ pub fn record_top(
     top: &[RankedScenario],
     policies: &[(Variant, PolicyNet)],
     out: &Path,
-) -> CliResult<Option<String>> {
+) -> Result<Option<String>, RunError> {
     let policy = policies.iter().find(|(v, _)| *v == Variant::Full).or(policies.first());
     let (Some(first), Some((variant, policy))) = (top.first(), policy) else { return Ok(None) };
-    let Some(stored) = library.get(&first.id).map_err(CliError::runtime)? else { return Ok(None) };
+    let Some(stored) = library.get(&first.id)? else { return Ok(None) };
     let path = out.join(FILE);
-    let file =
-        std::fs::File::create(&path).map_err(|e| CliError::input(format!("cannot create {}: {e}", path.display())))?;
+    let file = std::fs::File::create(&path).map_err(|source| RunError::Create { path: path.clone(), source })?;
     let mut world = build(&stored.spec);
-    let mut recorder = EpisodeRecorder::new(std::io::BufWriter::new(file), &world).map_err(CliError::runtime)?;
-    recorder.record(&world).map_err(CliError::runtime)?;
+    let mut recorder = EpisodeRecorder::new(std::io::BufWriter::new(file), &world)?;
+    recorder.record(&world)?;
     let mut failed = None;
     drive(policy, &mut world, &mut |w, _| {
         if failed.is_none() {
@@ -38,8 +37,8 @@ pub fn record_top(
         }
     });
     if let Some(e) = failed {
-        return Err(CliError::runtime(e));
+        return Err(e.into());
     }
-    recorder.finish().map_err(CliError::runtime)?;
+    recorder.finish()?;
     Ok(Some(format!("{FILE}: scenario {} ({}) driven by the {variant} policy", first.id, first.kind)))
 }

@@ -13,17 +13,18 @@
 //! liveliness token and push subscriber matching, the edge accepting the policy, the
 //! `ScenarioResult` arriving); any failure shuts every role down and comes back as an error.
 
-use risktwin_cloud::network::push::{EdgeLink, PushTarget, ScenarioPushReport};
+use risktwin_cloud::network::push::{EdgeLink, PushError, PushTarget, ScenarioPushReport};
 use risktwin_cloud::network::{CloudConfig, CloudSummary};
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_edge::publish::run_producer;
 use risktwin_edge::vehicle::push::{PolicyLine, PushSummary};
 use risktwin_edge::vehicle::{Vehicle, VehicleSummary};
 use risktwin_edge::{EdgeConfig, EdgeError, Producer, Stamper};
-use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport};
+use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, KeyError};
 use risktwin_transport::router::RouterConfig;
 use risktwin_transport::shutdown::channel;
 use risktwin_transport::{EdgeStream, Mode, Shutdown, SiteId, SourceId, TransportConfig};
+use std::collections::BTreeMap;
 use std::future::Future;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -42,6 +43,51 @@ const WAIT: Duration = Duration::from_secs(20);
 /// Fixed part of the wait for one pushed scenario's result, s (the rest scales with its playback
 /// time: a 30 s episode plays in 1.5 s at [`RATE_HZ`]).
 const RESULT_BASE_S: f64 = 10.0;
+
+/// Why the closed loop failed; every message starts with `closed loop:` except an id's.
+#[derive(Debug, thiserror::Error)]
+pub enum LoopError {
+    /// A tokio runtime or the edge's thread could not be started.
+    #[error("closed loop: {what}: {source}")]
+    Start { what: &'static str, source: std::io::Error },
+    /// A bounded wait ran out.
+    #[error("closed loop: {what} within {limit_s} s")]
+    Timeout { what: String, limit_s: u64 },
+    /// A role's task panicked or was cancelled.
+    #[error("closed loop: {what} task: {message}")]
+    Task { what: &'static str, message: String },
+    /// A role ended with an error.
+    #[error("closed loop: {what}: {source}")]
+    Role { what: &'static str, source: Box<dyn std::error::Error + Send + Sync> },
+    #[error("closed loop: the router stopped before it listened")]
+    RouterStopped,
+    #[error("closed loop: the router listens on no tcp/127.0.0.1 locator")]
+    NoLoopback,
+    #[error(transparent)]
+    Id(#[from] KeyError),
+    #[error("closed loop: the ingest role stopped before it was ready")]
+    IngestNotReady,
+    #[error("closed loop: the edge vehicle stopped before the pushes were done")]
+    EdgeStoppedEarly,
+    #[error("closed loop: the edge vehicle stopped before it took the policy")]
+    EdgeStoppedBeforePolicy,
+    #[error("closed loop: the edge vehicle's thread ended without a word")]
+    EdgeSilent,
+    #[error("closed loop: edge vehicle: {0}")]
+    Edge(EdgeError),
+    #[error("closed loop: cloud push session: {0}")]
+    OpenSession(PushError),
+    #[error("closed loop: closing the cloud push session: {0}")]
+    CloseSession(PushError),
+    #[error("closed loop: pushing policy {policy_id}: {source}")]
+    PushPolicy { policy_id: String, source: PushError },
+    #[error("closed loop: the edge refused policy {policy_id} version {version}: {refused:?}")]
+    PolicyRefused { policy_id: String, version: u32, refused: BTreeMap<String, u64> },
+    #[error("closed loop: pushing scenario {id}: {source}")]
+    PushScenario { id: String, source: PushError },
+    #[error("closed loop: the full policy file: {0}")]
+    PolicyFile(#[from] risktwin_common::net::NetError),
+}
 
 /// What to push.
 pub struct LoopRequest {
@@ -109,31 +155,44 @@ impl Producer for Watched {
 }
 
 /// Starts the roles, pushes, shuts everything down; `progress` hears of each step.
-pub fn run_loop(request: &LoopRequest, progress: &mut dyn FnMut(&str)) -> Result<LoopOutput, String> {
+pub fn run_loop(
+    request: &LoopRequest,
+    shutdown: &Shutdown,
+    progress: &mut dyn FnMut(&str),
+) -> Result<LoopOutput, LoopError> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
-        .map_err(|e| format!("closed loop: tokio runtime: {e}"))?;
-    let result = runtime.block_on(roles(request, progress));
+        .map_err(|source| LoopError::Start { what: "tokio runtime", source })?;
+    let result = runtime.block_on(roles(request, shutdown, progress));
     // Tasks still running after a failed, bounded join are dropped here, never waited for.
     runtime.shutdown_timeout(Duration::from_secs(1));
     result
 }
 
 /// Waits up to `limit` for `what`.
-async fn bounded<T>(what: &str, limit: Duration, fut: impl Future<Output = T>) -> Result<T, String> {
-    tokio::time::timeout(limit, fut).await.map_err(|_| format!("closed loop: {what} within {} s", limit.as_secs()))
+async fn bounded<T>(what: &str, limit: Duration, fut: impl Future<Output = T>) -> Result<T, LoopError> {
+    tokio::time::timeout(limit, fut)
+        .await
+        .map_err(|_| LoopError::Timeout { what: what.to_owned(), limit_s: limit.as_secs() })
 }
 
 /// Joins a role's task, bounded.
-async fn join<T, E: std::fmt::Display>(what: &str, task: JoinHandle<Result<T, E>>) -> Result<T, String> {
+async fn join<T, E: std::error::Error + Send + Sync + 'static>(
+    what: &'static str,
+    task: JoinHandle<Result<T, E>>,
+) -> Result<T, LoopError> {
     bounded(&format!("{what} did not stop"), WAIT, task)
         .await?
-        .map_err(|e| format!("closed loop: {what} task: {e}"))?
-        .map_err(|e| format!("closed loop: {what}: {e}"))
+        .map_err(|e| LoopError::Task { what, message: e.to_string() })?
+        .map_err(|e| LoopError::Role { what, source: Box::new(e) })
 }
 
-async fn roles(request: &LoopRequest, progress: &mut dyn FnMut(&str)) -> Result<LoopOutput, String> {
+async fn roles(
+    request: &LoopRequest,
+    shutdown: &Shutdown,
+    progress: &mut dyn FnMut(&str),
+) -> Result<LoopOutput, LoopError> {
     let started = Instant::now();
     let (router_stop, router_shutdown) = channel();
     let (listening_tx, listening_rx) = oneshot::channel();
@@ -150,22 +209,22 @@ async fn roles(request: &LoopRequest, progress: &mut dyn FnMut(&str)) -> Result<
         Ok(Err(_)) => {
             router_stop.fire();
             join("router", router).await?;
-            return Err("closed loop: the router stopped before it listened".to_owned());
+            return Err(LoopError::RouterStopped);
         }
         Err(e) => return Err(e),
     };
     let Some(locator) = locator else {
         router_stop.fire();
         join("router", router).await?;
-        return Err("closed loop: the router listens on no tcp/127.0.0.1 locator".to_owned());
+        return Err(LoopError::NoLoopback);
     };
     progress(&format!("router on {locator}"));
     // Clients of the router: no session listens, and every message goes through the router,
     // in order per link (which waiting for the edge's liveliness token before a push relies on).
     let transport =
         TransportConfig { mode: Mode::Client, connect: vec![locator.clone()], ..TransportConfig::default() };
-    let site = SiteId::new(SITE).map_err(|e| e.to_string())?;
-    let edge_id = SourceId::new(VEHICLE).map_err(|e| e.to_string())?;
+    let site = SiteId::new(SITE)?;
+    let edge_id = SourceId::new(VEHICLE)?;
 
     let (cloud_stop, cloud_shutdown) = channel();
     let (ready_tx, ready_rx) = oneshot::channel();
@@ -184,28 +243,25 @@ async fn roles(request: &LoopRequest, progress: &mut dyn FnMut(&str)) -> Result<
     edge_config.transport = transport.clone();
     let target = PushTarget { transport, site, edge: edge_id, wait_for_edge: WAIT };
     let outcome = async {
-        bounded("the ingest role was not ready", WAIT, ready_rx)
-            .await?
-            .map_err(|_| "closed loop: the ingest role stopped before it was ready".to_owned())?;
+        bounded("the ingest role was not ready", WAIT, ready_rx).await?.map_err(|_| LoopError::IngestNotReady)?;
         // The edge runs on a thread of its own, as it would in its own process: its producer is
         // not `Send`, and its reliable puts block under congestion, which must never stall the
         // pushes that drain it. An edge that stops before the pushes are done fails the phase.
         let (seen_tx, seen_rx) = watch::channel(PushSummary::default());
         let mut edge = spawn_edge(edge_config, seen_tx, edge_shutdown)?;
         let pushed = tokio::select! {
-            pushed = pushes(request, &target, seen_rx, progress) => pushed,
+            pushed = pushes(request, &target, shutdown, seen_rx, progress) => pushed,
             ended = &mut edge => {
                 return Err(match ended {
-                    Ok(Ok(_)) => "closed loop: the edge vehicle stopped before the pushes were done".to_owned(),
+                    Ok(Ok(_)) => LoopError::EdgeStoppedEarly,
                     Ok(Err(e)) => e,
-                    Err(_) => "closed loop: the edge vehicle's thread ended without a word".to_owned(),
+                    Err(_) => LoopError::EdgeSilent,
                 });
             }
         };
         edge_stop.fire();
-        let vehicle = bounded("the edge vehicle did not stop", WAIT, edge)
-            .await?
-            .map_err(|_| "closed loop: the edge vehicle's thread ended without a word".to_owned())??;
+        let vehicle =
+            bounded("the edge vehicle did not stop", WAIT, edge).await?.map_err(|_| LoopError::EdgeSilent)??;
         Ok((pushed?, vehicle))
     }
     .await;
@@ -228,7 +284,7 @@ fn spawn_edge(
     config: EdgeConfig,
     seen: watch::Sender<PushSummary>,
     shutdown: Shutdown,
-) -> Result<oneshot::Receiver<Result<VehicleSummary, String>>, String> {
+) -> Result<oneshot::Receiver<Result<VehicleSummary, LoopError>>, LoopError> {
     let (done_tx, done_rx) = oneshot::channel();
     std::thread::Builder::new()
         .name("edge-vehicle".to_owned())
@@ -237,15 +293,11 @@ fn spawn_edge(
                 .worker_threads(1)
                 .enable_all()
                 .build()
-                .map_err(|e| format!("closed loop: edge vehicle runtime: {e}"))
-                .and_then(|runtime| {
-                    runtime
-                        .block_on(drive_edge(&config, seen, shutdown))
-                        .map_err(|e| format!("closed loop: edge vehicle: {e}"))
-                });
+                .map_err(|source| LoopError::Start { what: "edge vehicle runtime", source })
+                .and_then(|runtime| runtime.block_on(drive_edge(&config, seen, shutdown)).map_err(LoopError::Edge));
             let _ = done_tx.send(result);
         })
-        .map_err(|e| format!("closed loop: edge vehicle thread: {e}"))?;
+        .map_err(|source| LoopError::Start { what: "edge vehicle thread", source })?;
     Ok(done_rx)
 }
 
@@ -270,17 +322,17 @@ struct Pushed {
 async fn pushes(
     request: &LoopRequest,
     target: &PushTarget,
+    shutdown: &Shutdown,
     mut seen: watch::Receiver<PushSummary>,
     progress: &mut dyn FnMut(&str),
-) -> Result<Pushed, String> {
-    // Nothing interrupts the pushes but their own bounds (Ctrl-C ends the whole run).
-    let (_never, shutdown) = channel();
+) -> Result<Pushed, LoopError> {
+    // The pushes end at their own bounds or at the run's shutdown.
     // One cloud session for every push, its result subscriber declared once; each push waits
     // for the edge's liveliness token, which the edge declares after its push subscribers (the
     // ingest role's wildcard subscription makes matching status alone unreliable).
-    let link = EdgeLink::open(target).await.map_err(|e| format!("closed loop: cloud push session: {e}"))?;
-    let pushed = push_rounds(request, &link, &shutdown, &mut seen, progress).await;
-    let closed = link.close().await.map_err(|e| format!("closed loop: closing the cloud push session: {e}"));
+    let link = EdgeLink::open(target).await.map_err(LoopError::OpenSession)?;
+    let pushed = push_rounds(request, &link, shutdown, &mut seen, progress).await;
+    let closed = link.close().await.map_err(LoopError::CloseSession);
     let pushed = pushed?;
     closed?;
     Ok(pushed)
@@ -293,13 +345,13 @@ async fn push_rounds(
     shutdown: &Shutdown,
     seen: &mut watch::Receiver<PushSummary>,
     progress: &mut dyn FnMut(&str),
-) -> Result<Pushed, String> {
+) -> Result<Pushed, LoopError> {
     let by_reference = push_all(request, link, shutdown, progress, "reference driver").await?;
 
     let refused_before: u64 = seen.borrow().policies_refused.values().sum();
     link.policy(&request.policy_id, request.version, &request.algo, request.weights.clone(), shutdown.clone())
         .await
-        .map_err(|e| format!("closed loop: pushing policy {}: {e}", request.policy_id))?;
+        .map_err(|source| LoopError::PushPolicy { policy_id: request.policy_id.clone(), source })?;
     let holds = |p: &PushSummary| {
         p.policy.as_ref().is_some_and(|l| l.policy_id == request.policy_id && l.version == request.version)
     };
@@ -309,13 +361,14 @@ async fn push_rounds(
         seen.wait_for(|p| holds(p) || p.policies_refused.values().sum::<u64>() > refused_before),
     )
     .await?
-    .map_err(|_| "closed loop: the edge vehicle stopped before it took the policy".to_owned())?
+    .map_err(|_| LoopError::EdgeStoppedBeforePolicy)?
     .clone();
     let Some(held) = summary.policy.clone().filter(|_| holds(&summary)) else {
-        return Err(format!(
-            "closed loop: the edge refused policy {} version {}: {:?}",
-            request.policy_id, request.version, summary.policies_refused
-        ));
+        return Err(LoopError::PolicyRefused {
+            policy_id: request.policy_id.clone(),
+            version: request.version,
+            refused: summary.policies_refused.clone(),
+        });
     };
     progress(&format!("edge drives with policy {} version {}", held.policy_id, held.version));
     let by_policy = push_all(request, link, shutdown, progress, "pushed policy").await?;
@@ -330,7 +383,7 @@ async fn push_all(
     shutdown: &Shutdown,
     progress: &mut dyn FnMut(&str),
     driver: &str,
-) -> Result<Vec<ScenarioPushReport>, String> {
+) -> Result<Vec<ScenarioPushReport>, LoopError> {
     let mut out = Vec::with_capacity(request.scenarios.len());
     for (id, spec) in &request.scenarios {
         // The edge plays an episode of at most the horizon's 50 Hz steps at RATE_HZ.
@@ -339,7 +392,7 @@ async fn push_all(
         let report = link
             .scenario(id, spec, wait, shutdown.clone())
             .await
-            .map_err(|e| format!("closed loop: pushing scenario {id}: {e}"))?;
+            .map_err(|source| LoopError::PushScenario { id: id.clone(), source })?;
         progress(&format!("scenario {id} ({driver}): collision {}", report.metrics.collision));
         out.push(report);
     }

@@ -13,7 +13,8 @@
 //! What goes into metrics.json ([`ClosedLoop`]) is deterministic; the traffic counts and wall
 //! time ([`push_loop::LoopOutput`]) depend on timing and appear in report.md only.
 
-use super::push_loop::{self, LoopOutput, LoopRequest};
+use crate::error::RunError;
+use crate::push_loop::{self, LoopOutput, LoopRequest};
 use risktwin_cloud::library::{RankedScenario, ScenarioLibrary};
 use risktwin_cloud::network::push::ScenarioPushReport;
 use risktwin_cloud::trainer::drive::drive;
@@ -26,6 +27,7 @@ use risktwin_common::telemetry::PolicyRef;
 use risktwin_common::world::STEP_S;
 use risktwin_edge::scene::{ActivePolicy, Tape};
 use risktwin_learn::PolicyNet;
+use risktwin_transport::Shutdown;
 use serde::Serialize;
 use std::fmt::Write;
 use std::path::PathBuf;
@@ -113,12 +115,13 @@ pub fn push_phase(
     weights: Vec<u8>,
     algo: &str,
     record: Option<PathBuf>,
+    shutdown: &Shutdown,
     progress: &mut dyn FnMut(&str),
-) -> Result<Option<(ClosedLoop, LoopOutput)>, String> {
+) -> Result<Option<(ClosedLoop, LoopOutput)>, RunError> {
     let mut scenarios = Vec::new();
     let mut kinds = Vec::new();
     for r in top.iter().take(n) {
-        if let Some(stored) = library.get(&r.id).map_err(|e| e.to_string())? {
+        if let Some(stored) = library.get(&r.id)? {
             scenarios.push((r.id.clone(), stored.spec));
             kinds.push(r.kind);
         }
@@ -126,7 +129,7 @@ pub fn push_phase(
     if scenarios.is_empty() {
         return Ok(None);
     }
-    let host = HostPolicy::from_safetensors(&weights).map_err(|e| format!("closed loop: the full policy file: {e}"))?;
+    let host = HostPolicy::from_safetensors(&weights).map_err(push_loop::LoopError::from)?;
     let request = LoopRequest {
         scenarios,
         policy_id: format!("{algo}-full-final"),
@@ -135,7 +138,7 @@ pub fn push_phase(
         weights,
         record,
     };
-    let output = push_loop::run_loop(&request, progress)?;
+    let output = push_loop::run_loop(&request, shutdown, progress)?;
     let id = PolicyRef { policy_id: request.policy_id.clone(), version: request.version };
     let active = ActivePolicy { id: id.clone(), net: Arc::new(host) };
     let mut compared = Vec::new();

@@ -6,10 +6,10 @@
 //! network), then per time step every obstacle present as a `risktwin.v1.VehicleState` on
 //! `risktwin/v1/<site>/dyn-<id>/state` (static obstacles once, `static-<id>`), log and capture
 //! time = time step × dt (scenario time from 0). Reading back is
-//! [`risktwin_cloud::criticality::collect`]'s, the same code the cloud runs on the live stream;
+//! [`crate::criticality::collect`]'s, the same code the cloud runs on the live stream;
 //! its module doc says what does not travel.
 
-use risktwin_cloud::criticality::{RebuildError, Rejected, ScenarioCollector};
+use crate::criticality::{RebuildError, Rejected, ScenarioCollector};
 use risktwin_common::commonroad::twin::{footprint_of, road_from_lanelets};
 use risktwin_common::commonroad::{ObstacleState, Scenario, Shape};
 use risktwin_common::geometry::Pose;

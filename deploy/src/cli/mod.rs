@@ -1,4 +1,13 @@
-//! Command-line grammar (cli.md, contract v1). Only parsing lives here.
+//! Command-line grammar (docs/cli.md, contract v1): every clap type of the binary, and nothing
+//! else. Command modules import the grammar; the grammar imports no command.
+
+mod bench;
+mod push;
+mod roles;
+
+pub use bench::*;
+pub use push::*;
+pub use roles::*;
 
 use crate::output::Format;
 use clap::{ArgGroup, Args, Parser, Subcommand};
@@ -41,7 +50,7 @@ pub enum Command {
     Cloud(CloudArgs),
     /// Cloud→edge pushes: a scenario to run or a policy update, to one edge vehicle.
     #[command(subcommand)]
-    Push(crate::commands::push::PushCommand),
+    Push(PushCommand),
 }
 
 #[derive(Debug, Args)]
@@ -201,79 +210,6 @@ pub struct CriticalityArgs {
 }
 
 #[derive(Debug, Subcommand)]
-pub enum BenchCommand {
-    /// Traffic simulation throughput (dynamics, IDM/MOBIL, collision checks).
-    Sim(BenchSimArgs),
-    /// Risk-field evaluation throughput on one core.
-    RiskField(BenchRiskFieldArgs),
-    /// Edge→cloud Zenoh throughput, ours against a raw publisher→subscriber pair.
-    Zenoh(BenchZenohArgs),
-    /// Unpaced MCAP replay into ingest, in-process, against the raw `mcap` reader.
-    Replay(crate::commands::bench_replay::BenchReplayArgs),
-    /// A paced fleet (2,000 vehicles at 50 Hz) into the cloud ingest over Zenoh: loss and CPU.
-    Ingest(crate::commands::bench_ingest::BenchIngestArgs),
-    /// Edge publish → twin snapshot latency, ours against a raw Zenoh one-way hop.
-    Latency(crate::commands::cloud::BenchLatencyArgs),
-}
-
-#[derive(Debug, Args)]
-pub struct BenchSimArgs {
-    #[arg(long, default_value_t = 1000)]
-    pub vehicles: usize,
-    #[arg(long, default_value_t = 1000)]
-    pub steps: u64,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
-}
-
-#[derive(Debug, Args)]
-pub struct BenchRiskFieldArgs {
-    #[arg(long, default_value_t = 64)]
-    pub agents: usize,
-    #[arg(long, default_value_t = 256)]
-    pub cols: usize,
-    #[arg(long, default_value_t = 256)]
-    pub rows: usize,
-    /// Minimum measuring time, s.
-    #[arg(long, default_value_t = 2.0)]
-    pub seconds: f64,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
-}
-
-/// How a distributed role joins the Zenoh network.
-#[derive(Debug, Args)]
-pub struct ZenohArgs {
-    /// Zenoh locator to connect to (`tcp/127.0.0.1:7447`); repeatable.
-    #[arg(long = "connect", value_name = "ENDPOINT")]
-    pub connect: Vec<String>,
-    /// Zenoh locator to listen on; repeatable.
-    #[arg(long = "listen", value_name = "ENDPOINT")]
-    pub listen: Vec<String>,
-    /// `peer` or `client`.
-    #[arg(long, default_value = "peer")]
-    pub mode: String,
-    /// Turn on UDP multicast scouting (off by default, see docs/keyexpr.md).
-    #[arg(long)]
-    pub multicast_scouting: bool,
-}
-
-#[derive(Debug, Args)]
-pub struct RouterArgs {
-    /// Zenoh locator to listen on (`tcp/127.0.0.1:0` picks a free port); repeatable.
-    #[arg(long = "listen", value_name = "ENDPOINT")]
-    pub listen: Vec<String>,
-    /// Another router to connect to; repeatable.
-    #[arg(long = "connect", value_name = "ENDPOINT")]
-    pub connect: Vec<String>,
-}
-
-#[derive(Debug, Subcommand)]
 pub enum ImportCommand {
     /// A CommonRoad XML scenario: the lanelet map and every obstacle's state per time step.
     Commonroad(ImportCommonRoadArgs),
@@ -294,123 +230,6 @@ pub struct ImportCommonRoadArgs {
     /// The case's ego (dynamic-obstacle id; default: the planning problem's, else the first).
     #[arg(long, requires = "db")]
     pub ego: Option<u64>,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
-}
-
-#[derive(Debug, Subcommand)]
-pub enum EdgeCommand {
-    /// A vehicle: state at the rate, CAN at twice it, perception at a fifth of it.
-    Vehicle(EdgeArgs),
-    /// A roadside unit: object lists and signal phases at the rate.
-    Rsu(EdgeArgs),
-    /// Republish a recording's edge streams (fleet data) on their recorded keys.
-    Replay(ReplayArgs),
-    /// A vehicle's sensor producer: the `vehicle` world and streams, published zero-copy into
-    /// iceoryx2 shared memory for the vehicle's `gateway` on this host (Zenoh flags unused).
-    Sensor(EdgeArgs),
-    /// A vehicle's gateway: forwards its `sensor`'s shared-memory samples to Zenoh on the
-    /// vehicle's keys, until the sensor ends its stream or a signal (`--kind`/`--seed` name the
-    /// vehicle model, as for the sensor; rate, count and duration are the sensor's).
-    Gateway(EdgeArgs),
-}
-
-#[derive(Debug, Args)]
-pub struct ReplayArgs {
-    /// An MCAP recording (e.g. from `risktwin cloud --record`).
-    pub recording: PathBuf,
-    /// Replay speed relative to the recording; 0 replays as fast as the transport allows.
-    #[arg(long, default_value_t = 1.0)]
-    pub speed: f64,
-    #[command(flatten)]
-    pub zenoh: ZenohArgs,
-    /// Seconds to wait for a subscriber before publishing anyway.
-    #[arg(long, default_value_t = 10.0)]
-    pub wait_for_cloud_s: f64,
-}
-
-#[derive(Debug, Args)]
-pub struct EdgeArgs {
-    #[arg(long)]
-    pub id: String,
-    #[arg(long, default_value = "default")]
-    pub site: String,
-    #[command(flatten)]
-    pub zenoh: ZenohArgs,
-    /// Base rate, Hz (default: 50 for a vehicle's state, 10 for an RSU).
-    #[arg(long)]
-    pub rate_hz: Option<f64>,
-    /// Stop after this many seconds.
-    #[arg(long)]
-    pub duration: Option<f64>,
-    /// Stop each stream after this many messages.
-    #[arg(long)]
-    pub count: Option<u64>,
-    /// Edge clock offset, ns.
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
-    pub clock_offset_ns: i64,
-    /// Edge clock drift, parts per million.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub clock_drift_ppm: f64,
-    /// Capture-stamp jitter, ± ns.
-    #[arg(long, default_value_t = 0)]
-    pub clock_jitter_ns: u32,
-    /// Seed of the scenario sample (and of the clock jitter).
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Scenario kind the edge's world is sampled from.
-    #[arg(long, default_value = "cut-in")]
-    pub kind: String,
-    /// Seconds to wait for a subscriber before publishing anyway.
-    #[arg(long, default_value_t = 10.0)]
-    pub wait_for_cloud_s: f64,
-}
-
-#[derive(Debug, Args)]
-pub struct CloudArgs {
-    /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db),
-    /// criticality (needs --criticality-out).
-    #[arg(long, default_value = "ingest", value_delimiter = ',')]
-    pub roles: Vec<String>,
-    /// Serve one site only (default: every site).
-    #[arg(long)]
-    pub site: Option<String>,
-    /// Record every accepted message (and the twin's scene and risk outputs) into this MCAP
-    /// file (closed cleanly on SIGINT/SIGTERM).
-    #[arg(long)]
-    pub record: Option<std::path::PathBuf>,
-    /// Ingest `risktwin edge replay` output at the recorded receive times it attaches, instead
-    /// of this cloud's clock (messages without one are dropped as `no-replay-time`).
-    #[arg(long)]
-    pub replay_time: bool,
-    /// The scenario library the library role serves.
-    #[arg(long)]
-    pub db: Option<PathBuf>,
-    /// The risk role evaluates on the road of this scenario kind (the edges' `--kind`).
-    #[arg(long, default_value = "cut-in")]
-    pub road: String,
-    /// The criticality role writes the CommonRoad criticality of the replayed scenario here on
-    /// shutdown: FILE.csv or FILE.json, as `risktwin criticality` prints them.
-    #[arg(long)]
-    pub criticality_out: Option<PathBuf>,
-    /// The ego obstacle of the criticality role (default: the first dynamic obstacle).
-    #[arg(long, requires = "criticality_out")]
-    pub ego: Option<u64>,
-    #[command(flatten)]
-    pub zenoh: ZenohArgs,
-}
-
-#[derive(Debug, Args)]
-pub struct BenchZenohArgs {
-    /// Messages per measurement.
-    #[arg(long, default_value_t = 200_000)]
-    pub messages: u64,
-    /// Payload size, bytes.
-    #[arg(long, default_value_t = 1024)]
-    pub payload_bytes: usize,
-    /// Measurements per side, alternating; medians are compared.
-    #[arg(long, default_value_t = 3)]
-    pub rounds: usize,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

@@ -1,8 +1,9 @@
 //! `report.md`: what the run measured, in tables a person reads, the findings computed from the
 //! numbers (see `verdict`), and what the run does not cover.
 
-use super::push_loop::LoopOutput;
-use super::{RunMetrics, closed_loop, verdict};
+use crate::metrics::RunMetrics;
+use crate::push_loop::LoopOutput;
+use crate::{closed_loop, verdict};
 use risktwin_cloud::trainer::stats::METRIC_NAMES;
 use risktwin_cloud::trainer::{EvalMetrics, EvalSpread, Spread};
 use std::fmt::Write;
@@ -34,7 +35,7 @@ fn ablation_section(s: &mut String, m: &RunMetrics) {
          each of {} phases with the current policy's failures and the mutations around them that the reference \
          driver survives — and otherwise drives a fresh sample of the five \
          kinds, as `base` and `risk-only` always do (prioritised level replay, Jiang et al. 2021).\n",
-        ab.algo, ab.steps_per_run, m.training_seeds, m.config.replay_share, m.config.phases
+        ab.algo, ab.steps_per_run, m.training_seeds, m.config.training.replay_share, m.config.training.phases
     );
     let _ = writeln!(
         s,

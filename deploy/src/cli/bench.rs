@@ -1,0 +1,127 @@
+//! The grammar of `risktwin bench …`: throughput and latency benchmarks.
+
+use crate::output::Format;
+use clap::{Args, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Traffic simulation throughput (dynamics, IDM/MOBIL, collision checks).
+    Sim(BenchSimArgs),
+    /// Risk-field evaluation throughput on one core.
+    RiskField(BenchRiskFieldArgs),
+    /// Edge→cloud Zenoh throughput, ours against a raw publisher→subscriber pair.
+    Zenoh(BenchZenohArgs),
+    /// Unpaced MCAP replay into ingest, in-process, against the raw `mcap` reader.
+    Replay(BenchReplayArgs),
+    /// A paced fleet (2,000 vehicles at 50 Hz) into the cloud ingest over Zenoh: loss and CPU.
+    Ingest(BenchIngestArgs),
+    /// Edge publish → twin snapshot latency, ours against a raw Zenoh one-way hop.
+    Latency(BenchLatencyArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BenchSimArgs {
+    #[arg(long, default_value_t = 1000)]
+    pub vehicles: usize,
+    #[arg(long, default_value_t = 1000)]
+    pub steps: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
+pub struct BenchRiskFieldArgs {
+    #[arg(long, default_value_t = 64)]
+    pub agents: usize,
+    #[arg(long, default_value_t = 256)]
+    pub cols: usize,
+    #[arg(long, default_value_t = 256)]
+    pub rows: usize,
+    /// Minimum measuring time, s.
+    #[arg(long, default_value_t = 2.0)]
+    pub seconds: f64,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
+pub struct BenchZenohArgs {
+    /// Messages per measurement.
+    #[arg(long, default_value_t = 200_000)]
+    pub messages: u64,
+    /// Payload size, bytes.
+    #[arg(long, default_value_t = 1024)]
+    pub payload_bytes: usize,
+    /// Measurements per side, alternating; medians are compared.
+    #[arg(long, default_value_t = 3)]
+    pub rounds: usize,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
+pub struct BenchReplayArgs {
+    /// The recording to replay; written first (a synthetic fleet) if it does not exist.
+    #[arg(long)]
+    pub file: Option<PathBuf>,
+    /// Vehicles of the synthetic fleet.
+    #[arg(long, default_value_t = 1000)]
+    pub vehicles: usize,
+    /// Seconds of the synthetic fleet.
+    #[arg(long, default_value_t = 10)]
+    pub seconds: u64,
+    /// Measurements per side, alternating; medians are compared.
+    #[arg(long, default_value_t = 3)]
+    pub rounds: usize,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
+pub struct BenchIngestArgs {
+    /// Vehicles in the fleet (split evenly over the publishers).
+    #[arg(long, default_value_t = 2000)]
+    pub vehicles: usize,
+    /// State messages per vehicle per second; must divide 100.
+    #[arg(long, default_value_t = 50)]
+    pub rate_hz: u64,
+    /// Seconds of publishing.
+    #[arg(long, default_value_t = 10)]
+    pub seconds: u64,
+    /// Publisher processes (one Zenoh session each).
+    #[arg(long, default_value_t = 1)]
+    pub publishers: usize,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+    /// Internal: run as one publisher of the fleet, connecting here.
+    #[arg(long, hide = true)]
+    pub fleet_connect: Option<String>,
+    /// Internal: index of this publisher's first vehicle.
+    #[arg(long, hide = true, default_value_t = 0)]
+    pub first_vehicle: usize,
+}
+
+/// `risktwin bench latency`.
+#[derive(Debug, clap::Args)]
+pub struct BenchLatencyArgs {
+    /// Messages per side (the first 50 warm up and are not counted).
+    #[arg(long, default_value_t = 1000)]
+    pub messages: u64,
+    /// Publish rate, Hz.
+    #[arg(long, default_value_t = 50.0)]
+    pub rate_hz: f64,
+    /// Snapshot tick of the twin, ms (default: the ingest's 50).
+    #[arg(long)]
+    pub tick_ms: Option<f64>,
+    /// Allowed lateness of the aligner, ms (default: the ingest's 30, `DEFAULT_LATENESS_NS`).
+    #[arg(long)]
+    pub lateness_ms: Option<f64>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}

@@ -1,4 +1,4 @@
-//! The binary's error type: the exit code follows cli.md (2 bad usage or input, 1 runtime).
+//! The binary's error type: the exit code follows docs/cli.md (2 bad usage or input, 1 runtime).
 
 use std::fmt;
 

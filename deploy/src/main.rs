@@ -1,5 +1,5 @@
 //! `risktwin`: one binary, many roles. It parses arguments and calls library `run` functions;
-//! everything it prints follows the contract in `shared/docs/cli.md`.
+//! everything it prints follows the contract in docs/cli.md.
 
 mod cli;
 mod commands;

@@ -1,6 +1,6 @@
 //! Output formats shared by every subcommand: a table for people, one JSON document, or CSV.
 //!
-//! JSON and CSV follow cli.md: infinities and NaN are `null` in JSON, `inf`/`nan` in CSV.
+//! JSON and CSV follow docs/cli.md: infinities and NaN are `null` in JSON, `inf`/`nan` in CSV.
 
 use crate::error::{CliError, CliResult};
 use serde::Serialize;

@@ -49,7 +49,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 use thiserror::Error;
 
-/// A cloud worker role (cli.md: `--roles ingest,twin,risk,library,criticality,trainer`).
+/// A cloud worker role (docs/cli.md: `--roles ingest,twin,risk,library,criticality,trainer`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Role {
     /// Validate, align and record the edge streams.

@@ -1,5 +1,5 @@
 //! `risktwin criticality`: HW, THW, TTC and a_long,req of a CommonRoad scenario's ego against
-//! every other dynamic obstacle (cli.md), plus PET and minimum distance per pair in JSON.
+//! every other dynamic obstacle (docs/cli.md), plus PET and minimum distance per pair in JSON.
 
 use crate::cli::CriticalityArgs;
 use crate::error::{CliError, CliResult};

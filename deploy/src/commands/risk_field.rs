@@ -60,7 +60,7 @@ pub fn risk_field(args: RiskFieldArgs) -> CliResult {
     print_summary(&summary, &summary, args.format)
 }
 
-/// cli.md's summary plus what only a recording has.
+/// docs/cli.md's summary plus what only a recording has.
 #[derive(Serialize)]
 struct CommonRoadSummary<'a> {
     #[serde(flatten)]
@@ -122,7 +122,7 @@ fn print_summary(summary: &FieldSummary, json: &impl Serialize, format: Format) 
     }
 }
 
-/// Writes a drawn heatmap; a file that cannot be created is the caller's input, as cli.md says.
+/// Writes a drawn heatmap; a file that cannot be created is the caller's input, as docs/cli.md says.
 fn draw(path: &Path, figure: Result<Bitmap, FigureError>) -> CliResult {
     let error = |e: FigureError| match e {
         FigureError::Create { .. } => CliError::input(e),

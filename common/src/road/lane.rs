@@ -96,7 +96,12 @@ impl Lane {
 
     /// World pose of the Frenet point (s, e_y), heading along the lane.
     pub fn pose_at(&self, s_m: f64, e_y_m: f64) -> Pose {
-        let i = self.segment_at(s_m);
+        let mut i = self.segment_at(s_m);
+        // A builder may leave a zero-length last segment (a bend with no exit): at the lane's
+        // end, take the direction of the last segment that has one instead of 0/0.
+        while i > 0 && self.cum_s[i + 1] <= self.cum_s[i] {
+            i -= 1;
+        }
         let a = self.centre[i];
         let ab = self.centre[i + 1] - a;
         let len = ab.norm();

@@ -5,9 +5,9 @@
 use super::curriculum::Refresh;
 use super::drive::drive_all;
 use super::held_out::HeldOut;
+use super::plan::{TrainerError, TrainingPlan};
 use super::session::{CurvePoint, train_variant};
 use super::stats::{EvalMetrics, EvalSpread, Spread};
-use super::{TrainerError, TrainingPlan};
 use crate::generate::parallel_map;
 use crate::library::ScenarioLibrary;
 use risktwin_common::env::Variant;

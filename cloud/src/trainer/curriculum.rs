@@ -14,7 +14,7 @@
 
 use super::drive::drive_all;
 use super::held_out::HeldOut;
-use super::{TrainerError, TrainingPlan};
+use super::plan::{TrainerError, TrainingPlan};
 use crate::generate::{evaluate_all, reference_outcome};
 use crate::library::{Origin, Outcome, ScenarioLibrary, ScenarioRecord, content_id};
 use risktwin_common::rng::Rng;

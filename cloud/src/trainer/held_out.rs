@@ -3,7 +3,7 @@
 //! stream) and checked: [`HeldOut::check_disjoint`] refuses any training or library spec whose
 //! content id is in the set.
 
-use super::TrainerError;
+use super::plan::TrainerError;
 use crate::library::content_id;
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, check_feasible, sample};

@@ -5,7 +5,7 @@
 
 use super::curriculum::{Curriculum, Refresh};
 use super::held_out::HeldOut;
-use super::{TrainerError, TrainingPlan};
+use super::plan::{TrainerError, TrainingPlan};
 use crate::library::ScenarioLibrary;
 use risktwin_common::env::{ScenarioSource, Variant, VecEnv};
 use risktwin_common::metrics::EpisodeMetrics;

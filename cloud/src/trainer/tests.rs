@@ -8,7 +8,7 @@ use crate::library::{Origin, ScenarioLibrary, content_id};
 use risktwin_common::env::Variant;
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::ScenarioKind;
-use risktwin_learn::PolicyNet;
+use risktwin_learn::{Algo, PolicyNet};
 use std::collections::BTreeSet;
 
 fn plan() -> TrainingPlan {

@@ -4,10 +4,12 @@
 mod bench;
 mod push;
 mod roles;
+mod source;
 
 pub use bench::*;
 pub use push::*;
 pub use roles::*;
+pub use source::ScenarioSource;
 
 use crate::output::Format;
 use clap::{ArgGroup, Args, Parser, Subcommand};
@@ -111,26 +113,6 @@ pub struct RankArgs {
     pub kind: Option<String>,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
-}
-
-/// Where a scenario comes from: a library entry, a spec file or a CommonRoad file.
-#[derive(Debug, Args)]
-#[group(required = true, multiple = true)]
-pub struct ScenarioSource {
-    /// A scenario library; `--id` names a generated scenario or a recorded case in it.
-    #[arg(long, requires = "id", conflicts_with = "spec")]
-    pub db: Option<PathBuf>,
-    #[arg(long, requires = "db")]
-    pub id: Option<String>,
-    /// A JSON spec file: {"kind", "seed", "params"}.
-    #[arg(long)]
-    pub spec: Option<PathBuf>,
-    /// A CommonRoad XML scenario (recorded traffic; `simulate` and `risk-field` only).
-    #[arg(long, conflicts_with_all = ["spec", "db"])]
-    pub commonroad: Option<PathBuf>,
-    /// The CommonRoad ego's dynamic-obstacle id (default: the planning problem's, else the first).
-    #[arg(long, requires = "commonroad")]
-    pub ego: Option<u64>,
 }
 
 #[derive(Debug, Args)]

@@ -1,6 +1,7 @@
 //! The grammar of `risktwin push scenario|policy`: one cloud→edge push.
 
-use super::{ScenarioSource, ZenohArgs};
+use super::roles::ZenohArgs;
+use super::source::ScenarioSource;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 

@@ -2,7 +2,7 @@
 //! that the best variant reaches full height (flipped where lower is better), the raw means
 //! written on the bars.
 
-use super::{Bitmap, FONT, FigureError, PALETTE, register_fonts};
+use super::canvas::{Bitmap, FONT, FigureError, PALETTE, register_fonts};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use risktwin_cloud::trainer::stats::HIGHER_IS_BETTER;

@@ -1,7 +1,7 @@
 //! Training curves: reward, success, route completion and speed against environment steps, one
 //! panel each; per variant the mean over seeds as a line and the seeds' min–max as a band.
 
-use super::{Bitmap, FONT, FigureError, PALETTE, register_fonts};
+use super::canvas::{Bitmap, FONT, FigureError, PALETTE, register_fonts};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use risktwin_cloud::trainer::Spread;

@@ -2,7 +2,7 @@
 //! the scale, see [`HeatmapLayers`]), road edges solid, lane centrelines dashed, other road users
 //! outlined in white and the ego in red, on axes in metres, with a colour bar of risk values.
 
-use super::{Bitmap, FONT, FigureError, register_fonts};
+use super::canvas::{Bitmap, FONT, FigureError, register_fonts};
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use risktwin_common::commonroad::LaneletNetwork;

@@ -1,0 +1,74 @@
+//! What a training run is asked to do ([`TrainingPlan`]) and why the trainer fails ([`TrainerError`]):
+//! their own file so that the trainer's modules import them without importing `trainer/mod.rs`.
+
+use crate::library::LibraryError;
+use risktwin_learn::{Algo, LearnError};
+
+/// Why training or evaluation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainerError {
+    #[error(transparent)]
+    Learn(#[from] LearnError),
+    #[error(transparent)]
+    Library(#[from] LibraryError),
+    #[error(transparent)]
+    Source(#[from] risktwin_common::env::SourceError),
+    #[error("held-out scenario {0} reached a training or library set")]
+    HeldOutLeak(String),
+    #[error("the scenario library has no scenarios to train the full variant on")]
+    EmptyLibrary,
+    #[error("bad training plan: {0}")]
+    BadPlan(String),
+}
+
+/// How every training run of an ablation is done.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainingPlan {
+    pub algo: Algo,
+    /// Environment steps per run (variant × seed).
+    pub steps: u64,
+    /// Environments stepped together.
+    pub n_envs: usize,
+    /// Training phases; `full` refreshes its scenarios between phases.
+    pub phases: u32,
+    /// Checkpoints of the training curves.
+    pub curve_points: u32,
+    /// Risk-ranked replay: the riskiest library scenarios in `full`'s set.
+    pub replay_top: usize,
+    /// Ordinary library scenarios drawn uniformly into `full`'s set.
+    pub background: usize,
+    /// Probability that a `full` training episode replays a library scenario rather than a
+    /// fresh sample of the five kinds.
+    pub replay_share: f64,
+    /// Mutated children around failures per refresh.
+    pub mutations: usize,
+    /// Mutation step as a share of each parameter's range.
+    pub mutation_radius: f64,
+    /// Worker threads for evaluation episodes.
+    pub threads: usize,
+}
+
+impl TrainingPlan {
+    /// Checks the plan can run.
+    pub fn validate(&self) -> Result<(), TrainerError> {
+        if self.steps == 0 || self.n_envs == 0 || self.phases == 0 {
+            return Err(TrainerError::BadPlan(format!(
+                "steps ({}), n_envs ({}) and phases ({}) must be positive",
+                self.steps, self.n_envs, self.phases
+            )));
+        }
+        if !(self.mutation_radius > 0.0 && self.mutation_radius <= 1.0) {
+            return Err(TrainerError::BadPlan(format!(
+                "mutation_radius {} is out of range (0, 1]",
+                self.mutation_radius
+            )));
+        }
+        if !(0.0..=1.0).contains(&self.replay_share) {
+            return Err(TrainerError::BadPlan(format!("replay_share {} is out of range [0, 1]", self.replay_share)));
+        }
+        if self.replay_top + self.background == 0 {
+            return Err(TrainerError::BadPlan("replay_top + background must be positive".into()));
+        }
+        Ok(())
+    }
+}

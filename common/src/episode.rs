@@ -60,6 +60,18 @@ pub fn run_observed(
     weights: &RewardWeights,
     observe: &mut dyn FnMut(&World, &StepReport),
 ) -> EpisodeResult {
+    run_stepped(world, weights, observe, &mut |w| Ok::<_, std::convert::Infallible>(w.step(policy))).unwrap_or_else(|e| match e {})
+}
+
+/// [`run_observed`] with the step left to `step`: a scene whose drivers live in other processes
+/// perceives and acts there, and advances the world here with their controls. The first error
+/// of `step` ends the episode.
+pub fn run_stepped<E>(
+    world: &mut World,
+    weights: &RewardWeights,
+    observe: &mut dyn FnMut(&World, &StepReport),
+    step: &mut dyn FnMut(&mut World) -> Result<StepReport, E>,
+) -> Result<EpisodeResult, E> {
     let field = RiskFieldParams::default();
     let mut metrics = MetricsAccumulator::default();
     let mut risk = RiskAccumulator::new(RiskWeights::default(), ScoreReferences::default());
@@ -68,7 +80,7 @@ pub fn run_observed(
     let (mut collision, mut offroad) = (false, false);
     let mut progress_prev = world.progress_m();
     while !world.finished() && !collision && !offroad {
-        let report = world.step(policy);
+        let report = step(world)?;
         collision = report.contacts.collision;
         offroad = report.contacts.offroad;
         observe(world, &report);
@@ -122,7 +134,7 @@ pub fn run_observed(
     m.min_ttc_s = summary.min_ttc_s;
     m.min_distance_m = summary.min_distance_m;
     m.risk_score = terms.score;
-    EpisodeResult { metrics: m, risk: terms }
+    Ok(EpisodeResult { metrics: m, risk: terms })
 }
 
 /// The scenario driven by the reference driver, with the default reward weights.

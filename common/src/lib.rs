@@ -19,6 +19,7 @@
 
 pub mod align;
 pub mod commonroad;
+pub mod digest;
 pub mod driver;
 pub mod env;
 pub mod episode;

@@ -11,6 +11,7 @@
 pub mod cadence;
 pub mod clock;
 mod error;
+pub mod fleet;
 pub mod gateway;
 pub mod publish;
 pub mod replay;

@@ -20,6 +20,8 @@ pub const ROOT: &str = "risktwin/v1";
 pub const CLOUD_CHUNK: &str = "cloud";
 /// The chunk under which liveliness tokens live; reserved, no edge may use it.
 pub const ALIVE_CHUNK: &str = "alive";
+/// The chunk of a scene's physics plane (ground truth out, controls back); reserved.
+pub const SCENE_CHUNK: &str = "scene";
 /// Longest accepted id, in bytes (keeps keys short on the wire).
 pub const MAX_ID_LEN: usize = 64;
 
@@ -79,7 +81,7 @@ impl SourceId {
     pub fn new(id: impl Into<String>) -> Result<Self, KeyError> {
         let id = id.into();
         validate_id("source", &id)?;
-        if id == CLOUD_CHUNK || id == ALIVE_CHUNK {
+        if id == CLOUD_CHUNK || id == ALIVE_CHUNK || id == SCENE_CHUNK {
             return Err(KeyError::ReservedId { what: "source", id });
         }
         Ok(SourceId(id))
@@ -248,7 +250,7 @@ pub fn parse_edge_map_key(key: &str) -> Option<(&str, &str)> {
     let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
     let mut chunks = rest.split('/');
     let (site, source, last) = (chunks.next()?, chunks.next()?, chunks.next()?);
-    let reserved = source == CLOUD_CHUNK || source == ALIVE_CHUNK;
+    let reserved = source == CLOUD_CHUNK || source == ALIVE_CHUNK || source == SCENE_CHUNK;
     (last == MAP_CHUNK && chunks.next().is_none() && !site.is_empty() && !source.is_empty() && !reserved)
         .then_some((site, source))
 }
@@ -286,6 +288,22 @@ pub fn parse_library_ranked(key: &str) -> Option<&str> {
     (!site.is_empty() && !site.contains('/')).then_some(site)
 }
 
+/// `risktwin/v1/<site>/scene/truth`: a scene's ground truth, one message per physics step from
+/// its authority to every participant (never an ingest stream).
+pub fn scene_truth(site: &SiteId) -> String {
+    format!("{ROOT}/{site}/{SCENE_CHUNK}/truth")
+}
+
+/// `risktwin/v1/<site>/scene/reply/<participant>`: a participant's join, then its controls per step.
+pub fn scene_reply(site: &SiteId, participant: &SourceId) -> String {
+    format!("{ROOT}/{site}/{SCENE_CHUNK}/reply/{participant}")
+}
+
+/// `risktwin/v1/<site>/scene/reply/*`: every participant's replies.
+pub fn scene_replies(site: &SiteId) -> String {
+    format!("{ROOT}/{site}/{SCENE_CHUNK}/reply/*")
+}
+
 /// `risktwin/v1/<site>/alive/<source>`: the liveliness token of one edge.
 pub fn liveliness_token(site: &SiteId, source: &SourceId) -> String {
     format!("{ROOT}/{site}/{ALIVE_CHUNK}/{source}")
@@ -319,7 +337,7 @@ pub fn parse_edge_key(key: &str) -> Option<EdgeKey<'_>> {
     if chunks.next().is_some() || site.is_empty() || source.is_empty() {
         return None;
     }
-    if source == CLOUD_CHUNK || source == ALIVE_CHUNK {
+    if source == CLOUD_CHUNK || source == ALIVE_CHUNK || source == SCENE_CHUNK {
         return None;
     }
     Some(EdgeKey { site, source, stream: EdgeStream::from_chunk(stream)? })

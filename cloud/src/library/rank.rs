@@ -7,7 +7,8 @@
 use super::connection::ScenarioLibrary;
 use super::error::LibraryError;
 use super::query::decode_spec;
-use super::record::{DEFAULT_POLICY, fnv1a64};
+use super::record::DEFAULT_POLICY;
+use risktwin_common::digest::fnv1a64;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::ScenarioKind;

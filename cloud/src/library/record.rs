@@ -2,6 +2,7 @@
 //! the value checks done before anything is written.
 
 use super::error::RecordError;
+use risktwin_common::digest::fnv1a64;
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
@@ -121,14 +122,6 @@ pub struct InsertSummary {
     pub outcomes: usize,
 }
 
-/// 64-bit FNV-1a (Fowler, Noll, Vo; IETF draft-eastlake-fnv): tiny, stable across platforms
-/// and releases, unlike `std`'s `DefaultHasher`.
-pub(super) fn fnv1a64(bytes: impl IntoIterator<Item = u8>) -> u64 {
-    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
-    const PRIME: u64 = 0x0000_0100_0000_01b3;
-    bytes.into_iter().fold(OFFSET, |h, b| (h ^ u64::from(b)).wrapping_mul(PRIME))
-}
-
 /// The stable content id of a spec: FNV-1a over kind, seed and the exact parameter bits, in hex.
 ///
 /// Same kind, seed and parameters give the same id on every machine, so storing a scenario
@@ -218,14 +211,6 @@ pub fn validate_record(rec: &ScenarioRecord) -> Result<(), RecordError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn fnv1a_matches_reference_vectors() {
-        // Reference values from the FNV test suite (draft-eastlake-fnv, section 6).
-        assert_eq!(fnv1a64(*b""), 0xcbf2_9ce4_8422_2325);
-        assert_eq!(fnv1a64(*b"a"), 0xaf63_dc4c_8601_ec8c);
-        assert_eq!(fnv1a64(*b"foobar"), 0x8594_4171_f739_67e8);
-    }
 
     #[test]
     fn content_id_depends_on_content_only() {

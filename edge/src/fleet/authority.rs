@@ -1,0 +1,149 @@
+//! The physics authority: steps the scene's world at the world's own step, hands each step's
+//! truth to every participant through a [`Plane`] and advances with the ego's controls.
+//! The episode is measured exactly as `risktwin simulate` measures it (`common::episode`).
+
+use super::onboard::Onboard;
+use super::wire::{SceneEnd, Truth};
+use super::{SceneError, SceneSetup};
+use risktwin_common::digest::{FNV_OFFSET, fnv1a64_step};
+use risktwin_common::episode::run_stepped;
+use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
+use risktwin_common::risk::RiskTerms;
+use risktwin_common::scenario::build;
+use risktwin_common::vehicle::Controls;
+use serde::Serialize;
+
+/// How the truth reaches the participants and their answers come back.
+pub trait Plane {
+    /// Hands `truth` to every participant; once all have answered, the ego's controls.
+    fn exchange(&mut self, truth: &Truth) -> Result<Controls, SceneError>;
+    /// Tells every participant the scene is over (`last.end` is set).
+    fn finish(&mut self, last: &Truth) -> Result<(), SceneError>;
+}
+
+/// Every participant's stack in this process: the embedded run of a scene.
+pub struct Embedded {
+    stacks: Vec<Onboard>,
+}
+
+impl Embedded {
+    /// The stacks of every participant of `setup`.
+    pub fn new(setup: &SceneSetup) -> Result<Embedded, SceneError> {
+        let stacks = setup.participants().iter().map(|id| Onboard::new(setup, id)).collect::<Result<_, _>>()?;
+        Ok(Embedded { stacks })
+    }
+}
+
+impl Plane for Embedded {
+    fn exchange(&mut self, truth: &Truth) -> Result<Controls, SceneError> {
+        let mut ego = None;
+        for stack in &mut self.stacks {
+            if let Some(controls) = stack.respond(truth) {
+                ego = Some(controls);
+            }
+        }
+        ego.ok_or_else(|| SceneError::Failed { reason: "the ego's stack gave no controls".into() })
+    }
+
+    fn finish(&mut self, _last: &Truth) -> Result<(), SceneError> {
+        Ok(())
+    }
+}
+
+/// What a scene produced: the ego's episode and a digest of every step's truth.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SceneOutcome {
+    /// The scene digest, hex.
+    pub scene: String,
+    pub kind: &'static str,
+    pub seed: u64,
+    pub participants: Vec<String>,
+    /// Physics steps taken.
+    pub steps: u64,
+    pub step_s: f64,
+    /// FNV-1a over the encoded truth of every step, hex: equal digests, equal trajectories.
+    pub truth_digest: String,
+    pub metrics: EpisodeMetrics,
+    pub risk: RiskTerms,
+}
+
+/// Runs `setup`'s episode to its end, the participants reached through `plane`. A failing
+/// participant ends the scene: the participants are told why, and the error is returned.
+pub fn run_scene(setup: &SceneSetup, plane: &mut dyn Plane) -> Result<SceneOutcome, SceneError> {
+    let scene = setup.digest();
+    let mut world = build(&setup.spec);
+    let (mut step, mut digest, mut bytes) = (0u64, FNV_OFFSET, Vec::new());
+    let result = run_stepped(&mut world, &RewardWeights::default(), &mut |_, _| {}, &mut |w| -> Result<_, SceneError> {
+        w.scene_objects();
+        let truth = Truth::of(w, scene, step);
+        truth.encode_into(&mut bytes);
+        digest = bytes.iter().fold(digest, |h, &b| fnv1a64_step(h, b));
+        let controls = plane.exchange(&truth)?;
+        step += 1;
+        Ok(w.advance(controls))
+    });
+    world.scene_objects();
+    let mut last = Truth::of(&world, scene, step);
+    last.end = Some(match &result {
+        Ok(_) => SceneEnd::Done,
+        Err(e) => SceneEnd::Failed(e.to_string()),
+    });
+    let finished = plane.finish(&last);
+    let result = result?;
+    finished?;
+    Ok(SceneOutcome {
+        scene: format!("{scene:016x}"),
+        kind: setup.spec.kind.name(),
+        seed: setup.spec.seed,
+        participants: setup.participants(),
+        steps: step,
+        step_s: world.dt_s,
+        truth_digest: format!("{digest:016x}"),
+        metrics: result.metrics,
+        risk: result.risk,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::feasible_spec;
+    use risktwin_common::episode::evaluate;
+    use risktwin_common::scenario::ScenarioKind;
+
+    #[test]
+    fn an_embedded_scene_is_the_library_episode() {
+        for kind in [ScenarioKind::CutIn, ScenarioKind::EmergencyBraking, ScenarioKind::PedestrianCrossing] {
+            let spec = feasible_spec(5, kind).expect("feasible");
+            let setup = SceneSetup::new(spec.clone(), 1, 1).expect("scene");
+            let outcome = run_scene(&setup, &mut Embedded::new(&setup).expect("stacks")).expect("runs");
+            let library = evaluate(&spec);
+            assert_eq!(outcome.metrics, library.metrics, "{kind:?}: same trajectory as `simulate`");
+            assert_eq!(outcome.risk, library.risk);
+            assert_eq!(outcome.steps, library.metrics.steps);
+        }
+    }
+
+    #[test]
+    fn the_connected_cutter_is_seen_by_the_ego_and_the_rsu() {
+        let spec = feasible_spec(3, ScenarioKind::CutIn).expect("feasible");
+        let setup = SceneSetup::new(spec, 2, 1).expect("scene");
+        let mut plane = Embedded::new(&setup).expect("stacks");
+        let (mut seen_by_ego, mut seen_by_rsu) = (0, 0);
+        struct Watch<'a>(&'a mut Embedded, &'a mut u32, &'a mut u32);
+        impl Plane for Watch<'_> {
+            fn exchange(&mut self, truth: &Truth) -> Result<Controls, SceneError> {
+                let controls = self.0.exchange(truth)?;
+                let sees_cutter = |s: &Onboard| s.perceived().iter().any(|o| o.id == 0);
+                *self.1 += u32::from(sees_cutter(&self.0.stacks[0]));
+                *self.2 += u32::from(sees_cutter(&self.0.stacks[2]));
+                Ok(controls)
+            }
+            fn finish(&mut self, last: &Truth) -> Result<(), SceneError> {
+                self.0.finish(last)
+            }
+        }
+        run_scene(&setup, &mut Watch(&mut plane, &mut seen_by_ego, &mut seen_by_rsu)).expect("runs");
+        assert!(seen_by_ego > 10 && seen_by_rsu > 10, "ego {seen_by_ego}, rsu {seen_by_rsu} steps");
+    }
+}

@@ -1,0 +1,194 @@
+//! A scene shared by several processes: one **authority** steps the physical world (the
+//! scenario's road, its background IDM/MOBIL traffic, scripted adversaries, pedestrians, parked
+//! cars and friction) and every connected vehicle and roadside unit is a **participant** with
+//! its own onboard stack (own sensor model and noise stream; the ego's also its driver).
+//!
+//! This is CARLA's synchronous mode / OpenCDA's layout: per physics step the authority sends
+//! the ground truth ([`wire::Truth`]) to every participant, each perceives it with its own
+//! sensor, the ego's driver acts on what it perceived, and the authority advances the world
+//! with the ego's controls once every participant has answered ([`wire::Reply`]). Why this and
+//! not one world per process: physics must be computed once, or two processes disagree on
+//! where a car is the moment they differ by one rounding; and contacts between vehicles of
+//! different processes can only be detected where both are. Why the sensors run in the
+//! participants and not in the authority: sensing is the onboard stack's job (its noise,
+//! dropout and occlusion belong to that vehicle), and one truth message serves every
+//! participant, so the authority's cost per step does not grow with the sensors.
+//!
+//! Roles ([`Role`]): `v0` is the scenario's ego, driven by its process; `v1…` are the
+//! scenario's traffic vehicles in cast order (in a cut-in, `v1` is the cutter), whose motion
+//! stays the scenario's own (IDM/MOBIL or the scripted manoeuvre: a connected cut-in adversary
+//! still cuts in) while their stacks perceive and report; `rsu0…` are roadside units along the
+//! route. The same [`authority::run_scene`] runs embedded (every stack in one process,
+//! [`authority::Embedded`]) or distributed over Zenoh ([`net`]); lockstep makes the two give
+//! the same bytes.
+
+pub mod authority;
+pub mod net;
+pub mod onboard;
+pub mod wire;
+
+use risktwin_common::digest::fnv1a64;
+use risktwin_common::scenario::{ScenarioSpec, build};
+use std::fmt;
+use thiserror::Error;
+
+/// Most roadside units a scene places.
+pub const MAX_RSUS: u32 = 16;
+
+/// Why a scene could not be set up or run.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SceneError {
+    #[error("--connected must be at least 1 (the ego), got 0")]
+    NoEgo,
+    #[error("--connected {asked} needs {needed} traffic vehicles beside the ego; this scenario has {available} that move")]
+    TooManyConnected { asked: u32, needed: u32, available: u32 },
+    #[error("--rsus {asked} is more than the {MAX_RSUS} a scene places")]
+    TooManyRsus { asked: u32 },
+    #[error("participant {id:?} is not in this scene (it has {known})")]
+    UnknownParticipant { id: String, known: String },
+    #[error("participant {id} runs {theirs}, this process {ours}: start every role with the same scene and seed")]
+    Mismatch { id: String, theirs: String, ours: String },
+    #[error("participant(s) {ids} did not answer step {step} within {waited_ms} ms (stalled or dead); the scene ends")]
+    Stalled { ids: String, step: u64, waited_ms: u64 },
+    #[error("participant(s) {ids} did not join within {waited_s} s")]
+    NotJoined { ids: String, waited_s: u64 },
+    #[error("the authority was silent for {waited_ms} ms after step {step} (stalled or dead)")]
+    AuthoritySilent { step: u64, waited_ms: u64 },
+    #[error("no authority sent the first step within {waited_s} s")]
+    NoAuthority { waited_s: u64 },
+    #[error("the scene failed: {reason}")]
+    Failed { reason: String },
+    #[error("transport: {0}")]
+    Transport(String),
+}
+
+/// What a participant is in the scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// The scenario's ego: perceives and drives.
+    Ego,
+    /// Traffic vehicle `traffic_index` of the scenario: perceives; moved by the scenario.
+    Agent { traffic_index: usize },
+    /// Roadside unit `index` along the route.
+    Rsu { index: u32 },
+}
+
+/// A scene: a scenario and which of its vehicles are connected, plus roadside units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneSetup {
+    pub spec: ScenarioSpec,
+    /// Connected vehicles: the ego and the first `connected − 1` moving traffic vehicles.
+    pub connected: u32,
+    pub rsus: u32,
+    /// Traffic indices of the connected vehicles beside the ego (`v1`, `v2`, …).
+    agents: Vec<usize>,
+}
+
+impl SceneSetup {
+    /// Checks that the scenario has the vehicles asked for.
+    pub fn new(spec: ScenarioSpec, connected: u32, rsus: u32) -> Result<Self, SceneError> {
+        if connected == 0 {
+            return Err(SceneError::NoEgo);
+        }
+        if rsus > MAX_RSUS {
+            return Err(SceneError::TooManyRsus { asked: rsus });
+        }
+        let world = build(&spec);
+        let moving: Vec<usize> =
+            (0..world.traffic.len()).filter(|&i| world.traffic.is_active(i) && !world.traffic.is_parked(i)).collect();
+        let needed = connected - 1;
+        if moving.len() < needed as usize {
+            return Err(SceneError::TooManyConnected { asked: connected, needed, available: moving.len() as u32 });
+        }
+        let agents = moving[..needed as usize].to_vec();
+        Ok(SceneSetup { spec, connected, rsus, agents })
+    }
+
+    /// The scene's identity: every participant must run the same one. Covers the wire schema,
+    /// the scenario (kind, seed, exact parameters) and the role assignment.
+    pub fn digest(&self) -> u64 {
+        let spec = serde_json::to_vec(&self.spec).expect("a spec serialises");
+        let head = [wire::SCHEMA_VERSION.to_le_bytes(), self.connected.to_le_bytes(), self.rsus.to_le_bytes()];
+        fnv1a64(head.iter().flatten().copied().chain(spec))
+    }
+
+    /// What this scene is, for messages: `cut_in seed 3, 3 connected, 1 RSU, scene 9f…`.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} seed {}, {} connected, {} RSU(s), scene {:016x}",
+            self.spec.kind.name(),
+            self.spec.seed,
+            self.connected,
+            self.rsus,
+            self.digest()
+        )
+    }
+
+    /// Every participant id, vehicles first.
+    pub fn participants(&self) -> Vec<String> {
+        let vehicles = (0..self.connected).map(|k| format!("v{k}"));
+        vehicles.chain((0..self.rsus).map(|k| format!("rsu{k}"))).collect()
+    }
+
+    /// The role of participant `id`.
+    pub fn role_of(&self, id: &str) -> Result<Role, SceneError> {
+        let unknown = || SceneError::UnknownParticipant { id: id.to_owned(), known: self.participants().join(", ") };
+        let number = |prefix: &str| id.strip_prefix(prefix).filter(|n| !n.starts_with('+')).and_then(|n| n.parse::<u32>().ok());
+        if let Some(k) = number("rsu") {
+            return if k < self.rsus && id == format!("rsu{k}") { Ok(Role::Rsu { index: k }) } else { Err(unknown()) };
+        }
+        match number("v") {
+            Some(k) if id != format!("v{k}") => Err(unknown()),
+            Some(0) => Ok(Role::Ego),
+            Some(k) if k < self.connected => Ok(Role::Agent { traffic_index: self.agents[k as usize - 1] }),
+            _ => Err(unknown()),
+        }
+    }
+}
+
+impl fmt::Display for SceneSetup {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.describe())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use risktwin_common::scenario::ScenarioKind;
+
+    fn cut_in(connected: u32, rsus: u32) -> Result<SceneSetup, SceneError> {
+        let spec = crate::scene::feasible_spec(3, ScenarioKind::CutIn).expect("a feasible cut-in");
+        SceneSetup::new(spec, connected, rsus)
+    }
+
+    #[test]
+    fn participants_and_roles_follow_the_scenario_cast() {
+        let setup = cut_in(3, 1).expect("a cut-in has two moving cars");
+        assert_eq!(setup.participants(), ["v0", "v1", "v2", "rsu0"]);
+        assert_eq!(setup.role_of("v0"), Ok(Role::Ego));
+        assert_eq!(setup.role_of("v1"), Ok(Role::Agent { traffic_index: 0 }), "the cutter");
+        assert_eq!(setup.role_of("rsu0"), Ok(Role::Rsu { index: 0 }));
+        for bad in ["v3", "rsu1", "v01", "v+1", "x", "", "rsu"] {
+            assert!(matches!(setup.role_of(bad), Err(SceneError::UnknownParticipant { .. })), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_scene_is_refused_when_the_scenario_lacks_the_vehicles() {
+        assert_eq!(cut_in(0, 0), Err(SceneError::NoEgo));
+        assert!(matches!(cut_in(40, 0), Err(SceneError::TooManyConnected { asked: 40, .. })));
+        assert!(matches!(cut_in(1, MAX_RSUS + 1), Err(SceneError::TooManyRsus { .. })));
+    }
+
+    #[test]
+    fn the_digest_changes_with_the_seed_and_the_roles() {
+        let a = cut_in(3, 1).expect("scene");
+        assert_eq!(a.digest(), cut_in(3, 1).expect("scene").digest());
+        assert_ne!(a.digest(), cut_in(2, 1).expect("scene").digest());
+        assert_ne!(a.digest(), cut_in(3, 0).expect("scene").digest());
+        let mut spec = a.spec.clone();
+        spec.seed += 1;
+        assert_ne!(a.digest(), SceneSetup::new(spec, 3, 1).expect("scene").digest());
+    }
+}

@@ -1,0 +1,261 @@
+//! The physics plane over Zenoh: the authority's [`Plane`] and the participant's loop.
+//!
+//! Keys (`risktwin_transport::keyexpr`): truth on `risktwin/v1/<site>/scene/truth`, replies on
+//! `risktwin/v1/<site>/scene/reply/<participant>`; both reliable with blocking congestion
+//! control, since lockstep needs every message. Join: a participant subscribes to the truth,
+//! then repeats its `Join` until the first truth arrives; the authority starts stepping once
+//! every participant has joined with the same scene digest. A participant that does not answer
+//! a step within [`Timeouts::step`] ends the scene with its name; so does an authority that
+//! falls silent, for the participants.
+
+use super::authority::Plane;
+use super::onboard::Onboard;
+use super::wire::{Reply, SceneEnd, Truth, controls_of};
+use super::{SceneError, SceneSetup};
+use risktwin_common::scenario::build;
+use risktwin_common::vehicle::Controls;
+use risktwin_transport::SiteId;
+use risktwin_transport::keyexpr::{scene_replies, scene_reply, scene_truth};
+use risktwin_transport::zenoh::handlers::FifoChannelHandler;
+use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
+use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
+use risktwin_transport::zenoh::sample::Sample;
+use risktwin_transport::zenoh::{Session, Wait};
+use serde::Serialize;
+use std::time::{Duration, Instant};
+
+/// How long the plane waits before it names who failed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Timeouts {
+    /// For every participant to join (processes starting), and for a participant the first truth.
+    pub join: Duration,
+    /// For every answer to one step (authority) and for the next truth (participant).
+    pub step: Duration,
+}
+
+impl Default for Timeouts {
+    /// 30 s to start; 1.5 s per step, so a dead or stalled participant is named within 2 s.
+    fn default() -> Self {
+        Timeouts { join: Duration::from_secs(30), step: Duration::from_millis(1500) }
+    }
+}
+
+/// How often a participant repeats its join until the first truth arrives.
+const JOIN_REPEAT: Duration = Duration::from_millis(200);
+
+type Inbox = Subscriber<FifoChannelHandler<Sample>>;
+
+fn transport(what: &str) -> impl Fn(Box<dyn std::error::Error + Send + Sync>) -> SceneError + '_ {
+    move |e| SceneError::Transport(format!("{what}: {e}"))
+}
+
+fn open_plane(session: &Session, inbox: String, outbox: String) -> Result<(Inbox, Publisher<'static>), SceneError> {
+    let subscriber = session.declare_subscriber(inbox.clone()).wait().map_err(transport(&inbox))?;
+    let publisher = session
+        .declare_publisher(outbox.clone())
+        .congestion_control(CongestionControl::Block)
+        .reliability(Reliability::Reliable)
+        .wait()
+        .map_err(transport(&outbox))?;
+    Ok((subscriber, publisher))
+}
+
+/// The authority's side: truth out, replies in.
+pub struct ZenohAuthority {
+    inbox: Inbox,
+    truth: Publisher<'static>,
+    participants: Vec<String>,
+    answered: Vec<bool>,
+    timeouts: Timeouts,
+    bytes: Vec<u8>,
+    /// Replies that did not decode, counted and dropped.
+    pub malformed: u64,
+}
+
+impl ZenohAuthority {
+    /// Declares the plane and waits until every participant of `setup` has joined with the
+    /// same scene; on a mismatch or a timeout every joined participant is told, and the error
+    /// names who.
+    pub fn open(session: &Session, site: &SiteId, setup: &SceneSetup, timeouts: Timeouts) -> Result<Self, SceneError> {
+        let (inbox, truth) = open_plane(session, scene_replies(site), scene_truth(site))?;
+        let participants = setup.participants();
+        let mut plane = ZenohAuthority {
+            answered: vec![false; participants.len()],
+            participants,
+            inbox,
+            truth,
+            timeouts,
+            bytes: Vec::new(),
+            malformed: 0,
+        };
+        if let Err(e) = plane.await_joins(setup) {
+            let mut abort = Truth::of(&build(&setup.spec), setup.digest(), 0);
+            abort.end = Some(SceneEnd::Failed(e.to_string()));
+            // The error is what matters; a failure to tell the participants adds nothing.
+            let _ = plane.publish(&abort);
+            return Err(e);
+        }
+        Ok(plane)
+    }
+
+    fn await_joins(&mut self, setup: &SceneSetup) -> Result<(), SceneError> {
+        let (digest, ours) = (setup.digest(), setup.describe());
+        let deadline = Instant::now() + self.timeouts.join;
+        while self.answered.iter().any(|a| !a) {
+            let Some(sample) = self.inbox.recv_deadline(deadline).map_err(transport("replies"))? else {
+                return Err(SceneError::NotJoined { ids: self.missing(), waited_s: self.timeouts.join.as_secs() });
+            };
+            match Reply::decode(&sample.payload().to_bytes()) {
+                Ok(Reply::Join { participant, scene, describe, .. }) => {
+                    let Some(k) = self.participants.iter().position(|p| *p == participant) else {
+                        let known = self.participants.join(", ");
+                        return Err(SceneError::UnknownParticipant { id: participant, known });
+                    };
+                    if scene != digest {
+                        return Err(SceneError::Mismatch { id: participant, theirs: describe, ours });
+                    }
+                    self.answered[k] = true;
+                }
+                Ok(Reply::Step { .. }) => {}
+                Err(e) => {
+                    self.malformed += 1;
+                    tracing::warn!("scene: dropped a reply: {e}");
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn missing(&self) -> String {
+        let missing = self.participants.iter().zip(&self.answered).filter(|(_, a)| !**a);
+        missing.map(|(p, _)| p.as_str()).collect::<Vec<_>>().join(", ")
+    }
+
+    fn publish(&mut self, truth: &Truth) -> Result<(), SceneError> {
+        truth.encode_into(&mut self.bytes);
+        self.truth.put(self.bytes.as_slice()).wait().map_err(transport("truth"))
+    }
+}
+
+impl Plane for ZenohAuthority {
+    fn exchange(&mut self, truth: &Truth) -> Result<Controls, SceneError> {
+        self.publish(truth)?;
+        self.answered.fill(false);
+        let mut ego = None;
+        let start = Instant::now();
+        let deadline = start + self.timeouts.step;
+        while self.answered.iter().any(|a| !a) {
+            let Some(sample) = self.inbox.recv_deadline(deadline).map_err(transport("replies"))? else {
+                let waited_ms = start.elapsed().as_millis() as u64;
+                return Err(SceneError::Stalled { ids: self.missing(), step: truth.step, waited_ms });
+            };
+            match Reply::decode(&sample.payload().to_bytes()) {
+                Ok(Reply::Step { participant, step, controls }) if step == truth.step => {
+                    if let Some(k) = self.participants.iter().position(|p| *p == participant) {
+                        self.answered[k] = true;
+                        if k == 0 {
+                            ego = controls.map(controls_of);
+                        }
+                    }
+                }
+                // Late joins and answers to other steps: nothing to do.
+                Ok(_) => {}
+                Err(e) => {
+                    self.malformed += 1;
+                    tracing::warn!("scene: dropped a reply: {e}");
+                }
+            }
+        }
+        ego.ok_or_else(|| SceneError::Failed { reason: "the ego (v0) answered without controls".into() })
+    }
+
+    fn finish(&mut self, last: &Truth) -> Result<(), SceneError> {
+        self.publish(last)
+    }
+}
+
+/// What a participant did, printed on exit.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParticipantSummary {
+    pub participant: String,
+    pub scene: String,
+    /// Steps answered.
+    pub steps: u64,
+    /// Objects perceived, summed over the steps.
+    pub perceived: u64,
+    /// Truth messages that did not decode, counted and dropped.
+    pub malformed: u64,
+}
+
+/// Runs participant `id` of `setup` until the authority ends the scene.
+pub fn run_participant(
+    session: &Session,
+    site: &SiteId,
+    setup: &SceneSetup,
+    id: &str,
+    timeouts: Timeouts,
+) -> Result<ParticipantSummary, SceneError> {
+    let mut stack = Onboard::new(setup, id)?;
+    let participant = risktwin_transport::SourceId::new(id).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
+    let (inbox, outbox) = open_plane(session, scene_truth(site), scene_reply(site, &participant))?;
+    let digest = setup.digest();
+    let join = Reply::Join {
+        schema: super::wire::SCHEMA_VERSION,
+        participant: id.to_owned(),
+        scene: digest,
+        describe: setup.describe(),
+    }
+    .encode();
+    let mut summary =
+        ParticipantSummary { participant: id.to_owned(), scene: format!("{digest:016x}"), steps: 0, perceived: 0, malformed: 0 };
+    let put = |bytes: &[u8]| outbox.put(bytes).wait().map_err(transport("reply"));
+
+    let join_deadline = Instant::now() + timeouts.join;
+    let mut next_join = Instant::now();
+    let mut last_step = None;
+    loop {
+        let now = Instant::now();
+        let deadline = match last_step {
+            None if now >= join_deadline => return Err(SceneError::NoAuthority { waited_s: timeouts.join.as_secs() }),
+            None => {
+                if now >= next_join {
+                    put(&join)?;
+                    next_join = now + JOIN_REPEAT;
+                }
+                next_join.min(join_deadline)
+            }
+            Some(_) => now + timeouts.step,
+        };
+        let Some(sample) = inbox.recv_deadline(deadline).map_err(transport("truth"))? else {
+            match last_step {
+                None => continue,
+                Some(step) => {
+                    let waited_ms = timeouts.step.as_millis() as u64;
+                    return Err(SceneError::AuthoritySilent { step, waited_ms });
+                }
+            }
+        };
+        let truth = match Truth::decode(&sample.payload().to_bytes()) {
+            Ok(truth) => truth,
+            Err(e) => {
+                summary.malformed += 1;
+                tracing::warn!("scene {id}: dropped a truth message: {e}");
+                continue;
+            }
+        };
+        match truth.end {
+            Some(SceneEnd::Done) => return Ok(summary),
+            Some(SceneEnd::Failed(reason)) => return Err(SceneError::Failed { reason }),
+            None => {}
+        }
+        if truth.scene != digest {
+            let theirs = format!("scene {:016x}", truth.scene);
+            return Err(SceneError::Mismatch { id: "the authority".into(), theirs, ours: setup.describe() });
+        }
+        let controls = stack.respond(&truth);
+        summary.steps += 1;
+        summary.perceived += stack.perceived().len() as u64;
+        put(&Reply::step(id, truth.step, controls).encode())?;
+        last_step = Some(truth.step);
+    }
+}

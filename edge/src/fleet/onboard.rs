@@ -1,0 +1,116 @@
+//! A participant's onboard stack: its own sensor (own noise stream) over the truth of each
+//! step, and for the ego the driver acting on what it perceived.
+//!
+//! The ego's stack is built from the same scenario as the authority's world, so its road,
+//! vehicle parameters, sensor and sensor noise stream are the world's own: perceiving the
+//! truth here consumes the noise exactly as `World::step` would in one process.
+
+use super::wire::Truth;
+use super::{Role, SceneError, SceneSetup};
+use risktwin_common::driver::{DriverView, Policy, ReferenceDriver};
+use risktwin_common::episode::with_reference_driver;
+use risktwin_common::geometry::Pose;
+use risktwin_common::rng::Rng;
+use risktwin_common::sensor::{PerceivedObject, SceneObject, Sensor, SensorParams};
+use risktwin_common::vehicle::Controls;
+use risktwin_common::world::{EGO_OBJECT_ID, World};
+
+/// Noise stream of connected traffic vehicle k's sensor (k = its traffic index).
+const AGENT_SENSOR_STREAM: u64 = 0xA6E0_0000;
+/// Noise stream of roadside unit k's sensor.
+const RSU_SENSOR_STREAM: u64 = 0x25F0_0000;
+/// Spacing of roadside units along the ego's route, m, and their mast's offset to its right.
+const RSU_SPACING_M: f64 = 150.0;
+const RSU_OFFSET_M: f64 = -12.0;
+
+/// What a participant runs onboard.
+pub struct Onboard {
+    role: Role,
+    /// The participant's own copy of the scenario's world: road, ego parameters, sensor.
+    world: World,
+    driver: Option<ReferenceDriver>,
+    sensor: Sensor,
+    rng: Rng,
+    /// A roadside unit's mast.
+    mast: Pose,
+    objects: Vec<SceneObject>,
+    perceived: Vec<PerceivedObject>,
+}
+
+impl Onboard {
+    /// The stack of participant `id` of `setup`.
+    pub fn new(setup: &SceneSetup, id: &str) -> Result<Onboard, SceneError> {
+        let role = setup.role_of(id)?;
+        let (world, driver) = with_reference_driver(&setup.spec);
+        let seed = setup.spec.seed;
+        let around = SensorParams { fov_rad: std::f64::consts::TAU, occlusion: false, ..SensorParams::default() };
+        let sensor_of = |params| Sensor::new(params).map_err(|e| SceneError::Failed { reason: e.to_string() });
+        let (driver, sensor, rng, mast) = match role {
+            Role::Ego => (Some(driver), world.sensor.clone(), world.sensor_rng.clone(), Pose::default()),
+            Role::Agent { traffic_index } => (
+                None,
+                sensor_of(SensorParams::default())?,
+                Rng::derive(seed, AGENT_SENSOR_STREAM + traffic_index as u64),
+                Pose::default(),
+            ),
+            Role::Rsu { index } => {
+                let route = world.route;
+                let along = world.road.lane(route.lane).pose_at(route.start_s_m + RSU_SPACING_M * f64::from(index), 0.0);
+                let (s, c) = along.heading_rad.sin_cos();
+                let mast = Pose::new(along.x_m - RSU_OFFSET_M * s, along.y_m + RSU_OFFSET_M * c, along.heading_rad);
+                (None, sensor_of(around)?, Rng::derive(seed, RSU_SENSOR_STREAM + u64::from(index)), mast)
+            }
+        };
+        Ok(Onboard { role, world, driver, sensor, rng, mast, objects: Vec::new(), perceived: Vec::new() })
+    }
+
+    /// The participant's role.
+    pub fn role(&self) -> Role {
+        self.role
+    }
+
+    /// Perceives `truth`; the ego's driver then acts (`None` from participants that do not drive).
+    pub fn respond(&mut self, truth: &Truth) -> Option<Controls> {
+        self.objects.clear();
+        let pose = match self.role {
+            Role::Ego => {
+                self.objects.extend(truth.objects.iter().map(SceneObject::from));
+                truth.ego_pose()
+            }
+            Role::Agent { traffic_index } => {
+                let id = traffic_index as u32;
+                let me = truth.objects.iter().find(|o| o.id == id).map(SceneObject::from);
+                self.objects.extend(truth.objects.iter().filter(|o| o.id != id).map(SceneObject::from));
+                self.objects.push(truth.ego_object(EGO_OBJECT_ID));
+                // A vehicle that left the world (off its lane's end) perceives nothing.
+                let Some(me) = me else {
+                    self.perceived.clear();
+                    return None;
+                };
+                Pose::new(me.obb.centre.x, me.obb.centre.y, me.obb.axis.y.atan2(me.obb.axis.x))
+            }
+            Role::Rsu { .. } => {
+                self.objects.extend(truth.objects.iter().map(SceneObject::from));
+                self.objects.push(truth.ego_object(EGO_OBJECT_ID));
+                self.mast
+            }
+        };
+        self.sensor.perceive(pose, &self.objects, &mut self.rng, &mut self.perceived);
+        let driver = self.driver.as_mut()?;
+        let view = DriverView {
+            road: &self.world.road,
+            time_s: truth.time_s,
+            ego_pose: pose,
+            ego_speed_mps: truth.ego.speed_mps,
+            ego_accel_mps2: truth.ego.accel_mps2,
+            ego_footprint: self.world.ego.params.footprint(),
+            perceived: &self.perceived,
+        };
+        Some(driver.act(&view))
+    }
+
+    /// What the sensor perceived in the last step.
+    pub fn perceived(&self) -> &[PerceivedObject] {
+        &self.perceived
+    }
+}

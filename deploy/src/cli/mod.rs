@@ -4,11 +4,13 @@
 mod bench;
 mod push;
 mod roles;
+mod scene;
 mod source;
 
 pub use bench::*;
 pub use push::*;
 pub use roles::*;
+pub use scene::*;
 pub use source::ScenarioSource;
 
 use crate::output::Format;
@@ -53,6 +55,9 @@ pub enum Command {
     /// Cloud→edge pushes: a scenario to run or a policy update, to one edge vehicle.
     #[command(subcommand)]
     Push(PushCommand),
+    /// One scene shared by processes: a physics authority, connected vehicles and RSUs.
+    #[command(subcommand)]
+    Scene(SceneCommand),
 }
 
 #[derive(Debug, Args)]

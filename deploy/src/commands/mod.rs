@@ -14,12 +14,13 @@ mod router;
 mod run;
 mod run_progress;
 mod scenarios;
+mod scene;
 mod simulate;
 mod simulate_commonroad;
 mod source;
 mod train;
 
-use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ImportCommand, ScenariosCommand};
+use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ImportCommand, SceneCommand, ScenariosCommand};
 use crate::error::CliResult;
 
 pub fn dispatch(cli: Cli) -> CliResult {
@@ -45,6 +46,10 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Edge(EdgeCommand::Gateway(a)) => edge::gateway(a),
         Command::Cloud(a) => cloud::cloud(a),
         Command::Push(c) => push::push(c),
+        Command::Scene(SceneCommand::Run(a)) => scene::run(a),
+        Command::Scene(SceneCommand::Authority(a)) => scene::authority(a),
+        Command::Scene(SceneCommand::Vehicle(a)) => scene::participant(a, "vehicle"),
+        Command::Scene(SceneCommand::Rsu(a)) => scene::participant(a, "rsu"),
         Command::Bench(BenchCommand::Latency(a)) => cloud::bench_latency(a),
     }
 }

@@ -1,0 +1,82 @@
+//! `risktwin scene …`: one scene shared by several processes (docs/cli.md, "Scenes").
+
+use super::ZenohArgs;
+use crate::output::Format;
+use clap::{Args, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Debug, Subcommand)]
+pub enum SceneCommand {
+    /// Every role of a scene on this host: a router, the physics authority (this process), one
+    /// process per connected vehicle and RSU; prints the outcome as JSON.
+    Run(SceneRunArgs),
+    /// The physics authority alone: steps the world, waits for every participant.
+    Authority(SceneRoleArgs),
+    /// One connected vehicle's onboard stack (`--participant v0` is the ego, `v1…` traffic).
+    Vehicle(SceneParticipantArgs),
+    /// One roadside unit's onboard stack (`--participant rsu0…`).
+    Rsu(SceneParticipantArgs),
+}
+
+/// Which scene: the scenario and the role assignment. Every role of one scene gets the same.
+#[derive(Debug, Clone, Args)]
+pub struct SceneArgs {
+    /// A JSON spec file: {"kind", "seed", "params"}.
+    #[arg(long, conflicts_with_all = ["db", "kind"])]
+    pub spec: Option<PathBuf>,
+    /// A scenario library; `--id` names a generated scenario in it.
+    #[arg(long, requires = "id", conflicts_with = "kind")]
+    pub db: Option<PathBuf>,
+    #[arg(long, requires = "db")]
+    pub id: Option<String>,
+    /// A generated scenario kind: the first feasible sample of `--seed`.
+    #[arg(long)]
+    pub kind: Option<String>,
+    #[arg(long, default_value_t = 0, requires = "kind")]
+    pub seed: u64,
+    /// Connected vehicles: the ego (v0) and the scenario's first moving traffic vehicles.
+    #[arg(long, default_value_t = 1)]
+    pub connected: u32,
+    /// Roadside units along the ego's route (rsu0, rsu1, …, 150 m apart).
+    #[arg(long, default_value_t = 0)]
+    pub rsus: u32,
+    /// Zenoh site of the scene's keys.
+    #[arg(long, default_value = "site0")]
+    pub site: String,
+}
+
+#[derive(Debug, Args)]
+pub struct SceneRunArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// `lockstep` (virtual time, deterministic).
+    #[arg(long, default_value = "lockstep")]
+    pub clock: String,
+    /// Every participant's stack in this one process, no network: the reference a distributed
+    /// lockstep run equals byte for byte.
+    #[arg(long)]
+    pub embedded: bool,
+    #[arg(long, value_enum, default_value_t = Format::Json)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
+pub struct SceneRoleArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[arg(long, default_value = "lockstep")]
+    pub clock: String,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+}
+
+#[derive(Debug, Args)]
+pub struct SceneParticipantArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// This participant's id in the scene.
+    #[arg(long)]
+    pub participant: String,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+}

@@ -1,0 +1,245 @@
+//! `risktwin scene run|authority|vehicle|rsu`: a scene shared by processes (edge::fleet).
+//!
+//! `scene run` is the one-host launcher: it starts a router process on a free loopback port,
+//! one process per participant (`scene vehicle|rsu`, client mode), and acts as the physics
+//! authority itself; every child is killed and reaped however the run ends.
+
+use super::router::transport_config;
+use super::source::{parse_kinds, read_spec_file};
+use crate::cli::{SceneArgs, SceneParticipantArgs, SceneRoleArgs, SceneRunArgs, ZenohArgs};
+use crate::error::{CliError, CliResult};
+use crate::output::{Format, print_json};
+use risktwin_edge::fleet::authority::{Embedded, SceneOutcome, run_scene};
+use risktwin_edge::fleet::net::{Timeouts, ZenohAuthority, run_participant};
+use risktwin_edge::fleet::{Role, SceneError, SceneSetup};
+use risktwin_edge::scene::feasible_spec;
+use risktwin_transport::zenoh::Session;
+use risktwin_transport::{SiteId, TransportConfig, connect};
+use std::io::{BufRead, BufReader, Read};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// The scene the arguments name (the scenario checked feasible, the roles checked present).
+fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
+    let spec = match (&args.spec, &args.db, &args.kind) {
+        (Some(path), None, None) => read_spec_file(path)?,
+        (None, Some(db), None) => {
+            let lib = super::source::open_existing_library(db)?;
+            let id = args.id.as_deref().unwrap_or_default();
+            let stored = lib.get(id).map_err(CliError::input)?;
+            stored.map(|s| s.spec).ok_or_else(|| CliError::input(format!("no scenario '{id}' in {}", db.display())))?
+        }
+        (None, None, Some(kind)) => {
+            let [kind] = parse_kinds(kind)?[..] else {
+                return Err(CliError::input("--kind names one scenario kind for a scene, not `all`"));
+            };
+            feasible_spec(args.seed, kind).map_err(CliError::input)?
+        }
+        _ => return Err(CliError::input("a scene needs one of --spec FILE, --db FILE --id ID or --kind KIND")),
+    };
+    SceneSetup::new(spec, args.connected, args.rsus).map_err(CliError::input)
+}
+
+fn check_clock(clock: &str) -> CliResult {
+    match clock {
+        "lockstep" => Ok(()),
+        "realtime" => Err(CliError::input("--clock realtime is not built yet; use lockstep")),
+        other => Err(CliError::input(format!("--clock {other:?}: expected lockstep or realtime"))),
+    }
+}
+
+/// Setup and mismatch errors are the user's input (exit 2); a participant failing mid-run is a
+/// runtime failure (exit 1), named.
+fn scene_error(e: SceneError) -> CliError {
+    match e {
+        SceneError::NoEgo
+        | SceneError::TooManyConnected { .. }
+        | SceneError::TooManyRsus { .. }
+        | SceneError::UnknownParticipant { .. }
+        | SceneError::Mismatch { .. } => CliError::input(e),
+        _ => CliError::runtime(e),
+    }
+}
+
+fn site_of(args: &SceneArgs) -> CliResult<SiteId> {
+    SiteId::new(args.site.clone()).map_err(CliError::input)
+}
+
+/// Opens a Zenoh session on a runtime that lives as long as the session is used.
+fn open(transport: &TransportConfig) -> CliResult<(tokio::runtime::Runtime, Session)> {
+    let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().map_err(CliError::runtime)?;
+    let session = runtime.block_on(connect(transport)).map_err(CliError::runtime)?;
+    Ok((runtime, session))
+}
+
+fn print_outcome(outcome: &SceneOutcome, format: Format) -> CliResult {
+    match format {
+        Format::Json => print_json(outcome),
+        _ => Err(CliError::input("scene outcomes are JSON only (--format json)")),
+    }
+}
+
+/// Steps `setup` as the authority on `session` until the episode ends.
+fn authority_on(session: &Session, site: &SiteId, setup: &SceneSetup) -> CliResult<SceneOutcome> {
+    let mut plane = ZenohAuthority::open(session, site, setup, Timeouts::default()).map_err(scene_error)?;
+    tracing::info!("scene {setup}: all {} participants joined, stepping", setup.participants().len());
+    let outcome = run_scene(setup, &mut plane).map_err(scene_error)?;
+    if plane.malformed > 0 {
+        tracing::warn!("scene: {} malformed replies dropped", plane.malformed);
+    }
+    Ok(outcome)
+}
+
+pub fn authority(args: SceneRoleArgs) -> CliResult {
+    check_clock(&args.clock)?;
+    let setup = setup_of(&args.scene)?;
+    let site = site_of(&args.scene)?;
+    let (_runtime, session) = open(&transport_config(args.zenoh)?)?;
+    let outcome = authority_on(&session, &site, &setup)?;
+    print_json(&outcome)
+}
+
+pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
+    let setup = setup_of(&args.scene)?;
+    let site = site_of(&args.scene)?;
+    let role = setup.role_of(&args.participant).map_err(scene_error)?;
+    let is_rsu = matches!(role, Role::Rsu { .. });
+    if is_rsu != (as_role == "rsu") {
+        let other = if is_rsu { "rsu" } else { "vehicle" };
+        return Err(CliError::input(format!("participant {} is a {other}: start it with `scene {other}`", args.participant)));
+    }
+    let (_runtime, session) = open(&transport_config(args.zenoh)?)?;
+    let summary =
+        run_participant(&session, &site, &setup, &args.participant, Timeouts::default()).map_err(scene_error)?;
+    print_json(&summary)
+}
+
+pub fn run(args: SceneRunArgs) -> CliResult {
+    check_clock(&args.clock)?;
+    let setup = setup_of(&args.scene)?;
+    if args.format != Format::Json {
+        return Err(CliError::input("scene outcomes are JSON only (--format json)"));
+    }
+    if args.embedded {
+        let mut plane = Embedded::new(&setup).map_err(scene_error)?;
+        return print_outcome(&run_scene(&setup, &mut plane).map_err(scene_error)?, args.format);
+    }
+    let site = site_of(&args.scene)?;
+    let mut children = Children::default();
+    let locator = children.router()?;
+    for id in setup.participants() {
+        let role = if id.starts_with("rsu") { "rsu" } else { "vehicle" };
+        let mut argv = vec!["scene".to_owned(), role.to_owned(), "--participant".to_owned(), id.clone()];
+        argv.extend(scene_argv(&args.scene));
+        argv.extend(["--mode", "client", "--connect", &locator].map(str::to_owned));
+        children.spawn(&id, &argv)?;
+    }
+    let zenoh = ZenohArgs { connect: vec![locator], listen: Vec::new(), mode: "client".into(), multicast_scouting: false };
+    let (_runtime, session) = open(&transport_config(zenoh)?)?;
+    let outcome = authority_on(&session, &site, &setup);
+    let finished = children.finish_participants(Duration::from_secs(10));
+    let outcome = outcome?;
+    finished?;
+    print_outcome(&outcome, args.format)
+}
+
+/// The arguments that give a child the same scene.
+fn scene_argv(args: &SceneArgs) -> Vec<String> {
+    let mut argv = Vec::new();
+    let path = |p: &std::path::Path| p.to_string_lossy().into_owned();
+    if let Some(spec) = &args.spec {
+        argv.extend(["--spec".to_owned(), path(spec)]);
+    }
+    if let (Some(db), Some(id)) = (&args.db, &args.id) {
+        argv.extend(["--db".to_owned(), path(db), "--id".to_owned(), id.clone()]);
+    }
+    if let Some(kind) = &args.kind {
+        argv.extend(["--kind".to_owned(), kind.clone(), "--seed".to_owned(), args.seed.to_string()]);
+    }
+    argv.extend(["--connected".to_owned(), args.connected.to_string(), "--rsus".to_owned(), args.rsus.to_string()]);
+    argv.extend(["--site".to_owned(), args.site.clone()]);
+    argv
+}
+
+/// The launcher's child processes: killed and reaped on drop, whatever happened.
+#[derive(Default)]
+struct Children {
+    router: Option<Child>,
+    participants: Vec<(String, Child)>,
+}
+
+impl Children {
+    /// Starts a router on a free loopback port; its locator.
+    fn router(&mut self) -> CliResult<String> {
+        let exe = std::env::current_exe().map_err(CliError::runtime)?;
+        let mut child = Command::new(exe)
+            .args(["router", "--listen", "tcp/127.0.0.1:0"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| CliError::runtime(format!("cannot start the router: {e}")))?;
+        let stderr = child.stderr.take().ok_or_else(|| CliError::runtime("router stderr"))?;
+        self.router = Some(child);
+        let mut lines = BufReader::new(stderr).lines();
+        let locator = lines
+            .by_ref()
+            .map_while(Result::ok)
+            .find_map(|l| l.strip_prefix("listening on ").map(str::to_owned))
+            .ok_or_else(|| CliError::runtime("the router exited before it listened"))?;
+        // Keep draining the router's stderr so it never blocks on a full pipe.
+        std::thread::spawn(move || lines.for_each(drop));
+        Ok(locator)
+    }
+
+    fn spawn(&mut self, id: &str, argv: &[String]) -> CliResult {
+        let exe = std::env::current_exe().map_err(CliError::runtime)?;
+        let child = Command::new(exe)
+            .args(argv)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .map_err(|e| CliError::runtime(format!("cannot start participant {id}: {e}")))?;
+        self.participants.push((id.to_owned(), child));
+        Ok(())
+    }
+
+    /// Waits for every participant to exit (they do once the authority ends the scene); the
+    /// first that failed or did not exit within `limit` is named.
+    fn finish_participants(&mut self, limit: Duration) -> CliResult {
+        let deadline = Instant::now() + limit;
+        let mut failed = Vec::new();
+        for (id, child) in &mut self.participants {
+            let status = loop {
+                match child.try_wait().map_err(CliError::runtime)? {
+                    Some(status) => break Some(status),
+                    None if Instant::now() >= deadline => break None,
+                    None => std::thread::sleep(Duration::from_millis(10)),
+                }
+            };
+            let mut out = String::new();
+            if let Some(stdout) = child.stdout.as_mut() {
+                // A participant's summary is informational; a read failure loses only that.
+                let _ = stdout.read_to_string(&mut out);
+            }
+            match status {
+                Some(s) if s.success() => tracing::debug!("participant {id}: {}", out.trim()),
+                Some(s) => failed.push(format!("{id} ({s})")),
+                None => failed.push(format!("{id} (did not exit within {} s)", limit.as_secs())),
+            }
+        }
+        if failed.is_empty() { Ok(()) } else { Err(CliError::runtime(format!("participant(s) failed: {}", failed.join(", ")))) }
+    }
+}
+
+impl Drop for Children {
+    fn drop(&mut self) {
+        let all = self.participants.iter_mut().map(|(_, c)| c).chain(self.router.as_mut());
+        for child in all {
+            // Already exited is fine: kill then reap, errors mean there is nothing left to do.
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
+}

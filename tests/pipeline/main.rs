@@ -14,5 +14,6 @@ mod peer_python;
 mod policyloop;
 mod pushrace;
 mod python_zenoh;
+mod scene;
 mod shm_gateway;
 mod support;

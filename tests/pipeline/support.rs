@@ -99,8 +99,13 @@ impl Proc {
         serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("{}: stdout is not JSON ({e}):\n{stdout}", self.name))
     }
 
+    /// Sends SIGKILL: the process dies without a word, as in a crash.
+    pub fn kill(&mut self) {
+        self.child.kill().expect("the child is killed");
+    }
+
     /// Everything on stderr so far.
-    fn drain_stderr(&mut self) -> String {
+    pub fn drain_stderr(&mut self) -> String {
         while let Ok(line) = self.stderr_lines.try_recv() {
             self.stderr_seen.push(line);
         }

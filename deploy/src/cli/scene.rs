@@ -56,6 +56,10 @@ pub struct SceneRunArgs {
     /// lockstep run equals byte for byte.
     #[arg(long)]
     pub embedded: bool,
+    /// Scene seconds per wall-clock second (1: real time); 0 steps as fast as every participant
+    /// answers.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub speed: f64,
     #[arg(long, value_enum, default_value_t = Format::Json)]
     pub format: Format,
 }
@@ -66,6 +70,10 @@ pub struct SceneRoleArgs {
     pub scene: SceneArgs,
     #[arg(long, default_value = "lockstep")]
     pub clock: String,
+    /// Scene seconds per wall-clock second (1: real time); 0 steps as fast as every participant
+    /// answers.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub speed: f64,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
 }

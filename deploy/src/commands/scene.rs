@@ -9,7 +9,7 @@ use super::source::{parse_kinds, read_spec_file};
 use crate::cli::{SceneArgs, SceneParticipantArgs, SceneRoleArgs, SceneRunArgs, ZenohArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json};
-use risktwin_edge::fleet::authority::{Embedded, SceneOutcome, run_scene};
+use risktwin_edge::fleet::authority::{Embedded, Paced, SceneOutcome, run_scene};
 use risktwin_edge::fleet::net::{Timeouts, ZenohAuthority, run_participant};
 use risktwin_edge::fleet::{Role, SceneError, SceneSetup};
 use risktwin_edge::scene::feasible_spec;
@@ -80,22 +80,47 @@ fn print_outcome(outcome: &SceneOutcome, format: Format) -> CliResult {
 }
 
 /// Steps `setup` as the authority on `session` until the episode ends.
-fn authority_on(session: &Session, site: &SiteId, setup: &SceneSetup) -> CliResult<SceneOutcome> {
-    let mut plane = ZenohAuthority::open(session, site, setup, Timeouts::default()).map_err(scene_error)?;
+fn authority_on(session: &Session, site: &SiteId, setup: &SceneSetup, speed: f64) -> CliResult<SceneOutcome> {
+    let plane = ZenohAuthority::open(session, site, setup, Timeouts::default()).map_err(scene_error)?;
     tracing::info!("scene {setup}: all {} participants joined, stepping", setup.participants().len());
-    let outcome = run_scene(setup, &mut plane).map_err(scene_error)?;
+    let outcome = if speed > 0.0 {
+        let mut paced = Paced::new(plane, speed, setup.step_s());
+        let outcome = run_scene(setup, &mut paced).map_err(scene_error)?;
+        if paced.late_steps > 0 {
+            tracing::warn!("scene: {} of {} steps were handed out late", paced.late_steps, outcome.steps);
+        }
+        report_malformed(&paced.inner);
+        outcome
+    } else {
+        let mut plane = plane;
+        let outcome = run_scene(setup, &mut plane).map_err(scene_error)?;
+        report_malformed(&plane);
+        outcome
+    };
+    Ok(outcome)
+}
+
+fn report_malformed(plane: &ZenohAuthority) {
     if plane.malformed > 0 {
         tracing::warn!("scene: {} malformed replies dropped", plane.malformed);
     }
-    Ok(outcome)
+}
+
+fn check_speed(speed: f64) -> CliResult {
+    if speed.is_finite() && speed >= 0.0 {
+        Ok(())
+    } else {
+        Err(CliError::input(format!("--speed {speed} must be a non-negative number (0: as fast as possible)")))
+    }
 }
 
 pub fn authority(args: SceneRoleArgs) -> CliResult {
     check_clock(&args.clock)?;
+    check_speed(args.speed)?;
     let setup = setup_of(&args.scene)?;
     let site = site_of(&args.scene)?;
     let (_runtime, session) = open(&transport_config(args.zenoh)?)?;
-    let outcome = authority_on(&session, &site, &setup)?;
+    let outcome = authority_on(&session, &site, &setup, args.speed)?;
     print_json(&outcome)
 }
 
@@ -116,6 +141,7 @@ pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
 
 pub fn run(args: SceneRunArgs) -> CliResult {
     check_clock(&args.clock)?;
+    check_speed(args.speed)?;
     let setup = setup_of(&args.scene)?;
     if args.format != Format::Json {
         return Err(CliError::input("scene outcomes are JSON only (--format json)"));
@@ -136,7 +162,7 @@ pub fn run(args: SceneRunArgs) -> CliResult {
     }
     let zenoh = ZenohArgs { connect: vec![locator], listen: Vec::new(), mode: "client".into(), multicast_scouting: false };
     let (_runtime, session) = open(&transport_config(zenoh)?)?;
-    let outcome = authority_on(&session, &site, &setup);
+    let outcome = authority_on(&session, &site, &setup, args.speed);
     let finished = children.finish_participants(Duration::from_secs(10));
     let outcome = outcome?;
     finished?;

@@ -50,6 +50,40 @@ impl Plane for Embedded {
     }
 }
 
+/// A plane paced against the wall clock: step k is handed out no earlier than k·step/speed
+/// after the first (lockstep still waits for every answer; a late step is counted).
+pub struct Paced<P> {
+    pub inner: P,
+    /// Scene seconds per wall second; 1 is real time.
+    pub speed: f64,
+    pub step_s: f64,
+    start: Option<std::time::Instant>,
+    /// Steps handed out after their wall-clock time.
+    pub late_steps: u64,
+}
+
+impl<P: Plane> Paced<P> {
+    pub fn new(inner: P, speed: f64, step_s: f64) -> Self {
+        Paced { inner, speed, step_s, start: None, late_steps: 0 }
+    }
+}
+
+impl<P: Plane> Plane for Paced<P> {
+    fn exchange(&mut self, truth: &Truth) -> Result<Controls, SceneError> {
+        let start = *self.start.get_or_insert_with(std::time::Instant::now);
+        let due = start + std::time::Duration::from_secs_f64(truth.step as f64 * self.step_s / self.speed);
+        match due.checked_duration_since(std::time::Instant::now()) {
+            Some(wait) => std::thread::sleep(wait),
+            None => self.late_steps += u64::from(truth.step > 0),
+        }
+        self.inner.exchange(truth)
+    }
+
+    fn finish(&mut self, last: &Truth) -> Result<(), SceneError> {
+        self.inner.finish(last)
+    }
+}
+
 /// What a scene produced: the ego's episode and a digest of every step's truth.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SceneOutcome {

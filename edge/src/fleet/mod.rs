@@ -112,6 +112,11 @@ impl SceneSetup {
         fnv1a64(head.iter().flatten().copied().chain(spec))
     }
 
+    /// The physics step, s: the world's own, as in the library and `risktwin run`.
+    pub fn step_s(&self) -> f64 {
+        risktwin_common::world::STEP_S
+    }
+
     /// What this scene is, for messages: `cut_in seed 3, 3 connected, 1 RSU, scene 9f…`.
     pub fn describe(&self) -> String {
         format!(

@@ -29,7 +29,8 @@ use std::time::{Duration, Instant};
 pub struct Timeouts {
     /// For every participant to join (processes starting), and for a participant the first truth.
     pub join: Duration,
-    /// For every answer to one step (authority) and for the next truth (participant).
+    /// For every answer to one step (authority); a participant waits twice this for the next
+    /// truth, so that the authority names a failed participant before the others give up.
     pub step: Duration,
 }
 
@@ -224,13 +225,13 @@ pub fn run_participant(
                 }
                 next_join.min(join_deadline)
             }
-            Some(_) => now + timeouts.step,
+            Some(_) => now + 2 * timeouts.step,
         };
         let Some(sample) = inbox.recv_deadline(deadline).map_err(transport("truth"))? else {
             match last_step {
                 None => continue,
                 Some(step) => {
-                    let waited_ms = timeouts.step.as_millis() as u64;
+                    let waited_ms = 2 * timeouts.step.as_millis() as u64;
                     return Err(SceneError::AuthoritySilent { step, waited_ms });
                 }
             }

@@ -1,0 +1,96 @@
+//! A scene shared by processes (`risktwin scene …`): a physics authority, connected vehicles and
+//! an RSU over a real router, in lockstep. The distributed run must equal the embedded one byte
+//! for byte; bad input and failing participants must be named, never hang.
+
+use crate::support::{Proc, start_router};
+use std::time::{Duration, Instant};
+
+const SCENE: [&str; 8] = ["--kind", "cut-in", "--seed", "3", "--connected", "3", "--rsus", "1"];
+
+fn args<'a>(head: &[&'a str], tail: &[&'a str]) -> Vec<&'a str> {
+    head.iter().chain(tail).copied().collect()
+}
+
+#[test]
+fn a_lockstep_scene_of_processes_equals_the_embedded_run_byte_for_byte() {
+    let run = |extra: &[&str]| {
+        let argv = args(&args(&["scene", "run"], &SCENE), extra);
+        let mut p = Proc::spawn("scene run", &argv);
+        let (status, stdout) = p.wait_exit(Duration::from_secs(120));
+        assert!(status.success(), "{argv:?} failed:\n{}", p.drain_stderr());
+        stdout
+    };
+    let embedded = run(&["--embedded"]);
+    let distributed = run(&[]);
+    assert_eq!(distributed, embedded, "ground-truth digest and outcome, byte for byte");
+    let outcome: serde_json::Value = serde_json::from_str(&embedded).expect("JSON");
+    assert_eq!(outcome["participants"], serde_json::json!(["v0", "v1", "v2", "rsu0"]));
+    assert!(outcome["steps"].as_u64().expect("steps") > 100, "a whole episode: {outcome}");
+}
+
+#[test]
+fn bad_scene_input_is_refused_by_name_with_exit_2() {
+    let cases: [(&[&str], &str); 5] = [
+        (&["scene", "vehicle", "--participant", "v7"], "participant \"v7\" is not in this scene"),
+        (&["scene", "rsu", "--participant", "v0"], "participant v0 is a vehicle"),
+        (&["scene", "run", "--clock", "sometimes"], "--clock \"sometimes\""),
+        (&["scene", "run", "--speed", "-1"], "--speed -1"),
+        (&["scene", "authority", "--participant", "v0"], "--participant"),
+    ];
+    for (head, expected) in cases {
+        let argv = args(head, &SCENE);
+        let mut p = Proc::spawn("bad scene", &argv);
+        let (status, _) = p.wait_exit(Duration::from_secs(30));
+        let stderr = p.drain_stderr();
+        assert_eq!(status.code(), Some(2), "{argv:?}: {stderr}");
+        assert!(stderr.contains("error: ") && stderr.contains(expected), "{argv:?}: {stderr}");
+    }
+    let mut p = Proc::spawn("too many", &["scene", "run", "--kind", "cut-in", "--seed", "3", "--connected", "40"]);
+    let (status, _) = p.wait_exit(Duration::from_secs(30));
+    let stderr = p.drain_stderr();
+    assert_eq!(status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--connected 40 needs 39 traffic vehicles"), "{stderr}");
+}
+
+#[test]
+fn a_participant_of_another_seed_is_refused_by_name() {
+    let (_router, locator) = start_router();
+    let net = ["--mode", "client", "--connect", locator.as_str()];
+    let mut authority = Proc::spawn("authority", &args(&args(&["scene", "authority"], &SCENE[..6]), &net));
+    let other_seed = ["--kind", "cut-in", "--seed", "4", "--connected", "3"];
+    let mut v0 = Proc::spawn("v0", &args(&args(&["scene", "vehicle", "--participant", "v0"], &other_seed), &net));
+    let (status, _) = authority.wait_exit(Duration::from_secs(40));
+    let stderr = authority.drain_stderr();
+    assert_eq!(status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("participant v0 runs cut-in seed") && stderr.contains("same scene and seed"), "{stderr}");
+    let (status, _) = v0.wait_exit(Duration::from_secs(10));
+    assert!(!status.success(), "the refused participant is told: {}", v0.drain_stderr());
+}
+
+#[test]
+fn a_killed_participant_ends_the_scene_named_within_two_seconds() {
+    let (_router, locator) = start_router();
+    let net = ["--mode", "client", "--connect", locator.as_str()];
+    let scene = &SCENE[..6];
+    // Paced at real time, so the episode (about 10 s) is still running when v1 dies.
+    let mut authority = Proc::spawn("authority", &args(&args(&["scene", "authority", "--speed", "1"], scene), &net));
+    let mut vehicles: Vec<Proc> = ["v0", "v1", "v2"]
+        .iter()
+        .map(|id| Proc::spawn(id, &args(&args(&["scene", "vehicle", "--participant", id], scene), &net)))
+        .collect();
+    authority.wait_line(Duration::from_secs(40), |l| l.contains("participants joined, stepping"));
+    vehicles[1].kill();
+    let killed = Instant::now();
+    let (status, _) = authority.wait_exit(Duration::from_secs(20));
+    let named_after = killed.elapsed();
+    let stderr = authority.drain_stderr();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("participant(s) v1 did not answer step"), "{stderr}");
+    // The authority waits 1.5 s per step; the rest is slack for a loaded 2-core machine.
+    assert!(named_after < Duration::from_secs(4), "named after {named_after:?}");
+    for k in [0, 2] {
+        let (status, _) = vehicles[k].wait_exit(Duration::from_secs(10));
+        let stderr = vehicles[k].drain_stderr();
+        assert!(!status.success() && stderr.contains("v1 did not answer"), "v{k} is told why: {stderr}");
+    }
+}

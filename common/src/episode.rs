@@ -60,7 +60,8 @@ pub fn run_observed(
     weights: &RewardWeights,
     observe: &mut dyn FnMut(&World, &StepReport),
 ) -> EpisodeResult {
-    run_stepped(world, weights, observe, &mut |w| Ok::<_, std::convert::Infallible>(w.step(policy))).unwrap_or_else(|e| match e {})
+    run_stepped(world, weights, observe, &mut |w| Ok::<_, std::convert::Infallible>(w.step(policy)))
+        .unwrap_or_else(|e| match e {})
 }
 
 /// [`run_observed`] with the step left to `step`: a scene whose drivers live in other processes

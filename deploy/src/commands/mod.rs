@@ -20,7 +20,7 @@ mod simulate_commonroad;
 mod source;
 mod train;
 
-use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ImportCommand, SceneCommand, ScenariosCommand};
+use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ImportCommand, ScenariosCommand, SceneCommand};
 use crate::error::CliResult;
 
 pub fn dispatch(cli: Cli) -> CliResult {

@@ -1,8 +1,9 @@
 //! `risktwin scene run|authority|vehicle|rsu`: a scene shared by processes (edge::fleet).
 //!
 //! `scene run` is the one-host launcher: it starts a router process on a free loopback port,
-//! one process per participant (`scene vehicle|rsu`, client mode), and acts as the physics
-//! authority itself; every child is killed and reaped however the run ends.
+//! one process per participant (`scene vehicle|rsu`), and acts as the physics authority itself.
+//! Every role is a Zenoh peer listening on loopback only (the router introduces them). Every
+//! child is killed and reaped however the run ends.
 
 use super::router::transport_config;
 use super::source::{parse_kinds, read_spec_file};
@@ -18,6 +19,9 @@ use risktwin_transport::{SiteId, TransportConfig, connect};
 use std::io::{BufRead, BufReader, Read};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// Where every role of `scene run` listens: loopback, a port the OS picks.
+const LOOPBACK: &str = "tcp/127.0.0.1:0";
 
 /// The scene the arguments name (the scenario checked feasible, the roles checked present).
 fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
@@ -83,6 +87,7 @@ fn print_outcome(outcome: &SceneOutcome, format: Format) -> CliResult {
 fn authority_on(session: &Session, site: &SiteId, setup: &SceneSetup, speed: f64) -> CliResult<SceneOutcome> {
     let plane = ZenohAuthority::open(session, site, setup, Timeouts::default()).map_err(scene_error)?;
     tracing::info!("scene {setup}: all {} participants joined, stepping", setup.participants().len());
+    let started = Instant::now();
     let outcome = if speed > 0.0 {
         let mut paced = Paced::new(plane, speed, setup.step_s());
         let outcome = run_scene(setup, &mut paced).map_err(scene_error)?;
@@ -97,7 +102,21 @@ fn authority_on(session: &Session, site: &SiteId, setup: &SceneSetup, speed: f64
         report_malformed(&plane);
         outcome
     };
+    log_pace(&outcome, started.elapsed());
     Ok(outcome)
+}
+
+/// How fast the scene ran: its steps, wall time per step and the multiple of real time (what
+/// `deploy/bench/scene-lockstep.sh` reads).
+fn log_pace(outcome: &SceneOutcome, wall: Duration) {
+    let scene_s = outcome.steps as f64 * outcome.step_s;
+    let wall_s = wall.as_secs_f64().max(1e-9);
+    let per_step_ms = 1e3 * wall_s / (outcome.steps.max(1) as f64);
+    tracing::info!(
+        "scene pace: {} steps ({scene_s:.2} s of scene) in {wall_s:.3} s: {:.1}x real time, {per_step_ms:.3} ms per step",
+        outcome.steps,
+        scene_s / wall_s
+    );
 }
 
 fn report_malformed(plane: &ZenohAuthority) {
@@ -131,7 +150,10 @@ pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
     let is_rsu = matches!(role, Role::Rsu { .. });
     if is_rsu != (as_role == "rsu") {
         let other = if is_rsu { "rsu" } else { "vehicle" };
-        return Err(CliError::input(format!("participant {} is a {other}: start it with `scene {other}`", args.participant)));
+        return Err(CliError::input(format!(
+            "participant {} is a {other}: start it with `scene {other}`",
+            args.participant
+        )));
     }
     let (_runtime, session) = open(&transport_config(args.zenoh)?)?;
     let summary =
@@ -148,7 +170,10 @@ pub fn run(args: SceneRunArgs) -> CliResult {
     }
     if args.embedded {
         let mut plane = Embedded::new(&setup).map_err(scene_error)?;
-        return print_outcome(&run_scene(&setup, &mut plane).map_err(scene_error)?, args.format);
+        let started = Instant::now();
+        let outcome = run_scene(&setup, &mut plane).map_err(scene_error)?;
+        log_pace(&outcome, started.elapsed());
+        return print_outcome(&outcome, args.format);
     }
     let site = site_of(&args.scene)?;
     let mut children = Children::default();
@@ -157,10 +182,15 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         let role = if id.starts_with("rsu") { "rsu" } else { "vehicle" };
         let mut argv = vec!["scene".to_owned(), role.to_owned(), "--participant".to_owned(), id.clone()];
         argv.extend(scene_argv(&args.scene));
-        argv.extend(["--mode", "client", "--connect", &locator].map(str::to_owned));
+        argv.extend(["--mode", "peer", "--listen", LOOPBACK, "--connect", &locator].map(str::to_owned));
         children.spawn(&id, &argv)?;
     }
-    let zenoh = ZenohArgs { connect: vec![locator], listen: Vec::new(), mode: "client".into(), multicast_scouting: false };
+    let zenoh = ZenohArgs {
+        connect: vec![locator],
+        listen: vec![LOOPBACK.into()],
+        mode: "peer".into(),
+        multicast_scouting: false,
+    };
     let (_runtime, session) = open(&transport_config(zenoh)?)?;
     let outcome = authority_on(&session, &site, &setup, args.speed);
     let finished = children.finish_participants(Duration::from_secs(10));
@@ -199,7 +229,7 @@ impl Children {
     fn router(&mut self) -> CliResult<String> {
         let exe = std::env::current_exe().map_err(CliError::runtime)?;
         let mut child = Command::new(exe)
-            .args(["router", "--listen", "tcp/127.0.0.1:0"])
+            .args(["router", "--listen", LOOPBACK])
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
@@ -255,7 +285,11 @@ impl Children {
                 None => failed.push(format!("{id} (did not exit within {} s)", limit.as_secs())),
             }
         }
-        if failed.is_empty() { Ok(()) } else { Err(CliError::runtime(format!("participant(s) failed: {}", failed.join(", ")))) }
+        if failed.is_empty() {
+            Ok(())
+        } else {
+            Err(CliError::runtime(format!("participant(s) failed: {}", failed.join(", "))))
+        }
     }
 }
 

@@ -107,15 +107,16 @@ pub fn run_scene(setup: &SceneSetup, plane: &mut dyn Plane) -> Result<SceneOutco
     let scene = setup.digest();
     let mut world = build(&setup.spec);
     let (mut step, mut digest, mut bytes) = (0u64, FNV_OFFSET, Vec::new());
-    let result = run_stepped(&mut world, &RewardWeights::default(), &mut |_, _| {}, &mut |w| -> Result<_, SceneError> {
-        w.scene_objects();
-        let truth = Truth::of(w, scene, step);
-        truth.encode_into(&mut bytes);
-        digest = bytes.iter().fold(digest, |h, &b| fnv1a64_step(h, b));
-        let controls = plane.exchange(&truth)?;
-        step += 1;
-        Ok(w.advance(controls))
-    });
+    let result =
+        run_stepped(&mut world, &RewardWeights::default(), &mut |_, _| {}, &mut |w| -> Result<_, SceneError> {
+            w.scene_objects();
+            let truth = Truth::of(w, scene, step);
+            truth.encode_into(&mut bytes);
+            digest = bytes.iter().fold(digest, |h, &b| fnv1a64_step(h, b));
+            let controls = plane.exchange(&truth)?;
+            step += 1;
+            Ok(w.advance(controls))
+        });
     world.scene_objects();
     let mut last = Truth::of(&world, scene, step);
     last.end = Some(match &result {

@@ -40,7 +40,9 @@ pub const MAX_RSUS: u32 = 16;
 pub enum SceneError {
     #[error("--connected must be at least 1 (the ego), got 0")]
     NoEgo,
-    #[error("--connected {asked} needs {needed} traffic vehicles beside the ego; this scenario has {available} that move")]
+    #[error(
+        "--connected {asked} needs {needed} traffic vehicles beside the ego; this scenario has {available} that move"
+    )]
     TooManyConnected { asked: u32, needed: u32, available: u32 },
     #[error("--rsus {asked} is more than the {MAX_RSUS} a scene places")]
     TooManyRsus { asked: u32 },
@@ -138,7 +140,8 @@ impl SceneSetup {
     /// The role of participant `id`.
     pub fn role_of(&self, id: &str) -> Result<Role, SceneError> {
         let unknown = || SceneError::UnknownParticipant { id: id.to_owned(), known: self.participants().join(", ") };
-        let number = |prefix: &str| id.strip_prefix(prefix).filter(|n| !n.starts_with('+')).and_then(|n| n.parse::<u32>().ok());
+        let number =
+            |prefix: &str| id.strip_prefix(prefix).filter(|n| !n.starts_with('+')).and_then(|n| n.parse::<u32>().ok());
         if let Some(k) = number("rsu") {
             return if k < self.rsus && id == format!("rsu{k}") { Ok(Role::Rsu { index: k }) } else { Err(unknown()) };
         }

@@ -197,7 +197,8 @@ pub fn run_participant(
     timeouts: Timeouts,
 ) -> Result<ParticipantSummary, SceneError> {
     let mut stack = Onboard::new(setup, id)?;
-    let participant = risktwin_transport::SourceId::new(id).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
+    let participant =
+        risktwin_transport::SourceId::new(id).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
     let (inbox, outbox) = open_plane(session, scene_truth(site), scene_reply(site, &participant))?;
     let digest = setup.digest();
     let join = Reply::Join {
@@ -207,8 +208,13 @@ pub fn run_participant(
         describe: setup.describe(),
     }
     .encode();
-    let mut summary =
-        ParticipantSummary { participant: id.to_owned(), scene: format!("{digest:016x}"), steps: 0, perceived: 0, malformed: 0 };
+    let mut summary = ParticipantSummary {
+        participant: id.to_owned(),
+        scene: format!("{digest:016x}"),
+        steps: 0,
+        perceived: 0,
+        malformed: 0,
+    };
     let put = |bytes: &[u8]| outbox.put(bytes).wait().map_err(transport("reply"));
 
     let join_deadline = Instant::now() + timeouts.join;

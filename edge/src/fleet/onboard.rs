@@ -55,7 +55,8 @@ impl Onboard {
             ),
             Role::Rsu { index } => {
                 let route = world.route;
-                let along = world.road.lane(route.lane).pose_at(route.start_s_m + RSU_SPACING_M * f64::from(index), 0.0);
+                let along =
+                    world.road.lane(route.lane).pose_at(route.start_s_m + RSU_SPACING_M * f64::from(index), 0.0);
                 let (s, c) = along.heading_rad.sin_cos();
                 let mast = Pose::new(along.x_m - RSU_OFFSET_M * s, along.y_m + RSU_OFFSET_M * c, along.heading_rad);
                 (None, sensor_of(around)?, Rng::derive(seed, RSU_SENSOR_STREAM + u64::from(index)), mast)

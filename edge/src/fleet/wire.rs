@@ -201,7 +201,9 @@ impl Reply {
     pub fn decode(bytes: &[u8]) -> Result<Reply, WireError> {
         let reply: Reply = postcard::from_bytes(bytes).map_err(|e| WireError::Malformed(e.to_string()))?;
         match &reply {
-            Reply::Join { schema, .. } if *schema != SCHEMA_VERSION => return Err(WireError::Schema { theirs: *schema }),
+            Reply::Join { schema, .. } if *schema != SCHEMA_VERSION => {
+                return Err(WireError::Schema { theirs: *schema });
+            }
             Reply::Step { controls: Some(c), .. } => finite(c, "reply.controls")?,
             _ => {}
         }

@@ -3,7 +3,7 @@
 
 /// 64-bit FNV-1a (Fowler, Noll, Vo; IETF draft-eastlake-fnv): tiny and stable.
 pub fn fnv1a64(bytes: impl IntoIterator<Item = u8>) -> u64 {
-    bytes.into_iter().fold(FNV_OFFSET, |h, b| fnv1a64_step(h, b))
+    bytes.into_iter().fold(FNV_OFFSET, fnv1a64_step)
 }
 
 /// The FNV-1a start value, for digests fed piece by piece with [`fnv1a64_step`].

@@ -144,7 +144,7 @@ mod tests {
     use super::*;
     use crate::scene::feasible_spec;
     use risktwin_common::episode::evaluate;
-    use risktwin_common::scenario::ScenarioKind;
+    use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
 
     #[test]
     fn an_embedded_scene_is_the_library_episode() {
@@ -180,5 +180,49 @@ mod tests {
         }
         run_scene(&setup, &mut Watch(&mut plane, &mut seen_by_ego, &mut seen_by_rsu)).expect("runs");
         assert!(seen_by_ego > 10 && seen_by_rsu > 10, "ego {seen_by_ego}, rsu {seen_by_rsu} steps");
+    }
+
+    #[test]
+    fn the_ego_reacts_to_the_connected_cutter_it_perceives() {
+        let spec = feasible_spec(3, ScenarioKind::CutIn).expect("feasible");
+        let mut calm = spec.clone();
+        // The same cutter, driving on in its own lane instead of cutting in.
+        calm.params.insert("cut_in_time_s".into(), 1e9);
+        let run = |spec: ScenarioSpec| {
+            let setup = SceneSetup::new(spec, 2, 0).expect("scene");
+            let mut plane = Embedded::new(&setup).expect("stacks");
+            let mut closest_lateral_m = f64::INFINITY;
+            struct Watch<'a>(&'a mut Embedded, &'a mut f64);
+            impl Plane for Watch<'_> {
+                fn exchange(&mut self, truth: &Truth) -> Result<Controls, SceneError> {
+                    let controls = self.0.exchange(truth)?;
+                    let ego = truth.ego_pose();
+                    let (s, c) = ego.heading_rad.sin_cos();
+                    for o in self.0.stacks[0].perceived().iter().filter(|o| o.id == 0) {
+                        let (dx, dy) = (o.obb.centre.x - ego.x_m, o.obb.centre.y - ego.y_m);
+                        if dx * c + dy * s > 0.0 {
+                            *self.1 = self.1.min((-dx * s + dy * c).abs());
+                        }
+                    }
+                    Ok(controls)
+                }
+                fn finish(&mut self, last: &Truth) -> Result<(), SceneError> {
+                    self.0.finish(last)
+                }
+            }
+            let outcome = run_scene(&setup, &mut Watch(&mut plane, &mut closest_lateral_m)).expect("runs");
+            (outcome, closest_lateral_m)
+        };
+        let (cut, cut_lateral_m) = run(spec);
+        let (calm, calm_lateral_m) = run(calm);
+        assert!(cut_lateral_m < 1.0, "the ego saw the cutter in its lane ahead: {cut_lateral_m} m");
+        assert!(calm_lateral_m > 2.5, "without the cut-in it stays a lane away: {calm_lateral_m} m");
+        assert_ne!(cut.truth_digest, calm.truth_digest);
+        assert!(
+            cut.metrics.avg_speed_mps < calm.metrics.avg_speed_mps,
+            "the ego slows for the cutter: {} vs {} m/s",
+            cut.metrics.avg_speed_mps,
+            calm.metrics.avg_speed_mps
+        );
     }
 }

@@ -29,12 +29,30 @@ fn a_lockstep_scene_of_processes_equals_the_embedded_run_byte_for_byte() {
 }
 
 #[test]
+fn a_realtime_scene_keeps_the_wall_clock_and_counts_late_answers() {
+    let mut p = Proc::spawn("realtime", &args(&args(&["scene", "run", "--clock", "realtime"], &SCENE), &[]));
+    let started = Instant::now();
+    let outcome = p.exit_json(Duration::from_secs(120));
+    let wall_s = started.elapsed().as_secs_f64();
+    let steps = outcome["steps"].as_u64().expect("steps");
+    let scene_s = steps as f64 * outcome["step_s"].as_f64().expect("step");
+    assert!(wall_s > 0.95 * scene_s, "{scene_s} s of scene took {wall_s} s of wall time");
+    let deadlines = &outcome["deadlines"];
+    assert_eq!(deadlines["due"].as_u64(), Some(4 * steps), "every participant's answer to every step: {deadlines}");
+    let missed = deadlines["missed"].as_u64().expect("missed");
+    // Counted, not hidden; a few late answers are possible on a loaded 2-core machine.
+    assert!(missed * 20 <= 4 * steps, "at most 5 % late: {deadlines}");
+}
+
+#[test]
 fn bad_scene_input_is_refused_by_name_with_exit_2() {
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["scene", "vehicle", "--participant", "v7"], "participant \"v7\" is not in this scene"),
         (&["scene", "rsu", "--participant", "v0"], "participant v0 is a vehicle"),
         (&["scene", "run", "--clock", "sometimes"], "--clock \"sometimes\""),
         (&["scene", "run", "--speed", "-1"], "--speed -1"),
+        (&["scene", "run", "--clock", "realtime", "--speed", "2"], "--speed paces a lockstep scene"),
+        (&["scene", "run", "--clock", "realtime", "--embedded"], "--embedded runs in virtual time"),
         (&["scene", "authority", "--participant", "v0"], "--participant"),
     ];
     for (head, expected) in cases {

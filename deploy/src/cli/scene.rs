@@ -49,7 +49,7 @@ pub struct SceneArgs {
 pub struct SceneRunArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// `lockstep` (virtual time, deterministic).
+    /// `lockstep` (virtual time, deterministic) or `realtime` (the wall clock, late answers counted).
     #[arg(long, default_value = "lockstep")]
     pub clock: String,
     /// Every participant's stack in this one process, no network: the reference a distributed
@@ -68,6 +68,7 @@ pub struct SceneRunArgs {
 pub struct SceneRoleArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
+    /// `lockstep` (virtual time, deterministic) or `realtime` (the wall clock, late answers counted).
     #[arg(long, default_value = "lockstep")]
     pub clock: String,
     /// Scene seconds per wall-clock second (1: real time); 0 steps as fast as every participant

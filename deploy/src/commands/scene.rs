@@ -11,11 +11,12 @@ use crate::cli::{SceneArgs, SceneParticipantArgs, SceneRoleArgs, SceneRunArgs, Z
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json};
 use risktwin_edge::fleet::authority::{Embedded, Paced, SceneOutcome, run_scene};
-use risktwin_edge::fleet::net::{Timeouts, ZenohAuthority, run_participant};
+use risktwin_edge::fleet::net::{Deadlines, Timeouts, ZenohAuthority, run_participant};
 use risktwin_edge::fleet::{Role, SceneError, SceneSetup};
 use risktwin_edge::scene::feasible_spec;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{SiteId, TransportConfig, connect};
+use serde::Serialize;
 use std::io::{BufRead, BufReader, Read};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -44,12 +45,35 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
     SceneSetup::new(spec, args.connected, args.rsus).map_err(CliError::input)
 }
 
-fn check_clock(clock: &str) -> CliResult {
+/// How the authority steps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Clock {
+    /// Virtual time: every step waits for every answer; paced at `speed`× the wall clock, or
+    /// as fast as the answers come when 0.
+    Lockstep { speed: f64 },
+    /// The wall clock: one step per physics step of wall time; late answers counted.
+    Realtime,
+}
+
+fn clock_of(clock: &str, speed: f64) -> CliResult<Clock> {
+    if !(speed.is_finite() && speed >= 0.0) {
+        return Err(CliError::input(format!("--speed {speed} must be a non-negative number (0: as fast as possible)")));
+    }
     match clock {
-        "lockstep" => Ok(()),
-        "realtime" => Err(CliError::input("--clock realtime is not built yet; use lockstep")),
+        "lockstep" => Ok(Clock::Lockstep { speed }),
+        "realtime" if speed != 0.0 => Err(CliError::input("--speed paces a lockstep scene; realtime runs at 1")),
+        "realtime" => Ok(Clock::Realtime),
         other => Err(CliError::input(format!("--clock {other:?}: expected lockstep or realtime"))),
     }
+}
+
+/// What the authority prints: the outcome, and in real time how many answers were late.
+#[derive(Debug, Serialize)]
+struct SceneReport {
+    #[serde(flatten)]
+    outcome: SceneOutcome,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    deadlines: Option<Deadlines>,
 }
 
 /// Setup and mismatch errors are the user's input (exit 2); a participant failing mid-run is a
@@ -76,34 +100,46 @@ fn open(transport: &TransportConfig) -> CliResult<(tokio::runtime::Runtime, Sess
     Ok((runtime, session))
 }
 
-fn print_outcome(outcome: &SceneOutcome, format: Format) -> CliResult {
-    match format {
-        Format::Json => print_json(outcome),
-        _ => Err(CliError::input("scene outcomes are JSON only (--format json)")),
-    }
-}
-
 /// Steps `setup` as the authority on `session` until the episode ends.
-fn authority_on(session: &Session, site: &SiteId, setup: &SceneSetup, speed: f64) -> CliResult<SceneOutcome> {
+fn authority_on(session: &Session, site: &SiteId, setup: &SceneSetup, clock: Clock) -> CliResult<SceneReport> {
     let plane = ZenohAuthority::open(session, site, setup, Timeouts::default()).map_err(scene_error)?;
     tracing::info!("scene {setup}: all {} participants joined, stepping", setup.participants().len());
     let started = Instant::now();
-    let outcome = if speed > 0.0 {
-        let mut paced = Paced::new(plane, speed, setup.step_s());
-        let outcome = run_scene(setup, &mut paced).map_err(scene_error)?;
-        if paced.late_steps > 0 {
-            tracing::warn!("scene: {} of {} steps were handed out late", paced.late_steps, outcome.steps);
+    let report = match clock {
+        Clock::Lockstep { speed } if speed > 0.0 => {
+            let mut paced = Paced::new(plane, speed, setup.step_s());
+            let outcome = run_scene(setup, &mut paced).map_err(scene_error)?;
+            if paced.late_steps > 0 {
+                tracing::warn!("scene: {} of {} steps were handed out late", paced.late_steps, outcome.steps);
+            }
+            report_malformed(&paced.inner);
+            SceneReport { outcome, deadlines: None }
         }
-        report_malformed(&paced.inner);
-        outcome
-    } else {
-        let mut plane = plane;
-        let outcome = run_scene(setup, &mut plane).map_err(scene_error)?;
-        report_malformed(&plane);
-        outcome
+        Clock::Lockstep { .. } => {
+            let mut plane = plane;
+            let outcome = run_scene(setup, &mut plane).map_err(scene_error)?;
+            report_malformed(&plane);
+            SceneReport { outcome, deadlines: None }
+        }
+        Clock::Realtime => {
+            let mut plane = plane.realtime(Duration::from_secs_f64(setup.step_s()));
+            let outcome = run_scene(setup, &mut plane).map_err(scene_error)?;
+            report_malformed(&plane);
+            let deadlines = plane.deadlines().cloned();
+            if let Some(d) = &deadlines {
+                let share = 100.0 * d.missed as f64 / d.due.max(1) as f64;
+                tracing::info!(
+                    "scene deadlines: {} of {} answers late ({share:.2} %), ego controls held {} steps",
+                    d.missed,
+                    d.due,
+                    d.ego_controls_held
+                );
+            }
+            SceneReport { outcome, deadlines }
+        }
     };
-    log_pace(&outcome, started.elapsed());
-    Ok(outcome)
+    log_pace(&report.outcome, started.elapsed());
+    Ok(report)
 }
 
 /// How fast the scene ran: its steps, wall time per step and the multiple of real time (what
@@ -125,22 +161,13 @@ fn report_malformed(plane: &ZenohAuthority) {
     }
 }
 
-fn check_speed(speed: f64) -> CliResult {
-    if speed.is_finite() && speed >= 0.0 {
-        Ok(())
-    } else {
-        Err(CliError::input(format!("--speed {speed} must be a non-negative number (0: as fast as possible)")))
-    }
-}
-
 pub fn authority(args: SceneRoleArgs) -> CliResult {
-    check_clock(&args.clock)?;
-    check_speed(args.speed)?;
+    let clock = clock_of(&args.clock, args.speed)?;
     let setup = setup_of(&args.scene)?;
     let site = site_of(&args.scene)?;
     let (_runtime, session) = open(&transport_config(args.zenoh)?)?;
-    let outcome = authority_on(&session, &site, &setup, args.speed)?;
-    print_json(&outcome)
+    let report = authority_on(&session, &site, &setup, clock)?;
+    print_json(&report)
 }
 
 pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
@@ -162,18 +189,20 @@ pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
 }
 
 pub fn run(args: SceneRunArgs) -> CliResult {
-    check_clock(&args.clock)?;
-    check_speed(args.speed)?;
+    let clock = clock_of(&args.clock, args.speed)?;
     let setup = setup_of(&args.scene)?;
     if args.format != Format::Json {
         return Err(CliError::input("scene outcomes are JSON only (--format json)"));
     }
     if args.embedded {
+        if clock == Clock::Realtime {
+            return Err(CliError::input("--embedded runs in virtual time; --clock realtime needs the processes"));
+        }
         let mut plane = Embedded::new(&setup).map_err(scene_error)?;
         let started = Instant::now();
         let outcome = run_scene(&setup, &mut plane).map_err(scene_error)?;
         log_pace(&outcome, started.elapsed());
-        return print_outcome(&outcome, args.format);
+        return print_json(&SceneReport { outcome, deadlines: None });
     }
     let site = site_of(&args.scene)?;
     let mut children = Children::default();
@@ -192,11 +221,11 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         multicast_scouting: false,
     };
     let (_runtime, session) = open(&transport_config(zenoh)?)?;
-    let outcome = authority_on(&session, &site, &setup, args.speed);
+    let report = authority_on(&session, &site, &setup, clock);
     let finished = children.finish_participants(Duration::from_secs(10));
-    let outcome = outcome?;
+    let report = report?;
     finished?;
-    print_outcome(&outcome, args.format)
+    print_json(&report)
 }
 
 /// The arguments that give a child the same scene.

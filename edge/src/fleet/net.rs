@@ -71,6 +71,29 @@ pub struct ZenohAuthority {
     bytes: Vec<u8>,
     /// Replies that did not decode, counted and dropped.
     pub malformed: u64,
+    realtime: Option<RealTime>,
+}
+
+/// Deadline accounting of a real-time scene: every participant's answer to step k is due when
+/// step k+1 starts on the wall clock.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Deadlines {
+    /// Answers due (participants × steps).
+    pub due: u64,
+    /// Answers that missed their deadline (a late answer is not used).
+    pub missed: u64,
+    /// Steps the ego's previous controls were held because its answer was late.
+    pub ego_controls_held: u64,
+}
+
+/// The wall clock of a real-time scene.
+struct RealTime {
+    period: Duration,
+    start: Option<Instant>,
+    /// When each participant last answered in time (a stall is named after `Timeouts::step`).
+    last_answer: Vec<Instant>,
+    held: Controls,
+    deadlines: Deadlines,
 }
 
 impl ZenohAuthority {
@@ -88,6 +111,7 @@ impl ZenohAuthority {
             timeouts,
             bytes: Vec::new(),
             malformed: 0,
+            realtime: None,
         };
         if let Err(e) = plane.await_joins(setup) {
             let mut abort = Truth::of(&build(&setup.spec), setup.digest(), 0);
@@ -127,6 +151,20 @@ impl ZenohAuthority {
         Ok(())
     }
 
+    /// Steps on the wall clock from now on, one every `period`; answers are due before the next
+    /// step, and a late one is counted, not waited for.
+    pub fn realtime(mut self, period: Duration) -> Self {
+        let last_answer = vec![Instant::now(); self.participants.len()];
+        let deadlines = Deadlines::default();
+        self.realtime = Some(RealTime { period, start: None, last_answer, held: Controls::default(), deadlines });
+        self
+    }
+
+    /// The deadline accounting of a real-time scene.
+    pub fn deadlines(&self) -> Option<&Deadlines> {
+        self.realtime.as_ref().map(|rt| &rt.deadlines)
+    }
+
     fn missing(&self) -> String {
         let missing = self.participants.iter().zip(&self.answered).filter(|(_, a)| !**a);
         missing.map(|(p, _)| p.as_str()).collect::<Vec<_>>().join(", ")
@@ -140,13 +178,25 @@ impl ZenohAuthority {
 
 impl Plane for ZenohAuthority {
     fn exchange(&mut self, truth: &Truth) -> Result<Controls, SceneError> {
+        let start = match &mut self.realtime {
+            Some(rt) => {
+                let due = *rt.start.get_or_insert_with(Instant::now) + rt.period * truth.step as u32;
+                if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                    std::thread::sleep(wait);
+                }
+                due
+            }
+            None => Instant::now(),
+        };
+        let deadline = self.realtime.as_ref().map_or(start + self.timeouts.step, |rt| start + rt.period);
         self.publish(truth)?;
         self.answered.fill(false);
         let mut ego = None;
-        let start = Instant::now();
-        let deadline = start + self.timeouts.step;
         while self.answered.iter().any(|a| !a) {
             let Some(sample) = self.inbox.recv_deadline(deadline).map_err(transport("replies"))? else {
+                if self.realtime.is_some() {
+                    return self.past_deadline(truth.step, ego);
+                }
                 let waited_ms = start.elapsed().as_millis() as u64;
                 return Err(SceneError::Stalled { ids: self.missing(), step: truth.step, waited_ms });
             };
@@ -167,11 +217,42 @@ impl Plane for ZenohAuthority {
                 }
             }
         }
+        if self.realtime.is_some() {
+            return self.past_deadline(truth.step, ego);
+        }
         ego.ok_or_else(|| SceneError::Failed { reason: "the ego (v0) answered without controls".into() })
     }
 
     fn finish(&mut self, last: &Truth) -> Result<(), SceneError> {
         self.publish(last)
+    }
+}
+
+impl ZenohAuthority {
+    /// A real-time step's deadline has come: counts the late answers, names a participant silent
+    /// for longer than `Timeouts::step`, and holds the ego's controls if its answer is late.
+    fn past_deadline(&mut self, step: u64, ego: Option<Controls>) -> Result<Controls, SceneError> {
+        let now = Instant::now();
+        let rt = self.realtime.as_mut().expect("a real-time scene");
+        rt.deadlines.due += self.answered.len() as u64;
+        for (k, answered) in self.answered.iter().enumerate() {
+            if *answered {
+                rt.last_answer[k] = now;
+            } else {
+                rt.deadlines.missed += 1;
+            }
+        }
+        let silent = rt.last_answer.iter().zip(&self.participants).filter(|(t, _)| now - **t > self.timeouts.step);
+        let silent: Vec<&str> = silent.map(|(_, p)| p.as_str()).collect();
+        if !silent.is_empty() {
+            let waited_ms = self.timeouts.step.as_millis() as u64;
+            return Err(SceneError::Stalled { ids: silent.join(", "), step, waited_ms });
+        }
+        match ego {
+            Some(controls) => rt.held = controls,
+            None => rt.deadlines.ego_controls_held += 1,
+        }
+        Ok(rt.held)
     }
 }
 

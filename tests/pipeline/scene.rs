@@ -29,10 +29,14 @@ fn a_lockstep_scene_of_processes_equals_the_embedded_run_byte_for_byte() {
 }
 
 #[test]
-fn a_realtime_scene_keeps_the_wall_clock_and_counts_late_answers() {
-    let mut p = Proc::spawn("realtime", &args(&args(&["scene", "run", "--clock", "realtime"], &SCENE), &[]));
+fn a_realtime_scene_keeps_the_wall_clock_and_a_cloud_ingests_every_participant_stream() {
+    let (_router, locator) = start_router();
+    let net = ["--mode", "client", "--connect", locator.as_str()];
+    let mut cloud = Proc::spawn("cloud", &args(&["cloud", "--roles", "ingest,twin"], &net));
+    cloud.wait_line(Duration::from_secs(30), |l| l.starts_with("ready"));
+    let mut scene = Proc::spawn("scene", &args(&["scene", "run", "--clock", "realtime", "--router", &locator], &SCENE));
     let started = Instant::now();
-    let outcome = p.exit_json(Duration::from_secs(120));
+    let outcome = scene.exit_json(Duration::from_secs(120));
     let wall_s = started.elapsed().as_secs_f64();
     let steps = outcome["steps"].as_u64().expect("steps");
     let scene_s = steps as f64 * outcome["step_s"].as_f64().expect("step");
@@ -42,6 +46,23 @@ fn a_realtime_scene_keeps_the_wall_clock_and_counts_late_answers() {
     let missed = deadlines["missed"].as_u64().expect("missed");
     // Counted, not hidden; a few late answers are possible on a loaded 2-core machine.
     assert!(missed * 20 <= 4 * steps, "at most 5 % late: {deadlines}");
+
+    // Every participant left (liveliness) before the cloud is stopped: nothing is in flight.
+    for id in ["v0", "v1", "v2", "rsu0"] {
+        cloud.wait_line(Duration::from_secs(30), |l| l == format!("edge left: site0/{id}"));
+    }
+    cloud.terminate();
+    let summary = cloud.exit_json(Duration::from_secs(30));
+    let lists = steps.div_ceil(2);
+    let expected = serde_json::json!({
+        "v0": {"state": steps, "perception": lists},
+        "v1": {"state": steps, "perception": lists},
+        "v2": {"state": steps, "perception": lists},
+        "rsu0": {"rsu": lists},
+    });
+    assert_eq!(summary["received"], expected, "state 20 Hz, object lists 10 Hz: {summary}");
+    assert_eq!(summary["total_dropped"], 0, "{summary}");
+    assert_eq!(summary["twin"]["vehicles"]["site0"], 3, "the twin holds the three connected vehicles: {summary}");
 }
 
 #[test]

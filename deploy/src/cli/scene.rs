@@ -52,6 +52,10 @@ pub struct SceneRunArgs {
     /// `lockstep` (virtual time, deterministic) or `realtime` (the wall clock, late answers counted).
     #[arg(long, default_value = "lockstep")]
     pub clock: String,
+    /// A running router to join (`tcp/127.0.0.1:7447`; a cloud on it then ingests the scene's
+    /// edge streams) instead of starting one.
+    #[arg(long, value_name = "ENDPOINT", conflicts_with = "embedded")]
+    pub router: Option<String>,
     /// Every participant's stack in this one process, no network: the reference a distributed
     /// lockstep run equals byte for byte.
     #[arg(long)]

@@ -206,7 +206,10 @@ pub fn run(args: SceneRunArgs) -> CliResult {
     }
     let site = site_of(&args.scene)?;
     let mut children = Children::default();
-    let locator = children.router()?;
+    let locator = match args.router {
+        Some(locator) => locator,
+        None => children.router()?,
+    };
     for id in setup.participants() {
         let role = if id.starts_with("rsu") { "rsu" } else { "vehicle" };
         let mut argv = vec!["scene".to_owned(), role.to_owned(), "--participant".to_owned(), id.clone()];

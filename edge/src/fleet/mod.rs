@@ -25,6 +25,7 @@
 pub mod authority;
 pub mod net;
 pub mod onboard;
+pub mod streams;
 pub mod wire;
 
 use risktwin_common::digest::fnv1a64;

@@ -10,8 +10,9 @@
 
 use super::authority::Plane;
 use super::onboard::Onboard;
+use super::streams::{Streams, StreamsSent};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
-use super::{SceneError, SceneSetup};
+use super::{Role, SceneError, SceneSetup};
 use risktwin_common::scenario::build;
 use risktwin_common::vehicle::Controls;
 use risktwin_transport::SiteId;
@@ -267,6 +268,8 @@ pub struct ParticipantSummary {
     pub perceived: u64,
     /// Truth messages that did not decode, counted and dropped.
     pub malformed: u64,
+    /// What went to the cloud on the participant's edge streams.
+    pub sent: StreamsSent,
 }
 
 /// Runs participant `id` of `setup` until the authority ends the scene.
@@ -289,12 +292,14 @@ pub fn run_participant(
         describe: setup.describe(),
     }
     .encode();
+    let mut streams = Streams::open(session, site, &participant, matches!(stack.role(), Role::Rsu { .. }))?;
     let mut summary = ParticipantSummary {
         participant: id.to_owned(),
         scene: format!("{digest:016x}"),
         steps: 0,
         perceived: 0,
         malformed: 0,
+        sent: StreamsSent::default(),
     };
     let put = |bytes: &[u8]| outbox.put(bytes).wait().map_err(transport("reply"));
 
@@ -332,7 +337,7 @@ pub fn run_participant(
             }
         };
         match truth.end {
-            Some(SceneEnd::Done) => return Ok(summary),
+            Some(SceneEnd::Done) => return Ok(ParticipantSummary { sent: streams.sent, ..summary }),
             Some(SceneEnd::Failed(reason)) => return Err(SceneError::Failed { reason }),
             None => {}
         }
@@ -344,6 +349,7 @@ pub fn run_participant(
         summary.steps += 1;
         summary.perceived += stack.perceived().len() as u64;
         put(&Reply::step(id, truth.step, controls).encode())?;
+        streams.publish(&stack, &truth)?;
         last_step = Some(truth.step);
     }
 }

@@ -21,6 +21,9 @@ pub struct EgoTruth {
     pub pose: [f64; 3],
     pub speed_mps: f64,
     pub accel_mps2: f64,
+    pub yaw_rate_radps: f64,
+    /// Front-wheel steering angle, rad.
+    pub steer_rad: f64,
     pub velocity: [f64; 2],
     /// Length and width, m.
     pub footprint: [f64; 2],
@@ -37,6 +40,8 @@ pub struct TruthObject {
     pub half_length_m: f64,
     pub half_width_m: f64,
     pub velocity: [f64; 2],
+    /// Acceleration along the heading, m/s² (0 for pedestrians).
+    pub accel_mps2: f64,
 }
 
 /// How a scene ended, sent instead of a next step.
@@ -102,10 +107,12 @@ impl Truth {
                 pose: [pose.x_m, pose.y_m, pose.heading_rad],
                 speed_mps: world.ego.state.speed_mps,
                 accel_mps2: world.ego.state.accel_mps2,
+                yaw_rate_radps: world.ego.state.yaw_rate_radps,
+                steer_rad: world.ego.state.steer_rad,
                 velocity: [velocity.x, velocity.y],
                 footprint: [footprint.length_m, footprint.width_m],
             },
-            objects: world.scene().iter().map(TruthObject::from).collect(),
+            objects: world.scene().iter().map(|o| TruthObject::of(o, world)).collect(),
             end: None,
         }
     }
@@ -141,7 +148,7 @@ impl Truth {
             return Err(WireError::Schema { theirs: truth.schema });
         }
         let e = &truth.ego;
-        finite(&[truth.time_s, e.speed_mps, e.accel_mps2], "truth.ego")?;
+        finite(&[truth.time_s, e.speed_mps, e.accel_mps2, e.yaw_rate_radps, e.steer_rad], "truth.ego")?;
         finite(&e.pose, "truth.ego.pose")?;
         finite(&e.velocity, "truth.ego.velocity")?;
         finite(&e.footprint, "truth.ego.footprint")?;
@@ -149,14 +156,17 @@ impl Truth {
             let [cx, cy] = o.centre;
             let [ax, ay] = o.axis;
             let [vx, vy] = o.velocity;
-            finite(&[cx, cy, ax, ay, vx, vy, o.half_length_m, o.half_width_m], "truth.objects")?;
+            finite(&[cx, cy, ax, ay, vx, vy, o.half_length_m, o.half_width_m, o.accel_mps2], "truth.objects")?;
         }
         Ok(truth)
     }
 }
 
-impl From<&SceneObject> for TruthObject {
-    fn from(o: &SceneObject) -> Self {
+impl TruthObject {
+    /// Object `o` of `world`'s scene, with its acceleration from the traffic it belongs to.
+    fn of(o: &SceneObject, world: &World) -> Self {
+        let traffic = o.kind != ObjectKind::Pedestrian && (o.id as usize) < world.traffic.len();
+        let accel_mps2 = if traffic { world.traffic.accel_mps2(o.id as usize) } else { 0.0 };
         TruthObject {
             id: o.id,
             kind: o.kind,
@@ -165,6 +175,7 @@ impl From<&SceneObject> for TruthObject {
             half_length_m: o.obb.half_length_m,
             half_width_m: o.obb.half_width_m,
             velocity: [o.velocity.x, o.velocity.y],
+            accel_mps2,
         }
     }
 }

@@ -29,10 +29,10 @@ fn a_lockstep_scene_of_processes_equals_the_embedded_run_byte_for_byte() {
 }
 
 #[test]
-fn a_realtime_scene_keeps_the_wall_clock_and_a_cloud_ingests_every_participant_stream() {
+fn a_realtime_scene_keeps_the_wall_clock_and_a_cloud_mirrors_it_on_its_road() {
     let (_router, locator) = start_router();
     let net = ["--mode", "client", "--connect", locator.as_str()];
-    let mut cloud = Proc::spawn("cloud", &args(&["cloud", "--roles", "ingest,twin"], &net));
+    let mut cloud = Proc::spawn("cloud", &args(&["cloud", "--roles", "ingest,twin,risk"], &net));
     cloud.wait_line(Duration::from_secs(30), |l| l.starts_with("ready"));
     let mut scene = Proc::spawn("scene", &args(&["scene", "run", "--clock", "realtime", "--router", &locator], &SCENE));
     let started = Instant::now();
@@ -62,7 +62,10 @@ fn a_realtime_scene_keeps_the_wall_clock_and_a_cloud_ingests_every_participant_s
     });
     assert_eq!(summary["received"], expected, "state 20 Hz, object lists 10 Hz: {summary}");
     assert_eq!(summary["total_dropped"], 0, "{summary}");
-    assert_eq!(summary["twin"]["vehicles"]["site0"], 3, "the twin holds the three connected vehicles: {summary}");
+    let twin = &summary["twin"];
+    assert_eq!(twin["vehicles"]["site0"], 3, "the twin holds the three connected vehicles: {summary}");
+    assert_eq!(twin["site_roads"], serde_json::json!({"site0": 3}), "risk on the scene's 3-lane road: {summary}");
+    assert!(twin["risk_assessments"].as_u64() > Some(0), "{summary}");
 }
 
 #[test]

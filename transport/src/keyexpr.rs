@@ -304,6 +304,24 @@ pub fn scene_replies(site: &SiteId) -> String {
     format!("{ROOT}/{site}/{SCENE_CHUNK}/reply/*")
 }
 
+/// `risktwin/v1/<site>/scene/map`: the road map of the scene at `site` (`RoadMap`, protobuf),
+/// republished by its authority every second so that late subscribers get it.
+pub fn scene_map(site: &SiteId) -> String {
+    format!("{ROOT}/{site}/{SCENE_CHUNK}/map")
+}
+
+/// `risktwin/v1/<site|*>/scene/map`: the scene maps of one site or every site.
+pub fn scene_maps(site: Option<&SiteId>) -> String {
+    format!("{ROOT}/{}/{SCENE_CHUNK}/map", site_or_star(site))
+}
+
+/// The site of a scene-map key.
+pub fn parse_scene_map_key(key: &str) -> Option<&str> {
+    let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
+    let site = rest.strip_suffix("/scene/map")?;
+    (!site.is_empty() && !site.contains('/')).then_some(site)
+}
+
 /// `risktwin/v1/<site>/alive/<source>`: the liveliness token of one edge.
 pub fn liveliness_token(site: &SiteId, source: &SourceId) -> String {
     format!("{ROOT}/{site}/{ALIVE_CHUNK}/{source}")

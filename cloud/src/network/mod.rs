@@ -29,6 +29,7 @@ pub mod liveliness;
 mod publisher;
 pub mod push;
 mod receive;
+mod scene_maps;
 #[cfg(test)]
 mod wire_tests;
 
@@ -268,6 +269,11 @@ pub async fn run(
         Some(_) => Some(criticality::subscribe(&session, config.site.as_ref(), Arc::clone(&crit)).await?),
         None => None,
     };
+    let map_subscriber = if config.has(Role::Risk) {
+        Some(scene_maps::subscribe(&session, config.site.as_ref(), Arc::clone(&ingest)).await?)
+    } else {
+        None
+    };
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
     let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness)).await?;
     let library_task = queryable.map(|(q, lib)| tokio::spawn(library::serve(q, lib, shutdown.clone())));
@@ -284,6 +290,9 @@ pub async fn run(
 
     if let Some(subscriber) = subscriber {
         subscriber.undeclare().await.map_err(|e| undeclare_error("subscriber", e))?;
+    }
+    if let Some(subscriber) = map_subscriber {
+        subscriber.undeclare().await.map_err(|e| undeclare_error("scene-map subscriber", e))?;
     }
     if let Some(subscriber) = crit_subscriber {
         subscriber.undeclare().await.map_err(|e| undeclare_error("criticality subscriber", e))?;

@@ -138,6 +138,20 @@ impl LiveIngest {
         self
     }
 
+    /// Counts a message of the cloud's own subscriptions (a scene map) dropped for `reason`.
+    pub fn reject(&mut self, reason: DropReason) {
+        self.worker.reject(reason);
+    }
+
+    /// `site`'s scene published its road map: the risk role assesses that site on it.
+    pub fn set_site_road(&mut self, site: &str, road: risktwin_common::road::Road) {
+        if let Some(outputs) = self.outputs.as_mut()
+            && let Err(e) = outputs.set_site_road(site, road)
+        {
+            tracing::warn!("risk: site {site}'s road map is unusable ({e}); it keeps the default road");
+        }
+    }
+
     /// Hands the twin's outputs to `publish` (the publisher task) when given.
     pub(crate) fn with_publisher(mut self, publish: Option<UnboundedSender<Publication>>) -> Self {
         self.publish = publish;

@@ -7,6 +7,8 @@
 
 use super::Twin;
 use super::risk::{RiskAssessment, RiskAssessor};
+use risktwin_common::risk::FieldError;
+use risktwin_common::road::Road;
 use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
@@ -24,6 +26,9 @@ pub struct TwinSummary {
     pub vehicles: BTreeMap<String, usize>,
     /// Highest risk-field cell of any assessment.
     pub max_risk: f64,
+    /// Sites whose risk runs on the road map their scene published (lanes of the map), instead
+    /// of the default road.
+    pub site_roads: BTreeMap<String, usize>,
 }
 
 /// The vehicles of one site at a tick, as boxes for a scene.
@@ -48,6 +53,8 @@ pub struct TickOutputs<'a> {
 pub struct TwinOutputs {
     twin: Twin,
     risk: Option<RiskAssessor>,
+    /// Assessors on the road maps sites published; a site without one uses `risk`.
+    site_risk: HashMap<String, RiskAssessor>,
     last_risk_tick: HashMap<String, i64>,
     summary: TwinSummary,
     scenes: Vec<SiteScene>,
@@ -60,6 +67,7 @@ impl TwinOutputs {
         TwinOutputs {
             twin: Twin::new(),
             risk,
+            site_risk: HashMap::new(),
             last_risk_tick: HashMap::new(),
             summary: TwinSummary::default(),
             scenes: Vec::new(),
@@ -80,6 +88,17 @@ impl TwinOutputs {
         let mut s = self.summary.clone();
         s.ticks = self.twin.ticks();
         s
+    }
+
+    /// Assesses `site`'s risk on `road` from now on (the road map its scene published).
+    /// Without the risk role there is nothing to do.
+    pub fn set_site_road(&mut self, site: &str, road: Road) -> Result<(), FieldError> {
+        let Some(default) = self.risk.as_ref() else { return Ok(()) };
+        let lanes = road.lanes.len();
+        self.site_risk.insert(site.to_owned(), RiskAssessor::new(road, *default.config())?);
+        self.summary.site_roads.insert(site.to_owned(), lanes);
+        tracing::info!("risk: site {site} on its scene's road map ({lanes} lanes)");
+        Ok(())
     }
 
     /// After one or more snapshots were applied: the scene of every site that `publishable`
@@ -113,7 +132,7 @@ impl TwinOutputs {
             self.scenes.push(SiteScene { site: site.to_owned(), boxes: boxes.collect() });
             self.summary.scenes += 1;
 
-            let Some(risk) = self.risk.as_mut() else { continue };
+            let Some(risk) = self.site_risk.get_mut(site).or(self.risk.as_mut()) else { continue };
             let due = self.last_risk_tick.get(site).is_none_or(|last| tick_ns - last >= risk.config().period_ns);
             if !due || twin.vehicles.is_empty() {
                 continue;

@@ -14,9 +14,11 @@ use super::streams::{Streams, StreamsSent};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
 use risktwin_common::scenario::build;
+use risktwin_common::telemetry::{Frame, Header, RoadMap};
 use risktwin_common::vehicle::Controls;
+use risktwin_protos::encode;
 use risktwin_transport::SiteId;
-use risktwin_transport::keyexpr::{scene_replies, scene_reply, scene_truth};
+use risktwin_transport::keyexpr::{SCENE_CHUNK, scene_map, scene_replies, scene_reply, scene_truth};
 use risktwin_transport::zenoh::handlers::FifoChannelHandler;
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
 use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
@@ -42,6 +44,9 @@ impl Default for Timeouts {
     }
 }
 
+/// Physics steps between two publications of the scene's road map (1 s of scene).
+const MAP_EVERY_STEPS: u64 = 20;
+
 /// How often a participant repeats its join until the first truth arrives.
 const JOIN_REPEAT: Duration = Duration::from_millis(200);
 
@@ -62,10 +67,20 @@ fn open_plane(session: &Session, inbox: String, outbox: String) -> Result<(Inbox
     Ok((subscriber, publisher))
 }
 
+/// The road map of a scene's world, as the authority publishes it (the same bytes each time).
+fn scene_road_map(world: &risktwin_common::world::World) -> RoadMap {
+    let header =
+        Header { source: SCENE_CHUNK.into(), seq: 0, capture_time_ns: 0, publish_time_ns: 0, frame: Frame::World };
+    RoadMap { header, road: world.road.clone(), lanelets: Default::default() }
+}
+
 /// The authority's side: truth out, replies in.
 pub struct ZenohAuthority {
     inbox: Inbox,
     truth: Publisher<'static>,
+    /// The scene's road map (`RoadMap`, protobuf) and its publisher: the cloud twin's risk runs
+    /// on it. The same bytes every time, republished every [`MAP_EVERY_STEPS`].
+    map: (Publisher<'static>, Vec<u8>),
     participants: Vec<String>,
     answered: Vec<bool>,
     timeouts: Timeouts,
@@ -103,12 +118,16 @@ impl ZenohAuthority {
     /// names who.
     pub fn open(session: &Session, site: &SiteId, setup: &SceneSetup, timeouts: Timeouts) -> Result<Self, SceneError> {
         let (inbox, truth) = open_plane(session, scene_replies(site), scene_truth(site))?;
+        let map_key = scene_map(site);
+        let map_publisher = session.declare_publisher(map_key.clone()).wait().map_err(transport(&map_key))?;
+        let map = scene_road_map(&build(&setup.spec));
         let participants = setup.participants();
         let mut plane = ZenohAuthority {
             answered: vec![false; participants.len()],
             participants,
             inbox,
             truth,
+            map: (map_publisher, encode(&map)),
             timeouts,
             bytes: Vec::new(),
             malformed: 0,
@@ -172,6 +191,10 @@ impl ZenohAuthority {
     }
 
     fn publish(&mut self, truth: &Truth) -> Result<(), SceneError> {
+        if truth.step % MAP_EVERY_STEPS == 0 {
+            let (publisher, bytes) = &self.map;
+            publisher.put(bytes.as_slice()).wait().map_err(transport("map"))?;
+        }
         truth.encode_into(&mut self.bytes);
         self.truth.put(self.bytes.as_slice()).wait().map_err(transport("truth"))
     }
@@ -351,5 +374,21 @@ pub fn run_participant(
         put(&Reply::step(id, truth.step, controls).encode())?;
         streams.publish(&stack, &truth)?;
         last_step = Some(truth.step);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use risktwin_common::scenario::ScenarioKind;
+
+    #[test]
+    fn every_kind_of_scene_map_decodes_as_the_cloud_decodes_it() {
+        for kind in ScenarioKind::ALL {
+            let spec = crate::scene::feasible_spec(3, kind).expect("feasible");
+            let map = scene_road_map(&build(&spec));
+            let back: RoadMap = risktwin_protos::decode(&encode(&map)).unwrap_or_else(|e| panic!("{kind:?}: {e}"));
+            assert_eq!(back.road.lanes.len(), map.road.lanes.len());
+        }
     }
 }

@@ -1,5 +1,5 @@
-//! The road map. Lanes travel as centreline vertices; arc lengths are recomputed on arrival,
-//! so a map cannot carry arc lengths inconsistent with its vertices. CommonRoad lanelets travel
+//! The road map. Lanes travel as centreline vertices (a repeated vertex once); arc lengths are
+//! recomputed on arrival, so a map cannot carry arc lengths inconsistent with its vertices. CommonRoad lanelets travel
 //! as their two bounds and links; centrelines, widths and polygons are rebuilt on arrival
 //! ([`Lanelet::new`]), exactly as the XML import builds them.
 
@@ -20,7 +20,7 @@ impl From<&RoadMap> for v1::RoadMap {
                 .lanes
                 .iter()
                 .map(|l| v1::Lane {
-                    centre_m: l.centre.iter().map(vec_to).collect(),
+                    centre_m: without_repeats(&l.centre).map(vec_to).collect(),
                     width_m: l.width_m,
                     left: l.left.map(|i| i as u32),
                     right: l.right.map(|i| i as u32),
@@ -47,6 +47,14 @@ impl From<&RoadMap> for v1::RoadMap {
             lanelets: m.lanelets.lanelets.iter().map(lanelet_to).collect(),
         }
     }
+}
+
+/// A centreline without consecutive repeated vertices: a builder may leave a zero-length
+/// segment (a bend with no exit), which carries no geometry and which a receiver refuses.
+fn without_repeats(
+    centre: &[risktwin_common::geometry::Vec2],
+) -> impl Iterator<Item = &risktwin_common::geometry::Vec2> {
+    centre.iter().enumerate().filter(|&(i, v)| i == 0 || centre[i - 1] != *v).map(|(_, v)| v)
 }
 
 fn lanelet_to(l: &Lanelet) -> v1::Lanelet {

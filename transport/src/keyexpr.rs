@@ -322,6 +322,25 @@ pub fn parse_scene_map_key(key: &str) -> Option<&str> {
     (!site.is_empty() && !site.contains('/')).then_some(site)
 }
 
+/// `risktwin/v1/<site>/scene/gt/<source>`: a connected vehicle's true state per physics step,
+/// from the scene's authority (`VehicleState`, protobuf): what the twin is measured against.
+pub fn scene_ground_truth(site: &SiteId, source: &SourceId) -> String {
+    format!("{ROOT}/{site}/{SCENE_CHUNK}/gt/{source}")
+}
+
+/// `risktwin/v1/<site|*>/scene/gt/*`: every connected vehicle's true state.
+pub fn scene_ground_truth_all(site: Option<&SiteId>) -> String {
+    format!("{ROOT}/{}/{SCENE_CHUNK}/gt/*", site_or_star(site))
+}
+
+/// The site and source of a ground-truth key.
+pub fn parse_scene_ground_truth_key(key: &str) -> Option<(&str, &str)> {
+    let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
+    let (site, rest) = rest.split_once('/')?;
+    let source = rest.strip_prefix("scene/gt/")?;
+    (!site.is_empty() && !source.is_empty() && !source.contains('/')).then_some((site, source))
+}
+
 /// `risktwin/v1/<site>/alive/<source>`: the liveliness token of one edge.
 pub fn liveliness_token(site: &SiteId, source: &SourceId) -> String {
     format!("{ROOT}/{site}/{ALIVE_CHUNK}/{source}")

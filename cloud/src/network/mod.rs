@@ -29,7 +29,7 @@ pub mod liveliness;
 mod publisher;
 pub mod push;
 mod receive;
-mod scene_maps;
+mod scene;
 #[cfg(test)]
 mod wire_tests;
 
@@ -270,7 +270,12 @@ pub async fn run(
         None => None,
     };
     let map_subscriber = if config.has(Role::Risk) {
-        Some(scene_maps::subscribe(&session, config.site.as_ref(), Arc::clone(&ingest)).await?)
+        Some(scene::subscribe_maps(&session, config.site.as_ref(), Arc::clone(&ingest)).await?)
+    } else {
+        None
+    };
+    let truth_subscriber = if config.has(Role::Twin) {
+        Some(scene::subscribe_ground_truth(&session, config.site.as_ref(), Arc::clone(&ingest)).await?)
     } else {
         None
     };
@@ -293,6 +298,9 @@ pub async fn run(
     }
     if let Some(subscriber) = map_subscriber {
         subscriber.undeclare().await.map_err(|e| undeclare_error("scene-map subscriber", e))?;
+    }
+    if let Some(subscriber) = truth_subscriber {
+        subscriber.undeclare().await.map_err(|e| undeclare_error("ground-truth subscriber", e))?;
     }
     if let Some(subscriber) = crit_subscriber {
         subscriber.undeclare().await.map_err(|e| undeclare_error("criticality subscriber", e))?;

@@ -143,6 +143,13 @@ impl LiveIngest {
         self.worker.reject(reason);
     }
 
+    /// A scene's true position of `source` at `site` (the twin's fidelity is measured on it).
+    pub fn observe_truth(&mut self, site: &str, source: &str, time_ns: i64, position: risktwin_common::geometry::Vec2) {
+        if let Some(outputs) = self.outputs.as_mut() {
+            outputs.observe_truth(site, source, time_ns, position);
+        }
+    }
+
     /// `site`'s scene published its road map: the risk role assesses that site on it.
     pub fn set_site_road(&mut self, site: &str, road: risktwin_common::road::Road) {
         if let Some(outputs) = self.outputs.as_mut()

@@ -10,6 +10,7 @@
 //! [`risk`] evaluates the risk field and report of an ego on a site's twin; [`outputs`] turns
 //! each tick into the scene and risk outputs the network side records and publishes.
 
+pub mod fidelity;
 pub mod outputs;
 pub mod risk;
 

@@ -6,7 +6,9 @@
 //! [`TwinOutputs::after_tick`] returns.
 
 use super::Twin;
+use super::fidelity::{Fidelity, PositionError};
 use super::risk::{RiskAssessment, RiskAssessor};
+use risktwin_common::geometry::Vec2;
 use risktwin_common::risk::FieldError;
 use risktwin_common::road::Road;
 use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
@@ -29,6 +31,9 @@ pub struct TwinSummary {
     /// Sites whose risk runs on the road map their scene published (lanes of the map), instead
     /// of the default road.
     pub site_roads: BTreeMap<String, usize>,
+    /// Per `site/source` of a scene: the twin's position error against the ground truth.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub fidelity: BTreeMap<String, PositionError>,
 }
 
 /// The vehicles of one site at a tick, as boxes for a scene.
@@ -55,6 +60,7 @@ pub struct TwinOutputs {
     risk: Option<RiskAssessor>,
     /// Assessors on the road maps sites published; a site without one uses `risk`.
     site_risk: HashMap<String, RiskAssessor>,
+    fidelity: Fidelity,
     last_risk_tick: HashMap<String, i64>,
     summary: TwinSummary,
     scenes: Vec<SiteScene>,
@@ -68,6 +74,7 @@ impl TwinOutputs {
             twin: Twin::new(),
             risk,
             site_risk: HashMap::new(),
+            fidelity: Fidelity::default(),
             last_risk_tick: HashMap::new(),
             summary: TwinSummary::default(),
             scenes: Vec::new(),
@@ -87,7 +94,13 @@ impl TwinOutputs {
     pub fn summary(&self) -> TwinSummary {
         let mut s = self.summary.clone();
         s.ticks = self.twin.ticks();
+        s.fidelity = self.fidelity.summary();
         s
+    }
+
+    /// A scene's true position of `source` at `site` at `time_ns` (its authority's clock).
+    pub fn observe_truth(&mut self, site: &str, source: &str, time_ns: i64, position: Vec2) {
+        self.fidelity.observe_truth(site, source, time_ns, position);
     }
 
     /// Assesses `site`'s risk on `road` from now on (the road map its scene published).
@@ -110,6 +123,7 @@ impl TwinOutputs {
         self.assessments.clear();
         for (site, twin) in self.twin.sites() {
             self.summary.vehicles.insert(site.to_owned(), twin.vehicles.len());
+            self.fidelity.compare(site, tick_ns, twin);
             if !publishable(site) {
                 continue;
             }

@@ -9,7 +9,8 @@
 //! falls silent, for the participants.
 
 use super::authority::Plane;
-use super::onboard::Onboard;
+use super::onboard::{Onboard, vehicle_state};
+use super::streams::unix_ns;
 use super::streams::{Streams, StreamsSent};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
@@ -17,13 +18,15 @@ use risktwin_common::scenario::build;
 use risktwin_common::telemetry::{Frame, Header, RoadMap};
 use risktwin_common::vehicle::Controls;
 use risktwin_protos::encode;
-use risktwin_transport::SiteId;
-use risktwin_transport::keyexpr::{SCENE_CHUNK, scene_map, scene_replies, scene_reply, scene_truth};
+use risktwin_transport::keyexpr::{
+    SCENE_CHUNK, scene_ground_truth, scene_map, scene_replies, scene_reply, scene_truth,
+};
 use risktwin_transport::zenoh::handlers::FifoChannelHandler;
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
 use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
+use risktwin_transport::{SiteId, SourceId};
 use serde::Serialize;
 use std::time::{Duration, Instant};
 
@@ -81,6 +84,11 @@ pub struct ZenohAuthority {
     /// The scene's road map (`RoadMap`, protobuf) and its publisher: the cloud twin's risk runs
     /// on it. The same bytes every time, republished every [`MAP_EVERY_STEPS`].
     map: (Publisher<'static>, Vec<u8>),
+    /// Each connected vehicle's role and ground-truth publisher (`scene/gt/<id>`).
+    ground_truth: Vec<(String, Role, Publisher<'static>)>,
+    /// Wall time at the scene's t = 0 by the authority's clock, ns since the Unix epoch: the
+    /// ground truth's stamps, on the same clock as the participants' streams.
+    epoch_ns: Option<i64>,
     participants: Vec<String>,
     answered: Vec<bool>,
     timeouts: Timeouts,
@@ -122,12 +130,21 @@ impl ZenohAuthority {
         let map_publisher = session.declare_publisher(map_key.clone()).wait().map_err(transport(&map_key))?;
         let map = scene_road_map(&build(&setup.spec));
         let participants = setup.participants();
+        let mut ground_truth = Vec::new();
+        for id in participants.iter().filter(|id| !id.starts_with("rsu")) {
+            let source = SourceId::new(id.clone()).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
+            let key = scene_ground_truth(site, &source);
+            let publisher = session.declare_publisher(key.clone()).wait().map_err(transport(&key))?;
+            ground_truth.push((id.clone(), setup.role_of(id)?, publisher));
+        }
         let mut plane = ZenohAuthority {
             answered: vec![false; participants.len()],
             participants,
             inbox,
             truth,
             map: (map_publisher, encode(&map)),
+            ground_truth,
+            epoch_ns: None,
             timeouts,
             bytes: Vec::new(),
             malformed: 0,
@@ -196,7 +213,25 @@ impl ZenohAuthority {
             publisher.put(bytes.as_slice()).wait().map_err(transport("map"))?;
         }
         truth.encode_into(&mut self.bytes);
-        self.truth.put(self.bytes.as_slice()).wait().map_err(transport("truth"))
+        self.truth.put(self.bytes.as_slice()).wait().map_err(transport("truth"))?;
+        if truth.end.is_some() {
+            return Ok(());
+        }
+        let epoch = *self.epoch_ns.get_or_insert_with(|| unix_ns() - (truth.time_s * 1e9).round() as i64);
+        let time_ns = epoch + (truth.time_s * 1e9).round() as i64;
+        for (id, role, publisher) in &self.ground_truth {
+            let header = Header {
+                source: id.clone(),
+                seq: truth.step,
+                capture_time_ns: time_ns,
+                publish_time_ns: time_ns,
+                frame: Frame::World,
+            };
+            if let Some(state) = vehicle_state(truth, *role, header) {
+                publisher.put(encode(&state)).wait().map_err(transport("ground truth"))?;
+            }
+        }
+        Ok(())
     }
 }
 

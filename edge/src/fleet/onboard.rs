@@ -119,40 +119,46 @@ impl Onboard {
     /// A connected vehicle's own state in `truth`, under `header`; `None` for an RSU, or a
     /// vehicle no longer in the world.
     pub fn own_state(&self, truth: &Truth, header: Header) -> Option<VehicleStateSample> {
-        match self.role {
-            Role::Ego => {
-                let e = &truth.ego;
-                Some(VehicleStateSample {
-                    header,
-                    pose: truth.ego_pose(),
-                    velocity: Vec2::new(e.velocity[0], e.velocity[1]),
-                    speed_mps: e.speed_mps,
-                    accel_mps2: e.accel_mps2,
-                    yaw_rate_radps: e.yaw_rate_radps,
-                    steer_rad: e.steer_rad,
-                    footprint: Footprint::new(e.footprint[0], e.footprint[1]),
-                })
-            }
-            Role::Agent { traffic_index } => {
-                let o = truth.objects.iter().find(|o| o.id == traffic_index as u32)?;
-                let (axis, velocity) = (Vec2::new(o.axis[0], o.axis[1]), Vec2::new(o.velocity[0], o.velocity[1]));
-                Some(VehicleStateSample {
-                    header,
-                    pose: Pose::new(o.centre[0], o.centre[1], axis.y.atan2(axis.x)),
-                    velocity,
-                    speed_mps: velocity.dot(&axis),
-                    accel_mps2: o.accel_mps2,
-                    yaw_rate_radps: 0.0,
-                    steer_rad: 0.0,
-                    footprint: Footprint::new(2.0 * o.half_length_m, 2.0 * o.half_width_m),
-                })
-            }
-            Role::Rsu { .. } => None,
-        }
+        vehicle_state(truth, self.role, header)
     }
 
     /// A roadside unit's mast pose and sensor range, m.
     pub fn mast(&self) -> (Pose, f64) {
         (self.mast, self.sensor.params().range_m)
+    }
+}
+
+/// The state of the connected vehicle of `role` in `truth`, under `header`; `None` for an RSU,
+/// or a vehicle no longer in the world.
+pub fn vehicle_state(truth: &Truth, role: Role, header: Header) -> Option<VehicleStateSample> {
+    match role {
+        Role::Ego => {
+            let e = &truth.ego;
+            Some(VehicleStateSample {
+                header,
+                pose: truth.ego_pose(),
+                velocity: Vec2::new(e.velocity[0], e.velocity[1]),
+                speed_mps: e.speed_mps,
+                accel_mps2: e.accel_mps2,
+                yaw_rate_radps: e.yaw_rate_radps,
+                steer_rad: e.steer_rad,
+                footprint: Footprint::new(e.footprint[0], e.footprint[1]),
+            })
+        }
+        Role::Agent { traffic_index } => {
+            let o = truth.objects.iter().find(|o| o.id == traffic_index as u32)?;
+            let (axis, velocity) = (Vec2::new(o.axis[0], o.axis[1]), Vec2::new(o.velocity[0], o.velocity[1]));
+            Some(VehicleStateSample {
+                header,
+                pose: Pose::new(o.centre[0], o.centre[1], axis.y.atan2(axis.x)),
+                velocity,
+                speed_mps: velocity.dot(&axis),
+                accel_mps2: o.accel_mps2,
+                yaw_rate_radps: 0.0,
+                steer_rad: 0.0,
+                footprint: Footprint::new(2.0 * o.half_length_m, 2.0 * o.half_width_m),
+            })
+        }
+        Role::Rsu { .. } => None,
     }
 }

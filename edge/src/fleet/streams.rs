@@ -44,7 +44,8 @@ pub struct Streams {
     pub sent: StreamsSent,
 }
 
-fn unix_ns() -> i64 {
+/// The wall clock, ns since the Unix epoch.
+pub(super) fn unix_ns() -> i64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64)
 }
 

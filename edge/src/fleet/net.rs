@@ -208,7 +208,7 @@ impl ZenohAuthority {
     }
 
     fn publish(&mut self, truth: &Truth) -> Result<(), SceneError> {
-        if truth.step % MAP_EVERY_STEPS == 0 {
+        if truth.step.is_multiple_of(MAP_EVERY_STEPS) {
             let (publisher, bytes) = &self.map;
             publisher.put(bytes.as_slice()).wait().map_err(transport("map"))?;
         }

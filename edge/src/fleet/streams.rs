@@ -101,7 +101,7 @@ impl Streams {
             put(&self.state, encode(&state))?;
             self.sent.state += 1;
         }
-        if truth.step % STEPS_PER_OBJECT_LIST != 0 {
+        if !truth.step.is_multiple_of(STEPS_PER_OBJECT_LIST) {
             return Ok(());
         }
         let objects = stack.perceived().iter().map(detected).collect();

@@ -26,9 +26,10 @@ pub struct EdgeConfig {
     pub id: SourceId,
     /// How to join the Zenoh network.
     pub transport: TransportConfig,
-    /// Base rate, Hz of wall time: a vehicle's simulation steps (state messages) per second,
-    /// an RSU's observations per second. The simulation itself always steps 20 ms, so a rate
-    /// above 50 Hz runs a vehicle faster than real time.
+    /// Base rate, Hz of wall time: a vehicle's state messages per second, an RSU's observations
+    /// per second. A vehicle's state samples are 20 ms of simulated time apart (interpolated in
+    /// the world's 50 ms physics steps, [`crate::cadence`]) and an RSU's 100 ms, so a rate above
+    /// 50 Hz (RSU: 10 Hz) runs faster than real time.
     pub rate_hz: f64,
     /// Stop after this many messages on the base stream (vehicle: `state`; RSU: each stream).
     pub count: Option<u64>,

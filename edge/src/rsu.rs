@@ -4,21 +4,22 @@
 
 use crate::error::EdgeError;
 use crate::publish::{EdgeConfig, Producer, Stamper, run_producer};
-use crate::scene::{STEP_S, Scene, detected, feasible_spec};
+use crate::scene::{Scene, detected, feasible_spec};
 use crate::summary::SentSummary;
 use risktwin_common::geometry::Pose;
 use risktwin_common::rng::Rng;
 use risktwin_common::sensor::{PerceivedObject, SceneObject, Sensor, SensorParams};
 use risktwin_common::telemetry::{RsuObservation, SignalPhase};
 use risktwin_common::traffic::FixedTimeSignal;
+use risktwin_common::world::STEP_S;
 use risktwin_protos::encode;
 use risktwin_transport::{EdgeStream, Shutdown};
 
 /// The rate of an RSU unless told otherwise, Hz.
 pub const DEFAULT_RATE_HZ: f64 = 10.0;
 
-/// Simulation steps per observation: 10 Hz observations of a 50 Hz world.
-const STEPS_PER_TICK: u32 = 5;
+/// Physics steps per observation: 10 Hz observations of the world's 20 Hz.
+const STEPS_PER_TICK: u32 = 2;
 
 const STREAMS: [EdgeStream; 2] = [EdgeStream::Rsu, EdgeStream::Signal];
 

@@ -2,13 +2,16 @@
 //! reference driver, or a policy received from the cloud: [`EgoController`]), and the
 //! conversions from what it yields to the wire messages of `common::telemetry`.
 //!
-//! A scenario pushed by the cloud is executed as one episode with `common::episode` (so its
-//! outcome is measured as `risktwin simulate` measures it, stopping at the first collision —
-//! but at the edge's 20 ms step, which the vehicle's 50 Hz streams need, where the library's
-//! outcomes use the world's own step; discretisation makes the two differ slightly), recorded
-//! step by step into a [`Tape`] that the vehicle then plays out on its
-//! streams in real time; the outcome is reported when the tape has been played.
+//! Every edge world steps at the world's own step (`common::world::STEP_S`, 50 ms), as the
+//! library, `risktwin simulate` and `risktwin run` do; the faster streams are interpolated
+//! samples of it ([`crate::cadence`]).
+//!
+//! A scenario pushed by the cloud is executed as one episode with `common::episode`, so its
+//! outcome is exactly the one `risktwin simulate` measures (stopping at the first collision),
+//! recorded step by step into a [`Tape`] that the vehicle then plays out on its streams in real
+//! time; the outcome is reported when the tape has been played.
 
+use crate::cadence::Segment;
 use crate::error::EdgeError;
 use risktwin_common::driver::{Policy, ReferenceDriver};
 use risktwin_common::episode::{EpisodeResult, run_observed, with_reference_driver};
@@ -17,15 +20,12 @@ use risktwin_common::metrics::RewardWeights;
 use risktwin_common::net::{HostDriver, HostPolicy};
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, check_feasible, sample};
 use risktwin_common::sensor::PerceivedObject;
+use risktwin_common::telemetry::DetectedObject;
 use risktwin_common::telemetry::PolicyRef;
-use risktwin_common::telemetry::{DetectedObject, VehicleStateSample};
-use risktwin_common::vehicle::Controls;
+use risktwin_common::vehicle::{Controls, Vehicle, VehicleState};
 use risktwin_common::world::World;
 use std::fmt;
 use std::sync::Arc;
-
-/// Simulation step of every edge world, s (50 Hz).
-pub const STEP_S: f64 = 0.02;
 
 /// Candidates tried before giving up on finding a feasible scenario.
 const MAX_CANDIDATES: u64 = 1000;
@@ -38,7 +38,7 @@ pub fn feasible_spec(seed: u64, kind: ScenarioKind) -> Result<ScenarioSpec, Edge
         .ok_or(EdgeError::NoFeasibleScenario { kind: kind.name(), seed, tried: MAX_CANDIDATES })
 }
 
-/// A scenario world stepping at [`STEP_S`] with the ego controller; when the scenario's
+/// A scenario world stepping at the world's step with the ego controller; when the scenario's
 /// horizon is reached it starts over, so an edge can publish for as long as it runs.
 pub struct Scene {
     spec: ScenarioSpec,
@@ -70,12 +70,14 @@ impl Scene {
         self.controller.driven_by()
     }
 
-    /// One step (and a restart first when the horizon was reached); the driver's controls.
-    pub fn step(&mut self) -> Controls {
+    /// One step (and a restart first when the horizon was reached): the ego over it.
+    pub fn step(&mut self) -> Segment {
         if self.world.time_s >= self.world.horizon_s {
             *self = Scene::with_policy(self.spec.clone(), self.policy.take());
         }
-        self.world.step(self.controller.policy()).controls
+        let from = self.world.ego.state;
+        let controls = self.world.step(self.controller.policy()).controls;
+        Segment { ego: self.world.ego.clone(), from, controls }
     }
 }
 
@@ -107,11 +109,10 @@ impl fmt::Debug for EgoController {
 }
 
 impl EgoController {
-    /// The world of `spec` at the edge's step and its controller: `policy` when given, else
-    /// the scenario's reference driver.
+    /// The world of `spec` and its controller: `policy` when given, else the scenario's
+    /// reference driver.
     pub fn world(spec: &ScenarioSpec, policy: Option<&ActivePolicy>) -> (World, EgoController) {
-        let (mut world, reference) = with_reference_driver(spec);
-        world.dt_s = STEP_S;
+        let (world, reference) = with_reference_driver(spec);
         let controller = match policy {
             Some(p) => EgoController::learned(&world, p),
             None => EgoController::Reference(Box::new(reference)),
@@ -145,15 +146,19 @@ impl EgoController {
 /// One recorded step of an episode: what the vehicle publishes for it.
 #[derive(Debug, Clone)]
 pub struct TapeStep {
-    /// The ego's state (header filled in when published).
-    pub state: VehicleStateSample,
+    /// The ego's state at the end of the step.
+    pub state: VehicleState,
+    /// The controls held over the step.
     pub controls: Controls,
+    /// What the ego perceived at the start of the step.
     pub perceived: Vec<DetectedObject>,
 }
 
 /// An episode executed ahead of time, played out step by step.
 #[derive(Debug, Clone)]
 pub struct Tape {
+    /// The ego at t = 0.
+    pub start: Vehicle,
     pub steps: Vec<TapeStep>,
     pub result: EpisodeResult,
     /// The received policy that drove (`None`: the reference driver).
@@ -166,26 +171,27 @@ impl Tape {
     /// reference driver when `None`), recording every step.
     pub fn record(spec: &ScenarioSpec, policy: Option<&ActivePolicy>) -> Tape {
         let (mut world, mut controller) = EgoController::world(spec, policy);
+        let start = world.ego.clone();
         let mut steps = Vec::new();
-        let mut states = Vec::new();
         let result = run_observed(&mut world, controller.policy(), &RewardWeights::default(), &mut |w, report| {
-            w.state_samples(0, &mut states);
-            if let Some(state) = states.first() {
-                steps.push(TapeStep {
-                    state: state.clone(),
-                    controls: report.controls,
-                    perceived: w.perceived().iter().map(detected).collect(),
-                });
-            }
+            steps.push(TapeStep {
+                state: w.ego.state,
+                controls: report.controls,
+                perceived: w.perceived().iter().map(detected).collect(),
+            });
         });
-        Tape { steps, result, driven_by: controller.driven_by().cloned(), next: 0 }
+        Tape { start, steps, result, driven_by: controller.driven_by().cloned(), next: 0 }
     }
 
-    /// The next step to play, `None` once all were played.
-    pub fn next_step(&mut self) -> Option<&TapeStep> {
+    /// The next step to play (the ego over it, and what it perceived at its start), `None`
+    /// once all were played.
+    pub fn next_step(&mut self) -> Option<(Segment, &[DetectedObject])> {
         let step = self.steps.get(self.next)?;
+        let from = self.next.checked_sub(1).map_or(self.start.state, |i| self.steps[i].state);
         self.next += 1;
-        Some(step)
+        let mut ego = self.start.clone();
+        ego.state = step.state;
+        Some((Segment { ego, from, controls: step.controls }, &step.perceived))
     }
 }
 
@@ -206,6 +212,7 @@ pub(crate) mod tests {
     use super::*;
     use risktwin_common::env::OBS_DIM;
     use risktwin_common::net::{Dense, HostMlp, PolicyKind};
+    use risktwin_common::world::STEP_S;
 
     /// A `kind` policy file OBS_DIM → 4 → out: zero weights, so the action is the output bias.
     pub(crate) fn policy_net(kind: PolicyKind, out_bias: &[f32]) -> HostPolicy {
@@ -229,7 +236,7 @@ pub(crate) mod tests {
         let policy = ActivePolicy { id: id.clone(), net: Arc::new(policy_net(PolicyKind::Gaussian, &[0.0, 0.0, 1.0])) };
         let braking = Tape::record(&spec, Some(&policy));
         assert_eq!(braking.driven_by.as_ref(), Some(&id));
-        let last = |t: &Tape| t.steps.last().map(|s| (s.state.pose.x_m, s.state.speed_mps)).expect("steps");
+        let last = |t: &Tape| t.steps.last().map(|s| (s.state.x_m, s.state.speed_mps)).expect("steps");
         assert!(braking.steps.iter().all(|s| s.controls.brake == 1.0 && s.controls.throttle == 0.0));
         assert!(last(&braking).1 < 0.1, "stopped: {:?}", last(&braking));
         assert!(last(&reference).1 > 5.0, "the reference driver keeps going: {:?}", last(&reference));
@@ -239,9 +246,9 @@ pub(crate) mod tests {
         scene.step();
         assert_eq!(scene.driven_by(), None);
         scene.set_policy(policy);
-        assert_eq!(scene.step().brake, 1.0);
+        assert_eq!(scene.step().controls.brake, 1.0);
         scene.world.time_s = scene.world.horizon_s;
-        assert_eq!(scene.step().brake, 1.0, "still the policy after the restart");
+        assert_eq!(scene.step().controls.brake, 1.0, "still the policy after the restart");
         assert_eq!(scene.driven_by(), Some(&id));
     }
 
@@ -251,14 +258,19 @@ pub(crate) mod tests {
         assert!(check_feasible(&spec).is_ok());
         let mut scene = Scene::new(spec);
         let x0 = scene.world.ego.pose().x_m;
-        for _ in 0..50 {
-            scene.step();
+        let start = scene.world.ego.state;
+        let mut end = start;
+        for _ in 0..20 {
+            let segment = scene.step();
+            assert_eq!(segment.from, end, "each step starts where the last one ended");
+            end = segment.ego.state;
         }
-        assert!((scene.world.time_s - 1.0).abs() < 1e-9, "50 steps of 20 ms: {}", scene.world.time_s);
+        assert!((scene.world.time_s - 1.0).abs() < 1e-9, "20 steps of 50 ms: {}", scene.world.time_s);
         assert!(scene.world.ego.pose().x_m != x0, "the ego moved");
         scene.world.time_s = scene.world.horizon_s;
-        scene.step();
+        let restarted = scene.step();
         assert!((scene.world.time_s - STEP_S).abs() < 1e-9, "restarted: {}", scene.world.time_s);
+        assert_eq!(restarted.from, start, "from the start again");
     }
 
     #[test]
@@ -266,19 +278,19 @@ pub(crate) mod tests {
         let spec = feasible_spec(3, ScenarioKind::CutIn).expect("a feasible cut-in");
         let mut tape = Tape::record(&spec, None);
         assert_eq!(tape.driven_by, None);
-        // `simulate` measured at the edge's step (the library's outcomes use the world's own).
-        let (mut world, mut driver) = with_reference_driver(&spec);
-        world.dt_s = STEP_S;
-        let expected = risktwin_common::episode::run(&mut world, &mut driver, &RewardWeights::default());
+        // Exactly what `risktwin simulate` and the library measure: same step, same code.
+        let expected = risktwin_common::episode::evaluate(&spec);
         assert_eq!(tape.result, expected, "the outcome `common::episode` measures");
         assert_eq!(tape.steps.len() as u64, expected.metrics.steps);
-        let x0 = tape.steps[0].state.pose.x_m;
         let n = tape.steps.len();
-        let last_x = tape.steps[n - 1].state.pose.x_m;
-        assert!(last_x > x0, "the ego moved along the episode");
-        for _ in 0..n {
-            assert!(tape.next_step().is_some());
+        assert!(tape.steps[n - 1].state.x_m > tape.start.state.x_m, "the ego moved along the episode");
+        let mut end = tape.start.state;
+        for step in 0..n {
+            let (segment, _) = tape.next_step().expect("a step");
+            assert_eq!(segment.from, end, "step {step} starts where the last one ended");
+            end = segment.ego.state;
         }
+        assert_eq!(end, tape.steps[n - 1].state);
         assert!(tape.next_step().is_none());
     }
 }

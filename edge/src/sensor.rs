@@ -3,15 +3,16 @@
 //! published zero-copy into iceoryx2 for the vehicle's gateway ([`crate::gateway`]) instead of
 //! over Zenoh.
 //!
-//! What is due at each tick (state per step, perception every 5th step, CAN frames every tick)
-//! is decided by [`crate::cadence`], the same code that ticks [`crate::vehicle`].
+//! What is due at each tick (the interpolated state at 50 Hz, CAN frames every 10 ms, perception
+//! every 2nd physics step) is decided by [`crate::cadence`], the same code that ticks
+//! [`crate::vehicle`].
 //!
 //! Nothing is lost at either end of the run: the producer publishes only once every service has
 //! a subscriber, and at the end (count, duration or SIGINT/SIGTERM) it signals the end of the
 //! stream and keeps its publishers until the gateway has drained them
 //! ([`crate::shm::ShmControl`]). A gateway that leaves mid-run stops the producer with an error.
 
-use crate::cadence::{TICKS_PER_STEP, VehicleOutlet, ego_signals, vehicle_tick};
+use crate::cadence::{Segment, TICKS_PER_STATE, VehicleOutlet, vehicle_tick};
 use crate::clock::EdgeClock;
 use crate::error::EdgeError;
 use crate::gateway::ShmRoleError;
@@ -22,7 +23,8 @@ use crate::shm::{
     ShmStream, ShmVehicleState,
 };
 use crate::summary::SentSummary;
-use risktwin_common::telemetry::{CAN_DLC, CanSignals};
+use risktwin_common::telemetry::CAN_DLC;
+use risktwin_common::vehicle::Vehicle;
 use risktwin_transport::{EdgeStream, Shutdown};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -82,7 +84,8 @@ impl Counters {
 /// The vehicle world and its publishers.
 struct Sensor {
     scene: Scene,
-    signals: CanSignals,
+    /// The ego over the last step, which the ticks sample.
+    segment: Segment,
     publishers: Publishers,
     counters: Counters,
     /// The capture time of the tick being published, ns of the edge clock.
@@ -94,15 +97,16 @@ impl VehicleOutlet for Sensor {
     type Error = ShmRoleError;
 
     fn step(&mut self) -> Result<(), ShmRoleError> {
-        let controls = self.scene.step();
-        let ego = &self.scene.world.ego.state;
-        self.signals = ego_signals(ego.speed_mps, ego.accel_mps2, ego.yaw_rate_radps, ego.steer_rad, &controls);
+        self.segment = self.scene.step();
         Ok(())
     }
 
-    fn publish_state(&mut self) -> Result<(), ShmRoleError> {
+    fn segment(&self) -> &Segment {
+        &self.segment
+    }
+
+    fn publish_state(&mut self, ego: &Vehicle) -> Result<(), ShmRoleError> {
         let seq = self.counters.next(EdgeStream::State);
-        let ego = &self.scene.world.ego;
         let state = ShmVehicleState::from_common(seq, self.capture_ns, &ego.state, &ego.params.footprint());
         Ok(self.publishers.state.publish(&state)?)
     }
@@ -114,10 +118,6 @@ impl VehicleOutlet for Sensor {
         let objects = &perceived[..perceived.len().min(OBJECT_LIST_CAPACITY)];
         let capture_ns = self.capture_ns;
         Ok(self.publishers.objects.publish_with(|list| list.fill_from_perceived(seq, capture_ns, objects))?)
-    }
-
-    fn signals(&self) -> CanSignals {
-        self.signals
     }
 
     fn publish_can(&mut self, can_id: u32, data: [u8; 8]) -> Result<(), ShmRoleError> {
@@ -140,8 +140,8 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<SentSummary,
     let control = ShmControl::open(id)?;
     let publishers = Publishers::open(id, ShmQos::default())?;
     let scene = Scene::new(feasible_spec(config.scenario_seed, config.kind)?);
-    let mut sensor =
-        Sensor { scene, signals: CanSignals::default(), publishers, counters: Counters::default(), capture_ns: 0 };
+    let segment = Segment::at_rest(scene.world.ego.clone());
+    let mut sensor = Sensor { scene, segment, publishers, counters: Counters::default(), capture_ns: 0 };
 
     // Start-up handshake: iceoryx2 keeps no history, so nothing goes out before every stream
     // has the gateway's subscriber.
@@ -178,9 +178,9 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<SentSummary,
     Ok(summary(config, &sensor.counters))
 }
 
-/// Ticks the sensor at twice the state rate until the count, the duration or the shutdown.
+/// Ticks the sensor at the CAN rate (twice the state rate) until the count, the duration or the shutdown.
 async fn publish_loop(config: &EdgeConfig, sensor: &mut Sensor, mut stop: Shutdown) -> Result<(), ShmRoleError> {
-    let tick_period = Duration::from_secs_f64(1.0 / (config.rate_hz * f64::from(TICKS_PER_STEP)));
+    let tick_period = Duration::from_secs_f64(1.0 / (config.rate_hz * f64::from(TICKS_PER_STATE)));
     let start = Instant::now();
     let deadline = config.duration.map(|d| start + d);
     let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
@@ -188,8 +188,8 @@ async fn publish_loop(config: &EdgeConfig, sensor: &mut Sensor, mut stop: Shutdo
     let mut tick = 0u64;
     loop {
         let due = start + tick_period * u32::try_from(tick).unwrap_or(u32::MAX);
-        // The count applies to whole steps (a step's second CAN tick still goes out).
-        let whole = tick.is_multiple_of(u64::from(TICKS_PER_STEP));
+        // The count applies to whole state periods (the second CAN tick after a state still goes out).
+        let whole = tick.is_multiple_of(u64::from(TICKS_PER_STATE));
         if (whole && config.count.is_some_and(|n| sensor.counters.sent(EdgeStream::State) >= n))
             || deadline.is_some_and(|d| due > d)
         {

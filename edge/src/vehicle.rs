@@ -1,8 +1,9 @@
-//! The vehicle role: a scenario world stepped at 50 Hz by its ego controller (the reference
-//! driver until the cloud pushes a policy); per step the
-//! ego's `VehicleStateSample` on `state`, the motion and driver CAN frames on `can` twice (every
-//! 10 ms: 100 Hz per frame id, 200 frames/s on the stream), and every 5th step the perceived
-//! `ObjectList` on `perception` (10 Hz).
+//! The vehicle role: a scenario world stepped at the world's 20 Hz (`common::world::STEP_S`)
+//! by its ego controller (the reference driver until the cloud pushes a policy), published as
+//! interpolated samples of that one simulation ([`crate::cadence`]): the ego's
+//! `VehicleStateSample` on `state` at 50 Hz, the motion and driver CAN frames on `can` every
+//! 10 ms (100 Hz per frame id, 200 frames/s on the stream), and the perceived `ObjectList` on
+//! `perception` every 2nd physics step (10 Hz).
 //!
 //! Cloud pushes ([`push`]): a valid scenario push replaces what the vehicle drives — the
 //! pushed episode is executed (see `scene::Tape`) and played out on the same streams, then its
@@ -13,15 +14,13 @@
 
 pub mod push;
 
-use crate::cadence::{TICKS_PER_STEP, VehicleOutlet, ego_signals, vehicle_tick};
+use crate::cadence::{Segment, TICKS_PER_STATE, VehicleOutlet, vehicle_tick};
 use crate::error::EdgeError;
 use crate::publish::{EdgeConfig, Producer, Stamper, run_producer};
 use crate::scene::{ActivePolicy, Scene, Tape, detected, feasible_spec};
 use crate::summary::SentSummary;
 use push::{PushSummary, ResultLine};
-use risktwin_common::telemetry::{
-    CAN_DLC, CanFrame, CanSignals, DetectedObject, ObjectList, ScenarioResult, VehicleStateSample,
-};
+use risktwin_common::telemetry::{CAN_DLC, CanFrame, DetectedObject, ObjectList, ScenarioResult};
 use risktwin_protos::encode;
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport};
 use risktwin_transport::{EdgeStream, Shutdown};
@@ -42,15 +41,16 @@ struct Pushed {
     state_seqs: Option<(u64, u64)>,
 }
 
-/// A vehicle's scene and what it last did, ticked at twice the step rate.
+/// A vehicle's scene and its last physics step, ticked at the CAN rate.
 pub struct Vehicle {
     scene: Scene,
     pushed: Option<Pushed>,
     /// Whether the current step came from the pushed tape.
     on_tape: bool,
     policy: Option<ActivePolicy>,
-    signals: CanSignals,
-    states: Vec<VehicleStateSample>,
+    /// The ego over the last step, which the ticks sample.
+    segment: Segment,
+    /// What the ego perceived at the start of the last step.
     perceived: Vec<DetectedObject>,
     pushes: PushSummary,
     reports: Vec<(EdgeReport, Vec<u8>)>,
@@ -69,13 +69,13 @@ impl Vehicle {
     /// The vehicle of `config`'s scenario.
     pub fn new(config: &EdgeConfig) -> Result<Self, EdgeError> {
         let scene = Scene::new(feasible_spec(config.scenario_seed, config.kind)?);
+        let segment = Segment::at_rest(scene.world.ego.clone());
         Ok(Vehicle {
             scene,
             pushed: None,
             on_tape: false,
             policy: None,
-            signals: CanSignals::default(),
-            states: Vec::new(),
+            segment,
             perceived: Vec::new(),
             pushes: PushSummary::default(),
             reports: Vec::new(),
@@ -88,32 +88,22 @@ impl Vehicle {
         &self.pushes
     }
 
-    /// One simulation step: from the pushed episode while it lasts, else from the own scene.
+    /// One physics step: from the pushed episode while it lasts, else from the own scene.
     fn step(&mut self, stamper: &Stamper<'_>) {
-        let from_tape = self.pushed.as_mut().and_then(|p| p.tape.next_step().cloned());
-        self.on_tape = from_tape.is_some();
-        let controls = match from_tape {
-            Some(step) => {
-                self.states.clear();
-                self.states.push(step.state);
-                self.perceived.clone_from(&step.perceived);
-                step.controls
-            }
-            None => {
-                if let Some(done) = self.pushed.take() {
-                    self.finish_pushed(done, stamper);
-                }
-                let controls = self.scene.step();
-                let world = &self.scene.world;
-                world.state_samples(0, &mut self.states);
-                self.perceived.clear();
-                self.perceived.extend(world.perceived().iter().map(detected));
-                controls
-            }
-        };
-        if let Some(ego) = self.states.first() {
-            self.signals = ego_signals(ego.speed_mps, ego.accel_mps2, ego.yaw_rate_radps, ego.steer_rad, &controls);
+        if let Some((segment, perceived)) = self.pushed.as_mut().and_then(|p| p.tape.next_step()) {
+            self.perceived.clear();
+            self.perceived.extend_from_slice(perceived);
+            self.segment = segment;
+            self.on_tape = true;
+            return;
         }
+        self.on_tape = false;
+        if let Some(done) = self.pushed.take() {
+            self.finish_pushed(done, stamper);
+        }
+        self.segment = self.scene.step();
+        self.perceived.clear();
+        self.perceived.extend(self.scene.world.perceived().iter().map(detected));
     }
 
     /// Reports the outcome of a played-out pushed episode.
@@ -156,7 +146,7 @@ impl Producer for Vehicle {
     }
 
     fn ticks_per_base(&self) -> u32 {
-        TICKS_PER_STEP
+        TICKS_PER_STATE
     }
 
     fn tick(&mut self, tick: u64, stamper: &mut Stamper<'_>, out: &mut Vec<(EdgeStream, Vec<u8>)>) {
@@ -214,16 +204,18 @@ impl VehicleOutlet for Encoding<'_, '_> {
         Ok(())
     }
 
-    fn publish_state(&mut self) -> Result<(), Infallible> {
-        if let Some(mut state) = self.vehicle.states.first().cloned() {
-            state.header = self.stamper.header(EdgeStream::State);
-            let on_tape = self.vehicle.on_tape;
-            if let Some(pushed) = self.vehicle.pushed.as_mut().filter(|_| on_tape) {
-                let seq = state.header.seq;
-                pushed.state_seqs = Some(pushed.state_seqs.map_or((seq, seq), |(first, _)| (first, seq)));
-            }
-            self.out.push((EdgeStream::State, encode(&state)));
+    fn segment(&self) -> &Segment {
+        &self.vehicle.segment
+    }
+
+    fn publish_state(&mut self, ego: &risktwin_common::vehicle::Vehicle) -> Result<(), Infallible> {
+        let state = ego.state_sample(self.stamper.header(EdgeStream::State));
+        let on_tape = self.vehicle.on_tape;
+        if let Some(pushed) = self.vehicle.pushed.as_mut().filter(|_| on_tape) {
+            let seq = state.header.seq;
+            pushed.state_seqs = Some(pushed.state_seqs.map_or((seq, seq), |(first, _)| (first, seq)));
         }
+        self.out.push((EdgeStream::State, encode(&state)));
         Ok(())
     }
 
@@ -232,10 +224,6 @@ impl VehicleOutlet for Encoding<'_, '_> {
         let list = ObjectList { header, objects: self.vehicle.perceived.clone() };
         self.out.push((EdgeStream::Perception, encode(&list)));
         Ok(())
-    }
-
-    fn signals(&self) -> CanSignals {
-        self.vehicle.signals
     }
 
     fn publish_can(&mut self, can_id: u32, data: [u8; 8]) -> Result<(), Infallible> {

@@ -3,12 +3,14 @@
 //! set against the same episodes driven here.
 //!
 //! Two in-process references per pushed episode:
-//! - the edge's own code (`edge::scene::Tape`: the world at the edge's 20 ms step, the policy
-//!   loaded from the pushed safetensors bytes as a `HostPolicy`), which the edge's result must
-//!   equal exactly, every field — anything else means the spec or the weights changed on the wire;
-//! - the run's own episode at the world's 50 ms step (the library's reference-driver outcome and
-//!   the re-score of the `full` policy), which is the same simulation at another step, so it
-//!   agrees only approximately.
+//! - the edge's own code (`edge::scene::Tape`, the policy loaded from the pushed safetensors
+//!   bytes as a `HostPolicy`), which the edge's result must equal exactly, every field —
+//!   anything else means the spec or the weights changed on the wire;
+//! - the run's own episode (the library's reference-driver outcome and the re-score of the
+//!   `full` policy through candle). The edge steps the world at the same 50 ms step
+//!   (`common::world::STEP_S`), so a reference-driver episode is the library's exactly; a
+//!   policy's may differ in the last bits of its network's arithmetic (plain Rust on the edge,
+//!   candle here).
 //!
 //! What goes into metrics.json ([`ClosedLoop`]) is deterministic; the traffic counts and wall
 //! time ([`push_loop::LoopOutput`]) depend on timing and appear in report.md only.
@@ -26,6 +28,7 @@ use risktwin_common::scenario::{ScenarioKind, build};
 use risktwin_common::telemetry::PolicyRef;
 use risktwin_common::world::STEP_S;
 use risktwin_edge::scene::{ActivePolicy, Tape};
+use risktwin_edge::vehicle::DEFAULT_STATE_RATE_HZ;
 use risktwin_learn::PolicyNet;
 use risktwin_transport::Shutdown;
 use serde::Serialize;
@@ -71,12 +74,12 @@ pub struct Compared {
     /// reference driver).
     pub driven_by: Option<PolicyRef>,
     pub edge: LoopOutcome,
-    /// The edge's code run here on the same spec and weights (20 ms step).
+    /// The edge's code run here on the same spec and weights.
     pub edge_code_here: LoopOutcome,
     /// Whether the edge's metrics and risk terms equal those of the edge's code run here, every
     /// field (not only those shown) and exactly (f64 equality: the wire carries doubles).
     pub edge_equals_here: bool,
-    /// The run's own episode (50 ms step): the library's outcome, or the re-score.
+    /// The run's own episode: the library's outcome, or the re-score.
     pub run: LoopOutcome,
 }
 
@@ -167,11 +170,10 @@ pub fn push_phase(
 }
 
 fn compare(edge: &ScenarioPushReport, here: &Tape, run: &EpisodeResult) -> Compared {
-    let edge_step_s = risktwin_edge::scene::STEP_S;
     Compared {
         driven_by: edge.policy.clone(),
-        edge: LoopOutcome::new(&edge.metrics, &edge.risk, edge_step_s),
-        edge_code_here: LoopOutcome::new(&here.result.metrics, &here.result.risk, edge_step_s),
+        edge: LoopOutcome::new(&edge.metrics, &edge.risk, STEP_S),
+        edge_code_here: LoopOutcome::new(&here.result.metrics, &here.result.risk, STEP_S),
         edge_equals_here: edge.metrics == here.result.metrics && edge.risk == here.result.risk,
         run: LoopOutcome::new(&run.metrics, &run.risk, STEP_S),
     }
@@ -199,7 +201,7 @@ pub fn section(s: &mut String, closed: &ClosedLoop, traffic: Option<&LoopOutput>
     let _ = writeln!(
         s,
         "In this process: a Zenoh router on loopback{}, the cloud's ingest role (recording to `{FILE}`) and an edge \
-         vehicle `{}` (its 50 Hz simulation published at {} Hz, {}× real time), every session a Zenoh client of the \
+         vehicle `{}` (its 50 Hz state stream published at {} Hz, {}× real time), every session a Zenoh client of the \
          router. The cloud pushed the top {} library scenario(s) to the vehicle as scenario messages (driven by its \
          reference driver), then the `full` policy (`{}` version {}, {}, the weights of `policy_full.safetensors`) \
          as a policy update, waited until the vehicle had taken it, and pushed the same scenarios again. Each \
@@ -207,7 +209,7 @@ pub fn section(s: &mut String, closed: &ClosedLoop, traffic: Option<&LoopOutput>
         traffic.map_or(String::new(), |t| format!(" (`{}`)", t.locator)),
         closed.edge,
         closed.rate_hz,
-        closed.rate_hz / 50.0,
+        closed.rate_hz / DEFAULT_STATE_RATE_HZ,
         closed.scenarios.len(),
         closed.policy.policy_id,
         closed.policy.version,
@@ -216,12 +218,12 @@ pub fn section(s: &mut String, closed: &ClosedLoop, traffic: Option<&LoopOutput>
     let _ = writeln!(
         s,
         "Each episode three ways: **edge** — what the vehicle reported; **edge code here** — the vehicle's own \
-         episode code (`edge::scene::Tape`, 20 ms step) run in this process on the same spec and weights; **run** — \
-         this run's episode at the world's 50 ms step (the library's reference-driver outcome, or the re-score \
-         above). Edge and edge code here must agree exactly, every field (same code, same inputs: the spec and the weights \
-         crossed the wire unchanged). Run differs from both by the step: the edge simulates at 20 ms because its \
-         streams are 50 Hz, the library at 50 ms, and a policy trained at 50 ms sees different observations at \
-         20 ms, so outcomes agree only approximately and can differ in kind.\n"
+         episode code (`edge::scene::Tape`) run in this process on the same spec and weights; **run** — this run's \
+         episode (the library's reference-driver outcome, or the re-score above). All three step the world at the \
+         same 50 ms step. Edge and edge code here must agree exactly, every field (same code, same inputs: the spec \
+         and the weights crossed the wire unchanged). For the reference driver, run is the same code too; a \
+         policy's run evaluates the network through candle, the edge in plain Rust, which may differ in the last \
+         bits.\n"
     );
     let _ = writeln!(
         s,
@@ -234,7 +236,7 @@ pub fn section(s: &mut String, closed: &ClosedLoop, traffic: Option<&LoopOutput>
             let who = driver(&c.driven_by);
             let _ = writeln!(s, "| `{}` | {} | {who} | edge | {} | {same} |", sc.id, sc.kind, cells(&c.edge));
             let _ = writeln!(s, "| | | | edge code here | {} | |", cells(&c.edge_code_here));
-            let _ = writeln!(s, "| | | | run (50 ms) | {} | |", cells(&c.run));
+            let _ = writeln!(s, "| | | | run | {} | |", cells(&c.run));
         }
     }
     let all_equal = closed.scenarios.iter().all(|sc| sc.reference.edge_equals_here && sc.policy.edge_equals_here);
@@ -246,7 +248,7 @@ pub fn section(s: &mut String, closed: &ClosedLoop, traffic: Option<&LoopOutput>
         .count();
     let _ = writeln!(
         s,
-        "\n{} Against the 50 ms run, {same_kind} of {} episodes ended the same way (collision and success).",
+        "\n{} Against the run, {same_kind} of {} episodes ended the same way (collision and success).",
         if all_equal {
             "Every edge result equals the edge code run here, exactly."
         } else {

@@ -18,7 +18,7 @@ use risktwin_cloud::network::{CloudConfig, CloudSummary};
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_edge::publish::run_producer;
 use risktwin_edge::vehicle::push::{PolicyLine, PushSummary};
-use risktwin_edge::vehicle::{Vehicle, VehicleSummary};
+use risktwin_edge::vehicle::{DEFAULT_STATE_RATE_HZ, Vehicle, VehicleSummary};
 use risktwin_edge::{EdgeConfig, EdgeError, Producer, Stamper};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, KeyError};
 use risktwin_transport::router::RouterConfig;
@@ -35,8 +35,8 @@ use tokio::task::JoinHandle;
 pub const SITE: &str = "run";
 /// The run's edge vehicle.
 pub const VEHICLE: &str = "veh-1";
-/// State rate of the edge vehicle, Hz: 20× real time for its 50 Hz simulation, so that a
-/// pushed episode plays out in a twentieth of its duration.
+/// State rate of the edge vehicle, Hz: 20× real time for its 50 Hz state stream (samples of
+/// its 20 Hz simulation), so that a pushed episode plays out in a twentieth of its duration.
 pub const RATE_HZ: f64 = 1000.0;
 /// Longest wait for a role to come up, the edge to subscribe or to accept the policy.
 const WAIT: Duration = Duration::from_secs(20);
@@ -386,8 +386,8 @@ async fn push_all(
 ) -> Result<Vec<ScenarioPushReport>, LoopError> {
     let mut out = Vec::with_capacity(request.scenarios.len());
     for (id, spec) in &request.scenarios {
-        // The edge plays an episode of at most the horizon's 50 Hz steps at RATE_HZ.
-        let playback_s = build(spec).horizon_s * 50.0 / RATE_HZ;
+        // The edge plays an episode of at most the horizon's 50 Hz state samples at RATE_HZ.
+        let playback_s = build(spec).horizon_s * DEFAULT_STATE_RATE_HZ / RATE_HZ;
         let wait = Duration::from_secs_f64(RESULT_BASE_S + 4.0 * playback_s);
         let report = link
             .scenario(id, spec, wait, shutdown.clone())

@@ -7,6 +7,8 @@
 
 use crate::support::{Proc, cut_in_library, run_json, start_router};
 use risktwin_common::telemetry::VehicleStateSample;
+use risktwin_common::world::STEP_S;
+use risktwin_edge::vehicle::DEFAULT_STATE_RATE_HZ;
 use risktwin_protos::decode;
 use risktwin_protos::recording::read_messages;
 use serde_json::Value;
@@ -99,8 +101,13 @@ fn a_trained_policy_pushed_to_the_edge_drives_the_next_pushed_scenario() {
         .collect();
     let reference_path = trajectory(&states, &results[0]["state_seqs"]);
     let policy_path = trajectory(&states, &results[1]["state_seqs"]);
-    assert_eq!(reference_path.len() as u64, by_reference["metrics"]["steps"].as_u64().expect("steps"));
-    assert_eq!(policy_path.len() as u64, by_policy["metrics"]["steps"].as_u64().expect("steps"));
+    // 50 Hz state samples of 20 Hz physics steps: 2.5 a step, the half on whichever tick parity
+    // the episode started.
+    for (path, outcome) in [(&reference_path, &by_reference), (&policy_path, &by_policy)] {
+        let steps = outcome["metrics"]["steps"].as_u64().expect("steps") as f64;
+        let per_step = STEP_S * DEFAULT_STATE_RATE_HZ;
+        assert!((path.len() as f64 - steps * per_step).abs() <= 0.5, "{} states for {steps} steps", path.len());
+    }
     // Same scenario, same start: the drivers part ways.
     let (a, b) = (reference_path[0], policy_path[0]);
     assert!((a.0 - b.0).hypot(a.1 - b.1) < 1.0, "both start where the scenario puts the ego: {a:?} {b:?}");

@@ -2,7 +2,10 @@
 //! loads (`learn::PolicyNet::save`), read here without a tensor library.
 //!
 //! Metadata: `algo` (`ppo`, `ppo-gru`, `sac`), `obs_dim`, `act_dim`, `hidden` (comma-separated
-//! layer widths) and `version` ([`POLICY_FORMAT_VERSION`]). The actor of a feed-forward
+//! layer widths), `version` ([`POLICY_FORMAT_VERSION`]) and `decision_rate_hz`, the decisions
+//! per second the policy was trained at ([`DECISION_RATE_HZ`]: one per physics step). A policy
+//! acts on per-step observations, so a file of another rate is refused; a file without the
+//! field predates it and was trained at the world's step of then and now, 20 Hz. The actor of a feed-forward
 //! policy is an MLP `OBS_DIM → hidden… → out` stored as `<prefix>.<i>.weight` (in × out, F32)
 //! and `<prefix>.<i>.bias` (1 × out, F32), with prefix `actor.mean` and out = ACT_DIM for PPO,
 //! `actor.net` and out = 2·ACT_DIM (mean, log σ) for SAC. Other tensors (PPO's `actor.log_std`,
@@ -10,6 +13,7 @@
 
 use super::{Dense, HostMlp, HostPolicy, NetError, PolicyKind};
 use crate::env::{ACT_DIM, OBS_DIM};
+use crate::world::DECISION_RATE_HZ;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use std::collections::HashMap;
 
@@ -34,10 +38,11 @@ pub fn metadata(algo: &str, hidden: &[usize]) -> HashMap<String, String> {
         ("act_dim".to_string(), ACT_DIM.to_string()),
         ("hidden".to_string(), hidden.join(",")),
         ("version".to_string(), POLICY_FORMAT_VERSION.to_string()),
+        ("decision_rate_hz".to_string(), DECISION_RATE_HZ.to_string()),
     ])
 }
 
-/// Reads a policy file's metadata and checks its format version and dimensions.
+/// Reads a policy file's metadata and checks its format version, dimensions and decision rate.
 pub fn read_meta(bytes: &[u8]) -> Result<PolicyMeta, NetError> {
     let (_, header) = SafeTensors::read_metadata(bytes).map_err(|e| NetError::Safetensors(e.to_string()))?;
     let meta = header.metadata().clone().unwrap_or_default();
@@ -51,6 +56,12 @@ pub fn read_meta(bytes: &[u8]) -> Result<PolicyMeta, NetError> {
         if *found != expected.to_string() {
             return Err(NetError::Dimension { name, found: found.clone(), expected });
         }
+    }
+    // Absent: a file from before the field, trained at 20 Hz like every policy since.
+    if let Some(found) = meta.get("decision_rate_hz")
+        && !found.parse::<f64>().is_ok_and(|hz| (hz - DECISION_RATE_HZ).abs() < 1e-9)
+    {
+        return Err(NetError::DecisionRate { found: found.clone(), expected_hz: DECISION_RATE_HZ });
     }
     let hidden_text = get("hidden")?;
     let hidden = hidden_text

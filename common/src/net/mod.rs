@@ -33,6 +33,10 @@ pub enum NetError {
     FormatVersion { found: String, expected: u32 },
     #[error("policy file has {name} = '{found}', this build uses {expected}")]
     Dimension { name: &'static str, found: String, expected: usize },
+    #[error(
+        "policy file decides at {found} Hz, this build's policies decide at {expected_hz} Hz (once per physics step)"
+    )]
+    DecisionRate { found: String, expected_hz: f64 },
     #[error("unknown algorithm '{0}' (a host policy is one of ppo, sac)")]
     UnknownAlgo(String),
     #[error("'{0}' is recurrent: it does not run as a host policy")]
@@ -64,6 +68,7 @@ impl NetError {
             NetError::Safetensors(_) => "not_safetensors",
             NetError::MissingMetadata(_) | NetError::FormatVersion { .. } | NetError::BadHidden(_) => "bad_metadata",
             NetError::Dimension { .. } | NetError::PolicyShape { .. } | NetError::Chain { .. } => "wrong_dims",
+            NetError::DecisionRate { .. } => "wrong_decision_rate",
             NetError::UnknownAlgo(_) | NetError::Recurrent(_) => "unsupported_algo",
             NetError::MissingTensor(_) => "missing_tensor",
             NetError::Dtype { .. } | NetError::TensorShape { .. } | NetError::LayerSize { .. } | NetError::NoLayers => {

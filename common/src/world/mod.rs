@@ -7,6 +7,8 @@
 mod contact;
 mod roadside;
 mod samples;
+#[cfg(test)]
+mod step_study;
 
 pub use contact::Contacts;
 pub use roadside::EGO_OBJECT_ID;
@@ -22,6 +24,9 @@ use crate::vehicle::{Controls, Vehicle};
 
 /// The twin's fixed step, s (20 Hz: the ego dynamics sub-step inside it).
 pub const STEP_S: f64 = 0.05;
+
+/// Decisions per second of the reference driver and of policies: one per physics step, Hz.
+pub const DECISION_RATE_HZ: f64 = 1.0 / STEP_S;
 
 /// The stretch of lane the ego is asked to drive.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -4,6 +4,24 @@
 use super::World;
 use crate::geometry::{Footprint, Pose};
 use crate::telemetry::{Frame, Header, VehicleStateSample};
+use crate::vehicle::Vehicle;
+
+impl Vehicle {
+    /// The vehicle's state as a telemetry sample under `header` (pose and velocity of the
+    /// footprint centre).
+    pub fn state_sample(&self, header: Header) -> VehicleStateSample {
+        VehicleStateSample {
+            header,
+            pose: self.pose(),
+            velocity: self.velocity(),
+            speed_mps: self.state.speed_mps,
+            accel_mps2: self.state.accel_mps2,
+            yaw_rate_radps: self.state.yaw_rate_radps,
+            steer_rad: self.state.steer_rad,
+            footprint: self.params.footprint(),
+        }
+    }
+}
 
 impl World {
     /// Replaces `out` with the state of the ego, every active traffic vehicle and every
@@ -18,17 +36,7 @@ impl World {
             publish_time_ns: time_ns,
             frame: Frame::World,
         };
-        let ego = &self.ego;
-        out.push(VehicleStateSample {
-            header: header("ego".into()),
-            pose: ego.pose(),
-            velocity: ego.velocity(),
-            speed_mps: ego.state.speed_mps,
-            accel_mps2: ego.state.accel_mps2,
-            yaw_rate_radps: ego.state.yaw_rate_radps,
-            steer_rad: ego.state.steer_rad,
-            footprint: ego.params.footprint(),
-        });
+        out.push(self.ego.state_sample(header("ego".into())));
         let t = &self.traffic;
         for i in (0..t.len()).filter(|&i| t.is_active(i)) {
             out.push(VehicleStateSample {

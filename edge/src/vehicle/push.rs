@@ -1,7 +1,8 @@
 //! What a vehicle does with the cloud's pushes: scenario pushes are validated (decodable,
 //! complete, in range, feasible) before the vehicle runs them; policy updates are validated
 //! (decodable, a known algorithm, weights of sane size that load as a policy of this build's
-//! observation and action sizes — `common::net::HostPolicy` — and whose file names the same
+//! observation and action sizes and decision rate — `common::net::HostPolicy`; a file without
+//! a decision rate predates the field and is taken as 20 Hz — and whose file names the same
 //! algorithm, a monotonic version per policy id) and then drive the vehicle. A refused push is
 //! counted by reason and logged; the vehicle keeps running what it was running.
 
@@ -183,6 +184,21 @@ mod tests {
         // Same length, another width: the last digit changed.
         wide[at + key.len() - 2] ^= 1;
         assert!(log.policy(&policy(2, "ppo", wide)).is_none(), "wrong observation width");
+        // Trained at another decision rate: refused; from before the field: taken as 20 Hz.
+        let rate = br#""decision_rate_hz":"20""#;
+        // The metadata's order varies between files: each is searched.
+        let rate_at = |file: &[u8]| {
+            let at = file.windows(rate.len()).position(|w| w == rate).expect("the metadata holds the decision rate");
+            at + rate.len()
+        };
+        let mut fast = weights();
+        let end = rate_at(&fast);
+        fast[end - 3] = b'5';
+        assert!(log.policy(&policy(2, "ppo", fast)).is_none(), "a 50 Hz policy");
+        let mut older = weights();
+        let end = rate_at(&older);
+        older[end - 8..end - 6].copy_from_slice(b"xx");
+        assert!(log.policy(&policy(2, "ppo", older)).is_some(), "a file without the rate");
         let sac = crate::scene::tests::policy_file(PolicyKind::Squashed, &[0.0; 6]);
         assert!(log.policy(&policy(3, "sac", sac)).is_some());
         assert_eq!(log.policy.as_ref().map(|p| (p.version, p.algo.as_str())), Some((3, "sac")));
@@ -194,6 +210,7 @@ mod tests {
                 ("not_safetensors", 1),
                 ("stale_version", 2),
                 ("unknown_algo", 1),
+                ("wrong_decision_rate", 1),
                 ("wrong_dims", 1)
             ]
         );

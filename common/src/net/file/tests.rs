@@ -18,7 +18,7 @@ fn policy(kind: PolicyKind, seed: u64, out_bias: &[f32]) -> HostPolicy {
     HostPolicy::new(kind, HostMlp::from_layers(vec![hidden, last]).expect("a chain")).expect("a policy")
 }
 
-/// A policy file with one tensor or metadata entry changed.
+/// A policy file with one tensor or metadata entry changed (an empty value removes the entry).
 fn altered(p: &HostPolicy, meta: &[(&str, &str)], tensor: Option<(&str, Dtype, Vec<usize>, Vec<u8>)>) -> Vec<u8> {
     let bytes = p.to_safetensors().expect("serialised");
     let st = SafeTensors::deserialize(&bytes).expect("parsed");
@@ -32,7 +32,10 @@ fn altered(p: &HostPolicy, meta: &[(&str, &str)], tensor: Option<(&str, Dtype, V
     }
     let mut m = metadata(p.kind().algo(), &[8]);
     for (k, v) in meta {
-        m.insert((*k).to_owned(), (*v).to_owned());
+        match *v {
+            "" => m.remove(*k),
+            _ => m.insert((*k).to_owned(), (*v).to_owned()),
+        };
     }
     let views: Vec<(&str, TensorView<'_>)> =
         tensors.iter().map(|(n, d, s, b)| (n.as_str(), TensorView::new(*d, s.clone(), b).expect("a view"))).collect();
@@ -81,6 +84,27 @@ fn bad_policy_files_are_refused_with_their_reason() {
     }
     let Err(e) = HostPolicy::from_safetensors(&altered(&p, &[("obs_dim", "13")], None)) else { panic!("accepted") };
     assert_eq!(e, NetError::Dimension { name: "obs_dim", found: "13".into(), expected: OBS_DIM });
+}
+
+#[test]
+fn the_decision_rate_is_written_checked_and_absent_means_20_hz() {
+    let p = policy(PolicyKind::Squashed, 4, &[0.0; 2 * ACT_DIM]);
+    let bytes = p.to_safetensors().expect("bytes");
+    let (_, header) = SafeTensors::read_metadata(&bytes).expect("a header");
+    assert_eq!(header.metadata().as_ref().and_then(|m| m.get("decision_rate_hz")).map(String::as_str), Some("20"));
+    for other in ["50", "10", "fast", ""] {
+        let file = altered(&p, &[("decision_rate_hz", other)], None);
+        match (other, HostPolicy::from_safetensors(&file)) {
+            // No field: a file from before it, read as 20 Hz.
+            ("", read) => assert_eq!(read.expect("an older file is accepted"), p),
+            (_, Ok(_)) => panic!("a {other} Hz file accepted"),
+            (_, Err(e)) => {
+                assert_eq!(e.reason(), "wrong_decision_rate");
+                let text = e.to_string();
+                assert!(text.contains(&format!("{other} Hz")) && text.contains("20 Hz"), "{text}");
+            }
+        }
+    }
 }
 
 #[test]

@@ -127,6 +127,7 @@ impl SyntheticFleet {
                                 pose: Pose::new(0.0, 0.0, 0.0),
                                 footprint: Footprint::new(4.5, 1.8),
                                 velocity: Vec2::new(20.0, 0.0),
+                                accel_mps2: 0.0,
                             })
                             .collect(),
                     },

@@ -81,6 +81,8 @@ pub struct DetectedObject {
     pub footprint: Footprint,
     /// Velocity, m/s.
     pub velocity: Vec2,
+    /// Acceleration along the heading, m/s²; 0 where the source does not estimate it.
+    pub accel_mps2: f64,
 }
 
 /// Every object a vehicle perceived at the capture time (10 Hz).

@@ -204,6 +204,8 @@ pub fn detected(object: &PerceivedObject) -> DetectedObject {
         pose: Pose::new(obb.centre.x, obb.centre.y, obb.axis.y.atan2(obb.axis.x)),
         footprint: Footprint::new(2.0 * obb.half_length_m, 2.0 * obb.half_width_m),
         velocity: object.velocity,
+        // The sensor model estimates no acceleration.
+        accel_mps2: 0.0,
     }
 }
 

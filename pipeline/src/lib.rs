@@ -30,6 +30,7 @@
 pub mod closed_loop;
 mod config;
 mod error;
+pub mod fidelity;
 pub mod figures;
 mod metrics;
 pub mod push_loop;

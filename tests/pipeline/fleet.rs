@@ -158,6 +158,7 @@ fn bad_ids_and_endpoints_are_refused_with_exit_2() {
         &["edge", "rsu", "--id", "r", "--site", "*"],
         &["edge", "vehicle", "--id", "v", "--connect", "not-a-locator"],
         &["cloud", "--roles", "ingest,nonsense"],
+        &["cloud", "--roles", "ingest", "--fidelity-report", "rep"],
     ] {
         let mut p = Proc::spawn("bad", args);
         let (status, stdout) = p.wait_exit(STEP);

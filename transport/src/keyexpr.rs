@@ -304,21 +304,39 @@ pub fn scene_replies(site: &SiteId) -> String {
     format!("{ROOT}/{site}/{SCENE_CHUNK}/reply/*")
 }
 
-/// `risktwin/v1/<site>/scene/map`: the road map of the scene at `site` (`RoadMap`, protobuf),
-/// republished by its authority every second so that late subscribers get it.
-pub fn scene_map(site: &SiteId) -> String {
-    format!("{ROOT}/{site}/{SCENE_CHUNK}/map")
+/// What a scene's authority publishes for the cloud on `risktwin/v1/<site>/scene/<topic>`
+/// (protobuf; never an ingest stream).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneTopic {
+    /// `map`: the scene's road (`RoadMap`), republished every second so late subscribers get it.
+    Map,
+    /// `objects`: every object of the scene's world but the ego, true state per physics step
+    /// (`ObjectList`, truth ids, acceleration included).
+    Objects,
+    /// `truth_boxes`: a recording topic, not published: the truth at each twin tick as scene
+    /// boxes (vehicles and objects), recorded by the cloud beside its twin's `cloud/scene`.
+    TruthBoxes,
 }
 
-/// `risktwin/v1/<site|*>/scene/map`: the scene maps of one site or every site.
-pub fn scene_maps(site: Option<&SiteId>) -> String {
-    format!("{ROOT}/{}/{SCENE_CHUNK}/map", site_or_star(site))
+impl SceneTopic {
+    fn leaf(self) -> &'static str {
+        match self {
+            SceneTopic::Map => "map",
+            SceneTopic::Objects => "objects",
+            SceneTopic::TruthBoxes => "truth_boxes",
+        }
+    }
 }
 
-/// The site of a scene-map key.
-pub fn parse_scene_map_key(key: &str) -> Option<&str> {
+/// `risktwin/v1/<site|*>/scene/<topic>`: `topic` of one site's scene, or of every site's.
+pub fn scene_topic(site: Option<&SiteId>, topic: SceneTopic) -> String {
+    format!("{ROOT}/{}/{SCENE_CHUNK}/{}", site_or_star(site), topic.leaf())
+}
+
+/// The site of a `topic` key of a scene.
+pub fn parse_scene_topic_key(key: &str, topic: SceneTopic) -> Option<&str> {
     let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
-    let site = rest.strip_suffix("/scene/map")?;
+    let site = rest.strip_suffix(topic.leaf())?.strip_suffix("/scene/")?;
     (!site.is_empty() && !site.contains('/')).then_some(site)
 }
 
@@ -452,6 +470,30 @@ mod tests {
         for other in ["risktwin/v1/track-1/cloud/map", "risktwin/v1/track-1/veh/state", "risktwin/v1/s/v/map/x"] {
             assert_eq!(parse_edge_map_key(other), None, "{other}");
         }
+    }
+
+    #[test]
+    fn scene_keys_round_trip_and_are_no_ingest_stream() {
+        let (site, src) = ids();
+        for (topic, leaf) in
+            [(SceneTopic::Map, "map"), (SceneTopic::Objects, "objects"), (SceneTopic::TruthBoxes, "truth_boxes")]
+        {
+            let key = scene_topic(Some(&site), topic);
+            assert_eq!(key, format!("risktwin/v1/track-1/scene/{leaf}"));
+            assert_eq!(parse_scene_topic_key(&key, topic), Some("track-1"));
+            assert_eq!(parse_edge_key(&key), None, "{key} is no ingest stream");
+            assert_eq!(scene_topic(None, topic), format!("risktwin/v1/*/scene/{leaf}"));
+        }
+        let objects = scene_topic(Some(&site), SceneTopic::Objects);
+        assert_eq!(parse_scene_topic_key(&objects, SceneTopic::Map), None, "another topic");
+        for other in ["risktwin/v1/a/b/scene/map", "risktwin/v1//scene/map", "risktwin/v1/track-1/scene_map"] {
+            assert_eq!(parse_scene_topic_key(other, SceneTopic::Map), None, "{other}");
+        }
+        let gt = scene_ground_truth(&site, &src);
+        assert_eq!(gt, "risktwin/v1/track-1/scene/gt/veh_0.a");
+        assert_eq!(parse_scene_ground_truth_key(&gt), Some(("track-1", "veh_0.a")));
+        assert_eq!(parse_edge_key(&gt), None, "the truth is no ingest stream");
+        assert_eq!(scene_ground_truth_all(None), "risktwin/v1/*/scene/gt/*");
     }
 
     #[test]

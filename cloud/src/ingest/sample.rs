@@ -2,7 +2,7 @@
 
 use risktwin_common::align::{Interpolate, lerp_angle};
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
-use risktwin_common::telemetry::{DetectedObject, Phase};
+use risktwin_common::telemetry::{DetectedObject, Phase, VehicleStateSample};
 use std::sync::Arc;
 
 /// A vehicle's kinematics as observed on its `state` stream (and interpolated between its
@@ -15,6 +15,35 @@ pub struct ObservedKinematics {
     pub speed_mps: f64,
     pub accel_mps2: f64,
     pub footprint: Footprint,
+}
+
+impl From<&VehicleStateSample> for ObservedKinematics {
+    fn from(s: &VehicleStateSample) -> Self {
+        ObservedKinematics {
+            pose: s.pose,
+            velocity: s.velocity,
+            speed_mps: s.speed_mps,
+            accel_mps2: s.accel_mps2,
+            footprint: s.footprint,
+        }
+    }
+}
+
+impl Interpolate for ObservedKinematics {
+    /// Linear, heading the short way round; the later sample's footprint.
+    fn lerp(x: &Self, y: &Self, t: f64) -> Self {
+        ObservedKinematics {
+            pose: Pose::new(
+                lerp(x.pose.x_m, y.pose.x_m, t),
+                lerp(x.pose.y_m, y.pose.y_m, t),
+                lerp_angle(x.pose.heading_rad, y.pose.heading_rad, t),
+            ),
+            velocity: x.velocity + (y.velocity - x.velocity) * t,
+            speed_mps: lerp(x.speed_mps, y.speed_mps, t),
+            accel_mps2: lerp(x.accel_mps2, y.accel_mps2, t),
+            footprint: y.footprint,
+        }
+    }
 }
 
 /// One aligned value.
@@ -34,7 +63,7 @@ pub enum TwinSample {
     },
 }
 
-fn lerp(a: f64, b: f64, t: f64) -> f64 {
+pub(crate) fn lerp(a: f64, b: f64, t: f64) -> f64 {
     a + (b - a) * t
 }
 
@@ -43,17 +72,7 @@ impl Interpolate for TwinSample {
     /// interpolated — the nearer sample is kept should the aligner ask.
     fn lerp(a: &Self, b: &Self, t: f64) -> Self {
         match (a, b) {
-            (TwinSample::State(x), TwinSample::State(y)) => TwinSample::State(ObservedKinematics {
-                pose: Pose::new(
-                    lerp(x.pose.x_m, y.pose.x_m, t),
-                    lerp(x.pose.y_m, y.pose.y_m, t),
-                    lerp_angle(x.pose.heading_rad, y.pose.heading_rad, t),
-                ),
-                velocity: x.velocity + (y.velocity - x.velocity) * t,
-                speed_mps: lerp(x.speed_mps, y.speed_mps, t),
-                accel_mps2: lerp(x.accel_mps2, y.accel_mps2, t),
-                footprint: y.footprint,
-            }),
+            (TwinSample::State(x), TwinSample::State(y)) => TwinSample::State(Interpolate::lerp(x, y, t)),
             _ => {
                 if t < 0.5 {
                     a.clone()

@@ -186,13 +186,7 @@ impl<W: Write + Seek> IngestWorker<W> {
         Ok(match stream {
             EdgeStream::State => {
                 let s: VehicleStateSample = decoded(payload)?;
-                let k = ObservedKinematics {
-                    pose: s.pose,
-                    velocity: s.velocity,
-                    speed_mps: s.speed_mps,
-                    accel_mps2: s.accel_mps2,
-                    footprint: s.footprint,
-                };
+                let k = ObservedKinematics::from(&s);
                 (s.header, TwinSample::State(k))
             }
             EdgeStream::Can => {

@@ -299,7 +299,7 @@ pub async fn run(
     if let Some(subscriber) = map_subscriber {
         subscriber.undeclare().await.map_err(|e| undeclare_error("scene-map subscriber", e))?;
     }
-    if let Some(subscriber) = truth_subscriber {
+    for subscriber in truth_subscriber.into_iter().flatten() {
         subscriber.undeclare().await.map_err(|e| undeclare_error("ground-truth subscriber", e))?;
     }
     if let Some(subscriber) = crit_subscriber {

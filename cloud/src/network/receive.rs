@@ -10,12 +10,13 @@
 
 use crate::ingest::{IngestStats, IngestWorker, SnapshotDigest};
 use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
+use crate::twin::risk::{RiskAssessor, RiskConfig};
 use risktwin_common::align::{DropReason, IngestConfig};
-use risktwin_common::telemetry::RiskReport;
+use risktwin_common::telemetry::{ObjectList, RiskReport, VehicleStateSample};
 use risktwin_protos::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE, risk_grid, vehicle_boxes};
 use risktwin_protos::recording::{Recorder, RecordingError};
 use risktwin_protos::{WireMessage, encode};
-use risktwin_transport::keyexpr::{CloudOutput, cloud_output, parse_edge_key};
+use risktwin_transport::keyexpr::{CloudOutput, SceneTopic, cloud_output, parse_edge_key, scene_topic};
 use risktwin_transport::{EdgeStream, SiteId};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
@@ -27,6 +28,15 @@ use thiserror::Error;
 use tokio::sync::mpsc::UnboundedSender;
 
 const STREAMS: usize = EdgeStream::ALL.len();
+
+/// One message of a scene's ground truth.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GroundTruth {
+    /// A connected vehicle's true state (`scene/gt/<source>`).
+    Vehicle { source: String, sample: VehicleStateSample },
+    /// Every other object's true state (`scene/objects`).
+    Objects(ObjectList),
+}
 
 /// Where a recording goes: buffered, since the recorder writes many small records.
 pub type RecordingFile = BufWriter<File>;
@@ -143,19 +153,35 @@ impl LiveIngest {
         self.worker.reject(reason);
     }
 
-    /// A scene's true position of `source` at `site` (the twin's fidelity is measured on it).
-    pub fn observe_truth(&mut self, site: &str, source: &str, time_ns: i64, position: risktwin_common::geometry::Vec2) {
-        if let Some(outputs) = self.outputs.as_mut() {
-            outputs.observe_truth(site, source, time_ns, position);
+    /// A message of a scene's ground truth, received on `key`: recorded there (its own
+    /// topics, beside the twin's) and measured against by the twin.
+    pub fn observe_truth(&mut self, key: &str, site: &str, truth: GroundTruth) -> Result<(), RecordingError> {
+        let log_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64);
+        if let Some(rec) = self.worker.recorder_mut() {
+            match &truth {
+                GroundTruth::Vehicle { sample, .. } => rec.record(key, log_ns, sample)?,
+                GroundTruth::Objects(list) => rec.record(key, log_ns, list)?,
+            }
         }
+        if let Some(outputs) = self.outputs.as_mut() {
+            match truth {
+                GroundTruth::Vehicle { source, sample } => outputs.observe_truth_vehicle(site, &source, &sample),
+                GroundTruth::Objects(list) => outputs.observe_truth_objects(site, list),
+            }
+        }
+        Ok(())
     }
 
-    /// `site`'s scene published its road map: the risk role assesses that site on it.
-    pub fn set_site_road(&mut self, site: &str, road: risktwin_common::road::Road) {
-        if let Some(outputs) = self.outputs.as_mut()
-            && let Err(e) = outputs.set_site_road(site, road)
-        {
-            tracing::warn!("risk: site {site}'s road map is unusable ({e}); it keeps the default road");
+    /// How the risk role evaluates; `None` without it.
+    pub fn risk_config(&self) -> Option<RiskConfig> {
+        self.outputs.as_ref().and_then(TwinOutputs::risk_config)
+    }
+
+    /// `site`'s scene published its road map: the risk role assesses that site with
+    /// `assessor` (built on it) from now on.
+    pub fn set_site_risk(&mut self, site: &str, assessor: RiskAssessor) {
+        if let Some(outputs) = self.outputs.as_mut() {
+            outputs.set_site_risk(site, assessor);
         }
     }
 
@@ -269,6 +295,10 @@ fn emit<W: Write + Seek>(
             // A closed channel means shutdown: nothing left to publish to.
             let _ = tx.send(Publication { key: scene_key, payload: prost::Message::encode_to_vec(&update) });
         }
+    }
+    for truth in tick.truth_scenes {
+        let (Some(rec), Ok(site)) = (recorder.as_deref_mut(), SiteId::new(&truth.site)) else { continue };
+        rec.record_scene(&scene_topic(Some(&site), SceneTopic::TruthBoxes), log_ns, &truth.boxes)?;
     }
     for (site, a) in tick.assessments {
         let (Some(field_key), Some(report_key)) =

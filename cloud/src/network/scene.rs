@@ -2,15 +2,17 @@
 //! - its road map on `risktwin/v1/<site>/scene/map`, every second: the first one, and any that
 //!   differs from the last, moves that site's risk assessment onto it (sites without a scene
 //!   keep `--road`);
-//! - each connected vehicle's true state on `risktwin/v1/<site>/scene/gt/<source>`, every
-//!   physics step: the twin's fidelity is measured against it.
+//! - its ground truth, every physics step: each connected vehicle's state on
+//!   `risktwin/v1/<site>/scene/gt/<source>` and every other object on `…/scene/objects`. The
+//!   twin's fidelity is measured against it, and a recording keeps it on those topics.
 //!
 //! A message that does not decode is counted in the summary's drops by reason.
 
-use super::receive::LiveIngest;
-use risktwin_common::telemetry::{RoadMap, VehicleStateSample};
+use super::receive::{GroundTruth, LiveIngest};
+use crate::twin::risk::RiskAssessor;
+use risktwin_common::telemetry::{ObjectList, RoadMap, VehicleStateSample};
 use risktwin_protos::decode;
-use risktwin_transport::keyexpr::{self, parse_scene_ground_truth_key, parse_scene_map_key};
+use risktwin_transport::keyexpr::{self, SceneTopic, parse_scene_ground_truth_key, parse_scene_topic_key, scene_topic};
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
 use risktwin_transport::{SiteId, TransportError};
@@ -23,13 +25,13 @@ pub(crate) async fn subscribe_maps(
     site: Option<&SiteId>,
     ingest: Arc<Mutex<LiveIngest>>,
 ) -> Result<Subscriber<()>, TransportError> {
-    let key = keyexpr::scene_maps(site);
+    let key = scene_topic(site, SceneTopic::Map);
     // The last map bytes per site: a republished map is the same bytes, and costs nothing.
     let last: Mutex<HashMap<String, Vec<u8>>> = Mutex::new(HashMap::new());
     session
         .declare_subscriber(key.clone())
         .callback(move |sample| {
-            let Some(site) = parse_scene_map_key(sample.key_expr().as_str()) else { return };
+            let Some(site) = parse_scene_topic_key(sample.key_expr().as_str(), SceneTopic::Map) else { return };
             let payload = sample.payload().to_bytes();
             let mut last = last.lock().unwrap_or_else(PoisonError::into_inner);
             if last.get(site).is_some_and(|bytes| bytes[..] == payload[..]) {
@@ -38,7 +40,20 @@ pub(crate) async fn subscribe_maps(
             match decode::<RoadMap>(&payload) {
                 Ok(map) => {
                     last.insert(site.to_owned(), payload.into_owned());
-                    ingest.lock().unwrap_or_else(PoisonError::into_inner).set_site_road(site, map.road);
+                    let Some(config) = ingest.lock().unwrap_or_else(PoisonError::into_inner).risk_config() else {
+                        return;
+                    };
+                    // Rasterising a road takes ~0.1 s: never on a callback that delivers
+                    // samples (they would wait, and their receive times with them).
+                    let (ingest, site) = (Arc::clone(&ingest), site.to_owned());
+                    std::thread::spawn(move || match RiskAssessor::new(map.road, config) {
+                        Ok(assessor) => {
+                            ingest.lock().unwrap_or_else(PoisonError::into_inner).set_site_risk(&site, assessor)
+                        }
+                        Err(e) => {
+                            tracing::warn!("risk: site {site}'s road map is unusable ({e}); it keeps the default road")
+                        }
+                    });
                 }
                 Err(e) => {
                     tracing::warn!("risk: dropped site {site}'s scene map: {e}");
@@ -50,27 +65,65 @@ pub(crate) async fn subscribe_maps(
         .map_err(|e| TransportError::Declare { what: "scene-map subscriber", key, reason: e.to_string() })
 }
 
-/// Subscribes to the ground truth of every connected vehicle of `site`'s scene (every site if
-/// `None`), feeding it to `ingest`'s twin.
+/// Subscribes to the ground truth of `site`'s scene (every site if `None`): the connected
+/// vehicles' states and the other objects, fed to `ingest`. Returns both subscribers.
 pub(crate) async fn subscribe_ground_truth(
     session: &Session,
     site: Option<&SiteId>,
     ingest: Arc<Mutex<LiveIngest>>,
-) -> Result<Subscriber<()>, TransportError> {
-    let key = keyexpr::scene_ground_truth_all(site);
-    session
-        .declare_subscriber(key.clone())
+) -> Result<[Subscriber<()>; 2], TransportError> {
+    let vehicles_key = keyexpr::scene_ground_truth_all(site);
+    let objects_key = scene_topic(site, SceneTopic::Objects);
+    let declare_err = |key: &String| {
+        let key = key.clone();
+        move |e: Box<dyn std::error::Error + Send + Sync>| TransportError::Declare {
+            what: "ground-truth subscriber",
+            key,
+            reason: e.to_string(),
+        }
+    };
+    let sink = Arc::clone(&ingest);
+    let vehicles = session
+        .declare_subscriber(vehicles_key.clone())
         .callback(move |sample| {
-            let Some((site, source)) = parse_scene_ground_truth_key(sample.key_expr().as_str()) else { return };
-            let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
-            match decode::<VehicleStateSample>(&sample.payload().to_bytes()) {
-                Ok(s) => ingest.observe_truth(site, source, s.header.capture_time_ns, s.pose.position()),
-                Err(e) => {
-                    tracing::warn!("twin: dropped a ground-truth sample of {site}/{source}: {e}");
-                    ingest.reject(e.drop_reason());
-                }
-            }
+            let key = sample.key_expr().as_str();
+            let Some((site, source)) = parse_scene_ground_truth_key(key) else { return };
+            let truth = decode::<VehicleStateSample>(&sample.payload().to_bytes())
+                .map(|sample| GroundTruth::Vehicle { source: source.to_owned(), sample });
+            hand_over(&sink, key, site, truth);
         })
         .await
-        .map_err(|e| TransportError::Declare { what: "ground-truth subscriber", key, reason: e.to_string() })
+        .map_err(declare_err(&vehicles_key))?;
+    let objects = session
+        .declare_subscriber(objects_key.clone())
+        .callback(move |sample| {
+            let key = sample.key_expr().as_str();
+            let Some(site) = parse_scene_topic_key(key, SceneTopic::Objects) else { return };
+            let truth = decode::<ObjectList>(&sample.payload().to_bytes()).map(GroundTruth::Objects);
+            hand_over(&ingest, key, site, truth);
+        })
+        .await
+        .map_err(declare_err(&objects_key))?;
+    Ok([vehicles, objects])
+}
+
+/// Hands a decoded truth message to the ingest; one that did not decode is counted by reason.
+fn hand_over(
+    ingest: &Mutex<LiveIngest>,
+    key: &str,
+    site: &str,
+    truth: Result<GroundTruth, risktwin_protos::DecodeError>,
+) {
+    let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
+    match truth {
+        Ok(truth) => {
+            if let Err(e) = ingest.observe_truth(key, site, truth) {
+                tracing::warn!("twin: recording the ground truth of {site} failed: {e}");
+            }
+        }
+        Err(e) => {
+            tracing::warn!("twin: dropped a ground-truth message on {key}: {e}");
+            ingest.reject(e.drop_reason());
+        }
+    }
 }

@@ -5,13 +5,10 @@
 //! The cloud's network side ([`crate::network`]) only keys, records and publishes what
 //! [`TwinOutputs::after_tick`] returns.
 
-use super::Twin;
-use super::fidelity::{Fidelity, PositionError};
-use super::risk::{RiskAssessment, RiskAssessor};
-use risktwin_common::geometry::Vec2;
-use risktwin_common::risk::FieldError;
-use risktwin_common::road::Road;
-use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
+use super::fidelity::{Fidelity, SeriesPoint, VehicleFidelity};
+use super::risk::{RiskAssessment, RiskAssessor, RiskConfig};
+use super::{SiteTwin, Twin};
+use risktwin_common::telemetry::{Frame, Header, ObjectList, VehicleStateSample};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 
@@ -31,9 +28,12 @@ pub struct TwinSummary {
     /// Sites whose risk runs on the road map their scene published (lanes of the map), instead
     /// of the default road.
     pub site_roads: BTreeMap<String, usize>,
-    /// Per `site/source` of a scene: the twin's position error against the ground truth.
+    /// Per `site/source` of a scene: the twin against the ground truth (`twin::fidelity`).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub fidelity: BTreeMap<String, PositionError>,
+    pub fidelity: BTreeMap<String, VehicleFidelity>,
+    /// The fidelity series per `site/source`, for a report's plot (not in the JSON summary).
+    #[serde(skip)]
+    pub fidelity_series: BTreeMap<String, Vec<SeriesPoint>>,
 }
 
 /// The vehicles of one site at a tick, as boxes for a scene.
@@ -50,6 +50,9 @@ pub struct TickOutputs<'a> {
     /// The twin's tick, ns.
     pub tick_ns: i64,
     pub scenes: &'a [SiteScene],
+    /// The ground truth at the tick of every site with a scene, its objects included (recorded
+    /// beside the twin's scene).
+    pub truth_scenes: &'a [SiteScene],
     /// `(site, assessment)`, in site order.
     pub assessments: &'a [(String, RiskAssessment)],
 }
@@ -64,6 +67,7 @@ pub struct TwinOutputs {
     last_risk_tick: HashMap<String, i64>,
     summary: TwinSummary,
     scenes: Vec<SiteScene>,
+    truth_scenes: Vec<SiteScene>,
     assessments: Vec<(String, RiskAssessment)>,
 }
 
@@ -78,6 +82,7 @@ impl TwinOutputs {
             last_risk_tick: HashMap::new(),
             summary: TwinSummary::default(),
             scenes: Vec::new(),
+            truth_scenes: Vec::new(),
             assessments: Vec::new(),
         }
     }
@@ -95,23 +100,32 @@ impl TwinOutputs {
         let mut s = self.summary.clone();
         s.ticks = self.twin.ticks();
         s.fidelity = self.fidelity.summary();
+        s.fidelity_series = self.fidelity.series();
         s
     }
 
-    /// A scene's true position of `source` at `site` at `time_ns` (its authority's clock).
-    pub fn observe_truth(&mut self, site: &str, source: &str, time_ns: i64, position: Vec2) {
-        self.fidelity.observe_truth(site, source, time_ns, position);
+    /// A scene's true state of connected vehicle `source` at `site` (its authority's clock).
+    pub fn observe_truth_vehicle(&mut self, site: &str, source: &str, sample: &VehicleStateSample) {
+        self.fidelity.observe_vehicle(site, source, sample);
     }
 
-    /// Assesses `site`'s risk on `road` from now on (the road map its scene published).
-    /// Without the risk role there is nothing to do.
-    pub fn set_site_road(&mut self, site: &str, road: Road) -> Result<(), FieldError> {
-        let Some(default) = self.risk.as_ref() else { return Ok(()) };
-        let lanes = road.lanes.len();
-        self.site_risk.insert(site.to_owned(), RiskAssessor::new(road, *default.config())?);
+    /// A scene's true state of every other object at `site`.
+    pub fn observe_truth_objects(&mut self, site: &str, list: ObjectList) {
+        self.fidelity.observe_objects(site, list);
+    }
+
+    /// How the risk role evaluates; `None` without it.
+    pub fn risk_config(&self) -> Option<RiskConfig> {
+        self.risk.as_ref().map(|r| *r.config())
+    }
+
+    /// Assesses `site`'s risk with `assessor` from now on (built on the road map its scene
+    /// published, with [`Self::risk_config`]).
+    pub fn set_site_risk(&mut self, site: &str, assessor: RiskAssessor) {
+        let lanes = assessor.road().lanes.len();
+        self.site_risk.insert(site.to_owned(), assessor);
         self.summary.site_roads.insert(site.to_owned(), lanes);
         tracing::info!("risk: site {site} on its scene's road map ({lanes} lanes)");
-        Ok(())
     }
 
     /// After one or more snapshots were applied: the scene of every site that `publishable`
@@ -120,30 +134,19 @@ impl TwinOutputs {
     pub fn after_tick(&mut self, publishable: impl Fn(&str) -> bool) -> Option<TickOutputs<'_>> {
         let tick_ns = self.twin.tick_ns()?;
         self.scenes.clear();
+        self.truth_scenes.clear();
         self.assessments.clear();
         for (site, twin) in self.twin.sites() {
             self.summary.vehicles.insert(site.to_owned(), twin.vehicles.len());
-            self.fidelity.compare(site, tick_ns, twin);
+            let assessor = self.site_risk.get_mut(site).or(self.risk.as_mut());
+            let truth = self.fidelity.compare(site, tick_ns, twin, assessor);
             if !publishable(site) {
                 continue;
             }
-            let boxes = twin.vehicles.iter().map(|v| VehicleStateSample {
-                header: Header {
-                    source: v.source.to_string(),
-                    seq: 0,
-                    capture_time_ns: tick_ns,
-                    publish_time_ns: tick_ns,
-                    frame: Frame::World,
-                },
-                pose: v.kinematics.pose,
-                velocity: v.kinematics.velocity,
-                speed_mps: v.kinematics.speed_mps,
-                accel_mps2: v.kinematics.accel_mps2,
-                yaw_rate_radps: 0.0,
-                steer_rad: 0.0,
-                footprint: v.kinematics.footprint,
-            });
-            self.scenes.push(SiteScene { site: site.to_owned(), boxes: boxes.collect() });
+            if let Some(truth) = truth {
+                self.truth_scenes.push(SiteScene { site: site.to_owned(), boxes: boxes(tick_ns, truth, true) });
+            }
+            self.scenes.push(SiteScene { site: site.to_owned(), boxes: boxes(tick_ns, twin, false) });
             self.summary.scenes += 1;
 
             let Some(risk) = self.site_risk.get_mut(site).or(self.risk.as_mut()) else { continue };
@@ -161,6 +164,46 @@ impl TwinOutputs {
                 }
             }
         }
-        Some(TickOutputs { tick_ns, scenes: &self.scenes, assessments: &self.assessments })
+        Some(TickOutputs {
+            tick_ns,
+            scenes: &self.scenes,
+            truth_scenes: &self.truth_scenes,
+            assessments: &self.assessments,
+        })
     }
+}
+
+/// The vehicles of `twin` (and its objects when `with_objects`) as boxes stamped `tick_ns`.
+fn boxes(tick_ns: i64, twin: &SiteTwin, with_objects: bool) -> Vec<VehicleStateSample> {
+    let header = |source: &str| Header {
+        source: source.to_owned(),
+        seq: 0,
+        capture_time_ns: tick_ns,
+        publish_time_ns: tick_ns,
+        frame: Frame::World,
+    };
+    let vehicles = twin.vehicles.iter().map(|v| VehicleStateSample {
+        header: header(&v.source),
+        pose: v.kinematics.pose,
+        velocity: v.kinematics.velocity,
+        speed_mps: v.kinematics.speed_mps,
+        accel_mps2: v.kinematics.accel_mps2,
+        yaw_rate_radps: 0.0,
+        steer_rad: 0.0,
+        footprint: v.kinematics.footprint,
+    });
+    let objects = twin.objects.iter().filter(|_| with_objects).map(|o| {
+        let object = &o.object;
+        VehicleStateSample {
+            header: header(&format!("#{}", object.id)),
+            pose: object.pose,
+            velocity: object.velocity,
+            speed_mps: object.velocity.norm(),
+            accel_mps2: object.accel_mps2,
+            yaw_rate_radps: 0.0,
+            steer_rad: 0.0,
+            footprint: object.footprint,
+        }
+    });
+    vehicles.chain(objects).collect()
 }

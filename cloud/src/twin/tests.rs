@@ -85,3 +85,38 @@ fn risk_of_an_ego_closing_in_on_a_slower_car() {
     assert!((back.report.min_distance_m - 7.5).abs() < 0.05);
     assert!(assessor.assess(site, 2, tick).is_none());
 }
+
+#[test]
+fn a_held_state_is_moved_on_to_the_tick() {
+    // 20 Hz states received 2 ms after capture, 10 ms before each tick's successor would
+    // bracket it in time: the next sample comes 40 ms after the tick, beyond the 30 ms of
+    // lateness, so every tick holds the sample from 10 ms before it.
+    let mut worker: IngestWorker<Cursor<Vec<u8>>> = IngestWorker::new(IngestConfig::default(), None);
+    let mut twin = Twin::new();
+    let mut held = 0;
+    for seq in 0..40u64 {
+        let capture_ns = 1_038_000_000 + seq as i64 * 50_000_000;
+        let sample = state("veh-a", seq, capture_ns);
+        let mut snapshots = Vec::new();
+        let topic = "risktwin/v1/site/veh-a/state";
+        worker
+            .handle("veh-a", EdgeStream::State, topic, &encode(&sample), capture_ns + 2_000_000, |s| {
+                snapshots.push(s.clone())
+            })
+            .expect("no recorder");
+        if let Some(name) = worker.source_name(0) {
+            twin.name_source(0, name, "site");
+        }
+        for s in &snapshots {
+            let aligned = s.get(SourceIndex(0), aligner_index(EdgeStream::State)).expect("the source");
+            held += usize::from(aligned.status == ValueStatus::AsOf);
+            twin.update(s);
+            let Some(v) = twin.site("site").and_then(|site| site.vehicles.first()) else { continue };
+            // The tick maps back to capture time tick − 2 ms (the minimum delay), where the
+            // vehicle was at 20 m/s · t.
+            let expected_m = 20.0 * (s.tick_ns - 2_000_000) as f64 * 1e-9;
+            assert!((v.kinematics.pose.x_m - expected_m).abs() < 1e-6, "{} vs {expected_m}", v.kinematics.pose.x_m);
+        }
+    }
+    assert!(held > 20, "the ticks held their state ({held})");
+}

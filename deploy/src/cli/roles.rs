@@ -126,6 +126,10 @@ pub struct CloudArgs {
     /// shutdown: FILE.csv or FILE.json, as `risktwin criticality` prints them.
     #[arg(long)]
     pub criticality_out: Option<PathBuf>,
+    /// Write the twin's fidelity against a scene's ground truth here on shutdown: fidelity.md
+    /// (table) and fidelity.png (plot); needs the twin role (the risk columns the risk role).
+    #[arg(long, value_name = "DIR")]
+    pub fidelity_report: Option<PathBuf>,
     /// The ego obstacle of the criticality role (default: the first dynamic obstacle).
     #[arg(long, requires = "criticality_out")]
     pub ego: Option<u64>,

@@ -15,6 +15,7 @@ use risktwin_cloud::network::criticality::{CriticalityConfig, CriticalityRoleErr
 use risktwin_cloud::network::{CloudConfig, CloudError, Role, run};
 use risktwin_common::align::IngestConfig;
 use risktwin_common::scenario::ScenarioKind;
+use risktwin_pipeline::fidelity::write_fidelity_report;
 use risktwin_transport::SiteId;
 
 pub fn cloud(args: CloudArgs) -> CliResult {
@@ -27,6 +28,9 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     config.replay_time = args.replay_time;
     config.db = args.db;
     config.criticality = args.criticality_out.map(|out| CriticalityConfig { out, ego: args.ego });
+    if args.fidelity_report.is_some() && !config.roles.contains(&Role::Twin) {
+        return Err(CliError::input("--fidelity-report needs the twin role (--roles ingest,twin[,risk])"));
+    }
     let road_kind: ScenarioKind = args.road.parse().map_err(CliError::input)?;
     config.road = risktwin_cloud::twin::scenario_road(road_kind);
     let summary = with_signals(|shutdown| async move {
@@ -37,6 +41,9 @@ pub fn cloud(args: CloudArgs) -> CliResult {
             other => CliError::input(other),
         })
     })?;
+    if let (Some(dir), Some(twin)) = (&args.fidelity_report, &summary.twin) {
+        write_fidelity_report(dir, twin).map_err(CliError::runtime)?;
+    }
     print_json(&summary)
 }
 

@@ -15,11 +15,11 @@ use super::streams::{Streams, StreamsSent};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
 use risktwin_common::scenario::build;
-use risktwin_common::telemetry::{Frame, Header, RoadMap};
+use risktwin_common::telemetry::{DetectedObject, Frame, Header, ObjectList, RoadMap};
 use risktwin_common::vehicle::Controls;
 use risktwin_protos::encode;
 use risktwin_transport::keyexpr::{
-    SCENE_CHUNK, scene_ground_truth, scene_map, scene_replies, scene_reply, scene_truth,
+    SCENE_CHUNK, SceneTopic, scene_ground_truth, scene_replies, scene_reply, scene_topic, scene_truth,
 };
 use risktwin_transport::zenoh::handlers::FifoChannelHandler;
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
@@ -86,6 +86,8 @@ pub struct ZenohAuthority {
     map: (Publisher<'static>, Vec<u8>),
     /// Each connected vehicle's role and ground-truth publisher (`scene/gt/<id>`).
     ground_truth: Vec<(String, Role, Publisher<'static>)>,
+    /// Every other object's true state (`scene/objects`).
+    objects: Publisher<'static>,
     /// Wall time at the scene's t = 0 by the authority's clock, ns since the Unix epoch: the
     /// ground truth's stamps, on the same clock as the participants' streams.
     epoch_ns: Option<i64>,
@@ -126,16 +128,15 @@ impl ZenohAuthority {
     /// names who.
     pub fn open(session: &Session, site: &SiteId, setup: &SceneSetup, timeouts: Timeouts) -> Result<Self, SceneError> {
         let (inbox, truth) = open_plane(session, scene_replies(site), scene_truth(site))?;
-        let map_key = scene_map(site);
-        let map_publisher = session.declare_publisher(map_key.clone()).wait().map_err(transport(&map_key))?;
+        let declare = |key: String| session.declare_publisher(key.clone()).wait().map_err(transport(&key));
+        let map_publisher = declare(scene_topic(Some(site), SceneTopic::Map))?;
+        let objects = declare(scene_topic(Some(site), SceneTopic::Objects))?;
         let map = scene_road_map(&build(&setup.spec));
         let participants = setup.participants();
         let mut ground_truth = Vec::new();
         for id in participants.iter().filter(|id| !id.starts_with("rsu")) {
             let source = SourceId::new(id.clone()).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
-            let key = scene_ground_truth(site, &source);
-            let publisher = session.declare_publisher(key.clone()).wait().map_err(transport(&key))?;
-            ground_truth.push((id.clone(), setup.role_of(id)?, publisher));
+            ground_truth.push((id.clone(), setup.role_of(id)?, declare(scene_ground_truth(site, &source))?));
         }
         let mut plane = ZenohAuthority {
             answered: vec![false; participants.len()],
@@ -144,6 +145,7 @@ impl ZenohAuthority {
             truth,
             map: (map_publisher, encode(&map)),
             ground_truth,
+            objects,
             epoch_ns: None,
             timeouts,
             bytes: Vec::new(),
@@ -231,6 +233,15 @@ impl ZenohAuthority {
                 publisher.put(encode(&state)).wait().map_err(transport("ground truth"))?;
             }
         }
+        let header = Header {
+            source: SCENE_CHUNK.into(),
+            seq: truth.step,
+            capture_time_ns: time_ns,
+            publish_time_ns: time_ns,
+            frame: Frame::World,
+        };
+        let list = ObjectList { header, objects: truth.objects.iter().map(DetectedObject::from).collect() };
+        self.objects.put(encode(&list)).wait().map_err(transport("ground-truth objects"))?;
         Ok(())
     }
 }

@@ -12,7 +12,7 @@ use risktwin_common::episode::with_reference_driver;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::rng::Rng;
 use risktwin_common::sensor::{PerceivedObject, SceneObject, Sensor, SensorParams};
-use risktwin_common::telemetry::{Header, VehicleStateSample};
+use risktwin_common::telemetry::{DetectedObject, Header, VehicleStateSample};
 use risktwin_common::vehicle::Controls;
 use risktwin_common::world::{EGO_OBJECT_ID, World};
 
@@ -146,17 +146,16 @@ pub fn vehicle_state(truth: &Truth, role: Role, header: Header) -> Option<Vehicl
             })
         }
         Role::Agent { traffic_index } => {
-            let o = truth.objects.iter().find(|o| o.id == traffic_index as u32)?;
-            let (axis, velocity) = (Vec2::new(o.axis[0], o.axis[1]), Vec2::new(o.velocity[0], o.velocity[1]));
+            let o = DetectedObject::from(truth.objects.iter().find(|o| o.id == traffic_index as u32)?);
             Some(VehicleStateSample {
                 header,
-                pose: Pose::new(o.centre[0], o.centre[1], axis.y.atan2(axis.x)),
-                velocity,
-                speed_mps: velocity.dot(&axis),
+                pose: o.pose,
+                velocity: o.velocity,
+                speed_mps: o.velocity.dot(&o.pose.forward()),
                 accel_mps2: o.accel_mps2,
                 yaw_rate_radps: 0.0,
                 steer_rad: 0.0,
-                footprint: Footprint::new(2.0 * o.half_length_m, 2.0 * o.half_width_m),
+                footprint: o.footprint,
             })
         }
         Role::Rsu { .. } => None,

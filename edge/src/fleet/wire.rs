@@ -8,6 +8,7 @@
 
 use risktwin_common::geometry::{Footprint, Obb, Pose, Vec2};
 use risktwin_common::sensor::{ObjectKind, SceneObject};
+use risktwin_common::telemetry::DetectedObject;
 use risktwin_common::vehicle::Controls;
 use risktwin_common::world::World;
 use serde::{Deserialize, Serialize};
@@ -176,6 +177,21 @@ impl TruthObject {
             half_width_m: o.obb.half_width_m,
             velocity: [o.velocity.x, o.velocity.y],
             accel_mps2,
+        }
+    }
+}
+
+impl From<&TruthObject> for DetectedObject {
+    /// The object as the ground-truth object list carries it: exact, with its truth id.
+    fn from(o: &TruthObject) -> Self {
+        let axis = Vec2::new(o.axis[0], o.axis[1]);
+        DetectedObject {
+            id: o.id,
+            kind: o.kind,
+            pose: Pose::new(o.centre[0], o.centre[1], axis.y.atan2(axis.x)),
+            footprint: Footprint::new(2.0 * o.half_length_m, 2.0 * o.half_width_m),
+            velocity: Vec2::new(o.velocity[0], o.velocity[1]),
+            accel_mps2: o.accel_mps2,
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Perceived objects, RSU observations and traffic-light phases.
 
 use super::geometry::{footprint_from, footprint_to, header, pose_from, pose_to, vec_from, vec_to};
-use super::{ConvertError, enum_value, non_negative, unspecified};
+use super::{ConvertError, enum_value, finite, non_negative, unspecified};
 use crate::v1;
 use risktwin_common::sensor::ObjectKind;
 use risktwin_common::telemetry::{DetectedObject, ObjectList, Phase, RsuObservation, SignalPhase};
@@ -24,6 +24,7 @@ impl From<&DetectedObject> for v1::DetectedObject {
             pose: Some(pose_to(&o.pose)),
             footprint: Some(footprint_to(&o.footprint)),
             velocity_mps: Some(vec_to(&o.velocity)),
+            accel_mps2: o.accel_mps2,
         }
     }
 }
@@ -44,6 +45,7 @@ impl TryFrom<v1::DetectedObject> for DetectedObject {
             pose: pose_from(M, "pose", o.pose)?,
             footprint: footprint_from(M, "footprint", o.footprint)?,
             velocity: vec_from(M, "velocity_mps", o.velocity_mps)?,
+            accel_mps2: finite(M, "accel_mps2", o.accel_mps2)?,
         })
     }
 }

@@ -41,6 +41,7 @@ fn object(id: u32, kind: ObjectKind) -> DetectedObject {
         pose: Pose::new(12.5, 3.75, 0.01),
         footprint: Footprint::new(0.6, 0.6),
         velocity: Vec2::new(0.0, 1.4),
+        accel_mps2: -0.5,
     }
 }
 

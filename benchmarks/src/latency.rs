@@ -223,7 +223,7 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     let subscriber = subscribe_edge_streams(&sub_side, Some(&site), move |_, sample| {
         let payload = sample.payload().to_bytes();
         let mut ingest = ingest_cb.lock().unwrap_or_else(PoisonError::into_inner);
-        if ingest.handle(sample.key_expr().as_str(), &payload, None).is_err() {
+        if ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, None).is_err() {
             return;
         }
         let now = Instant::now();

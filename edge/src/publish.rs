@@ -13,7 +13,7 @@ use risktwin_transport::zenoh::pubsub::Publisher;
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::{
     EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, TransportError, close, connect,
-    declare_alive,
+    declare_alive, protobuf,
 };
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -115,8 +115,8 @@ pub trait Producer {
     fn pushes(&self) -> &[CloudToEdge] {
         &[]
     }
-    /// One push received (called before a tick, never concurrently with one).
-    fn on_push(&mut self, _push: CloudToEdge, _payload: &[u8]) {}
+    /// One push received, tagged `encoding` (called before a tick, never concurrently with one).
+    fn on_push(&mut self, _push: CloudToEdge, _encoding: &str, _payload: &[u8]) {}
     /// Moves the reports due into `out` (called after each tick).
     fn reports(&mut self, _out: &mut Vec<(EdgeReport, Vec<u8>)>) {}
 }
@@ -130,6 +130,7 @@ async fn report_publisher(
     let key = edge_report(&config.site, &config.id, report);
     session
         .declare_publisher(key.clone())
+        .encoding(protobuf(report.message()))
         .congestion_control(CongestionControl::Block)
         .await
         .map_err(|e| TransportError::Declare { what: "publisher", key, reason: e.to_string() })
@@ -219,7 +220,7 @@ pub async fn run_producer(
         };
         for (push, subscriber) in &push_subscribers {
             while let Ok(Some(sample)) = subscriber.try_recv() {
-                producer.on_push(*push, &sample.payload().to_bytes());
+                producer.on_push(*push, &sample.encoding().to_string(), &sample.payload().to_bytes());
             }
         }
         out.clear();

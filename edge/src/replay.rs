@@ -5,7 +5,7 @@
 
 use crate::error::EdgeError;
 use risktwin_protos::recording::{MessageCursor, RecordingError, encode_replay_time};
-use risktwin_transport::keyexpr::{parse_edge_key, parse_edge_map_key};
+use risktwin_transport::keyexpr::{EDGE_MAP_MESSAGE, parse_edge_key, parse_edge_map_key};
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect};
 use serde::Serialize;
@@ -64,7 +64,7 @@ pub async fn run<R: Read>(
             publishers.resize_with(slot + 1, || None);
         }
         if publishers[slot].is_none() {
-            publishers[slot] = Some(declare(&session, m.topic).await?);
+            publishers[slot] = Some(declare(&session, m.topic, m.schema_name).await?);
         }
         let Some(Some(publisher)) = &publishers[slot] else {
             summary.skipped += 1;
@@ -101,16 +101,23 @@ pub async fn run<R: Read>(
 }
 
 /// The publisher of `topic`'s key, or `None` when the topic is neither an edge stream nor a road
-/// map of the scheme.
-async fn declare(session: &Session, topic: &str) -> Result<Option<StreamPublisher>, EdgeError> {
+/// map of the scheme. A channel whose schema is not the message its key carries (a recording of
+/// another schema version) is refused by name: its messages would be tagged as what they are not.
+async fn declare(session: &Session, topic: &str, schema: &str) -> Result<Option<StreamPublisher>, EdgeError> {
     let bad = |e: risktwin_transport::KeyError| EdgeError::Recording { reason: format!("{topic}: {e}") };
+    let check = |message: &str| {
+        let reason = format!("channel {topic} has schema {schema}, its key carries {message}");
+        if schema == message { Ok(()) } else { Err(EdgeError::Recording { reason }) }
+    };
     if let Some((site, source)) = parse_edge_map_key(topic) {
+        check(EDGE_MAP_MESSAGE)?;
         let (site, source) = (SiteId::new(site).map_err(bad)?, SourceId::new(source).map_err(bad)?);
         return Ok(Some(StreamPublisher::declare_map(session, &site, &source).await?));
     }
     let Some(key) = parse_edge_key(topic) else {
         return Ok(None);
     };
+    check(key.stream.message())?;
     let site = SiteId::new(key.site).map_err(bad)?;
     let source = SourceId::new(key.source).map_err(bad)?;
     Ok(Some(StreamPublisher::declare(session, &site, &source, key.stream).await?))

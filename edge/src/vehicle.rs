@@ -157,10 +157,10 @@ impl Producer for Vehicle {
         &PUSHES
     }
 
-    fn on_push(&mut self, push: CloudToEdge, payload: &[u8]) {
+    fn on_push(&mut self, push: CloudToEdge, encoding: &str, payload: &[u8]) {
         match push {
             CloudToEdge::Scenario => {
-                if let Some(p) = self.pushes.scenario(payload) {
+                if let Some(p) = self.pushes.scenario(encoding, payload) {
                     tracing::info!("edge: running pushed scenario {}", p.spec_id);
                     // A push while another one plays replaces it (its result is not reported).
                     let tape = Tape::record(&p.spec, self.policy.as_ref());
@@ -168,7 +168,7 @@ impl Producer for Vehicle {
                 }
             }
             CloudToEdge::Policy => {
-                if let Some(policy) = self.pushes.policy(payload) {
+                if let Some(policy) = self.pushes.policy(encoding, payload) {
                     let kind = policy.net.kind().algo();
                     tracing::info!(
                         "edge: driving with policy {} version {} ({kind})",

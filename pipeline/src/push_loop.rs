@@ -144,8 +144,8 @@ impl Producer for Watched {
         Producer::pushes(&self.vehicle)
     }
 
-    fn on_push(&mut self, push: CloudToEdge, payload: &[u8]) {
-        self.vehicle.on_push(push, payload);
+    fn on_push(&mut self, push: CloudToEdge, encoding: &str, payload: &[u8]) {
+        self.vehicle.on_push(push, encoding, payload);
         self.seen.send_replace(self.vehicle.pushes().clone());
     }
 

@@ -27,4 +27,7 @@ pub mod foxglove {
 /// protobuf channel: a reader finds the channel's message by its full name in the set.
 pub const FILE_DESCRIPTOR_SET: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/file_descriptor_set.bin"));
 
-pub use convert::{ConvertError, DecodeError, WireMessage, decode, encode, encode_into};
+pub use convert::{
+    ConvertError, DecodeError, PROTOBUF_MEDIA_TYPE, WireMessage, check_encoding, decode, decode_tagged, encode,
+    encode_into, encoding_of,
+};

@@ -1,7 +1,7 @@
 //! The cloud side of the loop as separate processes around a real router: the twin and risk
 //! roles publish and record their outputs; a scenario and a policy pushed to a vehicle; the
 //! library queryable answering a real Zenoh get. The test's own Zenoh session (a peer connected
-//! to the router) subscribes, publishes bad pushes and queries.
+//! to the router) subscribes, publishes bad pushes (garbage, untagged) and queries.
 
 use crate::support::{Proc, cut_in_library, run_json, start_router};
 use prost::Message;
@@ -163,9 +163,13 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
             assert!(Instant::now() < deadline, "the vehicle never subscribed to its scenario key");
             tokio::time::sleep(Duration::from_millis(20)).await;
         }
+        let tag = "application/protobuf;risktwin.v1.ScenarioPush";
+        publisher.put(vec![0xff_u8, 0x01, 0x02]).encoding(tag).await.expect("put");
+        // Untagged (or another schema version): refused by name before it is read.
         publisher.put(vec![0xff_u8, 0x01, 0x02]).await.expect("put");
     });
     vehicle.wait_line(STEP, |l| l.starts_with("edge: refused scenario push: malformed"));
+    vehicle.wait_line(STEP, |l| l.starts_with("edge: refused scenario push: wrong-schema"));
 
     let pushed = run_json(&[
         "push",
@@ -229,7 +233,7 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
     router.terminate();
     let pushes = &summary["pushes"];
     assert_eq!(pushes["scenarios_accepted"], 1, "{summary}");
-    assert_eq!(pushes["scenarios_refused"], serde_json::json!({"malformed": 1}));
+    assert_eq!(pushes["scenarios_refused"], serde_json::json!({"malformed": 1, "wrong-schema": 1}));
     assert_eq!(pushes["results"][0]["spec_id"], id.as_str());
     assert_eq!(
         pushes["policy"],
@@ -255,7 +259,11 @@ fn the_library_queryable_answers_a_zenoh_get() {
             let mut out = Vec::new();
             while let Ok(reply) = replies.recv_async().await {
                 out.push(match reply.result() {
-                    Ok(sample) => Ok(sample.payload().to_bytes().to_vec()),
+                    Ok(sample) => {
+                        let encoding = sample.encoding().to_string();
+                        assert_eq!(encoding, "application/protobuf;risktwin.v1.LibraryRanking", "the reply's tag");
+                        Ok(sample.payload().to_bytes().to_vec())
+                    }
                     Err(err) => Err(String::from_utf8_lossy(&err.payload().to_bytes()).into_owned()),
                 });
             }

@@ -11,19 +11,25 @@ pool = descriptor_pool.DescriptorPool()
 for fd in descriptor_pb2.FileDescriptorSet.FromString(data).file:
     pool.AddSerializedFile(fd.SerializeToString())
 types = {"state": "VehicleState", "can": "CanFrame", "perception": "ObjectList"}
-classes = {k: message_factory.GetMessageClass(pool.FindMessageTypeByName("risktwin.v1." + t)) for k, t in types.items()}
+classes = {"risktwin.v1." + t: message_factory.GetMessageClass(pool.FindMessageTypeByName("risktwin.v1." + t)) for t in types.values()}
 
 conf = zenoh.Config()
 conf.insert_json5("mode", '"client"')
 conf.insert_json5("connect/endpoints", json.dumps([locator]))
 conf.insert_json5("scouting/multicast/enabled", "false")
 session = zenoh.open(conf)
-counts, bad, lock, done = {}, [], threading.Lock(), threading.Event()
+counts, bad, wrong_tag, lock, done = {}, [], [], threading.Lock(), threading.Event()
 
 def on_sample(sample):
     key = str(sample.key_expr)
     stream = key.rsplit("/", 1)[-1]
-    msg = classes[stream].FromString(sample.payload.to_bytes())
+    # The type is read from the sample's encoding tag, as any outside client would.
+    media, _, schema = str(sample.encoding).partition(";")
+    if media != "application/protobuf" or schema != "risktwin.v1." + types[stream]:
+        with lock:
+            wrong_tag.append(str(sample.encoding))
+        return
+    msg = classes[schema].FromString(sample.payload.to_bytes())
     with lock:
         counts[stream] = counts.get(stream, 0) + 1
         if msg.header.source != key.split("/")[3]:
@@ -34,6 +40,6 @@ def on_sample(sample):
 sub = session.declare_subscriber("risktwin/v1/*/*/*", on_sample)
 print("ready", file=sys.stderr, flush=True)
 done.wait(30)
-print(json.dumps({"counts": counts, "source_mismatch": len(bad)}), flush=True)
+print(json.dumps({"counts": counts, "source_mismatch": len(bad), "wrong_tag": wrong_tag[:5]}), flush=True)
 sub.undeclare()
 session.close()

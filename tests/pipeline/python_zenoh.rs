@@ -40,4 +40,5 @@ fn a_python_zenoh_subscriber_decodes_our_stream() {
         assert_eq!(got["counts"][stream], sent["sent"][stream], "{stream}: python saw {got}, edge sent {sent}");
     }
     assert_eq!(got["source_mismatch"], 0);
+    assert_eq!(got["wrong_tag"], serde_json::json!([]), "every sample tagged application/protobuf;<its message>");
 }

@@ -135,6 +135,18 @@ impl EdgeStream {
         }
     }
 
+    /// The full name of the protobuf message the stream carries (package `risktwin.v1`, which
+    /// is the schema version); every sample is tagged with it (see [`crate::stream`]).
+    pub const fn message(self) -> &'static str {
+        match self {
+            EdgeStream::State => "risktwin.v1.VehicleState",
+            EdgeStream::Can => "risktwin.v1.CanFrame",
+            EdgeStream::Perception => "risktwin.v1.ObjectList",
+            EdgeStream::Rsu => "risktwin.v1.RsuObservation",
+            EdgeStream::Signal => "risktwin.v1.SignalPhase",
+        }
+    }
+
     /// Position in [`EdgeStream::ALL`], for per-stream counters held in arrays.
     pub const fn index(self) -> usize {
         self as usize
@@ -164,6 +176,15 @@ impl CloudToEdge {
             CloudToEdge::Scenario => "scenario",
             CloudToEdge::Policy => "policy",
             CloudToEdge::Control => "control",
+        }
+    }
+
+    /// The full name of the protobuf message the push carries (its samples' schema tag).
+    pub const fn message(self) -> &'static str {
+        match self {
+            CloudToEdge::Scenario => "risktwin.v1.ScenarioPush",
+            CloudToEdge::Policy => "risktwin.v1.PolicyUpdate",
+            CloudToEdge::Control => "risktwin.v1.ControlCommand",
         }
     }
 }
@@ -208,6 +229,13 @@ impl EdgeReport {
             EdgeReport::ScenarioResult => "scenario_result",
         }
     }
+
+    /// The full name of the protobuf message the report carries (its samples' schema tag).
+    pub const fn message(self) -> &'static str {
+        match self {
+            EdgeReport::ScenarioResult => "risktwin.v1.ScenarioResult",
+        }
+    }
 }
 
 /// `risktwin/v1/<site>/<source>/<stream>`: where `source` publishes `stream`.
@@ -238,6 +266,9 @@ pub fn cloud_output(site: &SiteId, output: CloudOutput) -> String {
 
 /// The last chunk of an edge's road-map key.
 pub const MAP_CHUNK: &str = "map";
+
+/// The message an edge's road map carries (see [`edge_map`]).
+pub const EDGE_MAP_MESSAGE: &str = "risktwin.v1.RoadMap";
 
 /// `risktwin/v1/<site>/<source>/map`: the road map `source` drives on (a `RoadMap`, sent once;
 /// an imported CommonRoad recording carries its lanelet map here).

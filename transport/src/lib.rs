@@ -2,8 +2,9 @@
 //! scheme, sessions built from a typed config, typed publishers and subscribers on the scheme,
 //! liveliness, and the shutdown signal every role obeys.
 //!
-//! Boundary: this crate moves opaque payload bytes on typed keys. It knows nothing of what a
-//! vehicle or the twin is; message encoding belongs to `risktwin-protos`. The edge and cloud
+//! Boundary: this crate moves opaque payload bytes on typed keys, each tagged with the name of
+//! the message its key carries (`stream::protobuf`). It knows nothing of what a vehicle or the
+//! twin is; message encoding belongs to `risktwin-protos`. The edge and cloud
 //! crates depend on it; `common` never does (it stays free of async and network code).
 
 pub mod keyexpr;
@@ -16,7 +17,7 @@ pub use keyexpr::{EdgeStream, KeyError, SiteId, SourceId};
 pub use session::{Mode, TransportConfig, TransportError, close, connect, listening_locators};
 pub use shutdown::{Shutdown, ShutdownTrigger};
 pub use stream::{
-    Liveness, StreamPublisher, declare_alive, declare_edge_keys, subscribe_edge_streams, watch_liveliness,
+    Liveness, StreamPublisher, declare_alive, declare_edge_keys, protobuf, subscribe_edge_streams, watch_liveliness,
 };
 /// Re-exported so that roles name zenoh types without their own dependency line.
 pub use zenoh;

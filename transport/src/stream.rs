@@ -1,4 +1,13 @@
-//! Typed publishing and subscribing on the key scheme: the payload stays opaque bytes here.
+//! Typed publishing and subscribing on the key scheme: the payload stays opaque bytes here,
+//! tagged with the encoding of the message its key carries.
+//!
+//! **Schema tags.** Every protobuf sample of RiskTwin carries the Zenoh encoding
+//! `application/protobuf;<full message name>` ([`protobuf`]), e.g.
+//! `application/protobuf;risktwin.v1.VehicleState`; the package is the schema version. A
+//! receiver reads a payload only under the tag of the type it expects
+//! (`risktwin_protos::decode_tagged`, or an encoding compared with [`protobuf`]'s), and counts
+//! anything else as `wrong-schema`: a process of another schema version, or a publisher that
+//! does not say what it sends, is refused by name and never misread.
 
 use crate::keyexpr::{self, EdgeStream, SiteId, SourceId};
 use crate::session::TransportError;
@@ -6,11 +15,16 @@ use crate::shutdown::Shutdown;
 use std::time::Duration;
 use tokio::sync::watch;
 use zenoh::Session;
-use zenoh::bytes::ZBytes;
+use zenoh::bytes::{Encoding, ZBytes};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::CongestionControl;
 use zenoh::sample::{Locality, Sample, SampleKind};
+
+/// The encoding that tags a protobuf payload of message `name` (its full name).
+pub fn protobuf(name: &str) -> Encoding {
+    Encoding::APPLICATION_PROTOBUF.with_schema(name)
+}
 
 /// A publisher bound to one edge→cloud stream of one source, or to its road map.
 ///
@@ -30,16 +44,21 @@ impl StreamPublisher {
         source: &SourceId,
         stream: EdgeStream,
     ) -> Result<Self, TransportError> {
-        Self::declare_key(session, keyexpr::edge_stream(site, source, stream), Some(stream)).await
+        Self::declare_key(session, keyexpr::edge_stream(site, source, stream), Some(stream), stream.message()).await
     }
 
     /// Declares the publisher of the road map of `source` at `site` (`…/<source>/map`), with the
     /// same delivery guarantees as the streams.
     pub async fn declare_map(session: &Session, site: &SiteId, source: &SourceId) -> Result<Self, TransportError> {
-        Self::declare_key(session, keyexpr::edge_map(site, source), None).await
+        Self::declare_key(session, keyexpr::edge_map(site, source), None, keyexpr::EDGE_MAP_MESSAGE).await
     }
 
-    async fn declare_key(session: &Session, key: String, stream: Option<EdgeStream>) -> Result<Self, TransportError> {
+    async fn declare_key(
+        session: &Session,
+        key: String,
+        stream: Option<EdgeStream>,
+        message: &'static str,
+    ) -> Result<Self, TransportError> {
         // A declared key expression travels as a small numeric id, and both ends keep its
         // routes cached; otherwise every sample is matched against the (wildcard) subscriptions
         // again, which measured at a third of raw Zenoh's throughput.
@@ -50,6 +69,7 @@ impl StreamPublisher {
         })?;
         let publisher = session
             .declare_publisher(declared)
+            .encoding(protobuf(message))
             .congestion_control(CongestionControl::Block)
             .await
             .map_err(|e| TransportError::Declare { what: "publisher", key, reason: e.to_string() })?;

@@ -29,7 +29,8 @@ async fn streams_arrive_on_their_subscriber_and_liveliness_tracks_the_edge() {
 
     let (sample_tx, mut samples) = mpsc::unbounded_channel();
     let _subs = subscribe_edge_streams(&cloud, Some(&site), move |stream, sample| {
-        let _ = sample_tx.send((stream, sample.key_expr().to_string(), sample.payload().to_bytes().into_owned()));
+        let tagged = (sample.key_expr().to_string(), sample.encoding().to_string());
+        let _ = sample_tx.send((stream, tagged, sample.payload().to_bytes().into_owned()));
     })
     .await
     .unwrap();
@@ -45,9 +46,12 @@ async fn streams_arrive_on_their_subscriber_and_liveliness_tracks_the_edge() {
         let publisher = StreamPublisher::declare(&edge, &site, &source, stream).await.unwrap();
         assert!(publisher.wait_for_subscriber(STEP, shutdown.clone()).await.unwrap());
         publisher.put(vec![i as u8; 3]).await.unwrap();
-        let (got_stream, key, payload) = timeout(STEP, samples.recv()).await.unwrap().unwrap();
+        let (got_stream, (key, encoding), payload) = timeout(STEP, samples.recv()).await.unwrap().unwrap();
         assert_eq!((got_stream, key.as_str(), payload), (stream, publisher.key(), vec![i as u8; 3]));
         assert_eq!(key, format!("risktwin/v1/s1/veh-7/{}", stream.as_str()));
+        // Tagged with the stream's message, as outside clients see it.
+        assert_eq!(encoding, format!("application/protobuf;{}", stream.message()));
+        assert_eq!(encoding, risktwin_transport::protobuf(stream.message()).to_string());
     }
 
     // A stream of another site is not ours.

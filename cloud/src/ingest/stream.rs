@@ -57,6 +57,12 @@ mod tests {
             assert_eq!(aligner_specs()[i].period_ns, period_ns(s));
         }
         assert_eq!(aligner_specs().len(), EdgeStream::ALL.len());
+        // The key scheme's schema tags name the types the ingest decodes.
+        for s in EdgeStream::ALL {
+            assert_eq!(s.message(), proto_name(s));
+            let tag = risktwin_transport::protobuf(s.message()).to_string();
+            assert_eq!(tag, risktwin_protos::encoding_of(proto_name(s)), "what a receiver checks is what is sent");
+        }
         assert_eq!(aligner_specs()[0].mode, StreamMode::Interpolated);
     }
 }

@@ -10,10 +10,11 @@
 
 use crate::criticality::{Pushed, RebuildError, ReportFormat, ScenarioCollector, write_report};
 use risktwin_common::commonroad::criticality::{CriticalityError, scenario_criticality};
+use risktwin_protos::check_encoding;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
 use risktwin_transport::zenoh::sample::Locality;
-use risktwin_transport::{SiteId, TransportError, keyexpr};
+use risktwin_transport::{EdgeStream, SiteId, TransportError, keyexpr};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -82,9 +83,19 @@ pub(crate) struct CriticalityCollect {
 }
 
 impl CriticalityCollect {
-    /// Takes one message received on `key`; a rejected one is counted and dropped.
-    pub(crate) fn handle(&mut self, key: &str, payload: &[u8]) {
+    /// Takes one message received on `key` with `encoding`; a rejected one is counted and
+    /// dropped (a map or state tagged with another schema as `wrong-schema`).
+    pub(crate) fn handle(&mut self, key: &str, encoding: &str, payload: &[u8]) {
         self.last_sample = Some(Instant::now());
+        let message = match (keyexpr::parse_edge_map_key(key), keyexpr::parse_edge_key(key)) {
+            (Some(_), _) => Some(keyexpr::EDGE_MAP_MESSAGE),
+            (None, Some(parsed)) if parsed.stream == EdgeStream::State => Some(parsed.stream.message()),
+            _ => None,
+        };
+        if let Some(Err(e)) = message.map(|m| check_encoding(encoding, m)) {
+            *self.summary.dropped.entry(e.reason().to_owned()).or_default() += 1;
+            return;
+        }
         // The site chunk follows the root; the collector checks the rest of the key.
         let Some(site) = key.strip_prefix(keyexpr::ROOT).and_then(|r| r.strip_prefix('/')?.split('/').next()) else {
             return;
@@ -150,7 +161,9 @@ pub(crate) async fn subscribe(
         .allowed_origin(Locality::Remote)
         .callback(move |sample| {
             let payload = sample.payload().to_bytes();
-            collect.lock().unwrap_or_else(PoisonError::into_inner).handle(sample.key_expr().as_str(), &payload);
+            let encoding = sample.encoding().to_string();
+            let mut collect = collect.lock().unwrap_or_else(PoisonError::into_inner);
+            collect.handle(sample.key_expr().as_str(), &encoding, &payload);
         })
         .await
         .map_err(|e| TransportError::Declare { what: "criticality subscriber", key, reason: e.to_string() })

@@ -14,7 +14,7 @@ use risktwin_protos::v1;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::handlers::FifoChannelHandler;
 use risktwin_transport::zenoh::query::{Query, Queryable};
-use risktwin_transport::{Shutdown, SiteId, TransportError};
+use risktwin_transport::{Shutdown, SiteId, TransportError, protobuf};
 use serde::Serialize;
 use thiserror::Error;
 
@@ -81,6 +81,9 @@ pub struct LibrarySummary {
     pub refused: u64,
 }
 
+/// The full name of the reply's message (its encoding's schema).
+const LIBRARY_RANKING: &str = "risktwin.v1.LibraryRanking";
+
 /// The ranking as its wire message.
 pub fn ranking_message(ranked: &[RankedScenario]) -> Result<v1::LibraryRanking, LibraryQueryError> {
     let mut scenarios = Vec::with_capacity(ranked.len());
@@ -143,7 +146,7 @@ pub(crate) async fn serve(
         let sent = match answer(&library, reply_key.as_str(), &params) {
             Ok(bytes) => {
                 summary.answered += 1;
-                query.reply(reply_key, bytes).await
+                query.reply(reply_key, bytes).encoding(protobuf(LIBRARY_RANKING)).await
             }
             Err(e) => {
                 summary.refused += 1;

@@ -351,7 +351,7 @@ fn ingest_sink(
         let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
         // Drops are counted inside; only a failing recording comes back, and the receive path
         // cannot stop for it: say so and go on counting.
-        if let Err(e) = ingest.handle(sample.key_expr().as_str(), &payload, replay_ns) {
+        if let Err(e) = ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, replay_ns) {
             tracing::error!("cloud: {e}");
         }
     }

@@ -1,12 +1,13 @@
 //! The task that publishes the cloud's outputs (risk field, risk report, scene) on their keys.
 //! Outputs are latest-value data: a slow subscriber makes Zenoh drop them rather than stall
-//! the cloud (`CongestionControl::Drop`).
+//! the cloud (`CongestionControl::Drop`). Each key's publisher tags its samples with the
+//! message it carries (`risktwin_transport::protobuf`).
 
 use super::receive::Publication;
-use risktwin_transport::TransportError;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Publisher;
 use risktwin_transport::zenoh::qos::CongestionControl;
+use risktwin_transport::{TransportError, protobuf};
 use std::collections::HashMap;
 use tokio::sync::mpsc::UnboundedReceiver;
 
@@ -18,14 +19,20 @@ pub(crate) async fn publish_outputs(
 ) -> Result<u64, TransportError> {
     let mut publishers: HashMap<String, Publisher<'static>> = HashMap::new();
     let mut sent = 0;
-    while let Some(Publication { key, payload }) = outputs.recv().await {
+    while let Some(Publication { key, message, payload }) = outputs.recv().await {
         let publisher = match publishers.get(&key) {
             Some(p) => p,
             None => {
-                let declared =
-                    session.declare_publisher(key.clone()).congestion_control(CongestionControl::Drop).await.map_err(
-                        |e| TransportError::Declare { what: "publisher", key: key.clone(), reason: e.to_string() },
-                    )?;
+                let declared = session
+                    .declare_publisher(key.clone())
+                    .encoding(protobuf(message))
+                    .congestion_control(CongestionControl::Drop)
+                    .await
+                    .map_err(|e| TransportError::Declare {
+                        what: "publisher",
+                        key: key.clone(),
+                        reason: e.to_string(),
+                    })?;
                 publishers.entry(key.clone()).or_insert(declared)
             }
         };

@@ -8,7 +8,7 @@ use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{Frame, Header, PolicyRef, PolicyUpdate, ScenarioPush, ScenarioResult};
-use risktwin_protos::{decode, encode};
+use risktwin_protos::{decode_tagged, encode};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report, liveliness_token};
 use risktwin_transport::stream::watch_edge_alive;
 use risktwin_transport::zenoh::Session;
@@ -16,7 +16,7 @@ use risktwin_transport::zenoh::handlers::FifoChannelHandler;
 use risktwin_transport::zenoh::pubsub::Subscriber;
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::zenoh::sample::Sample;
-use risktwin_transport::{Shutdown, SiteId, SourceId, TransportConfig, TransportError, close, connect};
+use risktwin_transport::{Shutdown, SiteId, SourceId, TransportConfig, TransportError, close, connect, protobuf};
 use serde::Serialize;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use thiserror::Error;
@@ -98,6 +98,7 @@ async fn deliver(
     let key = cloud_to_edge(&target.site, &target.edge, push);
     let publisher = session
         .declare_publisher(key.clone())
+        .encoding(protobuf(push.message()))
         .congestion_control(CongestionControl::Block)
         .await
         .map_err(declare_err("publisher", &key))?;
@@ -183,7 +184,7 @@ impl EdgeLink {
         tracing::info!("pushed scenario {spec_id} to {}/{}", target.site, target.edge);
         let wait = async {
             while let Ok(sample) = self.results.recv_async().await {
-                match decode::<ScenarioResult>(&sample.payload().to_bytes()) {
+                match decode_tagged::<ScenarioResult>(&sample.encoding().to_string(), &sample.payload().to_bytes()) {
                     Ok(r) if r.spec_id == spec_id => return Some(r),
                     Ok(r) => tracing::warn!("push: result of another scenario ({}) ignored", r.spec_id),
                     Err(e) => tracing::warn!("push: undecodable result ignored: {e}"),

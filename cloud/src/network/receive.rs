@@ -1,5 +1,6 @@
 //! The ingest role on the live Zenoh receive path. A sample's key is parsed once into its site,
-//! source and [`EdgeStream`]; the [`IngestWorker`] decodes the payload once (decode → validate →
+//! source and [`EdgeStream`], and its encoding must tag the stream's message (else it is counted
+//! `wrong-schema`, see `risktwin_transport::stream`); the [`IngestWorker`] decodes the payload once (decode → validate →
 //! exactly-once → clock mapping → alignment), stamped with the cloud's clock, and records what
 //! it accepted byte for byte. With the twin role on, every snapshot updates the [`TwinOutputs`],
 //! and what a tick produced (scene boxes, risk) is recorded into the worker's recording (the
@@ -17,9 +18,10 @@ use risktwin_protos::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE, r
 use risktwin_protos::recording::{Recorder, RecordingError};
 use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{CloudOutput, SceneTopic, cloud_output, parse_edge_key, scene_topic};
-use risktwin_transport::{EdgeStream, SiteId};
+use risktwin_transport::zenoh::bytes::Encoding;
+use risktwin_transport::{EdgeStream, SiteId, protobuf};
 use serde::Serialize;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fs::File;
 use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
@@ -28,6 +30,9 @@ use thiserror::Error;
 use tokio::sync::mpsc::UnboundedSender;
 
 const STREAMS: usize = EdgeStream::ALL.len();
+
+/// Sources whose wrong-schema samples are logged; beyond, they are only counted.
+const MAX_LOGGED: usize = 100;
 
 /// One message of a scene's ground truth.
 #[derive(Debug, Clone, PartialEq)]
@@ -87,6 +92,8 @@ pub const OUTPUT_SCHEMAS: [(CloudOutput, &str); 3] = [
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Publication {
     pub(crate) key: String,
+    /// The full name of the message (its encoding's schema).
+    pub(crate) message: &'static str,
     pub(crate) payload: Vec<u8>,
 }
 
@@ -105,6 +112,10 @@ pub struct LiveIngest {
     last_sample: Option<Instant>,
     /// Replay-ingest mode: receive times come from the messages' replay-time attachments.
     replay_time: bool,
+    /// The encoding each stream's samples must carry, by [`EdgeStream::index`].
+    encodings: [Encoding; STREAMS],
+    /// Sources whose wrong-schema samples were already logged (once each).
+    wrong_schema_logged: HashSet<String>,
 }
 
 impl LiveIngest {
@@ -139,6 +150,8 @@ impl LiveIngest {
             last_receive_ns: i64::MIN,
             last_sample: None,
             replay_time: false,
+            encodings: EdgeStream::ALL.map(|s| protobuf(s.message())),
+            wrong_schema_logged: HashSet::new(),
         })
     }
 
@@ -195,7 +208,13 @@ impl LiveIngest {
     /// system clock and never goes backwards (the aligner needs non-decreasing receive times).
     /// `replay_ns` is the message's replay-time attachment, used instead of the clock in
     /// replay-time mode (and required there).
-    pub fn handle(&mut self, key: &str, payload: &[u8], replay_ns: Option<i64>) -> Result<(), RecordingError> {
+    pub fn handle(
+        &mut self,
+        key: &str,
+        encoding: &Encoding,
+        payload: &[u8],
+        replay_ns: Option<i64>,
+    ) -> Result<(), RecordingError> {
         let now = Instant::now();
         self.last_sample = Some(now);
         let wall_ns = match (self.replay_time, replay_ns) {
@@ -212,6 +231,17 @@ impl LiveIngest {
             self.worker.reject(DropReason::BadKey);
             return Ok(());
         };
+        if encoding != &self.encodings[parsed.stream.index()] {
+            self.worker.reject(DropReason::WrongSchema);
+            if self.wrong_schema_logged.len() < MAX_LOGGED && self.wrong_schema_logged.insert(parsed.source.to_owned())
+            {
+                let expected = &self.encodings[parsed.stream.index()];
+                tracing::warn!(
+                    "ingest: refused {key}: encoding {encoding}, expected {expected} (counted wrong-schema)"
+                );
+            }
+            return Ok(());
+        }
         let digest = &mut self.digest;
         let mut twin = self.outputs.as_mut().map(TwinOutputs::twin_mut);
         let mut ticked = false;
@@ -293,7 +323,8 @@ fn emit<W: Write + Seek>(
         if let Some(tx) = publish {
             let update = vehicle_boxes(tick.tick_ns, &scene.boxes);
             // A closed channel means shutdown: nothing left to publish to.
-            let _ = tx.send(Publication { key: scene_key, payload: prost::Message::encode_to_vec(&update) });
+            let payload = prost::Message::encode_to_vec(&update);
+            let _ = tx.send(Publication { key: scene_key, message: FOXGLOVE_SCENE_UPDATE, payload });
         }
     }
     for truth in tick.truth_scenes {
@@ -313,8 +344,9 @@ fn emit<W: Write + Seek>(
         }
         if let Some(tx) = publish {
             let grid = prost::Message::encode_to_vec(&risk_grid(&a.field));
-            let _ = tx.send(Publication { key: field_key, payload: grid });
-            let _ = tx.send(Publication { key: report_key, payload: encode(&a.report) });
+            let _ = tx.send(Publication { key: field_key, message: FOXGLOVE_GRID, payload: grid });
+            let report = encode(&a.report);
+            let _ = tx.send(Publication { key: report_key, message: RiskReport::PROTO_NAME, payload: report });
         }
     }
     Ok(())

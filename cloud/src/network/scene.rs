@@ -6,12 +6,13 @@
 //!   `risktwin/v1/<site>/scene/gt/<source>` and every other object on `…/scene/objects`. The
 //!   twin's fidelity is measured against it, and a recording keeps it on those topics.
 //!
-//! A message that does not decode is counted in the summary's drops by reason.
+//! A message that does not decode (or is tagged with another schema) is counted in the
+//! summary's drops by reason.
 
 use super::receive::{GroundTruth, LiveIngest};
 use crate::twin::risk::RiskAssessor;
 use risktwin_common::telemetry::{ObjectList, RoadMap, VehicleStateSample};
-use risktwin_protos::decode;
+use risktwin_protos::decode_tagged;
 use risktwin_transport::keyexpr::{self, SceneTopic, parse_scene_ground_truth_key, parse_scene_topic_key, scene_topic};
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
@@ -37,7 +38,7 @@ pub(crate) async fn subscribe_maps(
             if last.get(site).is_some_and(|bytes| bytes[..] == payload[..]) {
                 return;
             }
-            match decode::<RoadMap>(&payload) {
+            match decode_tagged::<RoadMap>(&sample.encoding().to_string(), &payload) {
                 Ok(map) => {
                     last.insert(site.to_owned(), payload.into_owned());
                     let Some(config) = ingest.lock().unwrap_or_else(PoisonError::into_inner).risk_config() else {
@@ -88,8 +89,9 @@ pub(crate) async fn subscribe_ground_truth(
         .callback(move |sample| {
             let key = sample.key_expr().as_str();
             let Some((site, source)) = parse_scene_ground_truth_key(key) else { return };
-            let truth = decode::<VehicleStateSample>(&sample.payload().to_bytes())
-                .map(|sample| GroundTruth::Vehicle { source: source.to_owned(), sample });
+            let truth =
+                decode_tagged::<VehicleStateSample>(&sample.encoding().to_string(), &sample.payload().to_bytes())
+                    .map(|sample| GroundTruth::Vehicle { source: source.to_owned(), sample });
             hand_over(&sink, key, site, truth);
         })
         .await
@@ -99,7 +101,8 @@ pub(crate) async fn subscribe_ground_truth(
         .callback(move |sample| {
             let key = sample.key_expr().as_str();
             let Some(site) = parse_scene_topic_key(key, SceneTopic::Objects) else { return };
-            let truth = decode::<ObjectList>(&sample.payload().to_bytes()).map(GroundTruth::Objects);
+            let truth = decode_tagged::<ObjectList>(&sample.encoding().to_string(), &sample.payload().to_bytes())
+                .map(GroundTruth::Objects);
             hand_over(&ingest, key, site, truth);
         })
         .await

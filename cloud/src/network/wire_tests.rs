@@ -7,7 +7,7 @@ use risktwin_protos::encode;
 use risktwin_protos::recording::read_messages;
 use risktwin_transport::router::{RouterConfig, run as run_router};
 use risktwin_transport::zenoh::qos::CongestionControl;
-use risktwin_transport::{Mode, TransportConfig, connect, shutdown};
+use risktwin_transport::{Mode, TransportConfig, connect, protobuf, shutdown};
 use std::collections::BTreeMap;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use tokio::sync::oneshot;
@@ -51,7 +51,12 @@ async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
 
     let sender = connect(&client).await.unwrap();
     let key = "risktwin/v1/site/veh-1/state";
-    let publisher = sender.declare_publisher(key).congestion_control(CongestionControl::Block).await.unwrap();
+    let publisher = sender
+        .declare_publisher(key)
+        .encoding(protobuf("risktwin.v1.VehicleState"))
+        .congestion_control(CongestionControl::Block)
+        .await
+        .unwrap();
     let matched = async {
         let listener = publisher.matching_listener().await.unwrap();
         if !publisher.matching_status().await.unwrap().matching() {
@@ -75,6 +80,10 @@ async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
     for payload in wire {
         publisher.put(payload).await.unwrap();
     }
+    // A valid state under another schema version, another type's tag, or no tag: not read.
+    for tag in ["application/protobuf;risktwin.v2.VehicleState", "application/protobuf;risktwin.v1.ObjectList", ""] {
+        publisher.put(record("veh-1", 5)).encoding(tag).await.unwrap();
+    }
     drop(publisher);
     sender.close().await.unwrap();
 
@@ -88,9 +97,10 @@ async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
             ("duplicate".to_owned(), 1),
             ("invalid-field".to_owned(), 1),
             ("source-mismatch".to_owned(), 1),
+            ("wrong-schema".to_owned(), 3),
         ])
     );
-    assert_eq!((summary.ingest.total_received, summary.ingest.total_dropped), (3, 4));
+    assert_eq!((summary.ingest.total_received, summary.ingest.total_dropped), (3, 7));
     assert_eq!(summary.ingest.recorded, 3);
     let bytes = std::fs::read(&recording).unwrap();
     let recorded = read_messages(&bytes).expect("the recording is a complete MCAP file");
@@ -99,4 +109,17 @@ async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
     assert_eq!(summary.ingest.snapshot_digest.len(), 16);
     router_stop.fire();
     timeout(STEP, router).await.unwrap().unwrap().unwrap();
+}
+
+#[test]
+fn every_key_is_tagged_with_the_message_the_code_encodes() {
+    use risktwin_common::telemetry::{ControlCommand, PolicyUpdate, RoadMap, ScenarioPush, ScenarioResult};
+    use risktwin_protos::WireMessage;
+    use risktwin_transport::keyexpr::{CloudToEdge, EDGE_MAP_MESSAGE, EdgeReport};
+    assert_eq!(CloudToEdge::Scenario.message(), ScenarioPush::PROTO_NAME);
+    assert_eq!(CloudToEdge::Policy.message(), PolicyUpdate::PROTO_NAME);
+    assert_eq!(CloudToEdge::Control.message(), ControlCommand::PROTO_NAME);
+    assert_eq!(EdgeReport::ScenarioResult.message(), ScenarioResult::PROTO_NAME);
+    assert_eq!(EDGE_MAP_MESSAGE, RoadMap::PROTO_NAME);
+    assert_eq!(protobuf(RoadMap::PROTO_NAME).to_string(), risktwin_protos::encoding_of(RoadMap::PROTO_NAME));
 }

@@ -1,10 +1,10 @@
 //! Why the ingest turned a message away, with stable codes for counters, logs and the cloud's
 //! JSON summary (all kebab-case; docs/keyexpr.md lists them next to the keys).
 //!
-//! One list for the whole ingest path: the transport side (`bad-key`, `no-replay-time`), the
-//! decoder (`malformed`, `missing-field`, `invalid-field`), the payload check
-//! (`source-mismatch`) and the ingest core itself (the rest; [`crate::align::IngestCore`] only
-//! ever returns those).
+//! One list for the whole ingest path: the transport side (`bad-key`, `no-replay-time`,
+//! `wrong-schema`), the decoder (`malformed`, `missing-field`, `invalid-field`), the payload
+//! check (`source-mismatch`) and the ingest core itself (the rest; [`crate::align::IngestCore`]
+//! only ever returns those).
 
 /// Why a message was not taken into the twin; [`DropReason::code`] is stable across releases.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -33,11 +33,14 @@ pub enum DropReason {
     InvalidField,
     /// The payload's header names another source than its key.
     SourceMismatch,
+    /// The sample's encoding names another schema than the stream's (another message type or
+    /// schema version), or none: it is not read as the stream's type.
+    WrongSchema,
 }
 
 impl DropReason {
     /// Every reason, in code order; `DropCounts` is indexed by position in this list.
-    pub const ALL: [DropReason; 11] = [
+    pub const ALL: [DropReason; 12] = [
         DropReason::Duplicate,
         DropReason::TooOld,
         DropReason::FutureTimestamp,
@@ -49,6 +52,7 @@ impl DropReason {
         DropReason::MissingField,
         DropReason::InvalidField,
         DropReason::SourceMismatch,
+        DropReason::WrongSchema,
     ];
 
     /// The stable, kebab-case code used in counters, logs and reports.
@@ -65,6 +69,7 @@ impl DropReason {
             DropReason::MissingField => "missing-field",
             DropReason::InvalidField => "invalid-field",
             DropReason::SourceMismatch => "source-mismatch",
+            DropReason::WrongSchema => "wrong-schema",
         }
     }
 
@@ -132,7 +137,8 @@ mod tests {
                 "malformed",
                 "missing-field",
                 "invalid-field",
-                "source-mismatch"
+                "source-mismatch",
+                "wrong-schema"
             ]
         );
         for r in DropReason::ALL {

@@ -15,9 +15,9 @@ use super::streams::{Streams, StreamsSent};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
 use risktwin_common::scenario::build;
-use risktwin_common::telemetry::{DetectedObject, Frame, Header, ObjectList, RoadMap};
+use risktwin_common::telemetry::{DetectedObject, Frame, Header, ObjectList, RoadMap, VehicleStateSample};
 use risktwin_common::vehicle::Controls;
-use risktwin_protos::encode;
+use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{
     SCENE_CHUNK, SceneTopic, scene_ground_truth, scene_replies, scene_reply, scene_topic, scene_truth,
 };
@@ -26,7 +26,7 @@ use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
 use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
-use risktwin_transport::{SiteId, SourceId};
+use risktwin_transport::{SiteId, SourceId, protobuf};
 use serde::Serialize;
 use std::time::{Duration, Instant};
 
@@ -128,15 +128,18 @@ impl ZenohAuthority {
     /// names who.
     pub fn open(session: &Session, site: &SiteId, setup: &SceneSetup, timeouts: Timeouts) -> Result<Self, SceneError> {
         let (inbox, truth) = open_plane(session, scene_replies(site), scene_truth(site))?;
-        let declare = |key: String| session.declare_publisher(key.clone()).wait().map_err(transport(&key));
-        let map_publisher = declare(scene_topic(Some(site), SceneTopic::Map))?;
-        let objects = declare(scene_topic(Some(site), SceneTopic::Objects))?;
+        let declare = |key: String, message: &str| {
+            session.declare_publisher(key.clone()).encoding(protobuf(message)).wait().map_err(transport(&key))
+        };
+        let map_publisher = declare(scene_topic(Some(site), SceneTopic::Map), RoadMap::PROTO_NAME)?;
+        let objects = declare(scene_topic(Some(site), SceneTopic::Objects), ObjectList::PROTO_NAME)?;
         let map = scene_road_map(&build(&setup.spec));
         let participants = setup.participants();
         let mut ground_truth = Vec::new();
         for id in participants.iter().filter(|id| !id.starts_with("rsu")) {
             let source = SourceId::new(id.clone()).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
-            ground_truth.push((id.clone(), setup.role_of(id)?, declare(scene_ground_truth(site, &source))?));
+            let publisher = declare(scene_ground_truth(site, &source), VehicleStateSample::PROTO_NAME)?;
+            ground_truth.push((id.clone(), setup.role_of(id)?, publisher));
         }
         let mut plane = ZenohAuthority {
             answered: vec![false; participants.len()],

@@ -17,7 +17,7 @@ use risktwin_transport::zenoh::liveliness::LivelinessToken;
 use risktwin_transport::zenoh::pubsub::Publisher;
 use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
 use risktwin_transport::zenoh::{Session, bytes::ZBytes};
-use risktwin_transport::{EdgeStream, SiteId, SourceId};
+use risktwin_transport::{EdgeStream, SiteId, SourceId, protobuf};
 use serde::Serialize;
 use std::time::{SystemTime, UNIX_EPOCH};
 
@@ -57,6 +57,7 @@ impl Streams {
             let key = edge_stream(site, source, stream);
             session
                 .declare_publisher(key.clone())
+                .encoding(protobuf(stream.message()))
                 .congestion_control(CongestionControl::Block)
                 .reliability(Reliability::Reliable)
                 .wait()

@@ -10,7 +10,7 @@ use crate::scene::ActivePolicy;
 use risktwin_common::net::HostPolicy;
 use risktwin_common::scenario::check_feasible;
 use risktwin_common::telemetry::{PolicyRef, PolicyUpdate, ScenarioPush};
-use risktwin_protos::decode;
+use risktwin_protos::decode_tagged;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -65,9 +65,10 @@ impl PushSummary {
         *map.entry(reason.to_owned()).or_default() += 1;
     }
 
-    /// A valid, feasible scenario push, or `None` (counted and logged).
-    pub fn scenario(&mut self, payload: &[u8]) -> Option<ScenarioPush> {
-        let push = match decode::<ScenarioPush>(payload) {
+    /// A valid, feasible scenario push (`payload` tagged `encoding`), or `None` (counted and
+    /// logged).
+    pub fn scenario(&mut self, encoding: &str, payload: &[u8]) -> Option<ScenarioPush> {
+        let push = match decode_tagged::<ScenarioPush>(encoding, payload) {
             Ok(p) => p,
             Err(e) => {
                 Self::refuse(&mut self.scenarios_refused, "scenario push", e.reason(), &e.to_string());
@@ -82,10 +83,10 @@ impl PushSummary {
         Some(push)
     }
 
-    /// Validates a policy update and loads its weights; the policy to drive with when valid
-    /// and newer than the one held.
-    pub fn policy(&mut self, payload: &[u8]) -> Option<ActivePolicy> {
-        let update = match decode::<PolicyUpdate>(payload) {
+    /// Validates a policy update (`payload` tagged `encoding`) and loads its weights; the policy
+    /// to drive with when valid and newer than the one held.
+    pub fn policy(&mut self, encoding: &str, payload: &[u8]) -> Option<ActivePolicy> {
+        let update = match decode_tagged::<PolicyUpdate>(encoding, payload) {
             Ok(u) => u,
             Err(e) => {
                 Self::refuse(&mut self.policies_refused, "policy update", e.reason(), &e.to_string());
@@ -139,7 +140,10 @@ mod tests {
     use risktwin_common::net::PolicyKind;
     use risktwin_common::scenario::ScenarioKind;
     use risktwin_common::telemetry::{Frame, Header};
-    use risktwin_protos::encode;
+    use risktwin_protos::{encode, encoding_of};
+
+    const SCENARIO: &str = "application/protobuf;risktwin.v1.ScenarioPush";
+    const POLICY: &str = "application/protobuf;risktwin.v1.PolicyUpdate";
 
     fn header() -> Header {
         Header { source: "cloud".into(), seq: 0, capture_time_ns: 1, publish_time_ns: 1, frame: Frame::World }
@@ -156,34 +160,38 @@ mod tests {
     #[test]
     fn scenario_pushes_are_refused_by_reason() {
         let mut log = PushSummary::default();
-        assert!(log.scenario(b"\xff\xff garbage").is_none());
+        assert!(log.scenario(SCENARIO, b"\xff\xff garbage").is_none());
         let spec = crate::scene::feasible_spec(1, ScenarioKind::CutIn).expect("feasible");
         let good = ScenarioPush { header: header(), spec_id: "abc".into(), spec };
-        assert_eq!(log.scenario(&encode(&good)).map(|p| p.spec_id), Some("abc".into()));
+        assert_eq!(log.scenario(SCENARIO, &encode(&good)).map(|p| p.spec_id), Some("abc".into()));
+        // The same bytes under another schema version, or untagged: never read.
+        assert!(log.scenario(&encoding_of("risktwin.v2.ScenarioPush"), &encode(&good)).is_none());
+        assert!(log.scenario("zenoh/bytes", &encode(&good)).is_none());
         let mut no_id = encode(&good);
         no_id.clear();
-        assert!(log.scenario(&no_id).is_none(), "an empty message has no header");
+        assert!(log.scenario(SCENARIO, &no_id).is_none(), "an empty message has no header");
         assert_eq!(log.scenarios_accepted, 1);
-        assert_eq!(log.scenarios_refused.values().sum::<u64>(), 2, "{:?}", log.scenarios_refused);
+        let reasons: Vec<(&str, u64)> = log.scenarios_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        assert_eq!(reasons, [("malformed", 1), ("missing-field", 1), ("wrong-schema", 2)]);
     }
 
     #[test]
     fn policies_must_be_known_loadable_and_newer() {
         let mut log = PushSummary::default();
-        let first = log.policy(&policy(1, "ppo", weights())).expect("accepted");
+        let first = log.policy(POLICY, &policy(1, "ppo", weights())).expect("accepted");
         assert_eq!(first.id, PolicyRef { policy_id: "p".into(), version: 1 });
-        assert!(log.policy(&policy(1, "ppo", weights())).is_none(), "same version again");
-        assert!(log.policy(&policy(0, "ppo", weights())).is_none(), "older");
-        assert!(log.policy(&policy(2, "dqn", weights())).is_none());
-        assert!(log.policy(&policy(2, "sac", vec![9; 12])).is_none(), "not safetensors");
-        assert!(log.policy(&policy(2, "sac", weights())).is_none(), "a ppo file pushed as sac");
+        assert!(log.policy(POLICY, &policy(1, "ppo", weights())).is_none(), "same version again");
+        assert!(log.policy(POLICY, &policy(0, "ppo", weights())).is_none(), "older");
+        assert!(log.policy(POLICY, &policy(2, "dqn", weights())).is_none());
+        assert!(log.policy(POLICY, &policy(2, "sac", vec![9; 12])).is_none(), "not safetensors");
+        assert!(log.policy(POLICY, &policy(2, "sac", weights())).is_none(), "a ppo file pushed as sac");
         // A file whose observation width is not this build's: refused, never a panic.
         let mut wide = weights();
         let key = format!(r#""obs_dim":"{OBS_DIM}""#).into_bytes();
         let at = wide.windows(key.len()).position(|w| w == key).expect("the metadata holds obs_dim");
         // Same length, another width: the last digit changed.
         wide[at + key.len() - 2] ^= 1;
-        assert!(log.policy(&policy(2, "ppo", wide)).is_none(), "wrong observation width");
+        assert!(log.policy(POLICY, &policy(2, "ppo", wide)).is_none(), "wrong observation width");
         // Trained at another decision rate: refused; from before the field: taken as 20 Hz.
         let rate = br#""decision_rate_hz":"20""#;
         // The metadata's order varies between files: each is searched.
@@ -194,14 +202,15 @@ mod tests {
         let mut fast = weights();
         let end = rate_at(&fast);
         fast[end - 3] = b'5';
-        assert!(log.policy(&policy(2, "ppo", fast)).is_none(), "a 50 Hz policy");
+        assert!(log.policy(POLICY, &policy(2, "ppo", fast)).is_none(), "a 50 Hz policy");
         let mut older = weights();
         let end = rate_at(&older);
         older[end - 8..end - 6].copy_from_slice(b"xx");
-        assert!(log.policy(&policy(2, "ppo", older)).is_some(), "a file without the rate");
+        assert!(log.policy(POLICY, &policy(2, "ppo", older)).is_some(), "a file without the rate");
         let sac = crate::scene::tests::policy_file(PolicyKind::Squashed, &[0.0; 6]);
-        assert!(log.policy(&policy(3, "sac", sac)).is_some());
+        assert!(log.policy(POLICY, &policy(3, "sac", sac)).is_some());
         assert_eq!(log.policy.as_ref().map(|p| (p.version, p.algo.as_str())), Some((3, "sac")));
+        assert!(log.policy("application/protobuf;risktwin.v1.ScenarioPush", &policy(4, "ppo", weights())).is_none());
         let reasons: Vec<(&str, u64)> = log.policies_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
         assert_eq!(
             reasons,
@@ -210,6 +219,7 @@ mod tests {
                 ("not_safetensors", 1),
                 ("stale_version", 2),
                 ("unknown_algo", 1),
+                ("wrong-schema", 1),
                 ("wrong_decision_rate", 1),
                 ("wrong_dims", 1)
             ]

@@ -40,6 +40,10 @@ pub enum DecodeError {
     Malformed(#[from] prost::DecodeError),
     #[error(transparent)]
     Invalid(#[from] ConvertError),
+    /// The bytes are tagged with another encoding than the type's (another message, another
+    /// schema version, or none): they are not read.
+    #[error("encoding {found}, expected application/protobuf;{expected}")]
+    WrongSchema { found: String, expected: &'static str },
 }
 
 impl DecodeError {
@@ -49,11 +53,12 @@ impl DecodeError {
             DecodeError::Malformed(_) => DropReason::Malformed,
             DecodeError::Invalid(ConvertError::MissingField { .. }) => DropReason::MissingField,
             DecodeError::Invalid(ConvertError::InvalidField { .. }) => DropReason::InvalidField,
+            DecodeError::WrongSchema { .. } => DropReason::WrongSchema,
         }
     }
 
     /// A short, stable label for counting rejections by reason: the [`DropReason`] code
-    /// (`malformed`, `missing-field`, `invalid-field`).
+    /// (`malformed`, `missing-field`, `invalid-field`, `wrong-schema`).
     pub fn reason(&self) -> &'static str {
         self.drop_reason().code()
     }
@@ -88,6 +93,32 @@ pub fn encode_into<T: WireMessage>(msg: &T, buf: &mut Vec<u8>) {
 pub fn decode<T: WireMessage>(bytes: &[u8]) -> Result<T, DecodeError> {
     let proto = T::Proto::decode(bytes)?;
     Ok(T::from_proto(proto)?)
+}
+
+/// The media type of every protobuf payload.
+pub const PROTOBUF_MEDIA_TYPE: &str = "application/protobuf";
+
+/// The encoding that tags a payload of message `name` on the wire (a Zenoh sample's encoding):
+/// `application/protobuf;risktwin.v1.VehicleState`. The package carries the schema version.
+pub fn encoding_of(name: &str) -> String {
+    format!("{PROTOBUF_MEDIA_TYPE};{name}")
+}
+
+/// Decodes bytes tagged with `encoding` (as [`encoding_of`] writes it): refused unless it names
+/// `T`, so a message of another type or schema version, or an untagged one, is never misread.
+pub fn decode_tagged<T: WireMessage>(encoding: &str, bytes: &[u8]) -> Result<T, DecodeError> {
+    check_encoding(encoding, T::PROTO_NAME)?;
+    decode(bytes)
+}
+
+/// `Ok` when `encoding` tags a protobuf message `name`; else the error naming what came.
+pub fn check_encoding(encoding: &str, name: &'static str) -> Result<(), DecodeError> {
+    let tagged = encoding.strip_prefix(PROTOBUF_MEDIA_TYPE).and_then(|rest| rest.strip_prefix(';'));
+    if tagged == Some(name) {
+        Ok(())
+    } else {
+        Err(DecodeError::WrongSchema { found: encoding.to_owned(), expected: name })
+    }
 }
 
 /// Implements [`WireMessage`] from a `From<&Domain> for Proto` and a `TryFrom<Proto> for Domain`.

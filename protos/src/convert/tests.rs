@@ -442,3 +442,25 @@ fn lanelets_travel_with_their_bounds_and_links() {
     rejects(&map, |p| p.lanelets[1].id = 10, bad("RoadMap", "lanelets", "lanelet id 10 appears twice"));
     rejects(&map, |p| p.lanelets[0].left_bound_m[0].y = f64::NAN, bad("Lanelet", "left_bound_m", "NaN is not finite"));
 }
+
+#[test]
+fn a_message_tagged_with_another_schema_is_refused_by_name() {
+    let bytes = encode(&vehicle_state());
+    let own = encoding_of("risktwin.v1.VehicleState");
+    assert_eq!(own, "application/protobuf;risktwin.v1.VehicleState");
+    assert_eq!(decode_tagged::<VehicleStateSample>(&own, &bytes).expect("its own schema"), vehicle_state());
+    // The same bytes under another version, another type, another media type, or untagged:
+    // never read.
+    for tag in [
+        "application/protobuf;risktwin.v2.VehicleState",
+        "application/protobuf;risktwin.v1.ObjectList",
+        "application/json;risktwin.v1.VehicleState",
+        "application/protobuf",
+        "zenoh/bytes",
+    ] {
+        let err = decode_tagged::<VehicleStateSample>(tag, &bytes).expect_err(tag);
+        assert_eq!(err, DecodeError::WrongSchema { found: tag.to_owned(), expected: "risktwin.v1.VehicleState" });
+        assert_eq!(err.reason(), "wrong-schema");
+        assert!(err.to_string().contains(tag), "{err}");
+    }
+}

@@ -28,6 +28,7 @@ use risktwin_common::geometry::Vec2;
 use risktwin_common::telemetry::{ObjectList, VehicleStateSample};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
+use std::fmt::Write;
 use std::sync::Arc;
 use truth::SiteTruth;
 
@@ -168,6 +169,8 @@ pub struct Fidelity {
     vehicles: BTreeMap<String, VehicleAcc>,
     truth_twin: SiteTwin,
     pairs: Pairs,
+    /// Scratch for a vehicle's `site/source` key (no allocation per tick once it is known).
+    key: String,
 }
 
 impl Fidelity {
@@ -198,12 +201,16 @@ impl Fidelity {
         for (ego, v) in twin.vehicles.iter().enumerate() {
             let Some(ego_truth) = self.truth_twin.vehicles.iter().position(|t| t.source == v.source) else { continue };
             let true_position = self.truth_twin.vehicles[ego_truth].kinematics.pose.position();
-            let key = format!("{site}/{}", v.source);
-            let acc = self.vehicles.entry(key).or_insert_with(|| VehicleAcc {
-                position: Distribution::new(0.005),
-                risk: None,
-                series: Vec::new(),
-            });
+            self.key.clear();
+            let _ = write!(self.key, "{site}/{}", v.source);
+            let acc = match self.vehicles.get_mut(&self.key) {
+                Some(acc) => acc,
+                None => self.vehicles.entry(self.key.clone()).or_insert_with(|| VehicleAcc {
+                    position: Distribution::new(0.005),
+                    risk: None,
+                    series: Vec::new(),
+                }),
+            };
             let position_error_m = (v.kinematics.pose.position() - true_position).norm();
             acc.position.add(position_error_m);
             let mut point = SeriesPoint {

@@ -3,29 +3,18 @@
 //! library queryable answering a real Zenoh get. The test's own Zenoh session (a peer connected
 //! to the router) subscribes, publishes bad pushes (garbage, untagged) and queries.
 
-use crate::support::{Proc, cut_in_library, run_json, start_router};
+use crate::support::{Proc, cut_in_library, run_json, runtime, session, start_router};
 use prost::Message;
 use risktwin_common::telemetry::RiskReport;
 use risktwin_protos::foxglove::Grid;
 use risktwin_protos::recording::read_messages;
 use risktwin_protos::{decode, v1};
-use risktwin_transport::zenoh::Session;
-use risktwin_transport::{TransportConfig, connect};
 use serde_json::Value;
 use std::time::{Duration, Instant};
 
 const STEP: Duration = Duration::from_secs(60);
 
 use crate::peer_python;
-
-fn runtime() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().expect("a tokio runtime")
-}
-
-async fn session(router: &str) -> Session {
-    let config = TransportConfig { connect: vec![router.to_owned()], ..TransportConfig::default() };
-    connect(&config).await.expect("the test session joins the router")
-}
 
 /// The JSON of a finished `risktwin …` run that must succeed.
 #[test]

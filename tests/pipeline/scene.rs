@@ -2,7 +2,11 @@
 //! an RSU over a real router, in lockstep. The distributed run must equal the embedded one byte
 //! for byte; bad input and failing participants must be named, never hang.
 
-use crate::support::{Proc, start_router};
+use crate::support::{Proc, runtime, session, start_router};
+use risktwin_common::telemetry::{ObjectList, RsuObservation, VehicleStateSample};
+use risktwin_protos::decode;
+use serde_json::Value;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 const SCENE: [&str; 8] = ["--kind", "cut-in", "--seed", "3", "--connected", "3", "--rsus", "1"];
@@ -105,9 +109,100 @@ fn a_realtime_scene_keeps_the_wall_clock_and_a_cloud_mirrors_it_on_its_road() {
     }
 }
 
+/// What the test's session heard of one scene's ego (`v0`) and RSU (`rsu0`).
+#[derive(Default)]
+struct Heard {
+    states: Vec<VehicleStateSample>,
+    perception: Vec<ObjectList>,
+    rsu: Vec<RsuObservation>,
+}
+
+/// Runs a lockstep cut-in scene of the ego and the cutter (`v1`) and one RSU on its own site
+/// through the router at `locator`, listening to the ego's and the RSU's streams.
+fn cut_in_scene(locator: &str, site: &str, extra: &[&str]) -> (Value, Heard) {
+    const CUT_IN: [&str; 8] = ["--kind", "cut-in", "--seed", "3", "--connected", "2", "--rsus", "1"];
+    let rt = runtime();
+    let heard = Arc::new(Mutex::new(Heard::default()));
+    let test_session = rt.block_on(session(locator));
+    let listen = |stream: &str, keep: fn(&mut Heard, &[u8])| {
+        let heard = Arc::clone(&heard);
+        let key = format!("risktwin/v1/{site}/{stream}");
+        rt.block_on(async {
+            let on_sample = move |sample: risktwin_transport::zenoh::sample::Sample| {
+                keep(&mut heard.lock().expect("not poisoned"), &sample.payload().to_bytes());
+            };
+            test_session.declare_subscriber(key).callback(on_sample).await.expect("a subscriber")
+        })
+    };
+    let _subscribers = [
+        listen("v0/state", |h, b| h.states.push(decode(b).expect("a VehicleState"))),
+        listen("v0/perception", |h, b| h.perception.push(decode(b).expect("an ObjectList"))),
+        listen("rsu0/rsu", |h, b| h.rsu.push(decode(b).expect("an RsuObservation"))),
+    ];
+    let argv = args(&args(&["scene", "run", "--site", site, "--router", locator], &CUT_IN), extra);
+    let outcome = Proc::spawn(site, &argv).exit_json(Duration::from_secs(120));
+    let steps = outcome["steps"].as_u64().expect("steps") as usize;
+    // Reliable streams: every step's state arrives; wait for the tail still in flight.
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while heard.lock().expect("not poisoned").states.len() < steps && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    rt.block_on(async { test_session.close().await }).expect("the test session closes");
+    let heard = std::mem::take(&mut *heard.lock().expect("not poisoned"));
+    assert_eq!(heard.states.len(), steps, "{site}: one ego state per step");
+    (outcome, heard)
+}
+
+/// Where object `id` of each of the ego's object lists lay in the ego's frame (ahead, left), m.
+fn seen_from_the_ego(heard: &Heard, id: u32) -> Vec<(f64, f64)> {
+    let at = |t_ns| heard.states.iter().find(|s| s.header.capture_time_ns == t_ns);
+    let mut seen = Vec::new();
+    for list in &heard.perception {
+        let Some(ego) = at(list.header.capture_time_ns) else { continue };
+        let (sin, cos) = ego.pose.heading_rad.sin_cos();
+        for o in list.objects.iter().filter(|o| o.id == id) {
+            let (dx, dy) = (o.pose.x_m - ego.pose.x_m, o.pose.y_m - ego.pose.y_m);
+            seen.push((dx * cos + dy * sin, -dx * sin + dy * cos));
+        }
+    }
+    seen
+}
+
+#[test]
+fn a_connected_cutter_is_seen_by_the_ego_and_the_rsu_and_changes_the_egos_drive() {
+    const CUTTER: u32 = 0; // truth id: the scenario's first traffic vehicle, participant v1
+    let (_router, locator) = start_router();
+    let (with, heard) = cut_in_scene(&locator, "with", &[]);
+    let (alone, heard_alone) = cut_in_scene(&locator, "alone", &["--without", "v1"]);
+    assert_eq!(with["participants"], serde_json::json!(["v0", "v1", "rsu0"]));
+    assert_eq!(alone["participants"], serde_json::json!(["v0", "rsu0"]));
+
+    // The cut-in in the ego's perception stream: the cutter ahead in the lane to the left, then
+    // in the ego's own lane; and in the RSU's object list.
+    let seen = seen_from_the_ego(&heard, CUTTER);
+    let beside = seen.iter().position(|&(ahead_m, left_m)| ahead_m > 0.0 && left_m > 2.0);
+    let cut_in = seen.iter().rposition(|&(ahead_m, left_m)| ahead_m > 0.0 && left_m.abs() < 1.0);
+    assert!(matches!((beside, cut_in), (Some(b), Some(c)) if b < c), "seen (ahead, left) m: {seen:?}");
+    let rsu_saw = heard.rsu.iter().filter(|l| l.objects.iter().any(|o| o.id == CUTTER)).count();
+    assert!(rsu_saw > 5, "the RSU saw the cutter in {rsu_saw} lists");
+    assert!(seen_from_the_ego(&heard_alone, CUTTER).is_empty(), "taken out, the cutter is never seen");
+
+    // The ego's drive: the same start, then away from the path it drives without the cutter
+    // (its driver reacts: here it changes lane to pass).
+    let apart_m = |k: usize| {
+        let (a, b) = (&heard.states[k].pose, &heard_alone.states[k].pose);
+        (a.x_m - b.x_m).hypot(a.y_m - b.y_m)
+    };
+    assert!(apart_m(0) < 1e-9, "same start");
+    let steps = heard.states.len().min(heard_alone.states.len());
+    let most_apart_m = (0..steps).map(apart_m).fold(0.0, f64::max);
+    assert!(most_apart_m > 2.0, "the ego's path moved {most_apart_m} m at most");
+    assert_ne!(with["truth_digest"], alone["truth_digest"]);
+}
+
 #[test]
 fn bad_scene_input_is_refused_by_name_with_exit_2() {
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 9] = [
         (&["scene", "vehicle", "--participant", "v7"], "participant \"v7\" is not in this scene"),
         (&["scene", "rsu", "--participant", "v0"], "participant v0 is a vehicle"),
         (&["scene", "run", "--clock", "sometimes"], "--clock \"sometimes\""),
@@ -115,6 +210,8 @@ fn bad_scene_input_is_refused_by_name_with_exit_2() {
         (&["scene", "run", "--clock", "realtime", "--speed", "2"], "--speed paces a lockstep scene"),
         (&["scene", "run", "--clock", "realtime", "--embedded"], "--embedded runs in virtual time"),
         (&["scene", "authority", "--participant", "v0"], "--participant"),
+        (&["scene", "run", "--without", "v0"], "--without v0: only a connected traffic vehicle"),
+        (&["scene", "vehicle", "--participant", "v2", "--without", "v2"], "participant v2 is taken out of this scene"),
     ];
     for (head, expected) in cases {
         let argv = args(head, &SCENE);

@@ -104,9 +104,18 @@ impl Proc {
         self.child.kill().expect("the child is killed");
     }
 
-    /// Everything on stderr so far.
+    /// Everything on stderr so far; once the process has exited, to the end (the reader thread
+    /// may still hold the last lines when the exit is seen).
     pub fn drain_stderr(&mut self) -> String {
-        while let Ok(line) = self.stderr_lines.try_recv() {
+        let exited = matches!(self.child.try_wait(), Ok(Some(_)));
+        let deadline = Instant::now() + Duration::from_secs(5);
+        loop {
+            let line = if exited {
+                self.stderr_lines.recv_timeout(deadline.saturating_duration_since(Instant::now())).ok()
+            } else {
+                self.stderr_lines.try_recv().ok()
+            };
+            let Some(line) = line else { break };
             self.stderr_seen.push(line);
         }
         self.stderr_seen.join("\n")
@@ -145,4 +154,15 @@ pub fn cut_in_library(dir: &std::path::Path, count: usize) -> (String, Value) {
     run_json(&["scenarios", "generate", "--kind", "cut-in", "--count", &count, "--db", &db, "--format", "json"]);
     let ranked = run_json(&["scenarios", "rank", "--db", &db, "--kind", "cut-in", "--format", "json"]);
     (db, ranked)
+}
+
+/// A runtime for a test's own Zenoh session.
+pub fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().expect("a tokio runtime")
+}
+
+/// The test's own Zenoh session, a peer connected to the router at `router`.
+pub async fn session(router: &str) -> risktwin_transport::zenoh::Session {
+    let config = risktwin_transport::TransportConfig { connect: vec![router.to_owned()], ..Default::default() };
+    risktwin_transport::connect(&config).await.expect("the test session joins the router")
 }

@@ -257,6 +257,14 @@ impl Traffic {
         self.cur.active[i]
     }
 
+    /// Takes vehicle `i` out of the run (a counterfactual: the same scene without it). Its index
+    /// stays, so every other vehicle keeps its id; the lane lists are rebuilt by the next
+    /// [`Traffic::prepare`] or step.
+    pub fn withdraw(&mut self, i: usize) {
+        self.cur.active[i] = false;
+        self.ready = false;
+    }
+
     /// True for a parked vehicle (a static obstacle).
     pub fn is_parked(&self, i: usize) -> bool {
         self.manoeuvre[i] == Manoeuvre::Parked

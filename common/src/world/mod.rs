@@ -102,6 +102,12 @@ impl World {
         }
     }
 
+    /// Takes traffic vehicle `i` out of this world before it runs (see [`Traffic::withdraw`]).
+    pub fn withdraw_traffic(&mut self, i: usize) {
+        self.traffic.withdraw(i);
+        self.traffic.prepare(&self.road);
+    }
+
     /// Pedestrian footprint: a square around the body circle, for contact and perception.
     pub fn pedestrian_obb(position: Vec2, velocity: Vec2) -> Obb {
         let heading = if velocity.norm_squared() > 1e-12 { velocity.y.atan2(velocity.x) } else { 0.0 };

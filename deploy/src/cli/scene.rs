@@ -40,6 +40,10 @@ pub struct SceneArgs {
     /// Roadside units along the ego's route (rsu0, rsu1, …, 150 m apart).
     #[arg(long, default_value_t = 0)]
     pub rsus: u32,
+    /// Takes connected vehicle ID (v1, v2, …) out of the world: the same scene without it, to
+    /// see what the others do when it is not there. Repeatable.
+    #[arg(long, value_name = "ID")]
+    pub without: Vec<String>,
     /// Zenoh site of the scene's keys.
     #[arg(long, default_value = "site0")]
     pub site: String,

@@ -42,7 +42,7 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
         }
         _ => return Err(CliError::input("a scene needs one of --spec FILE, --db FILE --id ID or --kind KIND")),
     };
-    SceneSetup::new(spec, args.connected, args.rsus).map_err(CliError::input)
+    SceneSetup::new(spec, args.connected, args.rsus).and_then(|s| s.without(&args.without)).map_err(CliError::input)
 }
 
 /// How the authority steps.
@@ -84,6 +84,8 @@ fn scene_error(e: SceneError) -> CliError {
         | SceneError::TooManyConnected { .. }
         | SceneError::TooManyRsus { .. }
         | SceneError::UnknownParticipant { .. }
+        | SceneError::Withdrawn { .. }
+        | SceneError::CannotWithdraw { .. }
         | SceneError::Mismatch { .. } => CliError::input(e),
         _ => CliError::runtime(e),
     }
@@ -245,6 +247,9 @@ fn scene_argv(args: &SceneArgs) -> Vec<String> {
         argv.extend(["--kind".to_owned(), kind.clone(), "--seed".to_owned(), args.seed.to_string()]);
     }
     argv.extend(["--connected".to_owned(), args.connected.to_string(), "--rsus".to_owned(), args.rsus.to_string()]);
+    for id in &args.without {
+        argv.extend(["--without".to_owned(), id.clone()]);
+    }
     argv.extend(["--site".to_owned(), args.site.clone()]);
     argv
 }

@@ -9,7 +9,6 @@ use risktwin_common::digest::{FNV_OFFSET, fnv1a64_step};
 use risktwin_common::episode::run_stepped;
 use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
 use risktwin_common::risk::RiskTerms;
-use risktwin_common::scenario::build;
 use risktwin_common::vehicle::Controls;
 use serde::Serialize;
 
@@ -105,7 +104,7 @@ pub struct SceneOutcome {
 /// participant ends the scene: the participants are told why, and the error is returned.
 pub fn run_scene(setup: &SceneSetup, plane: &mut dyn Plane) -> Result<SceneOutcome, SceneError> {
     let scene = setup.digest();
-    let mut world = build(&setup.spec);
+    let mut world = setup.world();
     let (mut step, mut digest, mut bytes) = (0u64, FNV_OFFSET, Vec::new());
     let result =
         run_stepped(&mut world, &RewardWeights::default(), &mut |_, _| {}, &mut |w| -> Result<_, SceneError> {
@@ -145,6 +144,7 @@ mod tests {
     use crate::scene::feasible_spec;
     use risktwin_common::episode::evaluate;
     use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
+    use risktwin_common::world::World;
 
     #[test]
     fn an_embedded_scene_is_the_library_episode() {
@@ -180,6 +180,26 @@ mod tests {
         }
         run_scene(&setup, &mut Watch(&mut plane, &mut seen_by_ego, &mut seen_by_rsu)).expect("runs");
         assert!(seen_by_ego > 10 && seen_by_rsu > 10, "ego {seen_by_ego}, rsu {seen_by_rsu} steps");
+    }
+
+    #[test]
+    fn a_vehicle_taken_out_is_absent_from_the_truth_and_the_others_keep_their_ids() {
+        let spec = feasible_spec(3, ScenarioKind::CutIn).expect("feasible");
+        let full = SceneSetup::new(spec.clone(), 2, 1).expect("scene");
+        let without = SceneSetup::new(spec, 2, 1).and_then(|s| s.without(&["v1".into()])).expect("scene");
+        assert_eq!(without.participants(), ["v0", "rsu0"]);
+        assert!(matches!(without.role_of("v1"), Err(SceneError::Withdrawn { .. })));
+        assert_ne!(without.digest(), full.digest());
+        for bad in ["v0", "rsu0"] {
+            let refused = SceneSetup::new(full.spec.clone(), 2, 1).and_then(|s| s.without(&[bad.into()]));
+            assert_eq!(refused, Err(SceneError::CannotWithdraw { id: bad.into() }));
+        }
+        let (mut world, mut alone) = (full.world(), without.world());
+        let ids = |w: &mut World| w.scene_objects().iter().map(|o| o.id).collect::<Vec<_>>();
+        assert_eq!(ids(&mut world), [0, 1], "the cutter (0) and the slow lead (1)");
+        assert_eq!(ids(&mut alone), [1], "the lead keeps its id");
+        let outcome = run_scene(&without, &mut Embedded::new(&without).expect("stacks")).expect("runs");
+        assert!(outcome.metrics.success, "alone with the lead, the ego drives through: {:?}", outcome.metrics);
     }
 
     #[test]

@@ -30,6 +30,7 @@ pub mod wire;
 
 use risktwin_common::digest::fnv1a64;
 use risktwin_common::scenario::{ScenarioSpec, build};
+use risktwin_common::world::World;
 use std::fmt;
 use thiserror::Error;
 
@@ -49,6 +50,10 @@ pub enum SceneError {
     TooManyRsus { asked: u32 },
     #[error("participant {id:?} is not in this scene (it has {known})")]
     UnknownParticipant { id: String, known: String },
+    #[error("participant {id} is taken out of this scene (--without {id})")]
+    Withdrawn { id: String },
+    #[error("--without {id}: only a connected traffic vehicle (v1, v2, …) can be taken out of the scene")]
+    CannotWithdraw { id: String },
     #[error("participant {id} runs {theirs}, this process {ours}: start every role with the same scene and seed")]
     Mismatch { id: String, theirs: String, ours: String },
     #[error("participant(s) {ids} did not answer step {step} within {waited_ms} ms (stalled or dead); the scene ends")]
@@ -85,6 +90,8 @@ pub struct SceneSetup {
     pub rsus: u32,
     /// Traffic indices of the connected vehicles beside the ego (`v1`, `v2`, …).
     agents: Vec<usize>,
+    /// Numbers k of the connected vehicles `vk` taken out of the world, ascending.
+    without: Vec<u32>,
 }
 
 impl SceneSetup {
@@ -104,7 +111,33 @@ impl SceneSetup {
             return Err(SceneError::TooManyConnected { asked: connected, needed, available: moving.len() as u32 });
         }
         let agents = moving[..needed as usize].to_vec();
-        Ok(SceneSetup { spec, connected, rsus, agents })
+        Ok(SceneSetup { spec, connected, rsus, agents, without: Vec::new() })
+    }
+
+    /// The same scene with connected traffic vehicles `ids` (`v1`, …) taken out of the world: a
+    /// counterfactual (what the ego does when that vehicle is not there). Every other vehicle
+    /// keeps its place, id and behaviour.
+    pub fn without(mut self, ids: &[String]) -> Result<Self, SceneError> {
+        for id in ids {
+            match self.role_of(id) {
+                // `role_of` accepted it, so it is `v<k>`.
+                Ok(Role::Agent { .. }) => self.without.extend(id[1..].parse::<u32>().ok()),
+                Ok(_) => return Err(SceneError::CannotWithdraw { id: id.clone() }),
+                Err(SceneError::Withdrawn { .. }) => {}
+                Err(e) => return Err(e),
+            }
+        }
+        self.without.sort_unstable();
+        Ok(self)
+    }
+
+    /// The scene's world at t = 0: the scenario's, less the vehicles taken out.
+    pub fn world(&self) -> World {
+        let mut world = build(&self.spec);
+        for &k in &self.without {
+            world.withdraw_traffic(self.agents[k as usize - 1]);
+        }
+        world
     }
 
     /// The scene's identity: every participant must run the same one. Covers the wire schema,
@@ -112,7 +145,8 @@ impl SceneSetup {
     pub fn digest(&self) -> u64 {
         let spec = serde_json::to_vec(&self.spec).expect("a spec serialises");
         let head = [wire::SCHEMA_VERSION.to_le_bytes(), self.connected.to_le_bytes(), self.rsus.to_le_bytes()];
-        fnv1a64(head.iter().flatten().copied().chain(spec))
+        let without = self.without.iter().flat_map(|k| k.to_le_bytes());
+        fnv1a64(head.iter().flatten().copied().chain(without).chain(spec))
     }
 
     /// The physics step, s: the world's own, as in the library and `risktwin run`.
@@ -122,8 +156,9 @@ impl SceneSetup {
 
     /// What this scene is, for messages: `cut_in seed 3, 3 connected, 1 RSU, scene 9f…`.
     pub fn describe(&self) -> String {
+        let without: String = self.without.iter().map(|k| format!(" without v{k},")).collect();
         format!(
-            "{} seed {}, {} connected, {} RSU(s), scene {:016x}",
+            "{} seed {}, {} connected,{without} {} RSU(s), scene {:016x}",
             self.spec.kind.name(),
             self.spec.seed,
             self.connected,
@@ -134,7 +169,7 @@ impl SceneSetup {
 
     /// Every participant id, vehicles first.
     pub fn participants(&self) -> Vec<String> {
-        let vehicles = (0..self.connected).map(|k| format!("v{k}"));
+        let vehicles = (0..self.connected).filter(|k| !self.without.contains(k)).map(|k| format!("v{k}"));
         vehicles.chain((0..self.rsus).map(|k| format!("rsu{k}"))).collect()
     }
 
@@ -149,6 +184,7 @@ impl SceneSetup {
         match number("v") {
             Some(k) if id != format!("v{k}") => Err(unknown()),
             Some(0) => Ok(Role::Ego),
+            Some(k) if self.without.contains(&k) => Err(SceneError::Withdrawn { id: id.to_owned() }),
             Some(k) if k < self.connected => Ok(Role::Agent { traffic_index: self.agents[k as usize - 1] }),
             _ => Err(unknown()),
         }

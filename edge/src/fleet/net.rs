@@ -14,7 +14,6 @@ use super::streams::unix_ns;
 use super::streams::{Streams, StreamsSent};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
-use risktwin_common::scenario::build;
 use risktwin_common::telemetry::{DetectedObject, Frame, Header, ObjectList, RoadMap, VehicleStateSample};
 use risktwin_common::vehicle::Controls;
 use risktwin_protos::{WireMessage, encode};
@@ -133,7 +132,7 @@ impl ZenohAuthority {
         };
         let map_publisher = declare(scene_topic(Some(site), SceneTopic::Map), RoadMap::PROTO_NAME)?;
         let objects = declare(scene_topic(Some(site), SceneTopic::Objects), ObjectList::PROTO_NAME)?;
-        let map = scene_road_map(&build(&setup.spec));
+        let map = scene_road_map(&setup.world());
         let participants = setup.participants();
         let mut ground_truth = Vec::new();
         for id in participants.iter().filter(|id| !id.starts_with("rsu")) {
@@ -156,7 +155,7 @@ impl ZenohAuthority {
             realtime: None,
         };
         if let Err(e) = plane.await_joins(setup) {
-            let mut abort = Truth::of(&build(&setup.spec), setup.digest(), 0);
+            let mut abort = Truth::of(&setup.world(), setup.digest(), 0);
             abort.end = Some(SceneEnd::Failed(e.to_string()));
             // The error is what matters; a failure to tell the participants adds nothing.
             let _ = plane.publish(&abort);
@@ -429,7 +428,7 @@ pub fn run_participant(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use risktwin_common::scenario::ScenarioKind;
+    use risktwin_common::scenario::{ScenarioKind, build};
 
     #[test]
     fn every_kind_of_scene_map_decodes_as_the_cloud_decodes_it() {

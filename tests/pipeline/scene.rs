@@ -270,3 +270,20 @@ fn a_killed_participant_ends_the_scene_named_within_two_seconds() {
         assert!(!status.success() && stderr.contains("v1 did not answer"), "v{k} is told why: {stderr}");
     }
 }
+
+#[test]
+fn a_collision_between_vehicles_of_two_processes_is_detected_by_the_authority() {
+    // The cutter (v1, its own process) swerves into the ego's lane 2 m ahead at 8 m/s less.
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let spec = dir.path().join("crash.json");
+    let params = r#"{"ego_speed_mps": 30.0, "relative_speed_mps": -8.0, "longitudinal_gap_m": 2.0,
+        "lateral_gap_m": 2.5, "cut_in_time_s": 1.0, "cut_in_duration_s": 2.0}"#;
+    std::fs::write(&spec, format!(r#"{{"kind": "cut-in", "seed": 7, "params": {params}}}"#)).expect("a spec file");
+    let scene = ["scene", "run", "--spec", spec.to_str().expect("utf-8"), "--connected", "2"];
+    let run = |extra: &[&str]| Proc::spawn("crash", &args(&scene, extra)).exit_json(Duration::from_secs(60));
+    let distributed = run(&[]);
+    assert_eq!(distributed["metrics"]["collision"], true, "{distributed}");
+    assert_eq!(distributed, run(&["--embedded"]), "the same contact, step for step");
+    let alone = run(&["--without", "v1"]);
+    assert_eq!(alone["metrics"]["collision"], false, "nothing to hit without the cutter: {alone}");
+}

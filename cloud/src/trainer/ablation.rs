@@ -26,7 +26,8 @@ pub struct PolicyEvaluation {
 }
 
 impl PolicyEvaluation {
-    fn from_episodes(specs: &[ScenarioSpec], ms: &[EpisodeMetrics]) -> Self {
+    /// Episodes of `specs` (one metrics per spec, in order), averaged over all and per kind.
+    pub fn from_episodes(specs: &[ScenarioSpec], ms: &[EpisodeMetrics]) -> Self {
         let mut by_kind = BTreeMap::new();
         for kind in ScenarioKind::ALL {
             let of_kind: Vec<EpisodeMetrics> =

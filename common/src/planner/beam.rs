@@ -1,0 +1,211 @@
+//! Beam search over segments of motion primitives, each candidate driven on its own clone of
+//! the world: the episode's dynamics, traffic and contact checks, step by step.
+
+use super::PlannerParams;
+use super::primitive::{Primitive, controls};
+use crate::road::LaneId;
+use crate::vehicle::Controls;
+use crate::world::World;
+use std::collections::BTreeSet;
+
+/// Below this speed the ego counts as stopped, m/s.
+const STILL_MPS: f64 = 0.05;
+
+/// How a stretch of driving ended; the last three are the episode's own ends (`episode::run`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stop {
+    /// The stretch is over and the episode goes on.
+    Running,
+    Completed,
+    OutOfTime,
+    Contact,
+}
+
+/// One way of driving on: its world, the lane it follows and the controls that led there.
+#[derive(Debug, Clone)]
+struct Node {
+    world: World,
+    lane: LaneId,
+    controls: Vec<Controls>,
+}
+
+/// How good a node is: first how many of its two continuations (the same primitive held on,
+/// full braking to a stop) end without contact; then, for a safe node, the route progress of the
+/// better safe continuation, m; for an unsafe one, the time its better continuation survived, s.
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd)]
+struct Score {
+    safe_continuations: u8,
+    value: f64,
+}
+
+/// What the search found: the controls of a clean drive, or of its best attempt.
+#[derive(Debug, Clone)]
+pub struct Found {
+    pub controls: Vec<Controls>,
+    pub sim_steps: u64,
+}
+
+/// The search with its counters and its best attempt so far.
+struct Search<'p> {
+    params: &'p PlannerParams,
+    primitives: Vec<Primitive>,
+    speed_cap_mps: f64,
+    segment_steps: usize,
+    sim_steps: u64,
+    /// The best failed drive: (out of time rather than contact, time survived s, progress m).
+    best_attempt: Option<((bool, f64, f64), Vec<Controls>)>,
+}
+
+impl Search<'_> {
+    /// Drives `world` at most `steps` steps on `lane` at `accel_mps2`, stopping at the episode's
+    /// end or once `done` holds; records the controls when asked.
+    fn drive(
+        &mut self,
+        world: &mut World,
+        lane: LaneId,
+        accel_mps2: f64,
+        steps: usize,
+        mut record: Option<&mut Vec<Controls>>,
+        done: &mut dyn FnMut(&World) -> bool,
+    ) -> Stop {
+        for _ in 0..steps {
+            let c = controls(world, lane, accel_mps2, self.speed_cap_mps);
+            if let Some(r) = record.as_deref_mut() {
+                r.push(c);
+            }
+            let report = world.advance(c);
+            self.sim_steps += 1;
+            if report.contacts.collision || report.contacts.offroad {
+                return Stop::Contact;
+            }
+            if world.finished() {
+                return if world.progress_m() >= world.route.length_m { Stop::Completed } else { Stop::OutOfTime };
+            }
+            if done(world) {
+                break;
+            }
+        }
+        Stop::Running
+    }
+
+    /// Full braking on `lane` until the ego has stood still for the hold time (or the check's
+    /// time is up): whether that ends without contact, and where it ends.
+    fn stop_check(&mut self, node: &Node) -> (bool, f64, f64) {
+        let mut w = node.world.clone();
+        let hold_steps = (self.params.stop_hold_s / w.dt_s).round() as usize;
+        let mut still = 0;
+        let mut until_held = |w: &World| {
+            still = if w.ego.state.speed_mps <= STILL_MPS { still + 1 } else { 0 };
+            still > hold_steps
+        };
+        let steps = (self.params.stop_check_s / w.dt_s).round() as usize;
+        let brake = -node.world.ego.params.brake_decel_max_mps2;
+        let stop = self.drive(&mut w, node.lane, brake, steps, None, &mut until_held);
+        (stop != Stop::Contact, w.progress_m(), w.time_s)
+    }
+
+    /// The same primitive held on for the lookahead.
+    fn hold_check(&mut self, node: &Node, accel_mps2: f64) -> (bool, f64, f64) {
+        let mut w = node.world.clone();
+        let steps = (self.params.lookahead_s / w.dt_s).round() as usize;
+        let stop = self.drive(&mut w, node.lane, accel_mps2, steps, None, &mut |_| false);
+        (stop != Stop::Contact, w.progress_m(), w.time_s)
+    }
+
+    fn score(&mut self, node: &Node, accel_mps2: f64) -> Score {
+        let held = self.hold_check(node, accel_mps2);
+        let braked = self.stop_check(node);
+        let safe: Vec<f64> = [held, braked].iter().filter(|c| c.0).map(|c| c.1).collect();
+        match safe.iter().copied().reduce(f64::max) {
+            Some(progress_m) => Score { safe_continuations: safe.len() as u8, value: progress_m },
+            None => Score { safe_continuations: 0, value: held.2.max(braked.2) - node.world.time_s },
+        }
+    }
+
+    /// Keeps `node` as the best failed drive if it got further than the best so far.
+    fn offer_attempt(&mut self, node: &Node, stop: Stop) {
+        let key = (stop == Stop::OutOfTime, node.world.time_s, node.world.progress_m());
+        if self.best_attempt.as_ref().is_none_or(|(k, _)| key > *k) {
+            self.best_attempt = Some((key, node.controls.clone()));
+        }
+    }
+
+    /// Every primitive from every node for one segment: the first clean finish, else the next beam.
+    fn expand(&mut self, beam: &[Node]) -> Result<Vec<Node>, Node> {
+        let mut children: Vec<(Score, Node)> = Vec::new();
+        for node in beam {
+            for k in 0..self.primitives.len() {
+                let prim = self.primitives[k];
+                let Some(lane) = prim.lane_from(&node.world.road, node.lane) else { continue };
+                let mut child = node.clone();
+                child.lane = lane;
+                let stop = self.drive(
+                    &mut child.world,
+                    lane,
+                    prim.accel_mps2,
+                    self.segment_steps,
+                    Some(&mut child.controls),
+                    &mut |_| false,
+                );
+                match stop {
+                    Stop::Completed => return Err(child),
+                    Stop::Contact | Stop::OutOfTime => self.offer_attempt(&child, stop),
+                    Stop::Running => {
+                        let score = self.score(&child, prim.accel_mps2);
+                        children.push((score, child));
+                    }
+                }
+            }
+        }
+        // Best first; the stable sort keeps the expansion order among equals (deterministic).
+        children.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap_or(std::cmp::Ordering::Equal));
+        // Near-duplicates (same lane, speed and progress within half a unit) waste the beam.
+        let mut seen = BTreeSet::new();
+        children.retain(|(_, c)| {
+            let w = &c.world;
+            seen.insert((c.lane, (w.ego.state.speed_mps / 0.5).round() as i64, (w.progress_m() / 0.5).round() as i64))
+        });
+        // The best node of every lane first, so that the beam does not commit to one lane while
+        // another is still open; then the best of the rest.
+        let mut lanes = BTreeSet::new();
+        let (mut next, rest): (Vec<_>, Vec<_>) = children.into_iter().partition(|(_, c)| lanes.insert(c.lane));
+        next.truncate(self.params.beam_width);
+        let room = self.params.beam_width - next.len();
+        next.extend(rest.into_iter().take(room));
+        Ok(next.into_iter().map(|(_, c)| c).collect())
+    }
+}
+
+/// Searches for a clean drive from `world` (at its start); returns its controls, or those of
+/// the best attempt (out of time rather than contact, then the longest and furthest drive).
+pub fn search(world: &World, params: &PlannerParams) -> Found {
+    let route_limit_mps = world.road.lane(world.route.lane).speed_limit_mps;
+    let mut s = Search {
+        params,
+        primitives: Primitive::lattice(&params.accels_mps2),
+        speed_cap_mps: route_limit_mps.max(world.desired_speed_mps),
+        segment_steps: ((params.segment_s / world.dt_s).round() as usize).max(1),
+        sim_steps: 0,
+        best_attempt: None,
+    };
+    let lane = world.road.locate_heading(world.ego.pose().position(), world.ego.pose().heading_rad).lane;
+    let mut beam = vec![Node { world: world.clone(), lane, controls: Vec::new() }];
+    while !beam.is_empty() && s.sim_steps < params.max_sim_steps {
+        match s.expand(&beam) {
+            Ok(next) => beam = next,
+            Err(clean) => return Found { controls: clean.controls, sim_steps: s.sim_steps },
+        }
+    }
+    // Out of budget: the best node still on its way brakes in its lane to the episode's end.
+    if let Some(mut node) = beam.into_iter().next() {
+        let brake = -node.world.ego.params.brake_decel_max_mps2;
+        let steps = ((node.world.horizon_s - node.world.time_s) / node.world.dt_s).ceil() as usize + 1;
+        let lane = node.lane;
+        match s.drive(&mut node.world, lane, brake, steps, Some(&mut node.controls), &mut |_| false) {
+            Stop::Completed => return Found { controls: node.controls, sim_steps: s.sim_steps },
+            stop => s.offer_attempt(&node, stop),
+        }
+    }
+    let controls = s.best_attempt.map(|(_, c)| c).unwrap_or_default();
+    Found { controls, sim_steps: s.sim_steps }
+}

@@ -1,7 +1,8 @@
 //! `risktwin run`: the report folder of a quick run (every file, PNGs that decode, per-variant
-//! per-kind metrics with their spread over seeds, the computed verdict, the closed loop over
-//! Zenoh with its edge results), byte-identical metrics.json for the same seed, SAC by flag
-//! (its policy pushed to the edge too), and the push phase switched off.
+//! per-kind metrics with their spread over seeds, the computed verdict, the achievable floor of
+//! the held-out set, the closed loop over Zenoh with its edge results), byte-identical
+//! metrics.json for the same seed, SAC by flag (its policy pushed to the edge too), and the
+//! push phase switched off.
 
 use crate::support::{assert_input_error, risktwin, shown, write_file};
 use serde_json::Value;
@@ -103,6 +104,15 @@ fn quick_run_writes_the_report_folder_and_repeats_byte_for_byte() {
     let report = std::fs::read_to_string(folder.join("report.md")).unwrap();
     assert!(report.contains(sentence), "report.md lacks the computed verdict");
     assert!(report.contains("training_curves.png") && report.contains("ablation.png"));
+    // The achievable floor of the same held-out set, per kind, with the variants against it.
+    let floor = &m["floor"];
+    assert_eq!(floor["cases"].as_array().expect("floor.cases").len(), 10);
+    for k in KINDS {
+        let episodes = floor["planner"]["by_kind"][k]["episodes"].as_u64();
+        assert_eq!(episodes, Some(2), "floor.planner.by_kind.{k}");
+        assert_eq!(floor["reference"]["by_kind"][k], ab["reference"]["by_kind"][k], "{k}");
+    }
+    assert!(report.contains("### Against the achievable floor"), "report.md lacks the floor");
     // The recording opens with the official MCAP reader and holds the top scenario's episode.
     let mcap = std::fs::read(folder.join("recording.mcap")).expect("recording.mcap");
     let mut topics = std::collections::BTreeMap::<String, usize>::new();

@@ -8,7 +8,7 @@
 use crate::generate::parallel_map;
 use crate::library::content_id;
 use risktwin_common::episode;
-use risktwin_common::metrics::{EpisodeMetrics, Ending};
+use risktwin_common::metrics::{Ending, EpisodeMetrics};
 use risktwin_common::planner::{self, Verdict};
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
 use serde::Serialize;

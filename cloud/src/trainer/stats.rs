@@ -1,7 +1,7 @@
 //! Evaluation metrics (paper table 1 plus the risk score) averaged over episodes, and their
 //! mean and spread over training seeds.
 
-use risktwin_common::metrics::{EpisodeMetrics, Ending};
+use risktwin_common::metrics::{Ending, EpisodeMetrics};
 use serde::Serialize;
 
 /// The metrics of one policy on a set of episodes (means, and rates for the booleans).

@@ -38,6 +38,12 @@ struct Score {
     value: f64,
 }
 
+/// What one segment of the search gave: a clean drive's controls, or the next beam.
+enum Expansion {
+    Completed(Vec<Controls>),
+    Beam(Vec<Node>),
+}
+
 /// What the search found: the controls of a clean drive, or of its best attempt.
 #[derive(Debug, Clone)]
 pub struct Found {
@@ -131,7 +137,7 @@ impl Search<'_> {
     }
 
     /// Every primitive from every node for one segment: the first clean finish, else the next beam.
-    fn expand(&mut self, beam: &[Node]) -> Result<Vec<Node>, Node> {
+    fn expand(&mut self, beam: &[Node]) -> Expansion {
         let mut children: Vec<(Score, Node)> = Vec::new();
         for node in beam {
             for k in 0..self.primitives.len() {
@@ -148,7 +154,7 @@ impl Search<'_> {
                     &mut |_| false,
                 );
                 match stop {
-                    Stop::Completed => return Err(child),
+                    Stop::Completed => return Expansion::Completed(child.controls),
                     Stop::Contact | Stop::OutOfTime => self.offer_attempt(&child, stop),
                     Stop::Running => {
                         let score = self.score(&child, prim.accel_mps2);
@@ -172,7 +178,7 @@ impl Search<'_> {
         next.truncate(self.params.beam_width);
         let room = self.params.beam_width - next.len();
         next.extend(rest.into_iter().take(room));
-        Ok(next.into_iter().map(|(_, c)| c).collect())
+        Expansion::Beam(next.into_iter().map(|(_, c)| c).collect())
     }
 }
 
@@ -192,8 +198,8 @@ pub fn search(world: &World, params: &PlannerParams) -> Found {
     let mut beam = vec![Node { world: world.clone(), lane, controls: Vec::new() }];
     while !beam.is_empty() && s.sim_steps < params.max_sim_steps {
         match s.expand(&beam) {
-            Ok(next) => beam = next,
-            Err(clean) => return Found { controls: clean.controls, sim_steps: s.sim_steps },
+            Expansion::Beam(next) => beam = next,
+            Expansion::Completed(controls) => return Found { controls, sim_steps: s.sim_steps },
         }
     }
     // Out of budget: the best node still on its way brakes in its lane to the episode's end.

@@ -54,12 +54,7 @@ pub fn floor(args: FloorArgs) -> CliResult {
             None => (floor.planner.overall, floor.reference.overall),
             Some(k) => (floor.planner.by_kind[&k], floor.reference.by_kind[&k]),
         };
-        KindFloor {
-            scenarios: planner.episodes,
-            avoidable: floor.avoidable(kind),
-            planner,
-            reference,
-        }
+        KindFloor { scenarios: planner.episodes, avoidable: floor.avoidable(kind), planner, reference }
     };
     let doc = FloorDoc {
         seed: args.seed,
@@ -113,7 +108,9 @@ fn print_kinds(doc: &FloorDoc) -> CliResult {
 
 /// One row per scenario.
 fn print_csv(cases: &[FloorCase]) -> CliResult {
-    println!("id,kind,seed,verdict,ended,route_completion,min_ttc_s,min_distance_m,avg_speed_mps,sim_steps,reference_ended");
+    println!(
+        "id,kind,seed,verdict,ended,route_completion,min_ttc_s,min_distance_m,avg_speed_mps,sim_steps,reference_ended"
+    );
     for c in cases {
         println!(
             "{},{},{},{},{},{},{},{},{},{},{}",

@@ -94,9 +94,11 @@ impl FloorEvaluation {
 mod tests {
     use super::*;
     use crate::trainer::HeldOut;
+    use risktwin_common::planner::PlannerParams;
+    use risktwin_common::scenario::build;
 
     #[test]
-    fn the_planner_drives_cut_ins_the_reference_driver_crashes_in_whatever_the_threads() {
+    fn cut_ins_the_reference_driver_crashes_in_are_driven_with_clearance_whatever_the_threads() {
         let specs: Vec<ScenarioSpec> =
             HeldOut::new(1, 2).specs.into_iter().filter(|s| s.kind == ScenarioKind::CutIn).collect();
         let floor = evaluate_floor(&specs, 1);
@@ -108,5 +110,12 @@ mod tests {
         assert_eq!(floor.planner.by_kind[&ScenarioKind::CutIn].success_rate, 1.0);
         assert_eq!(floor.reference.by_kind[&ScenarioKind::CutIn].collision_rate, 0.5);
         assert_eq!(evaluate_floor(&specs, 2), floor);
+        // Both drives keep the planner's clearance; without it the search passes the second
+        // cutter within centimetres — clean for the twin, but no margin a policy could repeat.
+        let clearance_m = PlannerParams::default().clearance_m;
+        assert!(floor.cases.iter().all(|c| c.min_distance_m >= clearance_m), "{:?}", floor.cases);
+        let tight = planner::plan_world(&build(&specs[1]), &PlannerParams { clearance_m: 0.0, ..Default::default() });
+        assert_eq!(tight.verdict, Verdict::Avoidable);
+        assert!(tight.metrics.min_distance_m < clearance_m, "{:?}", tight.metrics);
     }
 }

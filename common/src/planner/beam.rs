@@ -57,6 +57,8 @@ struct Search<'p> {
     primitives: Vec<Primitive>,
     speed_cap_mps: f64,
     segment_steps: usize,
+    /// Closer than this to any object counts as contact in this search, m.
+    clearance_m: f64,
     sim_steps: u64,
     /// The best failed drive: (out of time rather than contact, time survived s, progress m).
     best_attempt: Option<((bool, f64, f64), Vec<Controls>)>,
@@ -81,7 +83,8 @@ impl Search<'_> {
             }
             let report = world.advance(c);
             self.sim_steps += 1;
-            if report.contacts.collision || report.contacts.offroad {
+            let c = &report.contacts;
+            if c.collision || c.offroad || c.min_distance_m < self.clearance_m {
                 return Stop::Contact;
             }
             if world.finished() {
@@ -182,15 +185,17 @@ impl Search<'_> {
     }
 }
 
-/// Searches for a clean drive from `world` (at its start); returns its controls, or those of
-/// the best attempt (out of time rather than contact, then the longest and furthest drive).
-pub fn search(world: &World, params: &PlannerParams) -> Found {
+/// Searches for a clean drive from `world` (at its start) that keeps `clearance_m` from every
+/// object; returns its controls, or those of the best attempt (out of time rather than
+/// contact, then the longest and furthest drive).
+pub fn search(world: &World, params: &PlannerParams, clearance_m: f64) -> Found {
     let route_limit_mps = world.road.lane(world.route.lane).speed_limit_mps;
     let mut s = Search {
         params,
         primitives: Primitive::lattice(&params.accels_mps2),
         speed_cap_mps: route_limit_mps.max(world.desired_speed_mps),
         segment_steps: ((params.segment_s / world.dt_s).round() as usize).max(1),
+        clearance_m,
         sim_steps: 0,
         best_attempt: None,
     };

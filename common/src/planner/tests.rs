@@ -70,6 +70,7 @@ fn finds_a_clean_drive_where_the_reference_driver_succeeds() {
     assert_eq!(out.verdict, Verdict::Avoidable, "{:?}", out.metrics);
     assert!(out.metrics.success && !out.metrics.collision && !out.metrics.offroad);
     assert_eq!(out.metrics.route_completion, 1.0);
+    assert!(out.metrics.min_distance_m >= PlannerParams::default().clearance_m, "{:?}", out.metrics);
     // The controls are the drive: one per step of the replayed episode.
     assert_eq!(out.controls.len() as u64, out.metrics.steps);
 }

@@ -38,6 +38,20 @@ struct Score {
     value: f64,
 }
 
+/// How a continuation driven on from a node ended.
+#[derive(Debug, Clone, Copy)]
+struct Continuation {
+    clean: bool,
+    progress_m: f64,
+    end_time_s: f64,
+}
+
+impl Continuation {
+    fn of(stop: Stop, world: &World) -> Self {
+        Continuation { clean: stop != Stop::Contact, progress_m: world.progress_m(), end_time_s: world.time_s }
+    }
+}
+
 /// What one segment of the search gave: a clean drive's controls, or the next beam.
 enum Expansion {
     Completed(Vec<Controls>),
@@ -81,10 +95,9 @@ impl Search<'_> {
             if let Some(r) = record.as_deref_mut() {
                 r.push(c);
             }
-            let report = world.advance(c);
+            let contacts = world.advance(c).contacts;
             self.sim_steps += 1;
-            let c = &report.contacts;
-            if c.collision || c.offroad || c.min_distance_m < self.clearance_m {
+            if contacts.collision || contacts.offroad || contacts.min_distance_m < self.clearance_m {
                 return Stop::Contact;
             }
             if world.finished() {
@@ -97,9 +110,9 @@ impl Search<'_> {
         Stop::Running
     }
 
-    /// Full braking on `lane` until the ego has stood still for the hold time (or the check's
-    /// time is up): whether that ends without contact, and where it ends.
-    fn stop_check(&mut self, node: &Node) -> (bool, f64, f64) {
+    /// Full braking on the node's lane until the ego has stood still for the hold time (or the
+    /// check's time is up).
+    fn stop_check(&mut self, node: &Node) -> Continuation {
         let mut w = node.world.clone();
         let hold_steps = (self.params.stop_hold_s / w.dt_s).round() as usize;
         let mut still = 0;
@@ -110,24 +123,27 @@ impl Search<'_> {
         let steps = (self.params.stop_check_s / w.dt_s).round() as usize;
         let brake = -node.world.ego.params.brake_decel_max_mps2;
         let stop = self.drive(&mut w, node.lane, brake, steps, None, &mut until_held);
-        (stop != Stop::Contact, w.progress_m(), w.time_s)
+        Continuation::of(stop, &w)
     }
 
     /// The same primitive held on for the lookahead.
-    fn hold_check(&mut self, node: &Node, accel_mps2: f64) -> (bool, f64, f64) {
+    fn hold_check(&mut self, node: &Node, accel_mps2: f64) -> Continuation {
         let mut w = node.world.clone();
         let steps = (self.params.lookahead_s / w.dt_s).round() as usize;
         let stop = self.drive(&mut w, node.lane, accel_mps2, steps, None, &mut |_| false);
-        (stop != Stop::Contact, w.progress_m(), w.time_s)
+        Continuation::of(stop, &w)
     }
 
+    /// Scores a node reached with a primitive of `accel_mps2` (see [`Score`]).
     fn score(&mut self, node: &Node, accel_mps2: f64) -> Score {
-        let held = self.hold_check(node, accel_mps2);
-        let braked = self.stop_check(node);
-        let safe: Vec<f64> = [held, braked].iter().filter(|c| c.0).map(|c| c.1).collect();
-        match safe.iter().copied().reduce(f64::max) {
-            Some(progress_m) => Score { safe_continuations: safe.len() as u8, value: progress_m },
-            None => Score { safe_continuations: 0, value: held.2.max(braked.2) - node.world.time_s },
+        let both = [self.hold_check(node, accel_mps2), self.stop_check(node)];
+        let clean: Vec<f64> = both.iter().filter(|c| c.clean).map(|c| c.progress_m).collect();
+        match clean.iter().copied().reduce(f64::max) {
+            Some(progress_m) => Score { safe_continuations: clean.len() as u8, value: progress_m },
+            None => {
+                let survived_s = both.iter().map(|c| c.end_time_s).fold(f64::NEG_INFINITY, f64::max);
+                Score { safe_continuations: 0, value: survived_s - node.world.time_s }
+            }
         }
     }
 
@@ -168,7 +184,7 @@ impl Search<'_> {
         }
         // Best first; the stable sort keeps the expansion order among equals (deterministic).
         children.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap_or(std::cmp::Ordering::Equal));
-        // Near-duplicates (same lane, speed and progress within half a unit) waste the beam.
+        // Near-duplicates (same lane, speed within 0.5 m/s, progress within 0.5 m) waste the beam.
         let mut seen = BTreeSet::new();
         children.retain(|(_, c)| {
             let w = &c.world;

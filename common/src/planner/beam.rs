@@ -32,10 +32,18 @@ struct Node {
 /// How good a node is: first how many of its two continuations (the same primitive held on,
 /// full braking to a stop) end without contact; then, for a safe node, the route progress of the
 /// better safe continuation, m; for an unsafe one, the time its better continuation survived, s.
-#[derive(Debug, Clone, Copy, PartialEq, PartialOrd)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Score {
     safe_continuations: u8,
     value: f64,
+}
+
+impl Score {
+    /// The ranking: more clean continuations first, then the higher value (a total order, so a
+    /// NaN value cannot make the sort depend on the input order).
+    fn rank(&self, other: &Score) -> std::cmp::Ordering {
+        self.safe_continuations.cmp(&other.safe_continuations).then(self.value.total_cmp(&other.value))
+    }
 }
 
 /// How a continuation driven on from a node ended.
@@ -118,7 +126,7 @@ impl Search<'_> {
         let mut still = 0;
         let mut until_held = |w: &World| {
             still = if w.ego.state.speed_mps <= STILL_MPS { still + 1 } else { 0 };
-            still > hold_steps
+            still >= hold_steps
         };
         let steps = (self.params.stop_check_s / w.dt_s).round() as usize;
         let brake = -node.world.ego.params.brake_decel_max_mps2;
@@ -183,7 +191,7 @@ impl Search<'_> {
             }
         }
         // Best first; the stable sort keeps the expansion order among equals (deterministic).
-        children.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap_or(std::cmp::Ordering::Equal));
+        children.sort_by(|a, b| b.0.rank(&a.0));
         // Near-duplicates (same lane, speed within 0.5 m/s, progress within 0.5 m) waste the beam.
         let mut seen = BTreeSet::new();
         children.retain(|(_, c)| {

@@ -4,18 +4,26 @@
 use super::PlannerParams;
 use super::primitive::{Primitive, controls};
 use crate::road::LaneId;
-use crate::vehicle::Controls;
+use crate::vehicle::dynamics::MU_MIN;
+use crate::vehicle::{Controls, GRAVITY_MPS2};
 use crate::world::World;
 use std::collections::BTreeSet;
 
 /// Below this speed the ego counts as stopped, m/s.
 const STILL_MPS: f64 = 0.05;
 
+/// The braking continuation's time limit stretches the constant-deceleration stopping time
+/// v/(μ·g) by this factor (grip shared with cornering on a bend, the brake's build-up).
+const STOP_TIME_MARGIN: f64 = 1.25;
+
 /// How a stretch of driving ended; the last three are the episode's own ends (`episode::run`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Stop {
-    /// The stretch is over and the episode goes on.
+    /// The stretch's steps are used up and the episode goes on.
     Running,
+    /// The stretch's own end condition held (for the braking continuation: the ego has stood
+    /// still for the hold time) and the episode goes on.
+    Held,
     Completed,
     OutOfTime,
     Contact,
@@ -27,6 +35,14 @@ struct Node {
     world: World,
     lane: LaneId,
     controls: Vec<Controls>,
+}
+
+impl Node {
+    /// `world` at its start, on the lane the ego is in.
+    fn start(world: &World) -> Self {
+        let lane = world.road.locate_heading(world.ego.pose().position(), world.ego.pose().heading_rad).lane;
+        Node { world: world.clone(), lane, controls: Vec::new() }
+    }
 }
 
 /// How good a node is: first how many of its two continuations (the same primitive held on,
@@ -55,8 +71,8 @@ struct Continuation {
 }
 
 impl Continuation {
-    fn of(stop: Stop, world: &World) -> Self {
-        Continuation { clean: stop != Stop::Contact, progress_m: world.progress_m(), end_time_s: world.time_s }
+    fn of(clean: bool, world: &World) -> Self {
+        Continuation { clean, progress_m: world.progress_m(), end_time_s: world.time_s }
     }
 }
 
@@ -81,12 +97,30 @@ struct Search<'p> {
     segment_steps: usize,
     /// Closer than this to any object counts as contact in this search, m.
     clearance_m: f64,
+    /// The lowest friction anywhere on the road (the braking continuation's time limit).
+    brake_mu: f64,
     sim_steps: u64,
     /// The best failed drive: (out of time rather than contact, time survived s, progress m).
     best_attempt: Option<((bool, f64, f64), Vec<Controls>)>,
 }
 
-impl Search<'_> {
+impl<'p> Search<'p> {
+    /// A search from `world` (at its start) that keeps `clearance_m`.
+    fn new(world: &World, params: &'p PlannerParams, clearance_m: f64) -> Self {
+        let route_limit_mps = world.road.lane(world.route.lane).speed_limit_mps;
+        let road = &world.road;
+        Search {
+            params,
+            primitives: Primitive::lattice(&params.accels_mps2),
+            speed_cap_mps: route_limit_mps.max(world.desired_speed_mps),
+            segment_steps: ((params.segment_s / world.dt_s).round() as usize).max(1),
+            clearance_m,
+            brake_mu: road.friction_patches.iter().map(|p| p.mu).fold(road.friction_default, f64::min).max(MU_MIN),
+            sim_steps: 0,
+            best_attempt: None,
+        }
+    }
+
     /// Drives `world` at most `steps` steps on `lane` at `accel_mps2`, stopping at the episode's
     /// end or once `done` holds; records the controls when asked.
     fn drive(
@@ -112,34 +146,47 @@ impl Search<'_> {
                 return if world.progress_m() >= world.route.length_m { Stop::Completed } else { Stop::OutOfTime };
             }
             if done(world) {
-                break;
+                return Stop::Held;
             }
         }
         Stop::Running
     }
 
-    /// Full braking on the node's lane until the ego has stood still for the hold time (or the
-    /// check's time is up).
+    /// The longest the braking continuation from `world` runs, s: the stop from the ego's speed
+    /// at the road's lowest friction, v/(μ·g) stretched by [`STOP_TIME_MARGIN`], plus the brake's
+    /// lag and the hold time, at most `stop_check_max_s`.
+    fn stop_check_s(&self, world: &World) -> f64 {
+        let ego = &world.ego;
+        let decel_mps2 = (self.brake_mu * GRAVITY_MPS2).min(ego.params.brake_decel_max_mps2);
+        let stopping_s = STOP_TIME_MARGIN * ego.state.speed_mps.max(0.0) / decel_mps2 + ego.params.accel_lag_s;
+        (stopping_s + self.params.stop_hold_s).min(self.params.stop_check_max_s)
+    }
+
+    /// Full braking on the node's lane until the ego has stood still for the hold time. Clean
+    /// only if that happened without contact (or the episode ended first without contact): a
+    /// check whose time is up while the ego still moves, or has not stood still long enough,
+    /// proves no safe stop.
     fn stop_check(&mut self, node: &Node) -> Continuation {
         let mut w = node.world.clone();
-        let hold_steps = (self.params.stop_hold_s / w.dt_s).round() as usize;
+        let hold_steps = ((self.params.stop_hold_s / w.dt_s).round() as usize).max(1);
         let mut still = 0;
         let mut until_held = |w: &World| {
             still = if w.ego.state.speed_mps <= STILL_MPS { still + 1 } else { 0 };
             still >= hold_steps
         };
-        let steps = (self.params.stop_check_s / w.dt_s).round() as usize;
+        let steps = (self.stop_check_s(&w) / w.dt_s).ceil() as usize;
         let brake = -node.world.ego.params.brake_decel_max_mps2;
         let stop = self.drive(&mut w, node.lane, brake, steps, None, &mut until_held);
-        Continuation::of(stop, &w)
+        Continuation::of(matches!(stop, Stop::Held | Stop::OutOfTime | Stop::Completed), &w)
     }
 
-    /// The same primitive held on for the lookahead.
+    /// The same primitive held on for the lookahead (a horizon, not a proof: still driving
+    /// without contact when it is up counts as clean).
     fn hold_check(&mut self, node: &Node, accel_mps2: f64) -> Continuation {
         let mut w = node.world.clone();
         let steps = (self.params.lookahead_s / w.dt_s).round() as usize;
         let stop = self.drive(&mut w, node.lane, accel_mps2, steps, None, &mut |_| false);
-        Continuation::of(stop, &w)
+        Continuation::of(stop != Stop::Contact, &w)
     }
 
     /// Scores a node reached with a primitive of `accel_mps2` (see [`Score`]).
@@ -183,7 +230,7 @@ impl Search<'_> {
                 match stop {
                     Stop::Completed => return Expansion::Completed(child.controls),
                     Stop::Contact | Stop::OutOfTime => self.offer_attempt(&child, stop),
-                    Stop::Running => {
+                    Stop::Running | Stop::Held => {
                         let score = self.score(&child, prim.accel_mps2);
                         children.push((score, child));
                     }
@@ -213,18 +260,8 @@ impl Search<'_> {
 /// object; returns its controls, or those of the best attempt (out of time rather than
 /// contact, then the longest and furthest drive).
 pub fn search(world: &World, params: &PlannerParams, clearance_m: f64) -> Found {
-    let route_limit_mps = world.road.lane(world.route.lane).speed_limit_mps;
-    let mut s = Search {
-        params,
-        primitives: Primitive::lattice(&params.accels_mps2),
-        speed_cap_mps: route_limit_mps.max(world.desired_speed_mps),
-        segment_steps: ((params.segment_s / world.dt_s).round() as usize).max(1),
-        clearance_m,
-        sim_steps: 0,
-        best_attempt: None,
-    };
-    let lane = world.road.locate_heading(world.ego.pose().position(), world.ego.pose().heading_rad).lane;
-    let mut beam = vec![Node { world: world.clone(), lane, controls: Vec::new() }];
+    let mut s = Search::new(world, params, clearance_m);
+    let mut beam = vec![Node::start(world)];
     while !beam.is_empty() && s.sim_steps < params.max_sim_steps {
         match s.expand(&beam) {
             Expansion::Beam(next) => beam = next,
@@ -243,4 +280,49 @@ pub fn search(world: &World, params: &PlannerParams, clearance_m: f64) -> Found 
     }
     let controls = s.best_attempt.map(|(_, c)| c).unwrap_or_default();
     Found { controls, sim_steps: s.sim_steps }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::road::Road;
+    use crate::scenario::cast::{EGO_START_S_M, LANE_WIDTH_M};
+    use crate::sensor::{Sensor, SensorParams};
+    use crate::traffic::Traffic;
+    use crate::vehicle::{ModelKind, Vehicle, VehicleParams};
+    use crate::world::Route;
+
+    /// An empty straight road of friction `mu`, the ego at 30 m/s, a long route and horizon.
+    fn icy_world(mu: f64) -> World {
+        let mut road = Road::straight(1, LANE_WIDTH_M, 3000.0, 36.0);
+        road.friction_default = mu;
+        let start = road.lane(0).pose_at(EGO_START_S_M, 0.0);
+        let ego = Vehicle::new(VehicleParams::bmw_320i(), ModelKind::SingleTrack, start, 30.0);
+        let route = Route { lane: 0, start_s_m: EGO_START_S_M, length_m: 2500.0 };
+        let sensor = Sensor::new(SensorParams::default()).expect("default sensor parameters are valid");
+        World::new(road, ego, Traffic::new(), Vec::new(), sensor, route, 30.0, 90.0, 1)
+    }
+
+    #[test]
+    fn a_stop_counts_only_once_the_ego_has_stood_still_and_the_check_lasts_as_long_as_the_friction_needs() {
+        let world = icy_world(0.1);
+        let params = PlannerParams::default();
+        let mut search = Search::new(&world, &params, 0.0);
+        assert_eq!(search.brake_mu, 0.1);
+        // 30 m/s at μ = 0.1: about 31 s to stop, far beyond a fixed 10 s.
+        let limit_s = search.stop_check_s(&world);
+        assert!(limit_s > 30.0 / (0.1 * GRAVITY_MPS2) + params.stop_hold_s && limit_s < 45.0, "{limit_s}");
+        let stop = search.stop_check(&Node::start(&world));
+        assert!(stop.clean, "{stop:?}");
+        assert!(stop.end_time_s > 30.0 && stop.end_time_s < limit_s, "{stop:?}");
+        // A check whose time runs out while the ego still moves proves no safe stop.
+        let short = PlannerParams { stop_check_max_s: 10.0, ..PlannerParams::default() };
+        let stop = Search::new(&world, &short, 0.0).stop_check(&Node::start(&world));
+        assert!(!stop.clean, "{stop:?}");
+        // On dry asphalt the limit is short and the stop clean.
+        let dry = icy_world(0.9);
+        let mut search = Search::new(&dry, &params, 0.0);
+        assert!(search.stop_check_s(&dry) < 7.0);
+        assert!(search.stop_check(&Node::start(&dry)).clean);
+    }
 }

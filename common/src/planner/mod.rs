@@ -43,11 +43,14 @@ pub struct PlannerParams {
     pub segment_s: f64,
     /// How long a primitive is held on to score it, s.
     pub lookahead_s: f64,
-    /// The longest the braking continuation runs, s (long enough to stop from the fastest
-    /// scenario speed on the most slippery road: 30 m/s at μ = 0.3 takes about 10 s).
-    pub stop_check_s: f64,
+    /// The cap of the braking continuation's time limit, s. The limit itself is the stop from
+    /// the ego's speed at the road's lowest friction (v/(μ·g) with a margin, plus the hold time):
+    /// on the most slippery scenario roads (μ down to 0.1) a stop from 30 m/s takes about 30 s.
+    /// The continuation also ends with the episode.
+    pub stop_check_max_s: f64,
     /// How long the ego must then stand still for the stop to count, s (a pedestrian may
-    /// still walk into a car that has stopped).
+    /// still walk into a car that has stopped). A braking continuation counts as clean only
+    /// once the ego has stood still that long without contact (or the episode ended first).
     pub stop_hold_s: f64,
     /// The accelerations of the primitives, m/s², each on the lane, its left and its right
     /// neighbour; the pedals coast above the route's speed limit (or the desired speed).
@@ -66,7 +69,7 @@ impl Default for PlannerParams {
             beam_width: 3,
             segment_s: 0.5,
             lookahead_s: 3.0,
-            stop_check_s: 10.0,
+            stop_check_max_s: 60.0,
             stop_hold_s: 1.0,
             accels_mps2: vec![-11.0, -5.0, -2.0, 0.0, 1.5, 3.0],
             max_sim_steps: 2_000_000,

@@ -16,6 +16,9 @@ const STILL_MPS: f64 = 0.05;
 /// v/(μ·g) by this factor (grip shared with cornering on a bend, the brake's build-up).
 const STOP_TIME_MARGIN: f64 = 1.25;
 
+/// Clean stops kept as fallbacks (see `Search::stops`).
+const STOPS_KEPT: usize = 3;
+
 /// How a stretch of driving ended; the last three are the episode's own ends (`episode::run`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Stop {
@@ -102,6 +105,12 @@ struct Search<'p> {
     sim_steps: u64,
     /// The best failed drive: (out of time rather than contact, time survived s, progress m).
     best_attempt: Option<((bool, f64, f64), Vec<Controls>)>,
+    /// The furthest clean stops the braking checks found, furthest first (at most
+    /// [`STOPS_KEPT`], at least 1 m apart): each a node standing still after its hold, with
+    /// the controls that led there. Where no drive completes, they are braked on to the
+    /// episode's end and offered as attempts, so that a clean stop is not lost when every
+    /// branch of the beam later dies.
+    stops: Vec<(f64, Node)>,
 }
 
 impl<'p> Search<'p> {
@@ -118,6 +127,7 @@ impl<'p> Search<'p> {
             brake_mu: road.friction_patches.iter().map(|p| p.mu).fold(road.friction_default, f64::min).max(MU_MIN),
             sim_steps: 0,
             best_attempt: None,
+            stops: Vec::new(),
         }
     }
 
@@ -176,8 +186,41 @@ impl<'p> Search<'p> {
         };
         let steps = (self.stop_check_s(&w) / w.dt_s).ceil() as usize;
         let brake = -node.world.ego.params.brake_decel_max_mps2;
-        let stop = self.drive(&mut w, node.lane, brake, steps, None, &mut until_held);
-        Continuation::of(matches!(stop, Stop::Held | Stop::OutOfTime | Stop::Completed), &w)
+        let mut braking = Vec::new();
+        let stop = self.drive(&mut w, node.lane, brake, steps, Some(&mut braking), &mut until_held);
+        let continuation = Continuation::of(matches!(stop, Stop::Held | Stop::OutOfTime | Stop::Completed), &w);
+        if stop == Stop::Held {
+            self.keep_stop(node, w, braking);
+        }
+        continuation
+    }
+
+    /// Keeps a clean stop (`world`, reached from `node` with `braking`) if it is among the
+    /// furthest so far and not within 1 m of one kept.
+    fn keep_stop(&mut self, node: &Node, world: World, braking: Vec<Controls>) {
+        let progress_m = world.progress_m();
+        let at = self.stops.iter().position(|(p, _)| progress_m > *p).unwrap_or(self.stops.len());
+        if at >= STOPS_KEPT || self.stops.iter().any(|(p, _)| (p - progress_m).abs() < 1.0) {
+            return;
+        }
+        let controls = [node.controls.as_slice(), braking.as_slice()].concat();
+        self.stops.insert(at, (progress_m, Node { world, lane: node.lane, controls }));
+        self.stops.truncate(STOPS_KEPT);
+    }
+
+    /// Brakes `node` in its lane to the episode's end: the drive's controls if that completes
+    /// the route, else how it ended (and the drive is offered as an attempt).
+    fn brake_to_end(&mut self, mut node: Node) -> Result<Vec<Controls>, Stop> {
+        let brake = -node.world.ego.params.brake_decel_max_mps2;
+        let steps = ((node.world.horizon_s - node.world.time_s) / node.world.dt_s).ceil() as usize + 1;
+        let lane = node.lane;
+        match self.drive(&mut node.world, lane, brake, steps, Some(&mut node.controls), &mut |_| false) {
+            Stop::Completed => Ok(node.controls),
+            stop => {
+                self.offer_attempt(&node, stop);
+                Err(stop)
+            }
+        }
     }
 
     /// The same primitive held on for the lookahead (a horizon, not a proof: still driving
@@ -269,13 +312,18 @@ pub fn search(world: &World, params: &PlannerParams, clearance_m: f64) -> Found 
         }
     }
     // Out of budget: the best node still on its way brakes in its lane to the episode's end.
-    if let Some(mut node) = beam.into_iter().next() {
-        let brake = -node.world.ego.params.brake_decel_max_mps2;
-        let steps = ((node.world.horizon_s - node.world.time_s) / node.world.dt_s).ceil() as usize + 1;
-        let lane = node.lane;
-        match s.drive(&mut node.world, lane, brake, steps, Some(&mut node.controls), &mut |_| false) {
-            Stop::Completed => return Found { controls: node.controls, sim_steps: s.sim_steps },
-            stop => s.offer_attempt(&node, stop),
+    if let Some(node) = beam.into_iter().next()
+        && let Ok(controls) = s.brake_to_end(node)
+    {
+        return Found { controls, sim_steps: s.sim_steps };
+    }
+    // The clean stops found on the way, furthest first, stand still to the episode's end; the
+    // first that stays clean (out of time, not contact) is the best of them.
+    for (_, node) in std::mem::take(&mut s.stops) {
+        match s.brake_to_end(node) {
+            Ok(controls) => return Found { controls, sim_steps: s.sim_steps },
+            Err(Stop::OutOfTime) => break,
+            Err(_) => {}
         }
     }
     let controls = s.best_attempt.map(|(_, c)| c).unwrap_or_default();

@@ -63,6 +63,19 @@ fn a_wall_beyond_the_braking_distance_is_stopped_for_but_blocks_the_route() {
 }
 
 #[test]
+fn a_clean_stop_seen_on_the_way_is_the_attempt_when_every_branch_dies() {
+    // Only coasting primitives: every branch of the beam drives into the wall, but the braking
+    // checks of the early nodes stop short of it; that stop is reported, not a collision.
+    let world = walled_world(150.0);
+    let params = PlannerParams { accels_mps2: vec![0.0], beam_width: 1, ..PlannerParams::default() };
+    let out = plan_world(&world, &params);
+    assert_eq!(out.verdict, Verdict::NotFound);
+    assert_eq!(out.metrics.ending(), Ending::OutOfTime, "{:?}", out.metrics);
+    assert!(out.metrics.min_distance_m >= params.clearance_m, "{:?}", out.metrics);
+    assert_eq!(out.controls.len() as u64, out.metrics.steps);
+}
+
+#[test]
 fn finds_a_clean_drive_where_the_reference_driver_succeeds() {
     let spec = benign_specs(1, 5).into_iter().find(|s| s.kind == ScenarioKind::CutIn).expect("a benign cut-in");
     assert!(episode::evaluate(&spec).metrics.success, "the reference driver completes it");

@@ -28,7 +28,7 @@ pub use primitive::{LaneShift, Primitive};
 
 use crate::driver::{DriverView, Policy};
 use crate::episode;
-use crate::metrics::{EpisodeMetrics, RewardWeights};
+use crate::metrics::{Ending, EpisodeMetrics, RewardWeights};
 use crate::scenario::{ScenarioSpec, build};
 use crate::vehicle::Controls;
 use crate::world::World;
@@ -126,9 +126,24 @@ pub fn plan_world(world: &World, params: &PlannerParams) -> PlanOutcome {
     if first.verdict == Verdict::Avoidable || params.clearance_m <= 0.0 {
         return first;
     }
-    let mut second = attempt(world, params, 0.0);
-    second.sim_steps += first.sim_steps;
-    second
+    better_of(first, attempt(world, params, 0.0))
+}
+
+/// The outcome of the second search (without the margin) where it found a clean drive; where
+/// neither did, the better replayed attempt — out of time before contact, then further along
+/// the route, the first (which kept the margin) on a tie. Its cost is that of both searches.
+fn better_of(first: PlanOutcome, second: PlanOutcome) -> PlanOutcome {
+    let sim_steps = first.sim_steps + second.sim_steps;
+    let second_better = attempt_rank(&second.metrics) > attempt_rank(&first.metrics);
+    let mut best = if second.verdict == Verdict::Avoidable || second_better { second } else { first };
+    best.sim_steps = sim_steps;
+    best
+}
+
+/// How good a failed drive is: ended out of time rather than in a collision or off the road,
+/// then its route completion.
+fn attempt_rank(m: &EpisodeMetrics) -> (bool, f64) {
+    (m.ending() == Ending::OutOfTime, m.route_completion)
 }
 
 /// One search keeping `clearance_m`, its drive replayed and measured as an episode.

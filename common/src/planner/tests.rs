@@ -76,6 +76,43 @@ fn a_clean_stop_seen_on_the_way_is_the_attempt_when_every_branch_dies() {
 }
 
 #[test]
+fn of_two_failed_searches_the_better_attempt_is_reported() {
+    let outcome = |ending: Ending, route_completion: f64, sim_steps: u64| {
+        let metrics = EpisodeMetrics {
+            collision: ending == Ending::Collision,
+            offroad: ending == Ending::Offroad,
+            success: ending == Ending::Success,
+            route_completion,
+            ..EpisodeMetrics::default()
+        };
+        let verdict = if metrics.success { Verdict::Avoidable } else { Verdict::NotFound };
+        PlanOutcome { verdict, metrics, sim_steps, controls: Vec::new() }
+    };
+    let pick = |a: PlanOutcome, b: PlanOutcome| {
+        let best = better_of(a, b);
+        (best.metrics.ending(), best.metrics.route_completion, best.sim_steps)
+    };
+    // Out of time beats contact, whichever search it came from and however far the contact got.
+    let stopped = (Ending::OutOfTime, 0.3, 30);
+    assert_eq!(pick(outcome(Ending::OutOfTime, 0.3, 10), outcome(Ending::Collision, 0.9, 20)), stopped);
+    assert_eq!(pick(outcome(Ending::Offroad, 0.9, 10), outcome(Ending::OutOfTime, 0.3, 20)), stopped);
+    // Then further progress; on a tie the first search's, which kept the margin.
+    assert_eq!(
+        pick(outcome(Ending::Collision, 0.6, 10), outcome(Ending::Offroad, 0.4, 20)),
+        (Ending::Collision, 0.6, 30)
+    );
+    assert_eq!(
+        pick(outcome(Ending::OutOfTime, 0.5, 10), outcome(Ending::OutOfTime, 0.5, 20)),
+        (Ending::OutOfTime, 0.5, 30)
+    );
+    // A clean drive of the second search wins.
+    assert_eq!(
+        pick(outcome(Ending::OutOfTime, 0.9, 10), outcome(Ending::Success, 1.0, 20)),
+        (Ending::Success, 1.0, 30)
+    );
+}
+
+#[test]
 fn finds_a_clean_drive_where_the_reference_driver_succeeds() {
     let spec = benign_specs(1, 5).into_iter().find(|s| s.kind == ScenarioKind::CutIn).expect("a benign cut-in");
     assert!(episode::evaluate(&spec).metrics.success, "the reference driver completes it");

@@ -70,8 +70,16 @@ fn floor_json_adds_up_and_does_not_depend_on_threads() {
         assert_eq!(keys(c), CASE_KEYS, "{c}");
         let verdict = c["verdict"].as_str().unwrap();
         assert!(["avoidable", "not-found"].contains(&verdict), "{c}");
-        // Avoidable means the replayed drive succeeded, and only then.
-        assert_eq!(verdict == "avoidable", c["ended"] == "success", "{c}");
+        // An avoidable drive completed the route without touching anything (verdict and `ended`
+        // both come from the replay's success, so check it against the other fields).
+        if verdict == "avoidable" {
+            assert!(num(c, "route_completion") >= 1.0 - 1e-9, "{c}");
+            assert!(num(c, "min_distance_m") > 0.0, "{c}");
+        }
+        // Out of time means short of the route's end.
+        if c["ended"] == "out-of-time" {
+            assert!(num(c, "route_completion") < 1.0, "{c}");
+        }
         assert!(uint(c, "sim_steps") > 0, "{c}");
         assert!((0.0..=1.0).contains(&num(c, "route_completion")), "{c}");
     }

@@ -193,7 +193,7 @@ pub fn run(request: &RunRequest, progress: &mut dyn Progress, shutdown: &Shutdow
     check(shutdown)?;
     progress
         .detail(&format!("achievable floor: privileged planner on the {} held-out scenarios", held_out.specs.len()));
-    let floor = evaluate_floor(&held_out.specs, threads);
+    let floor = evaluate_floor(&held_out.specs, &ablation.reference_episodes, threads);
     mark("achievable floor (privileged planner)", &mut lap);
     check(shutdown)?;
 

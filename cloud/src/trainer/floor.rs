@@ -1,5 +1,6 @@
 //! The achievable floor of a scenario set: the privileged planner (`common::planner`) on each
-//! scenario, its drives averaged like any policy's, next to the reference driver's endings.
+//! scenario, its drives averaged like any policy's, next to the reference driver's endings
+//! (its episodes are passed in, computed once by [`reference_episodes`](super::ablation::reference_episodes)).
 //!
 //! The planner's success rate is the share of scenarios found avoidable — a lower bound of the
 //! success any policy can reach — and its collision rate an upper bound of the collision floor
@@ -7,7 +8,6 @@
 
 use crate::generate::parallel_map;
 use crate::library::content_id;
-use risktwin_common::episode;
 use risktwin_common::metrics::{Ending, EpisodeMetrics};
 use risktwin_common::planner::{self, Verdict};
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
@@ -35,22 +35,22 @@ pub struct FloorCase {
     pub reference_ended: Ending,
 }
 
-/// The planner on a set of scenarios.
+/// The planner on a set of scenarios (the reference driver's averages are the ablation's
+/// `reference`, or `PolicyEvaluation::from_episodes` of the same episodes).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FloorEvaluation {
     /// The planner's drives averaged over all scenarios and per kind.
     pub planner: PolicyEvaluation,
-    /// The reference driver's episodes of the same scenarios.
-    pub reference: PolicyEvaluation,
     pub cases: Vec<FloorCase>,
 }
 
-/// Runs the planner (and, for comparison, the reference driver) on every spec, `threads` at a
-/// time; deterministic whatever the thread count.
-pub fn evaluate_floor(specs: &[ScenarioSpec], threads: usize) -> FloorEvaluation {
-    let runs: Vec<(EpisodeMetrics, EpisodeMetrics, FloorCase)> = parallel_map(specs, threads, |spec| {
+/// Runs the planner on every spec, `threads` at a time, next to `reference` (the reference
+/// driver's episodes of the same specs, in order); deterministic whatever the thread count.
+pub fn evaluate_floor(specs: &[ScenarioSpec], reference: &[EpisodeMetrics], threads: usize) -> FloorEvaluation {
+    assert_eq!(specs.len(), reference.len(), "one reference episode per spec");
+    let indexed: Vec<(&ScenarioSpec, &EpisodeMetrics)> = specs.iter().zip(reference).collect();
+    let runs: Vec<(EpisodeMetrics, FloorCase)> = parallel_map(&indexed, threads, |&(spec, reference)| {
         let out = planner::plan(spec);
-        let reference = episode::evaluate(spec).metrics;
         let m = &out.metrics;
         let case = FloorCase {
             id: content_id(spec),
@@ -65,21 +65,10 @@ pub fn evaluate_floor(specs: &[ScenarioSpec], threads: usize) -> FloorEvaluation
             sim_steps: out.sim_steps,
             reference_ended: reference.ending(),
         };
-        (out.metrics, reference, case)
+        (out.metrics, case)
     });
-    let mut planned = Vec::with_capacity(runs.len());
-    let mut reference = Vec::with_capacity(runs.len());
-    let mut cases = Vec::with_capacity(runs.len());
-    for (p, r, c) in runs {
-        planned.push(p);
-        reference.push(r);
-        cases.push(c);
-    }
-    FloorEvaluation {
-        planner: PolicyEvaluation::from_episodes(specs, &planned),
-        reference: PolicyEvaluation::from_episodes(specs, &reference),
-        cases,
-    }
+    let (planned, cases): (Vec<EpisodeMetrics>, Vec<FloorCase>) = runs.into_iter().unzip();
+    FloorEvaluation { planner: PolicyEvaluation::from_episodes(specs, &planned), cases }
 }
 
 impl FloorEvaluation {
@@ -93,7 +82,7 @@ impl FloorEvaluation {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::trainer::HeldOut;
+    use crate::trainer::{HeldOut, reference_episodes};
     use risktwin_common::planner::PlannerParams;
     use risktwin_common::scenario::build;
 
@@ -101,15 +90,16 @@ mod tests {
     fn cut_ins_the_reference_driver_crashes_in_are_driven_with_clearance_whatever_the_threads() {
         let specs: Vec<ScenarioSpec> =
             HeldOut::new(1, 2).specs.into_iter().filter(|s| s.kind == ScenarioKind::CutIn).collect();
-        let floor = evaluate_floor(&specs, 1);
+        let reference = reference_episodes(&specs, 1);
+        let floor = evaluate_floor(&specs, &reference, 1);
         assert_eq!(floor.cases.len(), 2);
         // Held-out cut-ins of run seed 1: the reference driver collides in the first; with full
         // knowledge of the cutter's path the planner completes both.
         assert_eq!(floor.cases[0].reference_ended, Ending::Collision);
         assert_eq!(floor.avoidable(Some(ScenarioKind::CutIn)), 2);
         assert_eq!(floor.planner.by_kind[&ScenarioKind::CutIn].success_rate, 1.0);
-        assert_eq!(floor.reference.by_kind[&ScenarioKind::CutIn].collision_rate, 0.5);
-        assert_eq!(evaluate_floor(&specs, 2), floor);
+        assert_ne!(floor.cases[1].reference_ended, Ending::Collision);
+        assert_eq!(evaluate_floor(&specs, &reference, 2), floor);
         // Both drives keep the planner's clearance; without it the search passes the second
         // cutter within centimetres — clean for the twin, but no margin a policy could repeat.
         let clearance_m = PlannerParams::default().clearance_m;

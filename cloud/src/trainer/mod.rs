@@ -23,7 +23,9 @@ pub mod stats;
 #[cfg(test)]
 mod tests;
 
-pub use ablation::{AblationReport, PolicyEvaluation, VariantResult, evaluate_policy, run_ablation};
+pub use ablation::{
+    AblationReport, PolicyEvaluation, VariantResult, evaluate_policy, reference_episodes, run_ablation,
+};
 pub use floor::{FloorCase, FloorEvaluation, evaluate_floor};
 pub use held_out::HeldOut;
 pub use plan::{TrainerError, TrainingPlan};

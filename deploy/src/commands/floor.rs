@@ -6,7 +6,7 @@ use super::source::parse_kinds;
 use crate::cli::FloorArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
-use risktwin_cloud::trainer::{EvalMetrics, FloorCase, HeldOut, evaluate_floor};
+use risktwin_cloud::trainer::{EvalMetrics, FloorCase, HeldOut, PolicyEvaluation, evaluate_floor, reference_episodes};
 use risktwin_common::scenario::ScenarioKind;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -47,12 +47,15 @@ pub fn floor(args: FloorArgs) -> CliResult {
     let held_out = HeldOut::new(args.seed, args.count as usize);
     let specs: Vec<_> = held_out.specs.into_iter().filter(|s| kinds.contains(&s.kind)).collect();
     tracing::info!("searching {} held-out scenarios on {threads} threads", specs.len());
-    let floor = evaluate_floor(&specs, threads);
+    // The reference driver's episodes, as `risktwin run`'s ablation evaluates them.
+    let reference_runs = reference_episodes(&specs, threads);
+    let floor = evaluate_floor(&specs, &reference_runs, threads);
+    let reference = PolicyEvaluation::from_episodes(&specs, &reference_runs);
     let wall_s = started.elapsed().as_secs_f64();
     let of = |kind: Option<ScenarioKind>| {
         let (planner, reference) = match kind {
-            None => (floor.planner.overall, floor.reference.overall),
-            Some(k) => (floor.planner.by_kind[&k], floor.reference.by_kind[&k]),
+            None => (floor.planner.overall, reference.overall),
+            Some(k) => (floor.planner.by_kind[&k], reference.by_kind[&k]),
         };
         KindFloor { scenarios: planner.episodes, avoidable: floor.avoidable(kind), planner, reference }
     };

@@ -282,7 +282,8 @@ impl<'p> Search<'p> {
         }
         // Best first; the stable sort keeps the expansion order among equals (deterministic).
         children.sort_by(|a, b| b.0.rank(&a.0));
-        // Near-duplicates (same lane, speed within 0.5 m/s, progress within 0.5 m) waste the beam.
+        // Near-duplicates (same lane, speed and progress rounded to the same 0.5 m/s and 0.5 m
+        // bucket) waste the beam; the first (best) of each is kept.
         let mut seen = BTreeSet::new();
         children.retain(|(_, c)| {
             let w = &c.world;

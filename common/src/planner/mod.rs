@@ -12,9 +12,10 @@
 //! The search ([`beam`]) is a beam search over segments of motion primitives ([`primitive`]):
 //! every `segment_s` each node of the beam is extended by every primitive (an acceleration held
 //! on the current lane or a neighbour), and each extension is scored by two continuations driven
-//! on: the same primitive held for `lookahead_s`, and full braking to a stop. Extensions from
-//! which at least one continuation stays clean rank first, by the route progress that
-//! continuation reaches. It is deterministic: no random numbers, a stable order.
+//! on: the same primitive held for `lookahead_s`, and full braking to a stop. Extensions rank
+//! by how many of the two continuations stay clean (two before one before none), then by the
+//! route progress the better clean one reaches (by the time survived when neither is clean).
+//! It is deterministic: no random numbers, a stable order.
 //!
 //! `not found` is not a proof that no clean drive exists: a search can miss one (the primitives
 //! are coarse, the beam narrow, the budget finite). Over a set of scenarios the avoidable share

@@ -100,8 +100,8 @@ fn print_kinds(doc: &FloorDoc) -> CliResult {
             "planner collision",
             "planner offroad",
             "planner out of time",
-            "idm collision",
-            "idm success",
+            "reference collision",
+            "reference success",
         ],
         &rows,
     )?;

@@ -287,20 +287,31 @@ impl ReferenceDriver {
         }
         let accel = self.react(view.time_s, accel);
 
-        // Pure pursuit on the target lane centreline (Coulter 1992), look-ahead growing with speed.
-        let l = road.lane(lane);
-        let s_t = l.project(pos).s_m;
-        let look_m = (1.0 * v).max(6.0);
-        let target = l.pose_at(s_t + look_m, 0.0).position();
-        let to = target - pos;
-        let alpha = wrap_angle(to.y.atan2(to.x) - view.ego_pose.heading_rad);
-        let steer_rad = (2.0 * self.vehicle.wheelbase_m() * alpha.sin() / to.norm().max(1e-3)).atan();
-
-        let (throttle, brake) = if accel >= 0.0 {
-            ((accel / drive_limit_mps2(&self.vehicle, v)).min(1.0), 0.0)
-        } else {
-            (0.0, (-accel / self.vehicle.brake_decel_max_mps2).min(1.0))
-        };
-        Controls { steer_rad, throttle, brake }
+        let steer_rad = pure_pursuit_steer_rad(road, lane, view.ego_pose, v, self.vehicle.wheelbase_m());
+        controls_for_accel(&self.vehicle, v, steer_rad, accel)
     }
+}
+
+/// Pure pursuit on `lane`'s centreline (Coulter 1992), look-ahead growing with speed: the
+/// front-wheel angle that steers a vehicle at `pose` onto it, rad.
+pub fn pure_pursuit_steer_rad(road: &Road, lane: LaneId, pose: Pose, speed_mps: f64, wheelbase_m: f64) -> f64 {
+    let l = road.lane(lane);
+    let pos = pose.position();
+    let s_t = l.project(pos).s_m;
+    let look_m = (1.0 * speed_mps).max(6.0);
+    let target = l.pose_at(s_t + look_m, 0.0).position();
+    let to = target - pos;
+    let alpha = wrap_angle(to.y.atan2(to.x) - pose.heading_rad);
+    (2.0 * wheelbase_m * alpha.sin() / to.norm().max(1e-3)).atan()
+}
+
+/// The pedals that ask for `accel_mps2` at `speed_mps` (throttle against the drive limit, brake
+/// against the maximum deceleration, each clamped to 1), with `steer_rad`.
+pub fn controls_for_accel(vehicle: &VehicleParams, speed_mps: f64, steer_rad: f64, accel_mps2: f64) -> Controls {
+    let (throttle, brake) = if accel_mps2 >= 0.0 {
+        ((accel_mps2 / drive_limit_mps2(vehicle, speed_mps)).min(1.0), 0.0)
+    } else {
+        (0.0, (-accel_mps2 / vehicle.brake_decel_max_mps2).min(1.0))
+    };
+    Controls { steer_rad, throttle, brake }
 }

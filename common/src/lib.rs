@@ -14,6 +14,7 @@
 //! - [`commonroad`]: CommonRoad XML import and criticality measures on recorded traffic.
 //! - [`scenario`]: the five kinds, sampling, feasibility, building a world.
 //! - [`world`], [`driver`], [`episode`], [`metrics`]: one episode, its reference driver, its metrics.
+//! - [`planner`]: a privileged planner that tells whether a scenario has a clean drive (the achievable floor).
 //! - [`env`]: the driving environment for reinforcement learning (observation, action, reward, VecEnv).
 //! - [`net`]: trained policies on the host (no tensor library): policy files, MLP, driver.
 
@@ -26,6 +27,7 @@ pub mod episode;
 pub mod geometry;
 pub mod metrics;
 pub mod net;
+pub mod planner;
 pub mod risk;
 pub mod rng;
 pub mod road;

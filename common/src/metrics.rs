@@ -27,6 +27,30 @@ pub struct EpisodeMetrics {
     pub steps: u64,
 }
 
+/// How an episode ended (a collision that also left the road counts as a collision).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Ending {
+    /// The route completed without collision or leaving the road.
+    Success,
+    Collision,
+    Offroad,
+    /// Unharmed at the horizon but short of the route's end.
+    OutOfTime,
+}
+
+impl EpisodeMetrics {
+    /// How the episode ended.
+    pub fn ending(&self) -> Ending {
+        match (self.success, self.collision, self.offroad) {
+            (true, _, _) => Ending::Success,
+            (_, true, _) => Ending::Collision,
+            (_, _, true) => Ending::Offroad,
+            _ => Ending::OutOfTime,
+        }
+    }
+}
+
 /// Weights of r_t = w_p·r_progress + w_v·r_velocity − w_r·R̄_t − w_l·|e_y| − w_j·|j_t|
 /// − w_c·1[collision] − w_o·1[offroad] (paper eq. 7).
 ///

@@ -5,7 +5,8 @@
 //! The phases, in order: generate candidates of every scenario kind and score them with the
 //! reference driver → mutate around the failures ([`search`]) → train the three variants (base /
 //! risk-only / full; PPO, or SAC) over several seeds through the cloud's trainer and evaluate
-//! them on a held-out set → re-score the library's top scenarios with the trained policies
+//! them on a held-out set, next to its achievable floor (the privileged planner of
+//! `common::planner`, [`floor`] in the report) → re-score the library's top scenarios with the trained policies
 //! ([`rescore`]) → push the top scenarios and the `full` policy over Zenoh to an edge vehicle in
 //! this process and compare what it reports ([`closed_loop`]) → draw the figures ([`figures`])
 //! and write the report folder: report.md ([`report`]), metrics.json ([`RunMetrics`]: the same
@@ -32,6 +33,7 @@ mod config;
 mod error;
 pub mod fidelity;
 pub mod figures;
+pub mod floor;
 mod metrics;
 pub mod push_loop;
 pub mod recording;
@@ -49,7 +51,7 @@ use closed_loop::ClosedLoop;
 use figures::HeatmapScene;
 use risktwin_cloud::generate::{generate, store};
 use risktwin_cloud::library::{RankedScenario, ScenarioLibrary};
-use risktwin_cloud::trainer::{HeldOut, run_ablation};
+use risktwin_cloud::trainer::{HeldOut, evaluate_floor, run_ablation};
 use risktwin_common::env::Variant;
 use risktwin_common::episode::field_snapshot;
 use risktwin_common::rng::Rng;
@@ -189,6 +191,11 @@ pub fn run(request: &RunRequest, progress: &mut dyn Progress, shutdown: &Shutdow
         })?;
     mark("train and evaluate", &mut lap);
     check(shutdown)?;
+    progress
+        .detail(&format!("achievable floor: privileged planner on the {} held-out scenarios", held_out.specs.len()));
+    let floor = evaluate_floor(&held_out.specs, &ablation.reference_episodes, threads);
+    mark("achievable floor (privileged planner)", &mut lap);
+    check(shutdown)?;
 
     progress.phase(&format!("[4/7] re-scoring the top {} scenarios with the trained policies", config.top_k));
     let top = library.rank(Some(config.top_k), None)?;
@@ -235,6 +242,7 @@ pub fn run(request: &RunRequest, progress: &mut dyn Progress, shutdown: &Shutdow
         heatmaps,
         training_seeds: seeds,
         ablation,
+        floor,
         verdict,
         rescore,
         recording: recorded,

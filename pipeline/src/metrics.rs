@@ -7,7 +7,7 @@ use crate::search::{KindSummary, RoundReport};
 use crate::verdict::Verdict;
 use risktwin_cloud::generate::GenerateReport;
 use risktwin_cloud::library::RankedScenario;
-use risktwin_cloud::trainer::AblationReport;
+use risktwin_cloud::trainer::{AblationReport, FloorEvaluation};
 use risktwin_common::scenario::ScenarioKind;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -25,6 +25,8 @@ pub struct RunMetrics {
     /// The training seeds (derived from `seed`).
     pub training_seeds: Vec<u64>,
     pub ablation: AblationReport,
+    /// The privileged planner on the held-out set: the achievable floor per kind.
+    pub floor: FloorEvaluation,
     /// The target checked against the ablation (absent when base or full was not trained).
     pub verdict: Option<Verdict>,
     /// The top scenarios driven again by each variant's policy.

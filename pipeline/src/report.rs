@@ -78,6 +78,7 @@ fn ablation_section(s: &mut String, m: &RunMetrics) {
         "| idm (reference driver) | {:.3} | {:.3} | {:.3} | {:.3} |",
         r.success_rate, r.collision_rate, r.offroad_rate, r.timeout_rate
     );
+    crate::floor::section(s, m);
     let _ = writeln!(s, "\n## What the numbers show\n");
     match &m.verdict {
         Some(v) => {

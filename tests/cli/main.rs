@@ -10,6 +10,7 @@ mod contract_episode;
 mod contract_scenarios;
 mod criticality;
 mod determinism;
+mod floor;
 mod real_data;
 mod recorded;
 mod run;

@@ -1,9 +1,10 @@
 //! `risktwin run`: the report folder of a quick run (every file, PNGs that decode, per-variant
-//! per-kind metrics with their spread over seeds, the computed verdict, the closed loop over
-//! Zenoh with its edge results), byte-identical metrics.json for the same seed, SAC by flag
-//! (its policy pushed to the edge too), and the push phase switched off.
+//! per-kind metrics with their spread over seeds, the computed verdict, the achievable floor of
+//! the held-out set, the closed loop over Zenoh with its edge results), byte-identical
+//! metrics.json for the same seed, SAC by flag (its policy pushed to the edge too), and the
+//! push phase switched off.
 
-use crate::support::{assert_input_error, risktwin, shown, write_file};
+use crate::support::{assert_input_error, num, risktwin, shown, write_file};
 use serde_json::Value;
 use std::path::Path;
 use tempfile::tempdir;
@@ -103,6 +104,19 @@ fn quick_run_writes_the_report_folder_and_repeats_byte_for_byte() {
     let report = std::fs::read_to_string(folder.join("report.md")).unwrap();
     assert!(report.contains(sentence), "report.md lacks the computed verdict");
     assert!(report.contains("training_curves.png") && report.contains("ablation.png"));
+    // The achievable floor of the same held-out set, per kind, with the variants against it.
+    let floor = &m["floor"];
+    let cases = floor["cases"].as_array().expect("floor.cases");
+    assert_eq!(cases.len(), 10);
+    // The reference driver's result is `ablation.reference` alone; the cases' endings are its episodes.
+    assert!(floor.get("reference").is_none(), "floor repeats the reference driver");
+    for k in KINDS {
+        let episodes = floor["planner"]["by_kind"][k]["episodes"].as_u64();
+        assert_eq!(episodes, Some(2), "floor.planner.by_kind.{k}");
+        let crashed = cases.iter().filter(|c| c["kind"] == k && c["reference_ended"] == "collision").count();
+        assert_eq!(crashed as f64 / 2.0, num(&ab["reference"]["by_kind"][k], "collision_rate"), "{k}");
+    }
+    assert!(report.contains("### Against the achievable floor"), "report.md lacks the floor");
     // The recording opens with the official MCAP reader and holds the top scenario's episode.
     let mcap = std::fs::read(folder.join("recording.mcap")).expect("recording.mcap");
     let mut topics = std::collections::BTreeMap::<String, usize>::new();

@@ -26,7 +26,8 @@ pub struct PolicyEvaluation {
 }
 
 impl PolicyEvaluation {
-    fn from_episodes(specs: &[ScenarioSpec], ms: &[EpisodeMetrics]) -> Self {
+    /// Episodes of `specs` (one metrics per spec, in order), averaged over all and per kind.
+    pub fn from_episodes(specs: &[ScenarioSpec], ms: &[EpisodeMetrics]) -> Self {
         let mut by_kind = BTreeMap::new();
         for kind in ScenarioKind::ALL {
             let of_kind: Vec<EpisodeMetrics> =
@@ -43,10 +44,11 @@ pub fn evaluate_policy(policy: &PolicyNet, held_out: &HeldOut, threads: usize) -
     PolicyEvaluation::from_episodes(&held_out.specs, &ms)
 }
 
-/// Evaluates the reference driver (IDM/MOBIL) on the held-out set, with the same reward weights.
-pub fn evaluate_reference(held_out: &HeldOut, threads: usize) -> PolicyEvaluation {
-    let ms: Vec<EpisodeMetrics> = parallel_map(&held_out.specs, threads, |s| episode::evaluate(s).metrics);
-    PolicyEvaluation::from_episodes(&held_out.specs, &ms)
+/// The reference driver's (IDM/MOBIL) episodes of `specs`, one per spec in order, with the same
+/// reward weights: the one definition of the reference result (the ablation's `reference` and
+/// the floor's comparison are both made of it).
+pub fn reference_episodes(specs: &[ScenarioSpec], threads: usize) -> Vec<EpisodeMetrics> {
+    parallel_map(specs, threads, |s| episode::evaluate(s).metrics)
 }
 
 /// One training seed of a variant.
@@ -90,6 +92,9 @@ pub struct AblationReport {
     pub held_out_episodes: usize,
     /// The reference driver on the held-out set.
     pub reference: PolicyEvaluation,
+    /// Its episodes, one per held-out scenario in order (the floor's comparison), not serialised.
+    #[serde(skip)]
+    pub reference_episodes: Vec<EpisodeMetrics>,
     pub variants: Vec<VariantResult>,
     /// Wall time of each training run, s, by (variant, seed): a measurement, not serialised.
     #[serde(skip)]
@@ -175,12 +180,14 @@ pub fn run_ablation(
         let curve = bands(&per_seed.iter().map(|s| s.curve.as_slice()).collect::<Vec<_>>());
         results.push(VariantResult { variant: variant.name().to_string(), overall, by_kind, curve, seeds: per_seed });
     }
+    let reference = reference_episodes(&held_out.specs, plan.threads);
     Ok(AblationReport {
         algo: plan.algo.name().to_string(),
         steps_per_run: plan.steps,
         held_out_per_kind: held_out.specs.len() / ScenarioKind::ALL.len(),
         held_out_episodes: held_out.specs.len(),
-        reference: evaluate_reference(held_out, plan.threads),
+        reference: PolicyEvaluation::from_episodes(&held_out.specs, &reference),
+        reference_episodes: reference,
         variants: results,
         train_wall_s: walls,
         policies,

@@ -8,11 +8,13 @@
 //!   `risk-only` sample the five kinds uniformly.
 //! - [`held_out`]: the evaluation set, disjoint from everything trained on.
 //! - [`ablation`]: variants × seeds → per-variant, per-kind metrics with their spread over seeds.
+//! - [`floor`]: the achievable floor of the held-out set, from the privileged planner.
 //! - [`stats`]: the metrics of paper table 1 (plus S_risk) and their spread.
 
 pub mod ablation;
 pub mod curriculum;
 pub mod drive;
+pub mod floor;
 pub mod held_out;
 mod plan;
 pub mod session;
@@ -21,7 +23,10 @@ pub mod stats;
 #[cfg(test)]
 mod tests;
 
-pub use ablation::{AblationReport, PolicyEvaluation, VariantResult, evaluate_policy, run_ablation};
+pub use ablation::{
+    AblationReport, PolicyEvaluation, VariantResult, evaluate_policy, reference_episodes, run_ablation,
+};
+pub use floor::{FloorCase, FloorEvaluation, evaluate_floor};
 pub use held_out::HeldOut;
 pub use plan::{TrainerError, TrainingPlan};
 pub use session::{CurvePoint, TrainedPolicy, train_variant};

@@ -1,7 +1,7 @@
 //! Evaluation metrics (paper table 1 plus the risk score) averaged over episodes, and their
 //! mean and spread over training seeds.
 
-use risktwin_common::metrics::EpisodeMetrics;
+use risktwin_common::metrics::{Ending, EpisodeMetrics};
 use serde::Serialize;
 
 /// The metrics of one policy on a set of episodes (means, and rates for the booleans).
@@ -57,7 +57,7 @@ impl EvalMetrics {
             longitudinal_smoothness: mean(&|m| m.longitudinal_smoothness),
             risk_score: mean(&|m| m.risk_score),
             offroad_rate: mean(&|m| f64::from(u8::from(m.offroad))),
-            timeout_rate: mean(&|m| f64::from(u8::from(!(m.success || m.collision || m.offroad)))),
+            timeout_rate: mean(&|m| f64::from(u8::from(m.ending() == Ending::OutOfTime))),
         }
     }
 

@@ -89,6 +89,27 @@ pub enum ScenariosCommand {
     Generate(GenerateArgs),
     /// List stored scenarios, highest risk first.
     Rank(RankArgs),
+    /// The achievable floor of `risktwin run`'s held-out set: per scenario, whether a privileged
+    /// planner finds a drive that completes the route without collision or leaving the road.
+    Floor(FloorArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct FloorArgs {
+    /// A scenario kind or `all`.
+    #[arg(long, default_value = "all")]
+    pub kind: String,
+    /// Held-out scenarios per kind (`eval_per_kind` of the run; the first N of its set).
+    #[arg(long, default_value_t = 12, allow_negative_numbers = true)]
+    pub count: u64,
+    /// The run seed whose held-out set is searched (`risktwin run --seed`).
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    pub seed: u64,
+    /// Worker threads (default: all cores); the result does not depend on it.
+    #[arg(long, allow_negative_numbers = true)]
+    pub threads: Option<u64>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
 }
 
 #[derive(Debug, Args)]

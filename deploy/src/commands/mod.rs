@@ -6,6 +6,7 @@ pub(crate) mod bench_replay;
 pub mod cloud;
 mod criticality;
 mod edge;
+mod floor;
 mod import;
 pub mod push;
 mod recorded;
@@ -28,6 +29,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Run(a) => run::run(a),
         Command::Scenarios(ScenariosCommand::Generate(a)) => scenarios::generate(a),
         Command::Scenarios(ScenariosCommand::Rank(a)) => scenarios::rank(a),
+        Command::Scenarios(ScenariosCommand::Floor(a)) => floor::floor(a),
         Command::Simulate(a) => simulate::simulate(a),
         Command::Train(a) => train::train(a),
         Command::RiskField(a) => risk_field::risk_field(a),

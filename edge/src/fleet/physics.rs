@@ -9,6 +9,8 @@ use risktwin_common::road::Road;
 use risktwin_common::world::World;
 
 /// A scene's world.
+// One per scene, stepped in place: the variants' sizes cost nothing worth a box.
+#[allow(clippy::large_enum_variant)]
 pub enum SceneWorld<'a> {
     Generated(World),
     Recorded(ResimStepper<'a>),

@@ -18,7 +18,9 @@
 //! scenario's traffic vehicles in cast order (in a cut-in, `v1` is the cutter), whose motion
 //! stays the scenario's own (IDM/MOBIL or the scripted manoeuvre: a connected cut-in adversary
 //! still cuts in) while their stacks perceive and report; `rsu0…` are roadside units along the
-//! route. The same [`authority::run_scene`] runs embedded (every stack in one process,
+//! route. A scene is a generated scenario or a CommonRoad recording ([`SceneSource`],
+//! [`recording`]): the recording's ego is driven by its process as `resimulate` drives it, and
+//! its other vehicles, connected or not, are played back. The same [`authority::run_scene`] runs embedded (every stack in one process,
 //! [`authority::Embedded`]) or distributed over Zenoh ([`net`]); lockstep makes the two give
 //! the same bytes.
 

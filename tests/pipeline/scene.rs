@@ -57,6 +57,15 @@ fn a_lockstep_recording_scene_of_processes_equals_the_embedded_run_and_simulate(
     let simulated = run(&["simulate", "--commonroad", PUTTE, "--policy", "idm", "--format", "json"]);
     let simulated: Value = serde_json::from_str(&simulated).expect("JSON");
     assert_eq!(outcome["metrics"], simulated, "scene and simulate");
+    // The same file imported into a library is the same scene (its XML whole, its ego).
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let db = dir.path().join("library.db");
+    let db = db.to_str().expect("utf-8");
+    let imported = run(&["import", "commonroad", PUTTE, "--db", db, "--format", "json"]);
+    let imported: Value = serde_json::from_str(&imported).expect("JSON");
+    let id = imported["id"].as_str().expect("a case id");
+    let from_library = run(&args(&["scene", "run", "--db", db, "--id", id, "--embedded"], &RECORDING[2..]));
+    assert_eq!(from_library, embedded, "the recorded case's scene");
 }
 
 #[test]

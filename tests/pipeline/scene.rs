@@ -11,6 +11,10 @@ use std::time::{Duration, Instant};
 
 const SCENE: [&str; 8] = ["--kind", "cut-in", "--seed", "3", "--connected", "3", "--rsus", "1"];
 
+/// A CommonRoad recording (3.6 s, its ego and 9 other vehicles; default ego 33).
+const PUTTE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/commonroad/BEL_Putte-8_2_T-1.xml");
+const RECORDING: [&str; 6] = ["--commonroad", PUTTE, "--connected", "3", "--rsus", "1"];
+
 fn args<'a>(head: &[&'a str], tail: &[&'a str]) -> Vec<&'a str> {
     head.iter().chain(tail).copied().collect()
 }
@@ -30,6 +34,57 @@ fn a_lockstep_scene_of_processes_equals_the_embedded_run_byte_for_byte() {
     let outcome: serde_json::Value = serde_json::from_str(&embedded).expect("JSON");
     assert_eq!(outcome["participants"], serde_json::json!(["v0", "v1", "v2", "rsu0"]));
     assert!(outcome["steps"].as_u64().expect("steps") > 100, "a whole episode: {outcome}");
+}
+
+#[test]
+fn a_lockstep_recording_scene_of_processes_equals_the_embedded_run_and_simulate() {
+    let run = |argv: &[&str]| {
+        let mut p = Proc::spawn("recording", argv);
+        let (status, stdout) = p.wait_exit(Duration::from_secs(60));
+        assert!(status.success(), "{argv:?} failed:\n{}", p.drain_stderr());
+        stdout
+    };
+    let scene = args(&["scene", "run"], &RECORDING);
+    let embedded = run(&args(&scene, &["--embedded"]));
+    let distributed = run(&scene);
+    assert_eq!(distributed, embedded, "ground-truth digest and outcome, byte for byte");
+    let outcome: Value = serde_json::from_str(&embedded).expect("JSON");
+    assert_eq!(outcome["participants"], serde_json::json!(["v0", "v1", "v2", "rsu0"]));
+    assert_eq!(outcome["kind"], "commonroad");
+    assert_eq!(outcome["recording"]["ego_id"], 33, "the default ego: {outcome}");
+    assert_eq!(outcome["steps"], 72, "3.6 s of recording at 50 ms: {outcome}");
+    // The ego's episode is `simulate`'s with the reference driver on the same recording.
+    let simulated = run(&["simulate", "--commonroad", PUTTE, "--policy", "idm", "--format", "json"]);
+    let simulated: Value = serde_json::from_str(&simulated).expect("JSON");
+    assert_eq!(outcome["metrics"], simulated, "scene and simulate");
+    // The same file imported into a library is the same scene (its XML whole, its ego).
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let db = dir.path().join("library.db");
+    let db = db.to_str().expect("utf-8");
+    let imported = run(&["import", "commonroad", PUTTE, "--db", db, "--format", "json"]);
+    let imported: Value = serde_json::from_str(&imported).expect("JSON");
+    let id = imported["id"].as_str().expect("a case id");
+    let from_library = run(&args(&["scene", "run", "--db", db, "--id", id, "--embedded"], &RECORDING[2..]));
+    assert_eq!(from_library, embedded, "the recorded case's scene");
+}
+
+#[test]
+fn a_participant_of_another_ego_is_refused_by_name() {
+    let (_router, locator) = start_router();
+    let net = ["--mode", "client", "--connect", locator.as_str()];
+    let recording = &RECORDING[..4];
+    let mut authority = Proc::spawn("authority", &args(&args(&["scene", "authority"], recording), &net));
+    let other_ego = args(&["scene", "vehicle", "--participant", "v0", "--ego", "35"], recording);
+    let mut v0 = Proc::spawn("v0", &args(&other_ego, &net));
+    let (status, _) = authority.wait_exit(Duration::from_secs(40));
+    let stderr = authority.drain_stderr();
+    assert_eq!(status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("participant v0 runs CommonRoad BEL_Putte-8_2_T-1 (file ") && stderr.contains("ego 35"),
+        "{stderr}"
+    );
+    let (status, _) = v0.wait_exit(Duration::from_secs(10));
+    assert!(!status.success(), "the refused participant is told: {}", v0.drain_stderr());
 }
 
 #[test]
@@ -213,19 +268,42 @@ fn bad_scene_input_is_refused_by_name_with_exit_2() {
         (&["scene", "run", "--without", "v0"], "--without v0: only a connected traffic vehicle"),
         (&["scene", "vehicle", "--participant", "v2", "--without", "v2"], "participant v2 is taken out of this scene"),
     ];
-    for (head, expected) in cases {
-        let argv = args(head, &SCENE);
-        let mut p = Proc::spawn("bad scene", &argv);
+    let refused = |argv: &[&str], expected: &str| {
+        let mut p = Proc::spawn("bad scene", argv);
         let (status, _) = p.wait_exit(Duration::from_secs(30));
         let stderr = p.drain_stderr();
         assert_eq!(status.code(), Some(2), "{argv:?}: {stderr}");
         assert!(stderr.contains("error: ") && stderr.contains(expected), "{argv:?}: {stderr}");
+    };
+    for (head, expected) in cases {
+        refused(&args(head, &SCENE), expected);
     }
-    let mut p = Proc::spawn("too many", &["scene", "run", "--kind", "cut-in", "--seed", "3", "--connected", "40"]);
-    let (status, _) = p.wait_exit(Duration::from_secs(30));
-    let stderr = p.drain_stderr();
-    assert_eq!(status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("--connected 40 needs 39 traffic vehicles"), "{stderr}");
+    refused(
+        &["scene", "run", "--kind", "cut-in", "--seed", "3", "--connected", "40"],
+        "--connected 40 needs 39 traffic vehicles",
+    );
+
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (missing, broken) = (dir.path().join("missing.xml"), dir.path().join("broken.xml"));
+    std::fs::write(&broken, "<commonRoad benchmarkID=").expect("a file");
+    let (missing, broken) = (missing.to_str().expect("utf-8"), broken.to_str().expect("utf-8"));
+    let recordings: [(&[&str], &str); 6] = [
+        (&["scene", "run", "--commonroad", missing], "cannot read"),
+        (&["scene", "authority", "--commonroad", broken], "broken.xml: "),
+        (
+            &["scene", "vehicle", "--participant", "v0", "--commonroad", PUTTE, "--ego", "999"],
+            "ego id 999 is not a dynamic obstacle",
+        ),
+        (
+            &["scene", "run", "--commonroad", PUTTE, "--connected", "11"],
+            "--connected 11 needs 10 traffic vehicles beside the ego; this recording has 9",
+        ),
+        (&["scene", "run", "--commonroad", PUTTE, "--kind", "cut-in"], "--commonroad"),
+        (&["scene", "run", "--kind", "cut-in", "--ego", "3"], "--ego names the ego of a --commonroad recording"),
+    ];
+    for (argv, expected) in recordings {
+        refused(argv, expected);
+    }
 }
 
 #[test]

@@ -24,7 +24,15 @@ pub struct SceneArgs {
     /// A JSON spec file: {"kind", "seed", "params"}.
     #[arg(long, conflicts_with_all = ["db", "kind"])]
     pub spec: Option<PathBuf>,
-    /// A scenario library; `--id` names a generated scenario in it.
+    /// A CommonRoad XML recording: its ego (v0) driven by the reference driver from its
+    /// recorded start, every other obstacle played back.
+    #[arg(long, conflicts_with_all = ["spec", "db", "kind"])]
+    pub commonroad: Option<PathBuf>,
+    /// The recording's ego, a dynamic-obstacle id (default: the planning problem's, else the
+    /// first).
+    #[arg(long, requires = "commonroad")]
+    pub ego: Option<u64>,
+    /// A scenario library; `--id` names a generated scenario or a recorded case in it.
     #[arg(long, requires = "id", conflicts_with = "kind")]
     pub db: Option<PathBuf>,
     #[arg(long, requires = "db")]
@@ -34,7 +42,8 @@ pub struct SceneArgs {
     pub kind: Option<String>,
     #[arg(long, default_value_t = 0, requires = "kind")]
     pub seed: u64,
-    /// Connected vehicles: the ego (v0) and the scenario's first moving traffic vehicles.
+    /// Connected vehicles: the ego (v0) and the scenario's first moving traffic vehicles (a
+    /// recording's first recorded vehicles in file order).
     #[arg(long, default_value_t = 1)]
     pub connected: u32,
     /// Roadside units along the ego's route (rsu0, rsu1, …, 150 m apart).

@@ -5,6 +5,7 @@
 //! Every role is a Zenoh peer listening on loopback only (the router introduces them). Every
 //! child is killed and reaped however the run ends.
 
+use super::recorded::read_xml;
 use super::router::transport_config;
 use super::source::{parse_kinds, read_spec_file};
 use crate::cli::{SceneArgs, SceneParticipantArgs, SceneRoleArgs, SceneRunArgs, ZenohArgs};
@@ -12,7 +13,7 @@ use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json};
 use risktwin_edge::fleet::authority::{Embedded, Paced, SceneOutcome, run_scene};
 use risktwin_edge::fleet::net::{Deadlines, Timeouts, ZenohAuthority, run_participant};
-use risktwin_edge::fleet::{Role, SceneError, SceneSetup};
+use risktwin_edge::fleet::{Recording, Role, SceneError, SceneSetup, SceneSource};
 use risktwin_edge::scene::feasible_spec;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{SiteId, TransportConfig, connect};
@@ -26,23 +27,49 @@ const LOOPBACK: &str = "tcp/127.0.0.1:0";
 
 /// The scene the arguments name (the scenario checked feasible, the roles checked present).
 fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
-    let spec = match (&args.spec, &args.db, &args.kind) {
-        (Some(path), None, None) => read_spec_file(path)?,
-        (None, Some(db), None) => {
+    if args.ego.is_some() && args.commonroad.is_none() {
+        return Err(CliError::input("--ego names the ego of a --commonroad recording"));
+    }
+    let source = match (&args.spec, &args.db, &args.kind, &args.commonroad) {
+        (Some(path), None, None, None) => SceneSource::Generated(read_spec_file(path)?),
+        (None, Some(db), None, None) => {
             let lib = super::source::open_existing_library(db)?;
             let id = args.id.as_deref().unwrap_or_default();
-            let stored = lib.get(id).map_err(CliError::input)?;
-            stored.map(|s| s.spec).ok_or_else(|| CliError::input(format!("no scenario '{id}' in {}", db.display())))?
+            if let Some(stored) = lib.get(id).map_err(CliError::input)? {
+                SceneSource::Generated(stored.spec)
+            } else if let Some(stored) = lib.recorded(id).map_err(CliError::input)? {
+                // A recorded case: its XML whole and the ego it was imported with.
+                let shown = format!("{} case {id}", db.display());
+                SceneSource::CommonRoad(recording(&stored.case.xml, Some(stored.case.ego_id), &shown)?)
+            } else {
+                return Err(CliError::input(format!("no scenario '{id}' in {}", db.display())));
+            }
         }
-        (None, None, Some(kind)) => {
+        (None, None, Some(kind), None) => {
             let [kind] = parse_kinds(kind)?[..] else {
                 return Err(CliError::input("--kind names one scenario kind for a scene, not `all`"));
             };
-            feasible_spec(args.seed, kind).map_err(CliError::input)?
+            SceneSource::Generated(feasible_spec(args.seed, kind).map_err(CliError::input)?)
         }
-        _ => return Err(CliError::input("a scene needs one of --spec FILE, --db FILE --id ID or --kind KIND")),
+        (None, None, None, Some(path)) => {
+            SceneSource::CommonRoad(recording(&read_xml(path)?, args.ego, &path.display().to_string())?)
+        }
+        _ => {
+            return Err(CliError::input(
+                "a scene needs one of --spec FILE, --db FILE --id ID, --kind KIND or --commonroad FILE",
+            ));
+        }
     };
-    SceneSetup::new(spec, args.connected, args.rsus).and_then(|s| s.without(&args.without)).map_err(CliError::input)
+    let setup = match source {
+        SceneSource::Generated(spec) => SceneSetup::new(spec, args.connected, args.rsus),
+        SceneSource::CommonRoad(recording) => SceneSetup::commonroad(recording, args.connected, args.rsus),
+    };
+    setup.and_then(|s| s.without(&args.without)).map_err(CliError::input)
+}
+
+/// The recording of CommonRoad XML `xml` read from `shown`, with `ego` or its default ego.
+fn recording(xml: &str, ego: Option<u64>, shown: &str) -> CliResult<Recording> {
+    Recording::parse(xml, ego).map_err(|e| CliError::input(format!("{shown}: {e}")))
 }
 
 /// How the authority steps.
@@ -82,6 +109,7 @@ fn scene_error(e: SceneError) -> CliError {
     match e {
         SceneError::NoEgo
         | SceneError::TooManyConnected { .. }
+        | SceneError::Recording { .. }
         | SceneError::TooManyRsus { .. }
         | SceneError::UnknownParticipant { .. }
         | SceneError::Withdrawn { .. }
@@ -245,6 +273,12 @@ fn scene_argv(args: &SceneArgs) -> Vec<String> {
     }
     if let Some(kind) = &args.kind {
         argv.extend(["--kind".to_owned(), kind.clone(), "--seed".to_owned(), args.seed.to_string()]);
+    }
+    if let Some(file) = &args.commonroad {
+        argv.extend(["--commonroad".to_owned(), path(file)]);
+    }
+    if let Some(ego) = args.ego {
+        argv.extend(["--ego".to_owned(), ego.to_string()]);
     }
     argv.extend(["--connected".to_owned(), args.connected.to_string(), "--rsus".to_owned(), args.rsus.to_string()]);
     for id in &args.without {

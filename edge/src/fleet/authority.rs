@@ -3,8 +3,9 @@
 //! The episode is measured exactly as `risktwin simulate` measures it (`common::episode`).
 
 use super::onboard::Onboard;
+use super::physics::SceneWorld;
 use super::wire::{SceneEnd, Truth};
-use super::{SceneError, SceneSetup};
+use super::{SceneError, SceneSetup, SceneSource};
 use risktwin_common::digest::{FNV_OFFSET, fnv1a64_step};
 use risktwin_common::episode::run_stepped;
 use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
@@ -89,7 +90,12 @@ pub struct SceneOutcome {
     /// The scene digest, hex.
     pub scene: String,
     pub kind: &'static str,
-    pub seed: u64,
+    /// A generated scenario's seed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// A recording's benchmark id and ego.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub recording: Option<RecordingOutcome>,
     pub participants: Vec<String>,
     /// Physics steps taken.
     pub steps: u64,
@@ -100,41 +106,87 @@ pub struct SceneOutcome {
     pub risk: RiskTerms,
 }
 
+/// Which recording a scene played.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RecordingOutcome {
+    pub benchmark_id: String,
+    pub ego_id: u64,
+    /// FNV-1a 64 of the file's bytes, hex.
+    pub file: String,
+}
+
+/// Hands each step's truth to the participants through a plane, digesting what it sends.
+struct Handout<'p> {
+    plane: &'p mut dyn Plane,
+    /// Steps handed out and answered.
+    step: u64,
+    digest: u64,
+    bytes: Vec<u8>,
+}
+
+impl Handout<'_> {
+    fn exchange(&mut self, truth: &Truth) -> Result<Controls, SceneError> {
+        truth.encode_into(&mut self.bytes);
+        self.digest = self.bytes.iter().fold(self.digest, |h, &b| fnv1a64_step(h, b));
+        let controls = self.plane.exchange(truth)?;
+        self.step += 1;
+        Ok(controls)
+    }
+}
+
 /// Runs `setup`'s episode to its end, the participants reached through `plane`. A failing
 /// participant ends the scene: the participants are told why, and the error is returned.
 pub fn run_scene(setup: &SceneSetup, plane: &mut dyn Plane) -> Result<SceneOutcome, SceneError> {
     let scene = setup.digest();
-    let mut world = setup.world();
-    let (mut step, mut digest, mut bytes) = (0u64, FNV_OFFSET, Vec::new());
-    let result =
-        run_stepped(&mut world, &RewardWeights::default(), &mut |_, _| {}, &mut |w| -> Result<_, SceneError> {
-            w.scene_objects();
-            let truth = Truth::of(w, scene, step);
-            truth.encode_into(&mut bytes);
-            digest = bytes.iter().fold(digest, |h, &b| fnv1a64_step(h, b));
-            let controls = plane.exchange(&truth)?;
-            step += 1;
-            Ok(w.advance(controls))
-        });
-    world.scene_objects();
-    let mut last = Truth::of(&world, scene, step);
+    let mut out = Handout { plane, step: 0, digest: FNV_OFFSET, bytes: Vec::new() };
+    let (result, mut last, step_s) = match setup.world()? {
+        SceneWorld::Generated(mut world) => {
+            let result =
+                run_stepped(&mut world, &RewardWeights::default(), &mut |_, _| {}, &mut |w| -> Result<_, SceneError> {
+                    w.scene_objects();
+                    let controls = out.exchange(&Truth::of(w, scene, out.step))?;
+                    Ok(w.advance(controls))
+                });
+            world.scene_objects();
+            let last = Truth::of(&world, scene, out.step);
+            (result.map(|r| (r.metrics, r.risk)), last, world.dt_s)
+        }
+        // The recording's episode, measured as `resimulate` measures it.
+        SceneWorld::Recorded(mut run) => {
+            let mut result = Ok(());
+            while result.is_ok() && !run.finished() {
+                result = out.exchange(&Truth::of_recording(&run, scene, out.step)).map(|c| run.advance(c));
+            }
+            let last = Truth::of_recording(&run, scene, out.step);
+            (result.map(|()| run.finish()).map(|r| (r.metrics, r.risk)), last, setup.step_s())
+        }
+    };
     last.end = Some(match &result {
         Ok(_) => SceneEnd::Done,
         Err(e) => SceneEnd::Failed(e.to_string()),
     });
-    let finished = plane.finish(&last);
-    let result = result?;
+    let finished = out.plane.finish(&last);
+    let (metrics, risk) = result?;
     finished?;
+    let recording = match &setup.source {
+        SceneSource::Generated(_) => None,
+        SceneSource::CommonRoad(r) => Some(RecordingOutcome {
+            benchmark_id: r.benchmark_id().to_owned(),
+            ego_id: r.ego_id,
+            file: format!("{:016x}", r.file_digest),
+        }),
+    };
     Ok(SceneOutcome {
         scene: format!("{scene:016x}"),
-        kind: setup.spec.kind.name(),
-        seed: setup.spec.seed,
+        kind: setup.kind_name(),
+        seed: matches!(setup.source, SceneSource::Generated(_)).then(|| setup.seed()),
+        recording,
         participants: setup.participants(),
-        steps: step,
-        step_s: world.dt_s,
-        truth_digest: format!("{digest:016x}"),
-        metrics: result.metrics,
-        risk: result.risk,
+        steps: out.step,
+        step_s,
+        truth_digest: format!("{:016x}", out.digest),
+        metrics,
+        risk,
     })
 }
 
@@ -144,7 +196,6 @@ mod tests {
     use crate::scene::feasible_spec;
     use risktwin_common::episode::evaluate;
     use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
-    use risktwin_common::world::World;
 
     #[test]
     fn an_embedded_scene_is_the_library_episode() {
@@ -186,18 +237,20 @@ mod tests {
     fn a_vehicle_taken_out_is_absent_from_the_truth_and_the_others_keep_their_ids() {
         let spec = feasible_spec(3, ScenarioKind::CutIn).expect("feasible");
         let full = SceneSetup::new(spec.clone(), 2, 1).expect("scene");
-        let without = SceneSetup::new(spec, 2, 1).and_then(|s| s.without(&["v1".into()])).expect("scene");
+        let without = SceneSetup::new(spec.clone(), 2, 1).and_then(|s| s.without(&["v1".into()])).expect("scene");
         assert_eq!(without.participants(), ["v0", "rsu0"]);
         assert!(matches!(without.role_of("v1"), Err(SceneError::Withdrawn { .. })));
         assert_ne!(without.digest(), full.digest());
         for bad in ["v0", "rsu0"] {
-            let refused = SceneSetup::new(full.spec.clone(), 2, 1).and_then(|s| s.without(&[bad.into()]));
+            let refused = SceneSetup::new(spec.clone(), 2, 1).and_then(|s| s.without(&[bad.into()]));
             assert_eq!(refused, Err(SceneError::CannotWithdraw { id: bad.into() }));
         }
-        let (mut world, mut alone) = (full.world(), without.world());
-        let ids = |w: &mut World| w.scene_objects().iter().map(|o| o.id).collect::<Vec<_>>();
-        assert_eq!(ids(&mut world), [0, 1], "the cutter (0) and the slow lead (1)");
-        assert_eq!(ids(&mut alone), [1], "the lead keeps its id");
+        let ids = |setup: &SceneSetup| {
+            let truth = setup.world().expect("a world").truth(0, 0);
+            truth.objects.iter().map(|o| o.id).collect::<Vec<_>>()
+        };
+        assert_eq!(ids(&full), [0, 1], "the cutter (0) and the slow lead (1)");
+        assert_eq!(ids(&without), [1], "the lead keeps its id");
         let outcome = run_scene(&without, &mut Embedded::new(&without).expect("stacks")).expect("runs");
         assert!(outcome.metrics.success, "alone with the lead, the ego drives through: {:?}", outcome.metrics);
     }

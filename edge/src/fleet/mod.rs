@@ -18,19 +18,25 @@
 //! scenario's traffic vehicles in cast order (in a cut-in, `v1` is the cutter), whose motion
 //! stays the scenario's own (IDM/MOBIL or the scripted manoeuvre: a connected cut-in adversary
 //! still cuts in) while their stacks perceive and report; `rsu0…` are roadside units along the
-//! route. The same [`authority::run_scene`] runs embedded (every stack in one process,
+//! route. A scene is a generated scenario or a CommonRoad recording ([`SceneSource`],
+//! [`recording`]): the recording's ego is driven by its process as `resimulate` drives it, and
+//! its other vehicles, connected or not, are played back. The same [`authority::run_scene`] runs embedded (every stack in one process,
 //! [`authority::Embedded`]) or distributed over Zenoh ([`net`]); lockstep makes the two give
 //! the same bytes.
 
 pub mod authority;
 pub mod net;
 pub mod onboard;
+pub mod physics;
+pub mod recording;
 pub mod streams;
 pub mod wire;
 
+use physics::SceneWorld;
+pub use recording::Recording;
+use risktwin_common::commonroad::twin::RECORDING_SEED;
 use risktwin_common::digest::fnv1a64;
 use risktwin_common::scenario::{ScenarioSpec, build};
-use risktwin_common::world::World;
 use std::fmt;
 use thiserror::Error;
 
@@ -42,12 +48,12 @@ pub const MAX_RSUS: u32 = 16;
 pub enum SceneError {
     #[error("--connected must be at least 1 (the ego), got 0")]
     NoEgo,
-    #[error(
-        "--connected {asked} needs {needed} traffic vehicles beside the ego; this scenario has {available} that move"
-    )]
-    TooManyConnected { asked: u32, needed: u32, available: u32 },
+    #[error("--connected {asked} needs {needed} traffic vehicles beside the ego; this {what} has {available} {which}")]
+    TooManyConnected { asked: u32, needed: u32, available: u32, what: &'static str, which: &'static str },
     #[error("--rsus {asked} is more than the {MAX_RSUS} a scene places")]
     TooManyRsus { asked: u32 },
+    #[error("{reason}")]
+    Recording { reason: String },
     #[error("participant {id:?} is not in this scene (it has {known})")]
     UnknownParticipant { id: String, known: String },
     #[error("participant {id} is taken out of this scene (--without {id})")]
@@ -75,17 +81,28 @@ pub enum SceneError {
 pub enum Role {
     /// The scenario's ego: perceives and drives.
     Ego,
-    /// Traffic vehicle `traffic_index` of the scenario: perceives; moved by the scenario.
+    /// A traffic vehicle: perceives; moved by the scenario (or the recording). `traffic_index`
+    /// is its index in the scenario's traffic, or among a recording's other obstacles: its id
+    /// in the truth either way.
     Agent { traffic_index: usize },
     /// Roadside unit `index` along the route.
     Rsu { index: u32 },
 }
 
+/// What a scene plays.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SceneSource {
+    /// A generated scenario (`--spec`, `--db --id`, `--kind`), built into a `World`.
+    Generated(ScenarioSpec),
+    /// A CommonRoad recording (`--commonroad FILE [--ego ID]`), re-simulated.
+    CommonRoad(Recording),
+}
+
 /// A scene: a scenario and which of its vehicles are connected, plus roadside units.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SceneSetup {
-    pub spec: ScenarioSpec,
-    /// Connected vehicles: the ego and the first `connected − 1` moving traffic vehicles.
+    pub source: SceneSource,
+    /// Connected vehicles: the ego and the first `connected − 1` traffic vehicles.
     pub connected: u32,
     pub rsus: u32,
     /// Traffic indices of the connected vehicles beside the ego (`v1`, `v2`, …).
@@ -95,23 +112,45 @@ pub struct SceneSetup {
 }
 
 impl SceneSetup {
+    /// A generated scenario's scene: `v1…` are its moving traffic vehicles in cast order.
     /// Checks that the scenario has the vehicles asked for.
     pub fn new(spec: ScenarioSpec, connected: u32, rsus: u32) -> Result<Self, SceneError> {
+        let world = build(&spec);
+        let moving: Vec<usize> =
+            (0..world.traffic.len()).filter(|&i| world.traffic.is_active(i) && !world.traffic.is_parked(i)).collect();
+        Self::assign(SceneSource::Generated(spec), connected, rsus, moving, ("scenario", "that move"))
+    }
+
+    /// A recording's scene: `v1…` are its recorded vehicles beside the ego in file order
+    /// ([`Recording::vehicles`]). Checks that the recording has the vehicles asked for.
+    pub fn commonroad(recording: Recording, connected: u32, rsus: u32) -> Result<Self, SceneError> {
+        let vehicles = recording.vehicles();
+        let source = SceneSource::CommonRoad(recording);
+        Self::assign(source, connected, rsus, vehicles, ("recording", "vehicles beside its ego"))
+    }
+
+    /// The first `connected − 1` of `candidates` become `v1…`; `(what, which)` name them in
+    /// the error when there are too few.
+    fn assign(
+        source: SceneSource,
+        connected: u32,
+        rsus: u32,
+        candidates: Vec<usize>,
+        (what, which): (&'static str, &'static str),
+    ) -> Result<Self, SceneError> {
         if connected == 0 {
             return Err(SceneError::NoEgo);
         }
         if rsus > MAX_RSUS {
             return Err(SceneError::TooManyRsus { asked: rsus });
         }
-        let world = build(&spec);
-        let moving: Vec<usize> =
-            (0..world.traffic.len()).filter(|&i| world.traffic.is_active(i) && !world.traffic.is_parked(i)).collect();
         let needed = connected - 1;
-        if moving.len() < needed as usize {
-            return Err(SceneError::TooManyConnected { asked: connected, needed, available: moving.len() as u32 });
+        if candidates.len() < needed as usize {
+            let available = candidates.len() as u32;
+            return Err(SceneError::TooManyConnected { asked: connected, needed, available, what, which });
         }
-        let agents = moving[..needed as usize].to_vec();
-        Ok(SceneSetup { spec, connected, rsus, agents, without: Vec::new() })
+        let agents = candidates[..needed as usize].to_vec();
+        Ok(SceneSetup { source, connected, rsus, agents, without: Vec::new() })
     }
 
     /// The same scene with connected traffic vehicles `ids` (`v1`, …) taken out of the world: a
@@ -131,22 +170,37 @@ impl SceneSetup {
         Ok(self)
     }
 
-    /// The scene's world at t = 0: the scenario's, less the vehicles taken out.
-    pub fn world(&self) -> World {
-        let mut world = build(&self.spec);
-        for &k in &self.without {
-            world.withdraw_traffic(self.agents[k as usize - 1]);
+    /// The scene's world at t = 0: the scenario's (or the recording at the ego's first state),
+    /// less the vehicles taken out.
+    pub fn world(&self) -> Result<SceneWorld<'_>, SceneError> {
+        let taken_out = self.without.iter().map(|&k| self.agents[k as usize - 1]);
+        match &self.source {
+            SceneSource::Generated(spec) => {
+                let mut world = build(spec);
+                for i in taken_out {
+                    world.withdraw_traffic(i);
+                }
+                Ok(SceneWorld::Generated(world))
+            }
+            SceneSource::CommonRoad(recording) => Ok(SceneWorld::Recorded(recording.stepper(taken_out)?)),
         }
-        world
     }
 
     /// The scene's identity: every participant must run the same one. Covers the wire schema,
-    /// the scenario (kind, seed, exact parameters) and the role assignment.
+    /// the role assignment and the scenario: a spec's kind, seed and exact parameters, or a
+    /// recording's file bytes (their FNV-1a) and ego.
     pub fn digest(&self) -> u64 {
-        let spec = serde_json::to_vec(&self.spec).expect("a spec serialises");
         let head = [wire::SCHEMA_VERSION.to_le_bytes(), self.connected.to_le_bytes(), self.rsus.to_le_bytes()];
         let without = self.without.iter().flat_map(|k| k.to_le_bytes());
-        fnv1a64(head.iter().flatten().copied().chain(without).chain(spec))
+        let scenario: Vec<u8> = match &self.source {
+            SceneSource::Generated(spec) => serde_json::to_vec(spec).expect("a spec serialises"),
+            // A spec's JSON starts with `{`: the two never collide.
+            SceneSource::CommonRoad(r) => {
+                let ids = [r.file_digest.to_le_bytes(), r.ego_id.to_le_bytes()];
+                b"commonroad\0".iter().copied().chain(ids.into_iter().flatten()).collect()
+            }
+        };
+        fnv1a64(head.iter().flatten().copied().chain(without).chain(scenario))
     }
 
     /// The physics step, s: the world's own, as in the library and `risktwin run`.
@@ -154,17 +208,34 @@ impl SceneSetup {
         risktwin_common::world::STEP_S
     }
 
-    /// What this scene is, for messages: `cut_in seed 3, 3 connected, 1 RSU, scene 9f…`.
+    /// The scenario's kind as the outcome names it (`cut_in`, or `commonroad`).
+    pub fn kind_name(&self) -> &'static str {
+        match &self.source {
+            SceneSource::Generated(spec) => spec.kind.name(),
+            SceneSource::CommonRoad(_) => "commonroad",
+        }
+    }
+
+    /// The seed the onboard stacks' noise streams derive from: the scenario's, or
+    /// [`RECORDING_SEED`] for a recording.
+    pub fn seed(&self) -> u64 {
+        match &self.source {
+            SceneSource::Generated(spec) => spec.seed,
+            SceneSource::CommonRoad(_) => RECORDING_SEED,
+        }
+    }
+
+    /// What this scene is, for messages: `cut_in seed 3, 3 connected, 1 RSU, scene 9f…` or
+    /// `CommonRoad USA_Lanker-1_3_T-1 (file 5c…) ego 30, 3 connected, …`.
     pub fn describe(&self) -> String {
+        let scenario = match &self.source {
+            SceneSource::Generated(spec) => format!("{} seed {}", spec.kind.name(), spec.seed),
+            SceneSource::CommonRoad(r) => {
+                format!("CommonRoad {} (file {:016x}) ego {}", r.benchmark_id(), r.file_digest, r.ego_id)
+            }
+        };
         let without: String = self.without.iter().map(|k| format!(" without v{k},")).collect();
-        format!(
-            "{} seed {}, {} connected,{without} {} RSU(s), scene {:016x}",
-            self.spec.kind.name(),
-            self.spec.seed,
-            self.connected,
-            self.rsus,
-            self.digest()
-        )
+        format!("{scenario}, {} connected,{without} {} RSU(s), scene {:016x}", self.connected, self.rsus, self.digest())
     }
 
     /// Every participant id, vehicles first.
@@ -232,7 +303,7 @@ mod tests {
         assert_eq!(a.digest(), cut_in(3, 1).expect("scene").digest());
         assert_ne!(a.digest(), cut_in(2, 1).expect("scene").digest());
         assert_ne!(a.digest(), cut_in(3, 0).expect("scene").digest());
-        let mut spec = a.spec.clone();
+        let SceneSource::Generated(mut spec) = a.source.clone() else { unreachable!("a generated scene") };
         spec.seed += 1;
         assert_ne!(a.digest(), SceneSetup::new(spec, 3, 1).expect("scene").digest());
     }

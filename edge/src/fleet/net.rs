@@ -10,6 +10,7 @@
 
 use super::authority::Plane;
 use super::onboard::{Onboard, vehicle_state};
+use super::physics::SceneWorld;
 use super::streams::unix_ns;
 use super::streams::{Streams, StreamsSent};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
@@ -69,11 +70,13 @@ fn open_plane(session: &Session, inbox: String, outbox: String) -> Result<(Inbox
     Ok((subscriber, publisher))
 }
 
-/// The road map of a scene's world, as the authority publishes it (the same bytes each time).
-fn scene_road_map(world: &risktwin_common::world::World) -> RoadMap {
+/// The road map of a scene's world, as the authority publishes it (the same bytes each time):
+/// the road, and a recording's lanelets.
+fn scene_road_map(world: &SceneWorld<'_>) -> RoadMap {
     let header =
         Header { source: SCENE_CHUNK.into(), seq: 0, capture_time_ns: 0, publish_time_ns: 0, frame: Frame::World };
-    RoadMap { header, road: world.road.clone(), lanelets: Default::default() }
+    let (road, lanelets) = world.road_map();
+    RoadMap { header, road, lanelets }
 }
 
 /// The authority's side: truth out, replies in.
@@ -132,7 +135,8 @@ impl ZenohAuthority {
         };
         let map_publisher = declare(scene_topic(Some(site), SceneTopic::Map), RoadMap::PROTO_NAME)?;
         let objects = declare(scene_topic(Some(site), SceneTopic::Objects), ObjectList::PROTO_NAME)?;
-        let map = scene_road_map(&setup.world());
+        let mut world = setup.world()?;
+        let map = scene_road_map(&world);
         let participants = setup.participants();
         let mut ground_truth = Vec::new();
         for id in participants.iter().filter(|id| !id.starts_with("rsu")) {
@@ -155,7 +159,7 @@ impl ZenohAuthority {
             realtime: None,
         };
         if let Err(e) = plane.await_joins(setup) {
-            let mut abort = Truth::of(&setup.world(), setup.digest(), 0);
+            let mut abort = world.truth(setup.digest(), 0);
             abort.end = Some(SceneEnd::Failed(e.to_string()));
             // The error is what matters; a failure to tell the participants adds nothing.
             let _ = plane.publish(&abort);
@@ -434,7 +438,7 @@ mod tests {
     fn every_kind_of_scene_map_decodes_as_the_cloud_decodes_it() {
         for kind in ScenarioKind::ALL {
             let spec = crate::scene::feasible_spec(3, kind).expect("feasible");
-            let map = scene_road_map(&build(&spec));
+            let map = scene_road_map(&SceneWorld::Generated(build(&spec)));
             let back: RoadMap = risktwin_protos::decode(&encode(&map)).unwrap_or_else(|e| panic!("{kind:?}: {e}"));
             assert_eq!(back.road.lanes.len(), map.road.lanes.len());
         }

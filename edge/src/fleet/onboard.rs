@@ -3,18 +3,21 @@
 //!
 //! The ego's stack is built from the same scenario as the authority's world, so its road,
 //! vehicle parameters, sensor and sensor noise stream are the world's own: perceiving the
-//! truth here consumes the noise exactly as `World::step` would in one process.
+//! truth here consumes the noise exactly as `World::step` would in one process (for a
+//! recording, as `resimulate`'s driver does).
 
 use super::wire::Truth;
-use super::{Role, SceneError, SceneSetup};
+use super::{Role, SceneError, SceneSetup, SceneSource};
+use risktwin_common::commonroad::twin::ego_sensor;
 use risktwin_common::driver::{DriverView, Policy, ReferenceDriver};
 use risktwin_common::episode::with_reference_driver;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::rng::Rng;
+use risktwin_common::road::{Lane, Road};
 use risktwin_common::sensor::{PerceivedObject, SceneObject, Sensor, SensorParams};
 use risktwin_common::telemetry::{DetectedObject, Header, VehicleStateSample};
 use risktwin_common::vehicle::Controls;
-use risktwin_common::world::{EGO_OBJECT_ID, World};
+use risktwin_common::world::EGO_OBJECT_ID;
 
 /// Noise stream of connected traffic vehicle k's sensor (k = its traffic index).
 const AGENT_SENSOR_STREAM: u64 = 0xA6E0_0000;
@@ -27,8 +30,9 @@ const RSU_OFFSET_M: f64 = -12.0;
 /// What a participant runs onboard.
 pub struct Onboard {
     role: Role,
-    /// The participant's own copy of the scenario's world: road, ego parameters, sensor.
-    world: World,
+    /// The ego's road and footprint, as its driver sees them.
+    road: Road,
+    ego_footprint: Footprint,
     driver: Option<ReferenceDriver>,
     sensor: Sensor,
     rng: Rng,
@@ -38,16 +42,62 @@ pub struct Onboard {
     perceived: Vec<PerceivedObject>,
 }
 
+/// What every stack of a scene is built from: the ego's road, footprint, driver, sensor and
+/// noise stream (the authority's world's own, so that perceiving the truth here consumes the
+/// noise as the world would in one process), and the route the roadside units stand along.
+struct Basis {
+    road: Road,
+    ego_footprint: Footprint,
+    driver: ReferenceDriver,
+    sensor: Sensor,
+    rng: Rng,
+    route: Lane,
+    route_start_s_m: f64,
+}
+
+impl Basis {
+    fn of(source: &SceneSource) -> Basis {
+        match source {
+            SceneSource::Generated(spec) => {
+                let (world, driver) = with_reference_driver(spec);
+                Basis {
+                    ego_footprint: world.ego.params.footprint(),
+                    driver,
+                    route: world.road.lane(world.route.lane).clone(),
+                    route_start_s_m: world.route.start_s_m,
+                    road: world.road,
+                    sensor: world.sensor,
+                    rng: world.sensor_rng,
+                }
+            }
+            // The ego `resimulate` drives: the same driver, sensor and noise stream.
+            SceneSource::CommonRoad(recording) => {
+                let scene = recording.twin_scene();
+                let (sensor, rng) = ego_sensor();
+                Basis {
+                    road: scene.road.clone(),
+                    ego_footprint: scene.ego.footprint,
+                    driver: scene.ego_driver(),
+                    sensor,
+                    rng,
+                    route: scene.ego_route(),
+                    route_start_s_m: 0.0,
+                }
+            }
+        }
+    }
+}
+
 impl Onboard {
     /// The stack of participant `id` of `setup`.
     pub fn new(setup: &SceneSetup, id: &str) -> Result<Onboard, SceneError> {
         let role = setup.role_of(id)?;
-        let (world, driver) = with_reference_driver(&setup.spec);
-        let seed = setup.spec.seed;
+        let Basis { road, ego_footprint, driver, sensor, rng, route, route_start_s_m } = Basis::of(&setup.source);
+        let seed = setup.seed();
         let around = SensorParams { fov_rad: std::f64::consts::TAU, occlusion: false, ..SensorParams::default() };
         let sensor_of = |params| Sensor::new(params).map_err(|e| SceneError::Failed { reason: e.to_string() });
         let (driver, sensor, rng, mast) = match role {
-            Role::Ego => (Some(driver), world.sensor.clone(), world.sensor_rng.clone(), Pose::default()),
+            Role::Ego => (Some(driver), sensor, rng, Pose::default()),
             Role::Agent { traffic_index } => (
                 None,
                 sensor_of(SensorParams::default())?,
@@ -55,15 +105,14 @@ impl Onboard {
                 Pose::default(),
             ),
             Role::Rsu { index } => {
-                let route = world.route;
-                let along =
-                    world.road.lane(route.lane).pose_at(route.start_s_m + RSU_SPACING_M * f64::from(index), 0.0);
+                let along = route.pose_at(route_start_s_m + RSU_SPACING_M * f64::from(index), 0.0);
                 let (s, c) = along.heading_rad.sin_cos();
                 let mast = Pose::new(along.x_m - RSU_OFFSET_M * s, along.y_m + RSU_OFFSET_M * c, along.heading_rad);
                 (None, sensor_of(around)?, Rng::derive(seed, RSU_SENSOR_STREAM + u64::from(index)), mast)
             }
         };
-        Ok(Onboard { role, world, driver, sensor, rng, mast, objects: Vec::new(), perceived: Vec::new() })
+        let (objects, perceived) = (Vec::new(), Vec::new());
+        Ok(Onboard { role, road, ego_footprint, driver, sensor, rng, mast, objects, perceived })
     }
 
     /// The participant's role.
@@ -100,12 +149,12 @@ impl Onboard {
         self.sensor.perceive(pose, &self.objects, &mut self.rng, &mut self.perceived);
         let driver = self.driver.as_mut()?;
         let view = DriverView {
-            road: &self.world.road,
+            road: &self.road,
             time_s: truth.time_s,
             ego_pose: pose,
             ego_speed_mps: truth.ego.speed_mps,
             ego_accel_mps2: truth.ego.accel_mps2,
-            ego_footprint: self.world.ego.params.footprint(),
+            ego_footprint: self.ego_footprint,
             perceived: &self.perceived,
         };
         Some(driver.act(&view))

@@ -6,10 +6,12 @@
 //! messages never leave a scene (the cloud's streams stay protobuf); [`SCHEMA_VERSION`] is in
 //! every message and in the scene digest, and a mismatch is refused by name.
 
+use risktwin_common::commonroad::twin::ResimStepper;
 use risktwin_common::geometry::{Footprint, Obb, Pose, Vec2};
 use risktwin_common::sensor::{ObjectKind, SceneObject};
 use risktwin_common::telemetry::DetectedObject;
 use risktwin_common::vehicle::Controls;
+use risktwin_common::vehicle::Vehicle;
 use risktwin_common::world::World;
 use serde::{Deserialize, Serialize};
 
@@ -93,29 +95,40 @@ fn finite(values: &[f64], what: &'static str) -> Result<(), WireError> {
     values.iter().all(|v| v.is_finite()).then_some(()).ok_or(WireError::NotFinite(what))
 }
 
+impl EgoTruth {
+    /// The true state of the ego's `vehicle`.
+    fn of(vehicle: &Vehicle) -> Self {
+        let pose = vehicle.pose();
+        let footprint = vehicle.params.footprint();
+        let velocity = vehicle.velocity();
+        EgoTruth {
+            pose: [pose.x_m, pose.y_m, pose.heading_rad],
+            speed_mps: vehicle.state.speed_mps,
+            accel_mps2: vehicle.state.accel_mps2,
+            yaw_rate_radps: vehicle.state.yaw_rate_radps,
+            steer_rad: vehicle.state.steer_rad,
+            velocity: [velocity.x, velocity.y],
+            footprint: [footprint.length_m, footprint.width_m],
+        }
+    }
+}
+
 impl Truth {
     /// The truth of `world` now (its scene as of the last refresh) for step `step`.
     pub fn of(world: &World, scene: u64, step: u64) -> Truth {
-        let pose = world.ego.pose();
-        let footprint = world.ego.params.footprint();
-        let velocity = world.ego.velocity();
-        Truth {
-            schema: SCHEMA_VERSION,
-            scene,
-            step,
-            time_s: world.time_s,
-            ego: EgoTruth {
-                pose: [pose.x_m, pose.y_m, pose.heading_rad],
-                speed_mps: world.ego.state.speed_mps,
-                accel_mps2: world.ego.state.accel_mps2,
-                yaw_rate_radps: world.ego.state.yaw_rate_radps,
-                steer_rad: world.ego.state.steer_rad,
-                velocity: [velocity.x, velocity.y],
-                footprint: [footprint.length_m, footprint.width_m],
-            },
-            objects: world.scene().iter().map(|o| TruthObject::of(o, world)).collect(),
-            end: None,
-        }
+        let objects = world.scene().iter().map(|o| TruthObject::new(o, traffic_accel_mps2(o, world))).collect();
+        Truth::new(scene, step, world.time_s, &world.ego, objects)
+    }
+
+    /// The truth of a re-simulated recording now, for step `step`; its time is the time since
+    /// the ego's first recorded state (the driver's clock, as in `resimulate`).
+    pub fn of_recording(run: &ResimStepper<'_>, scene: u64, step: u64) -> Truth {
+        let objects = run.objects().iter().map(|o| TruthObject::new(o, run.accel_mps2(o.id))).collect();
+        Truth::new(scene, step, run.time_s(), run.vehicle(), objects)
+    }
+
+    fn new(scene: u64, step: u64, time_s: f64, ego: &Vehicle, objects: Vec<TruthObject>) -> Truth {
+        Truth { schema: SCHEMA_VERSION, scene, step, time_s, ego: EgoTruth::of(ego), objects, end: None }
     }
 
     /// The ego's pose.
@@ -163,11 +176,15 @@ impl Truth {
     }
 }
 
+/// Acceleration of object `o` of `world`'s scene: its traffic vehicle's, 0 for a pedestrian.
+fn traffic_accel_mps2(o: &SceneObject, world: &World) -> f64 {
+    let traffic = o.kind != ObjectKind::Pedestrian && (o.id as usize) < world.traffic.len();
+    if traffic { world.traffic.accel_mps2(o.id as usize) } else { 0.0 }
+}
+
 impl TruthObject {
-    /// Object `o` of `world`'s scene, with its acceleration from the traffic it belongs to.
-    fn of(o: &SceneObject, world: &World) -> Self {
-        let traffic = o.kind != ObjectKind::Pedestrian && (o.id as usize) < world.traffic.len();
-        let accel_mps2 = if traffic { world.traffic.accel_mps2(o.id as usize) } else { 0.0 };
+    /// Scene object `o` with its acceleration along the heading.
+    fn new(o: &SceneObject, accel_mps2: f64) -> Self {
         TruthObject {
             id: o.id,
             kind: o.kind,

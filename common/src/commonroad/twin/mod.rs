@@ -8,25 +8,31 @@
 //! - [`Playback`]: an obstacle's recorded states at any time, interpolated between the
 //!   scenario's steps (linear in position, speed and acceleration; shortest-arc in heading).
 //! - [`resimulate`]: the scenario re-run at the twin's step with the ego replayed or driven by
-//!   the reference driver from its recorded initial state; episode metrics and S_risk.
+//!   the reference driver from its recorded initial state; episode metrics and S_risk. Its
+//!   [`ResimStepper`] takes the ego's controls one step at a time, so a scene's authority
+//!   (edge::fleet) runs the same episode with the driver in another process.
 //! - [`field_at`]: the risk field around the ego at one moment, and [`lanelet_layers`] what a
 //!   heatmap of it shows over the real lanelet bounds.
 
+mod ego;
 mod heatmap;
 mod playback;
 mod resim;
 mod road;
 mod scene;
 mod snapshot;
+mod stepper;
 #[cfg(test)]
 mod tests;
 
+pub use ego::{RECORDING_SEED, ego_sensor};
 pub use heatmap::lanelet_layers;
 pub use playback::{Playback, PlaybackState, footprint_of, kind_of};
 pub use resim::{EgoMode, ResimSample, Resimulation, resimulate};
 pub use road::road_from_lanelets;
 pub use scene::TwinScene;
 pub use snapshot::{CommonRoadField, field_at};
+pub use stepper::ResimStepper;
 
 /// What keeps a scenario from being put into the twin.
 #[derive(Debug, thiserror::Error)]

@@ -20,6 +20,8 @@ pub struct TwinScene {
     pub others: Vec<Playback>,
     /// Static obstacles: footprint (velocity zero).
     pub statics: Vec<Obb>,
+    /// Indices into `others` taken out of the scene ([`TwinScene::withdraw`]), ascending.
+    withdrawn: Vec<usize>,
 }
 
 impl TwinScene {
@@ -55,14 +57,41 @@ impl TwinScene {
                 Obb::new(Pose::new(centre.x, centre.y, heading), footprint)
             })
             .collect();
-        Ok(Self { road, lane_lanelets, ego: Playback::new(ego_obstacle, scenario.dt_s), others, statics })
+        let ego = Playback::new(ego_obstacle, scenario.dt_s);
+        Ok(Self { road, lane_lanelets, ego, others, statics, withdrawn: Vec::new() })
+    }
+
+    /// Takes `others[index]` out of the scene (a counterfactual: the recording without it); the
+    /// others keep their ids.
+    pub fn withdraw(&mut self, index: usize) {
+        if let Err(at) = self.withdrawn.binary_search(&index) {
+            self.withdrawn.insert(at, index);
+        }
+    }
+
+    /// The other dynamic obstacles still in the scene, with their index in `others`.
+    fn present(&self) -> impl Iterator<Item = (usize, &Playback)> {
+        self.others.iter().enumerate().filter(|(i, _)| self.withdrawn.binary_search(i).is_err())
+    }
+
+    /// Indices into `others` of the recorded vehicles (not pedestrians, cyclists or parked
+    /// vehicles), in file order.
+    pub fn vehicles(&self) -> Vec<usize> {
+        self.others.iter().enumerate().filter(|(_, p)| p.kind == ObjectKind::Vehicle).map(|(i, _)| i).collect()
+    }
+
+    /// Acceleration along the heading of object `id` of [`TwinScene::objects_at`] at `time_s`,
+    /// m/s² (0 for static obstacles and outside the recording).
+    pub fn accel_mps2_at(&self, id: u32, time_s: f64) -> f64 {
+        let playback = self.others.get(id as usize);
+        playback.and_then(|p| p.at(time_s)).map_or(0.0, |s| s.accel_mps2)
     }
 
     /// Everything but the ego at `time_s`: dynamic obstacles present then (id = index in
     /// `others`), then the static ones (ids after them), into `out`.
     pub fn objects_at(&self, time_s: f64, out: &mut Vec<SceneObject>) {
         out.clear();
-        for (i, p) in self.others.iter().enumerate() {
+        for (i, p) in self.present() {
             if let Some(s) = p.at(time_s) {
                 out.push(SceneObject { id: i as u32, obb: p.obb(&s), velocity: s.velocity(), kind: p.kind });
             }
@@ -76,7 +105,7 @@ impl TwinScene {
     /// The criticality states of the objects in `objects` (accelerations along the heading).
     pub fn critical_states_at(&self, time_s: f64, out: &mut Vec<VehicleState>) {
         out.clear();
-        for p in &self.others {
+        for (_, p) in self.present() {
             if let Some(s) = p.at(time_s) {
                 let obb = p.obb(&s);
                 out.push(VehicleState { obb, velocity: s.velocity(), accel: obb.axis * s.accel_mps2 });

@@ -69,6 +69,34 @@ fn a_lockstep_recording_scene_of_processes_equals_the_embedded_run_and_simulate(
 }
 
 #[test]
+fn a_cloud_mirrors_a_realtime_recording_scene_on_its_lanelet_road() {
+    let xml = std::fs::read_to_string(PUTTE).expect("the recording");
+    let scenario = risktwin_common::commonroad::parse_scenario(&xml).expect("parses");
+    let (road, _) = risktwin_common::commonroad::twin::road_from_lanelets(&scenario.lanelets).expect("a road");
+    let (_router, locator) = start_router();
+    let net = ["--mode", "client", "--connect", locator.as_str()];
+    let mut cloud = Proc::spawn("cloud", &args(&["cloud", "--roles", "ingest,twin,risk"], &net));
+    cloud.wait_line(Duration::from_secs(30), |l| l.starts_with("ready"));
+    let scene = args(&["scene", "run", "--clock", "realtime", "--router", &locator], &RECORDING);
+    let outcome = Proc::spawn("scene", &scene).exit_json(Duration::from_secs(60));
+    let steps = outcome["steps"].as_u64().expect("steps");
+    for id in ["v0", "v1", "v2", "rsu0"] {
+        cloud.wait_line(Duration::from_secs(30), |l| l == format!("edge left: site0/{id}"));
+    }
+    cloud.terminate();
+    let summary = cloud.exit_json(Duration::from_secs(30));
+    assert_eq!(summary["received"]["v0"]["state"], steps, "{summary}");
+    // v1 (obstacle 35) is recorded until 3.3 s: a state at each of the 67 steps it is there.
+    assert_eq!(summary["received"]["v1"]["state"], 67, "{summary}");
+    assert_eq!(summary["total_dropped"], 0, "{summary}");
+    let twin = &summary["twin"];
+    assert_eq!(twin["site_roads"]["site0"], road.lanes.len(), "risk on the recording's lanelet road: {summary}");
+    assert!(twin["risk_assessments"].as_u64() > Some(0), "{summary}");
+    let ego = &twin["fidelity"]["site0/v0"];
+    assert!(ego["position_error_m"]["p95"].as_f64().expect("p95") < 0.5, "{ego}");
+}
+
+#[test]
 fn a_participant_of_another_ego_is_refused_by_name() {
     let (_router, locator) = start_router();
     let net = ["--mode", "client", "--connect", locator.as_str()];

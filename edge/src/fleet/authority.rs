@@ -1,6 +1,7 @@
 //! The physics authority: steps the scene's world at the world's own step, hands each step's
 //! truth to every participant through a [`Plane`] and advances with the ego's controls.
-//! The episode is measured exactly as `risktwin simulate` measures it (`common::episode`).
+//! The episode is measured exactly as `risktwin simulate` measures it (`common::episode`; a
+//! recording's as `simulate --commonroad` does, `common::commonroad::twin::ResimStepper`).
 
 use super::onboard::Onboard;
 use super::physics::SceneWorld;
@@ -168,18 +169,17 @@ pub fn run_scene(setup: &SceneSetup, plane: &mut dyn Plane) -> Result<SceneOutco
     let finished = out.plane.finish(&last);
     let (metrics, risk) = result?;
     finished?;
-    let recording = match &setup.source {
-        SceneSource::Generated(_) => None,
-        SceneSource::CommonRoad(r) => Some(RecordingOutcome {
-            benchmark_id: r.benchmark_id().to_owned(),
-            ego_id: r.ego_id,
-            file: format!("{:016x}", r.file_digest),
-        }),
+    let (seed, recording) = match &setup.source {
+        SceneSource::Generated(spec) => (Some(spec.seed), None),
+        SceneSource::CommonRoad(r) => {
+            let file = format!("{:016x}", r.file_digest);
+            (None, Some(RecordingOutcome { benchmark_id: r.benchmark_id().to_owned(), ego_id: r.ego_id, file }))
+        }
     };
     Ok(SceneOutcome {
         scene: format!("{scene:016x}"),
         kind: setup.kind_name(),
-        seed: matches!(setup.source, SceneSource::Generated(_)).then(|| setup.seed()),
+        seed,
         recording,
         participants: setup.participants(),
         steps: out.step,

@@ -8,7 +8,9 @@
 //! - [`latency`]: edge publish → twin snapshot, against a raw Zenoh hop (`bench latency`);
 //! - [`replay`]: MCAP replay into the ingest worker, against the `mcap` reader (`bench replay`);
 //! - [`fleet_ingest`]: a fleet of publisher processes against the real cloud ingest role, with
-//!   its CPU cost (`bench ingest`).
+//!   its CPU cost (`bench ingest`);
+//! - [`fanout`]: raw Zenoh's floor under a lockstep step, one put out and N answers back from
+//!   N processes (`bench fanout`, beside `deploy/bench/scene-lockstep.sh`'s scene).
 //!
 //! ```no_run
 //! # async fn example() -> Result<(), risktwin_cloud::network::CloudError> {
@@ -20,6 +22,7 @@
 //! # }
 //! ```
 
+pub mod fanout;
 pub mod fleet_ingest;
 pub mod latency;
 pub mod replay;

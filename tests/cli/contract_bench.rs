@@ -1,6 +1,7 @@
-//! `bench sim` and `bench risk-field` with tiny sizes: the fields docs/cli.md promises and sane rates.
+//! `bench sim`, `bench risk-field` and `bench fanout` with tiny sizes: the fields docs/cli.md
+//! promises and sane rates.
 
-use crate::support::{keys, num, ok_json, uint};
+use crate::support::{assert_input_error, keys, num, ok_json, uint};
 use tempfile::tempdir;
 
 #[test]
@@ -30,4 +31,21 @@ fn bench_risk_field_json() {
     }
     assert_eq!((uint(&b, "cells"), uint(&b, "agents")), (16 * 8, 3));
     assert!(num(&b, "fields_per_s") > 0.0);
+}
+
+#[test]
+fn bench_fanout_json_and_bad_sizes() {
+    let dir = tempdir().unwrap();
+    let args = ["bench", "fanout", "--echoes", "2", "--rounds", "20", "--out-bytes", "64", "--format", "json"];
+    let b = ok_json(dir.path(), &args);
+    let present = keys(&b);
+    for key in ["echoes", "rounds", "out_bytes", "reply_bytes", "ms_per_round"] {
+        assert!(present.contains(&key), "bench fanout JSON lacks {key}: {b}");
+    }
+    assert_eq!((uint(&b, "echoes"), uint(&b, "rounds"), uint(&b, "out_bytes")), (2, 20, 64), "echoes its flags");
+    assert!(num(&b, "ms_per_round") > 0.0);
+    for bad in [["--echoes", "0"], ["--out-bytes", "4"]] {
+        let args: Vec<&str> = ["bench", "fanout"].into_iter().chain(bad).collect();
+        assert_input_error(dir.path(), &args, "--echoes and --rounds must be positive");
+    }
 }

@@ -377,6 +377,55 @@ fn a_killed_participant_ends_the_scene_named_within_two_seconds() {
     }
 }
 
+/// A child of `parent` whose command line names `--participant id`.
+fn participant_pid(parent: u32, id: &str) -> Option<u32> {
+    let wanted = format!("--participant\0{id}\0");
+    std::fs::read_dir("/proc").ok()?.flatten().find_map(|entry| {
+        let pid: u32 = entry.file_name().to_str()?.parse().ok()?;
+        let stat = std::fs::read_to_string(entry.path().join("stat")).ok()?;
+        // `pid (comm) state ppid …`: the fields after the last ')'.
+        let ppid: u32 = stat.rsplit_once(')')?.1.split_whitespace().nth(1)?.parse().ok()?;
+        let cmdline = std::fs::read(entry.path().join("cmdline")).ok()?;
+        (ppid == parent && String::from_utf8_lossy(&cmdline).contains(&wanted)).then_some(pid)
+    })
+}
+
+/// Sends `signal` to `pid` through the `kill` command.
+fn signal(pid: u32, signal: &str) {
+    let status = std::process::Command::new("kill").args([signal, &pid.to_string()]).status().expect("kill runs");
+    assert!(status.success(), "kill {signal} {pid}");
+}
+
+/// A stopped process is killed when the test ends, passed or failed.
+struct Stopped(u32);
+
+impl Drop for Stopped {
+    fn drop(&mut self) {
+        // Gone already is fine: the launcher reaps its children.
+        let mut kill = std::process::Command::new("kill");
+        let _ = kill.args(["-KILL", &self.0.to_string()]).stderr(std::process::Stdio::null()).status();
+    }
+}
+
+#[test]
+fn a_stalled_participant_ends_the_one_host_scene_named_never_a_hang() {
+    // Paced at real time, so the episode (about 10 s) is still running when v1 stalls.
+    let mut launcher = Proc::spawn("launcher", &args(&["scene", "run", "--speed", "1"], &SCENE));
+    launcher.wait_line(Duration::from_secs(40), |l| l.contains("participants joined, stepping"));
+    let pid = participant_pid(launcher.id(), "v1").expect("the launcher's v1 process");
+    signal(pid, "-STOP");
+    let _stopped = Stopped(pid);
+    let stalled = Instant::now();
+    // The authority names v1 after 1.5 s; the launcher then gives each participant 10 s to exit
+    // and names the one that did not; the rest is slack for a loaded 2-core machine.
+    let (status, _) = launcher.wait_exit(Duration::from_secs(30));
+    let ended_after = stalled.elapsed();
+    let stderr = launcher.drain_stderr();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("participant(s) v1 did not answer step"), "{stderr}");
+    assert!(ended_after < Duration::from_secs(20), "ended after {ended_after:?}");
+}
+
 #[test]
 fn a_collision_between_vehicles_of_two_processes_is_detected_by_the_authority() {
     // The cutter (v1, its own process) swerves into the ego's lane 2 m ahead at 8 m/s less.

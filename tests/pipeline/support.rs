@@ -99,6 +99,11 @@ impl Proc {
         serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("{}: stdout is not JSON ({e}):\n{stdout}", self.name))
     }
 
+    /// The process id.
+    pub fn id(&self) -> u32 {
+        self.child.id()
+    }
+
     /// Sends SIGKILL: the process dies without a word, as in a crash.
     pub fn kill(&mut self) {
         self.child.kill().expect("the child is killed");

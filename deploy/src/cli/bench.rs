@@ -18,6 +18,8 @@ pub enum BenchCommand {
     Ingest(BenchIngestArgs),
     /// Edge publish → twin snapshot latency, ours against a raw Zenoh one-way hop.
     Latency(BenchLatencyArgs),
+    /// The raw Zenoh floor of a lockstep step: one put out to N echo processes, N answers back.
+    Fanout(BenchFanoutArgs),
 }
 
 #[derive(Debug, Args)]
@@ -124,4 +126,29 @@ pub struct BenchLatencyArgs {
     pub lateness_ms: Option<f64>,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
+}
+
+/// `risktwin bench fanout`.
+#[derive(Debug, clap::Args)]
+pub struct BenchFanoutArgs {
+    /// Echo processes (a scene's participants).
+    #[arg(long, default_value_t = 10)]
+    pub echoes: usize,
+    /// Timed rounds (a scene's steps).
+    #[arg(long, default_value_t = 2000)]
+    pub rounds: u64,
+    /// Bytes out per round (a scene's truth).
+    #[arg(long, default_value_t = 1024)]
+    pub out_bytes: usize,
+    /// Bytes of each answer (a participant's reply).
+    #[arg(long, default_value_t = 40)]
+    pub reply_bytes: usize,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+    /// Internal: run as echo `--echo-id`, connecting here.
+    #[arg(long, hide = true)]
+    pub echo_connect: Option<String>,
+    /// Internal: this echo's index.
+    #[arg(long, hide = true, default_value_t = 0)]
+    pub echo_id: usize,
 }

@@ -1,6 +1,7 @@
 //! One module per subcommand; each turns parsed arguments into library calls and output.
 
 mod bench;
+mod bench_fanout;
 pub(crate) mod bench_ingest;
 pub(crate) mod bench_replay;
 pub mod cloud;
@@ -53,5 +54,6 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Scene(SceneCommand::Vehicle(a)) => scene::participant(a, "vehicle"),
         Command::Scene(SceneCommand::Rsu(a)) => scene::participant(a, "rsu"),
         Command::Bench(BenchCommand::Latency(a)) => cloud::bench_latency(a),
+        Command::Bench(BenchCommand::Fanout(a)) => bench_fanout::fanout(a),
     }
 }

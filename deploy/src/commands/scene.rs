@@ -23,7 +23,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Where every role of `scene run` listens: loopback, a port the OS picks.
-const LOOPBACK: &str = "tcp/127.0.0.1:0";
+pub(super) const LOOPBACK: &str = "tcp/127.0.0.1:0";
 
 /// The scene the arguments name (the scenario checked feasible, the roles checked present).
 fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
@@ -124,7 +124,7 @@ fn site_of(args: &SceneArgs) -> CliResult<SiteId> {
 }
 
 /// Opens a Zenoh session on a runtime that lives as long as the session is used.
-fn open(transport: &TransportConfig) -> CliResult<(tokio::runtime::Runtime, Session)> {
+pub(super) fn open(transport: &TransportConfig) -> CliResult<(tokio::runtime::Runtime, Session)> {
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().map_err(CliError::runtime)?;
     let session = runtime.block_on(connect(transport)).map_err(CliError::runtime)?;
     Ok((runtime, session))
@@ -186,8 +186,9 @@ fn log_pace(outcome: &SceneOutcome, wall: Duration) {
 }
 
 fn report_malformed(plane: &ZenohAuthority) {
-    if plane.malformed > 0 {
-        tracing::warn!("scene: {} malformed replies dropped", plane.malformed);
+    let malformed = plane.malformed();
+    if malformed > 0 {
+        tracing::warn!("scene: {malformed} malformed replies dropped");
     }
 }
 
@@ -346,8 +347,9 @@ impl Children {
                 }
             };
             let mut out = String::new();
-            if let Some(stdout) = child.stdout.as_mut() {
-                // A participant's summary is informational; a read failure loses only that.
+            // Only an exited participant's pipe reaches its end: reading a stalled one's would
+            // wait for ever. The summary is informational; a read failure loses only that.
+            if let (Some(_), Some(stdout)) = (status, child.stdout.as_mut()) {
                 let _ = stdout.read_to_string(&mut out);
             }
             match status {

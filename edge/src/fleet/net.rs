@@ -21,13 +21,14 @@ use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{
     SCENE_CHUNK, SceneTopic, scene_ground_truth, scene_replies, scene_reply, scene_topic, scene_truth,
 };
-use risktwin_transport::zenoh::handlers::FifoChannelHandler;
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
 use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
 use risktwin_transport::{SiteId, SourceId, protobuf};
 use serde::Serialize;
+use std::sync::mpsc::RecvTimeoutError;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 /// How long the plane waits before it names who failed.
@@ -53,21 +54,18 @@ const MAP_EVERY_STEPS: u64 = 20;
 /// How often a participant repeats its join until the first truth arrives.
 const JOIN_REPEAT: Duration = Duration::from_millis(200);
 
-type Inbox = Subscriber<FifoChannelHandler<Sample>>;
-
 fn transport(what: &str) -> impl Fn(Box<dyn std::error::Error + Send + Sync>) -> SceneError + '_ {
     move |e| SceneError::Transport(format!("{what}: {e}"))
 }
 
-fn open_plane(session: &Session, inbox: String, outbox: String) -> Result<(Inbox, Publisher<'static>), SceneError> {
-    let subscriber = session.declare_subscriber(inbox.clone()).wait().map_err(transport(&inbox))?;
-    let publisher = session
-        .declare_publisher(outbox.clone())
+/// The plane's publishers are reliable and block on congestion: lockstep needs every message.
+fn reliable_publisher(session: &Session, key: String) -> Result<Publisher<'static>, SceneError> {
+    session
+        .declare_publisher(key.clone())
         .congestion_control(CongestionControl::Block)
         .reliability(Reliability::Reliable)
         .wait()
-        .map_err(transport(&outbox))?;
-    Ok((subscriber, publisher))
+        .map_err(transport(&key))
 }
 
 /// The road map of a scene's world, as the authority publishes it (the same bytes each time):
@@ -81,7 +79,10 @@ fn scene_road_map(world: &SceneWorld<'_>) -> RoadMap {
 
 /// The authority's side: truth out, replies in.
 pub struct ZenohAuthority {
-    inbox: Inbox,
+    /// The replies' subscriber: its callback tallies the answers into `tally`, so the stepping
+    /// thread wakes once per step, when the last answer is in (not once per answer).
+    _replies: Subscriber<()>,
+    tally: Arc<Tally>,
     truth: Publisher<'static>,
     /// The scene's road map (`RoadMap`, protobuf) and its publisher: the cloud twin's risk runs
     /// on it. The same bytes every time, republished every [`MAP_EVERY_STEPS`].
@@ -94,12 +95,71 @@ pub struct ZenohAuthority {
     /// ground truth's stamps, on the same clock as the participants' streams.
     epoch_ns: Option<i64>,
     participants: Vec<String>,
+    /// Who answered the last step (a copy of the tally's, kept to avoid allocating per step).
     answered: Vec<bool>,
     timeouts: Timeouts,
     bytes: Vec<u8>,
-    /// Replies that did not decode, counted and dropped.
-    pub malformed: u64,
     realtime: Option<RealTime>,
+}
+
+/// The answers to the step being handed out, and the joins, as the replies' callback counts them.
+struct Tally {
+    state: Mutex<Answers>,
+    /// Signalled when the last answer to the current step arrives, and on every join.
+    ready: Condvar,
+    participants: Vec<String>,
+}
+
+#[derive(Default)]
+struct Answers {
+    /// The step whose answers count; `None` while the participants join.
+    step: Option<u64>,
+    answered: Vec<bool>,
+    /// Participants yet to answer `step`.
+    missing: usize,
+    /// The ego's controls for `step`.
+    ego: Option<Controls>,
+    /// Joins not yet looked at: participant, scene digest, scene description.
+    joins: Vec<(String, u64, String)>,
+    /// Replies that did not decode, counted and dropped.
+    malformed: u64,
+}
+
+/// A poisoned lock only means another thread panicked while holding it; the counts stay usable.
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+impl Tally {
+    fn on_reply(&self, payload: &[u8]) {
+        let reply = Reply::decode(payload);
+        let mut answers = lock(&self.state);
+        match reply {
+            Ok(Reply::Join { participant, scene, describe, .. }) => {
+                answers.joins.push((participant, scene, describe));
+                self.ready.notify_one();
+            }
+            Ok(Reply::Step { participant, step, controls }) if answers.step == Some(step) => {
+                let Some(k) = self.participants.iter().position(|p| *p == participant) else { return };
+                if std::mem::replace(&mut answers.answered[k], true) {
+                    return;
+                }
+                if k == 0 {
+                    answers.ego = controls.map(controls_of);
+                }
+                answers.missing -= 1;
+                if answers.missing == 0 {
+                    self.ready.notify_one();
+                }
+            }
+            // Answers to other steps: nothing to do.
+            Ok(Reply::Step { .. }) => {}
+            Err(e) => {
+                answers.malformed += 1;
+                tracing::warn!("scene: dropped a reply: {e}");
+            }
+        }
+    }
 }
 
 /// Deadline accounting of a real-time scene: every participant's answer to step k is due when
@@ -129,7 +189,20 @@ impl ZenohAuthority {
     /// same scene; on a mismatch or a timeout every joined participant is told, and the error
     /// names who.
     pub fn open(session: &Session, site: &SiteId, setup: &SceneSetup, timeouts: Timeouts) -> Result<Self, SceneError> {
-        let (inbox, truth) = open_plane(session, scene_replies(site), scene_truth(site))?;
+        let participants = setup.participants();
+        let answers = Answers { answered: vec![false; participants.len()], ..Answers::default() };
+        let tally =
+            Arc::new(Tally { state: Mutex::new(answers), ready: Condvar::new(), participants: participants.clone() });
+        let replies_key = scene_replies(site);
+        let replies = session
+            .declare_subscriber(replies_key.clone())
+            .callback({
+                let tally = Arc::clone(&tally);
+                move |sample: Sample| tally.on_reply(&sample.payload().to_bytes())
+            })
+            .wait()
+            .map_err(transport(&replies_key))?;
+        let truth = reliable_publisher(session, scene_truth(site))?;
         let declare = |key: String, message: &str| {
             session.declare_publisher(key.clone()).encoding(protobuf(message)).wait().map_err(transport(&key))
         };
@@ -137,7 +210,6 @@ impl ZenohAuthority {
         let objects = declare(scene_topic(Some(site), SceneTopic::Objects), ObjectList::PROTO_NAME)?;
         let mut world = setup.world()?;
         let map = scene_road_map(&world);
-        let participants = setup.participants();
         let mut ground_truth = Vec::new();
         for id in participants.iter().filter(|id| !id.starts_with("rsu")) {
             let source = SourceId::new(id.clone()).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
@@ -145,9 +217,10 @@ impl ZenohAuthority {
             ground_truth.push((id.clone(), setup.role_of(id)?, publisher));
         }
         let mut plane = ZenohAuthority {
+            _replies: replies,
+            tally,
             answered: vec![false; participants.len()],
             participants,
-            inbox,
             truth,
             map: (map_publisher, encode(&map)),
             ground_truth,
@@ -155,7 +228,6 @@ impl ZenohAuthority {
             epoch_ns: None,
             timeouts,
             bytes: Vec::new(),
-            malformed: 0,
             realtime: None,
         };
         if let Err(e) = plane.await_joins(setup) {
@@ -171,27 +243,29 @@ impl ZenohAuthority {
     fn await_joins(&mut self, setup: &SceneSetup) -> Result<(), SceneError> {
         let (digest, ours) = (setup.digest(), setup.describe());
         let deadline = Instant::now() + self.timeouts.join;
-        while self.answered.iter().any(|a| !a) {
-            let Some(sample) = self.inbox.recv_deadline(deadline).map_err(transport("replies"))? else {
-                return Err(SceneError::NotJoined { ids: self.missing(), waited_s: self.timeouts.join.as_secs() });
-            };
-            match Reply::decode(&sample.payload().to_bytes()) {
-                Ok(Reply::Join { participant, scene, describe, .. }) => {
-                    let Some(k) = self.participants.iter().position(|p| *p == participant) else {
-                        let known = self.participants.join(", ");
-                        return Err(SceneError::UnknownParticipant { id: participant, known });
-                    };
-                    if scene != digest {
-                        return Err(SceneError::Mismatch { id: participant, theirs: describe, ours });
-                    }
-                    self.answered[k] = true;
+        let mut joined = vec![false; self.participants.len()];
+        let mut answers = lock(&self.tally.state);
+        while joined.iter().any(|j| !j) {
+            for (participant, scene, describe) in std::mem::take(&mut answers.joins) {
+                let Some(k) = self.participants.iter().position(|p| *p == participant) else {
+                    let known = self.participants.join(", ");
+                    return Err(SceneError::UnknownParticipant { id: participant, known });
+                };
+                if scene != digest {
+                    return Err(SceneError::Mismatch { id: participant, theirs: describe, ours });
                 }
-                Ok(Reply::Step { .. }) => {}
-                Err(e) => {
-                    self.malformed += 1;
-                    tracing::warn!("scene: dropped a reply: {e}");
-                }
+                joined[k] = true;
             }
+            let now = Instant::now();
+            if joined.iter().all(|j| *j) {
+                break;
+            }
+            if now >= deadline {
+                let missing = self.participants.iter().zip(&joined).filter(|(_, j)| !**j);
+                let ids = missing.map(|(p, _)| p.as_str()).collect::<Vec<_>>().join(", ");
+                return Err(SceneError::NotJoined { ids, waited_s: self.timeouts.join.as_secs() });
+            }
+            answers = self.tally.ready.wait_timeout(answers, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
         }
         Ok(())
     }
@@ -210,9 +284,9 @@ impl ZenohAuthority {
         self.realtime.as_ref().map(|rt| &rt.deadlines)
     }
 
-    fn missing(&self) -> String {
-        let missing = self.participants.iter().zip(&self.answered).filter(|(_, a)| !**a);
-        missing.map(|(p, _)| p.as_str()).collect::<Vec<_>>().join(", ")
+    /// Replies that did not decode, counted and dropped.
+    pub fn malformed(&self) -> u64 {
+        lock(&self.tally.state).malformed
     }
 
     fn publish(&mut self, truth: &Truth) -> Result<(), SceneError> {
@@ -265,38 +339,30 @@ impl Plane for ZenohAuthority {
             None => Instant::now(),
         };
         let deadline = self.realtime.as_ref().map_or(start + self.timeouts.step, |rt| start + rt.period);
+        {
+            let mut answers = lock(&self.tally.state);
+            answers.step = Some(truth.step);
+            answers.answered.fill(false);
+            answers.missing = self.participants.len();
+            answers.ego = None;
+        }
         self.publish(truth)?;
-        self.answered.fill(false);
-        let mut ego = None;
-        while self.answered.iter().any(|a| !a) {
-            let Some(sample) = self.inbox.recv_deadline(deadline).map_err(transport("replies"))? else {
-                if self.realtime.is_some() {
-                    return self.past_deadline(truth.step, ego);
-                }
-                let waited_ms = start.elapsed().as_millis() as u64;
-                return Err(SceneError::Stalled { ids: self.missing(), step: truth.step, waited_ms });
-            };
-            match Reply::decode(&sample.payload().to_bytes()) {
-                Ok(Reply::Step { participant, step, controls }) if step == truth.step => {
-                    if let Some(k) = self.participants.iter().position(|p| *p == participant) {
-                        self.answered[k] = true;
-                        if k == 0 {
-                            ego = controls.map(controls_of);
-                        }
-                    }
-                }
-                // Late joins and answers to other steps: nothing to do.
-                Ok(_) => {}
-                Err(e) => {
-                    self.malformed += 1;
-                    tracing::warn!("scene: dropped a reply: {e}");
-                }
+        let mut answers = lock(&self.tally.state);
+        loop {
+            let now = Instant::now();
+            if answers.missing == 0 || now >= deadline {
+                break;
             }
+            answers = self.tally.ready.wait_timeout(answers, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
         }
-        if self.realtime.is_some() {
-            return self.past_deadline(truth.step, ego);
-        }
-        ego.ok_or_else(|| SceneError::Failed { reason: "the ego (v0) answered without controls".into() })
+        answers.step = None;
+        self.answered.copy_from_slice(&answers.answered);
+        let ego = answers.ego;
+        drop(answers);
+        let answered = std::mem::take(&mut self.answered);
+        let result = self.conclude(truth.step, start, &answered, ego);
+        self.answered = answered;
+        result
     }
 
     fn finish(&mut self, last: &Truth) -> Result<(), SceneError> {
@@ -305,13 +371,32 @@ impl Plane for ZenohAuthority {
 }
 
 impl ZenohAuthority {
+    /// The ego's controls once step `step`'s answers are in or its deadline has passed.
+    fn conclude(
+        &mut self,
+        step: u64,
+        start: Instant,
+        answered: &[bool],
+        ego: Option<Controls>,
+    ) -> Result<Controls, SceneError> {
+        if self.realtime.is_some() {
+            return self.past_deadline(step, answered, ego);
+        }
+        if answered.iter().any(|a| !a) {
+            let silent = self.participants.iter().zip(answered).filter(|(_, a)| !**a);
+            let ids = silent.map(|(p, _)| p.as_str()).collect::<Vec<_>>().join(", ");
+            return Err(SceneError::Stalled { ids, step, waited_ms: start.elapsed().as_millis() as u64 });
+        }
+        ego.ok_or_else(|| SceneError::Failed { reason: "the ego (v0) answered without controls".into() })
+    }
+
     /// A real-time step's deadline has come: counts the late answers, names a participant silent
     /// for longer than `Timeouts::step`, and holds the ego's controls if its answer is late.
-    fn past_deadline(&mut self, step: u64, ego: Option<Controls>) -> Result<Controls, SceneError> {
+    fn past_deadline(&mut self, step: u64, answered: &[bool], ego: Option<Controls>) -> Result<Controls, SceneError> {
         let now = Instant::now();
         let rt = self.realtime.as_mut().expect("a real-time scene");
-        rt.deadlines.due += self.answered.len() as u64;
-        for (k, answered) in self.answered.iter().enumerate() {
+        rt.deadlines.due += answered.len() as u64;
+        for (k, answered) in answered.iter().enumerate() {
             if *answered {
                 rt.last_answer[k] = now;
             } else {
@@ -347,6 +432,56 @@ pub struct ParticipantSummary {
     pub sent: StreamsSent,
 }
 
+/// A participant's stack, driven by the truth subscriber's callback: it answers each step as
+/// the truth arrives, on Zenoh's receiving thread, with no hand-over to another thread.
+struct Answering {
+    stack: Onboard,
+    streams: Streams,
+    outbox: Publisher<'static>,
+    digest: u64,
+    describe: String,
+    summary: ParticipantSummary,
+    /// The last step answered and when its truth arrived.
+    last: Option<(u64, Instant)>,
+    /// Set once the scene is over for this participant: later truths are ignored.
+    over: bool,
+}
+
+impl Answering {
+    /// Answers one truth message; the participant's end once the scene is over for it.
+    fn on_truth(&mut self, payload: &[u8]) -> Option<Result<ParticipantSummary, SceneError>> {
+        let truth = match Truth::decode(payload) {
+            Ok(truth) => truth,
+            Err(e) => {
+                self.summary.malformed += 1;
+                tracing::warn!("scene {}: dropped a truth message: {e}", self.summary.participant);
+                return None;
+            }
+        };
+        match truth.end {
+            Some(SceneEnd::Done) => {
+                return Some(Ok(ParticipantSummary { sent: self.streams.sent.clone(), ..self.summary.clone() }));
+            }
+            Some(SceneEnd::Failed(reason)) => return Some(Err(SceneError::Failed { reason })),
+            None => {}
+        }
+        if truth.scene != self.digest {
+            let theirs = format!("scene {:016x}", truth.scene);
+            let ours = self.describe.clone();
+            return Some(Err(SceneError::Mismatch { id: "the authority".into(), theirs, ours }));
+        }
+        let controls = self.stack.respond(&truth);
+        self.summary.steps += 1;
+        self.summary.perceived += self.stack.perceived().len() as u64;
+        let reply = Reply::step(&self.summary.participant, truth.step, controls).encode();
+        if let Err(e) = self.outbox.put(reply).wait().map_err(transport("reply")) {
+            return Some(Err(e));
+        }
+        self.last = Some((truth.step, Instant::now()));
+        self.streams.publish(&self.stack, &truth).err().map(Err)
+    }
+}
+
 /// Runs participant `id` of `setup` until the authority ends the scene.
 pub fn run_participant(
     session: &Session,
@@ -355,10 +490,10 @@ pub fn run_participant(
     id: &str,
     timeouts: Timeouts,
 ) -> Result<ParticipantSummary, SceneError> {
-    let mut stack = Onboard::new(setup, id)?;
+    let stack = Onboard::new(setup, id)?;
     let participant =
         risktwin_transport::SourceId::new(id).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
-    let (inbox, outbox) = open_plane(session, scene_truth(site), scene_reply(site, &participant))?;
+    let outbox = reliable_publisher(session, scene_reply(site, &participant))?;
     let digest = setup.digest();
     let join = Reply::Join {
         schema: super::wire::SCHEMA_VERSION,
@@ -367,8 +502,8 @@ pub fn run_participant(
         describe: setup.describe(),
     }
     .encode();
-    let mut streams = Streams::open(session, site, &participant, matches!(stack.role(), Role::Rsu { .. }))?;
-    let mut summary = ParticipantSummary {
+    let streams = Streams::open(session, site, &participant, matches!(stack.role(), Role::Rsu { .. }))?;
+    let summary = ParticipantSummary {
         participant: id.to_owned(),
         scene: format!("{digest:016x}"),
         steps: 0,
@@ -376,56 +511,58 @@ pub fn run_participant(
         malformed: 0,
         sent: StreamsSent::default(),
     };
-    let put = |bytes: &[u8]| outbox.put(bytes).wait().map_err(transport("reply"));
+    let answering =
+        Answering { stack, streams, outbox, digest, describe: setup.describe(), summary, last: None, over: false };
+    let answering = Arc::new(Mutex::new(answering));
+    let (end_tx, end) = std::sync::mpsc::sync_channel(1);
+    let truth_key = scene_truth(site);
+    let _truth = session
+        .declare_subscriber(truth_key.clone())
+        .callback({
+            let answering = Arc::clone(&answering);
+            move |sample: Sample| {
+                let mut answering = lock(&answering);
+                if answering.over {
+                    return;
+                }
+                if let Some(ended) = answering.on_truth(&sample.payload().to_bytes()) {
+                    answering.over = true;
+                    // The channel holds one end and only one is sent.
+                    let _ = end_tx.try_send(ended);
+                }
+            }
+        })
+        .wait()
+        .map_err(transport(&truth_key))?;
 
+    // This thread repeats the join until the first truth arrives and watches for silence.
     let join_deadline = Instant::now() + timeouts.join;
     let mut next_join = Instant::now();
-    let mut last_step = None;
     loop {
         let now = Instant::now();
-        let deadline = match last_step {
+        let last = lock(&answering).last;
+        let wake = match last {
             None if now >= join_deadline => return Err(SceneError::NoAuthority { waited_s: timeouts.join.as_secs() }),
             None => {
                 if now >= next_join {
-                    put(&join)?;
+                    lock(&answering).outbox.put(join.as_slice()).wait().map_err(transport("join"))?;
                     next_join = now + JOIN_REPEAT;
                 }
                 next_join.min(join_deadline)
             }
-            Some(_) => now + 2 * timeouts.step,
-        };
-        let Some(sample) = inbox.recv_deadline(deadline).map_err(transport("truth"))? else {
-            match last_step {
-                None => continue,
-                Some(step) => {
-                    let waited_ms = 2 * timeouts.step.as_millis() as u64;
-                    return Err(SceneError::AuthoritySilent { step, waited_ms });
-                }
+            Some((step, at)) if now - at >= 2 * timeouts.step => {
+                let waited_ms = 2 * timeouts.step.as_millis() as u64;
+                return Err(SceneError::AuthoritySilent { step, waited_ms });
             }
+            Some((_, at)) => at + 2 * timeouts.step,
         };
-        let truth = match Truth::decode(&sample.payload().to_bytes()) {
-            Ok(truth) => truth,
-            Err(e) => {
-                summary.malformed += 1;
-                tracing::warn!("scene {id}: dropped a truth message: {e}");
-                continue;
+        match end.recv_timeout(wake.saturating_duration_since(now)) {
+            Ok(ended) => return ended,
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => {
+                return Err(SceneError::Transport("the truth subscriber closed".into()));
             }
-        };
-        match truth.end {
-            Some(SceneEnd::Done) => return Ok(ParticipantSummary { sent: streams.sent, ..summary }),
-            Some(SceneEnd::Failed(reason)) => return Err(SceneError::Failed { reason }),
-            None => {}
         }
-        if truth.scene != digest {
-            let theirs = format!("scene {:016x}", truth.scene);
-            return Err(SceneError::Mismatch { id: "the authority".into(), theirs, ours: setup.describe() });
-        }
-        let controls = stack.respond(&truth);
-        summary.steps += 1;
-        summary.perceived += stack.perceived().len() as u64;
-        put(&Reply::step(id, truth.step, controls).encode())?;
-        streams.publish(&stack, &truth)?;
-        last_step = Some(truth.step);
     }
 }
 

@@ -151,8 +151,8 @@ impl Truth {
     /// Encodes into `out` (cleared first).
     pub fn encode_into(&self, out: &mut Vec<u8>) {
         out.clear();
-        // Serialising plain data into a Vec cannot fail.
-        out.extend_from_slice(&postcard::to_allocvec(self).expect("a truth serialises"));
+        // Serialising plain data into a Vec cannot fail; the Vec keeps its capacity step to step.
+        *out = postcard::to_extend(self, std::mem::take(out)).expect("a truth serialises");
     }
 
     /// Decodes and validates a truth message.

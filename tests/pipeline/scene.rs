@@ -285,7 +285,7 @@ fn a_connected_cutter_is_seen_by_the_ego_and_the_rsu_and_changes_the_egos_drive(
 
 #[test]
 fn bad_scene_input_is_refused_by_name_with_exit_2() {
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 10] = [
         (&["scene", "vehicle", "--participant", "v7"], "participant \"v7\" is not in this scene"),
         (&["scene", "rsu", "--participant", "v0"], "participant v0 is a vehicle"),
         (&["scene", "run", "--clock", "sometimes"], "--clock \"sometimes\""),
@@ -294,6 +294,7 @@ fn bad_scene_input_is_refused_by_name_with_exit_2() {
         (&["scene", "run", "--clock", "realtime", "--embedded"], "--embedded runs in virtual time"),
         (&["scene", "authority", "--participant", "v0"], "--participant"),
         (&["scene", "run", "--without", "v0"], "--without v0: only a connected traffic vehicle"),
+        (&["scene", "run", "--id", "abc"], "--id names a scenario of a --db library"),
         (&["scene", "vehicle", "--participant", "v2", "--without", "v2"], "participant v2 is taken out of this scene"),
     ];
     let refused = |argv: &[&str], expected: &str| {

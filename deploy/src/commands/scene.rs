@@ -30,6 +30,10 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
     if args.ego.is_some() && args.commonroad.is_none() {
         return Err(CliError::input("--ego names the ego of a --commonroad recording"));
     }
+    // clap's `requires` does not reach through the flattened arguments; checked here.
+    if args.id.is_some() && args.db.is_none() {
+        return Err(CliError::input("--id names a scenario of a --db library"));
+    }
     let source = match (&args.spec, &args.db, &args.kind, &args.commonroad) {
         (Some(path), None, None, None) => SceneSource::Generated(read_spec_file(path)?),
         (None, Some(db), None, None) => {

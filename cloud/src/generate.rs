@@ -6,7 +6,8 @@
 
 use crate::library::{DEFAULT_POLICY, LibraryError, Outcome, Rejection, ScenarioLibrary, ScenarioRecord};
 use risktwin_common::episode::{EpisodeResult, evaluate};
-use risktwin_common::scenario::{Infeasible, ScenarioKind, ScenarioSpec, check_feasible, sample};
+use risktwin_common::rng::Rng;
+use risktwin_common::scenario::{Infeasible, MutateError, ScenarioKind, ScenarioSpec, check_feasible, mutate, sample};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -154,4 +155,97 @@ mod tests {
         }
         assert!(parallel_map(&Vec::<u64>::new(), 4, slow).is_empty());
     }
+}
+
+/// What mutating around one stored scenario produced (`risktwin scenarios mutate`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct MutationReport {
+    pub parent: String,
+    pub kind: ScenarioKind,
+    /// Children asked for.
+    pub requested: u64,
+    /// Draws with no feasible child within `MAX_MUTATION_TRIES`, by reason code.
+    pub infeasible: BTreeMap<&'static str, u64>,
+    /// New scenarios stored.
+    pub stored: usize,
+    /// Children whose content the library already held (their outcomes are added).
+    pub duplicates: usize,
+    /// Children whose reference episode collided.
+    pub collisions: usize,
+    /// Every feasible child, highest S_risk first (ties by id).
+    pub children: Vec<Child>,
+}
+
+/// One child as stored.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Child {
+    pub id: String,
+    pub seed: u64,
+    pub risk: f64,
+    pub collision: bool,
+    pub min_ttc_s: Option<f64>,
+}
+
+/// Why mutating around a stored scenario failed.
+#[derive(Debug, thiserror::Error)]
+pub enum MutationError {
+    #[error("no generated scenario '{0}' in the library (a recorded CommonRoad case cannot be mutated)")]
+    UnknownParent(String),
+    #[error("{0}")]
+    Mutate(MutateError),
+    #[error(transparent)]
+    Library(#[from] LibraryError),
+}
+
+/// Draws `count` feasibility-checked children of stored scenario `parent_id` within `radius`
+/// (a share of each parameter's range), evaluates them with the reference driver on `threads`
+/// workers and stores them as its mutations. The same library, parent, seed, count and radius
+/// give the same children.
+pub fn mutate_stored(
+    library: &mut ScenarioLibrary,
+    parent_id: &str,
+    count: u64,
+    radius: f64,
+    seed: u64,
+    threads: usize,
+) -> Result<MutationReport, MutationError> {
+    let parent = library.get(parent_id)?.ok_or_else(|| MutationError::UnknownParent(parent_id.to_owned()))?;
+    let mut rng = Rng::new(seed);
+    let (mut specs, mut infeasible) = (Vec::new(), BTreeMap::new());
+    for _ in 0..count {
+        match mutate(&parent.spec, radius, &mut rng) {
+            Ok(child) => specs.push(child),
+            Err(e) => match e.infeasible() {
+                Some(why) => *infeasible.entry(Infeasible::code(why)).or_default() += 1,
+                None => return Err(MutationError::Mutate(e)),
+            },
+        }
+    }
+    let evaluated = evaluate_all(specs, threads);
+    let records: Vec<ScenarioRecord> = evaluated
+        .iter()
+        .map(|e| ScenarioRecord::mutated(e.spec.clone(), parent_id, reference_outcome(&e.result)))
+        .collect();
+    let summary = library.insert_batch(&records)?;
+    let mut children: Vec<Child> = evaluated
+        .iter()
+        .map(|e| Child {
+            id: crate::library::content_id(&e.spec),
+            seed: e.spec.seed,
+            risk: e.result.risk.score,
+            collision: e.result.metrics.collision,
+            min_ttc_s: e.result.metrics.min_ttc_s,
+        })
+        .collect();
+    children.sort_by(|a, b| b.risk.total_cmp(&a.risk).then_with(|| a.id.cmp(&b.id)));
+    Ok(MutationReport {
+        parent: parent_id.to_owned(),
+        kind: parent.spec.kind,
+        requested: count,
+        infeasible,
+        stored: summary.inserted,
+        duplicates: summary.duplicates,
+        collisions: children.iter().filter(|c| c.collision).count(),
+        children,
+    })
 }

@@ -11,6 +11,7 @@ mod contract_scenarios;
 mod criticality;
 mod determinism;
 mod floor;
+mod mutate;
 mod real_data;
 mod recorded;
 mod run;

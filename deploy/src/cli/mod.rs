@@ -92,6 +92,29 @@ pub enum ScenariosCommand {
     /// The achievable floor of `risktwin run`'s held-out set: per scenario, whether a privileged
     /// planner finds a drive that completes the route without collision or leaving the road.
     Floor(FloorArgs),
+    /// Feasible variations of one stored scenario, simulated with the reference driver and
+    /// stored as its mutations.
+    Mutate(MutateArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct MutateArgs {
+    #[arg(long)]
+    pub db: PathBuf,
+    /// The stored scenario to mutate (an id from `scenarios rank`).
+    #[arg(long)]
+    pub id: String,
+    /// Children to draw.
+    #[arg(long, default_value_t = 10, allow_negative_numbers = true)]
+    pub count: u64,
+    /// Seed of the draws: the same library, id, seed, count and radius give the same children.
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    pub seed: u64,
+    /// Step size as a share of each parameter's range, in [0, 1] (default: `risktwin run`'s).
+    #[arg(long, allow_negative_numbers = true)]
+    pub radius: Option<f64>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
 }
 
 #[derive(Debug, Args)]

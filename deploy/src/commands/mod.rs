@@ -31,6 +31,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Scenarios(ScenariosCommand::Generate(a)) => scenarios::generate(a),
         Command::Scenarios(ScenariosCommand::Rank(a)) => scenarios::rank(a),
         Command::Scenarios(ScenariosCommand::Floor(a)) => floor::floor(a),
+        Command::Scenarios(ScenariosCommand::Mutate(a)) => scenarios::mutate(a),
         Command::Simulate(a) => simulate::simulate(a),
         Command::Train(a) => train::train(a),
         Command::RiskField(a) => risk_field::risk_field(a),

@@ -1,10 +1,10 @@
-//! `risktwin scenarios generate|rank`: the scenario library from the command line.
+//! `risktwin scenarios generate|rank|mutate`: the scenario library from the command line.
 
 use super::source::{open_existing_library, parse_kinds};
-use crate::cli::{GenerateArgs, RankArgs};
+use crate::cli::{GenerateArgs, MutateArgs, RankArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
-use risktwin_cloud::generate::{generate as generate_batch, store};
+use risktwin_cloud::generate::{MutationError, generate as generate_batch, mutate_stored, store};
 use risktwin_cloud::library::{
     COMMONROAD_KIND, REPLAY_POLICY, RankOutcome, RankedCase, RankedScenario, ScenarioLibrary,
 };
@@ -41,6 +41,35 @@ pub fn generate(args: GenerateArgs) -> CliResult {
                 report.by_kind.values().map(|r| r.collisions).sum::<u64>().to_string(),
             ]);
             print_table(&["kind", "stored", "infeasible", "collisions"], &rows)
+        }
+    }
+}
+
+pub fn mutate(args: MutateArgs) -> CliResult {
+    if args.count == 0 || args.count > 100_000 {
+        return Err(CliError::input(format!("--count {} is out of range [1, 100000]", args.count)));
+    }
+    let radius = args.radius.unwrap_or(risktwin_pipeline::RunConfig::default().training.mutation_radius);
+    let mut library = open_existing_library(&args.db)?;
+    let report = mutate_stored(&mut library, &args.id, args.count, radius, args.seed, worker_threads()).map_err(
+        |e| match e {
+            MutationError::Library(e) => CliError::runtime(e),
+            MutationError::Mutate(e) => CliError::input(format!("--radius {radius}: {e}")),
+            unknown => CliError::input(unknown),
+        },
+    )?;
+    match args.format {
+        Format::Json => print_json(&report),
+        _ => {
+            let rows = report
+                .children
+                .iter()
+                .map(|c| {
+                    let ttc = c.min_ttc_s.map_or("-".into(), |t| format!("{t:.2}"));
+                    vec![c.id.clone(), format!("{:.4}", c.risk), c.collision.to_string(), ttc]
+                })
+                .collect::<Vec<_>>();
+            print_table(&["child", "risk", "collision", "min TTC s"], &rows)
         }
     }
 }

@@ -14,6 +14,7 @@ mod floor;
 mod mutate;
 mod real_data;
 mod recorded;
+mod regress;
 mod run;
 mod same_scenario;
 mod support;

@@ -9,12 +9,14 @@
 //! - [`held_out`]: the evaluation set, disjoint from everything trained on.
 //! - [`ablation`]: variants × seeds → per-variant, per-kind metrics with their spread over seeds.
 //! - [`floor`]: the achievable floor of the held-out set, from the privileged planner.
+//! - [`gate`]: the regression gate a policy version passes before it is pushed.
 //! - [`stats`]: the metrics of paper table 1 (plus S_risk) and their spread.
 
 pub mod ablation;
 pub mod curriculum;
 pub mod drive;
 pub mod floor;
+pub mod gate;
 pub mod held_out;
 mod plan;
 pub mod session;

@@ -95,6 +95,29 @@ pub enum ScenariosCommand {
     /// Feasible variations of one stored scenario, simulated with the reference driver and
     /// stored as its mutations.
     Mutate(MutateArgs),
+    /// The regression gate by hand: a policy file against the deployed version (default: the
+    /// reference driver) on the library's regression set and the held-out set.
+    Regress(RegressArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct RegressArgs {
+    #[arg(long)]
+    pub db: PathBuf,
+    /// The candidate policy (a `.safetensors` file as `risktwin train` writes it).
+    #[arg(long)]
+    pub policy: PathBuf,
+    /// The version deployed now (a policy file); default: the reference driver.
+    #[arg(long)]
+    pub against: Option<PathBuf>,
+    /// The run seed whose held-out set is driven (`risktwin run --seed`).
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    pub seed: u64,
+    /// Held-out scenarios per kind (`eval_per_kind` of the run).
+    #[arg(long, default_value_t = 12, allow_negative_numbers = true)]
+    pub per_kind: u64,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
 }
 
 #[derive(Debug, Args)]

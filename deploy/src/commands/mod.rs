@@ -11,6 +11,7 @@ mod floor;
 mod import;
 pub mod push;
 mod recorded;
+mod regress;
 mod risk_field;
 mod router;
 mod run;
@@ -32,6 +33,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Scenarios(ScenariosCommand::Rank(a)) => scenarios::rank(a),
         Command::Scenarios(ScenariosCommand::Floor(a)) => floor::floor(a),
         Command::Scenarios(ScenariosCommand::Mutate(a)) => scenarios::mutate(a),
+        Command::Scenarios(ScenariosCommand::Regress(a)) => regress::regress(a),
         Command::Simulate(a) => simulate::simulate(a),
         Command::Train(a) => train::train(a),
         Command::RiskField(a) => risk_field::risk_field(a),

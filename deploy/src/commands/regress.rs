@@ -1,0 +1,49 @@
+//! `risktwin scenarios regress`: the regression gate by hand ([`risktwin_cloud::trainer::gate`]).
+
+use super::scenarios::worker_threads;
+use super::source::open_existing_library;
+use crate::cli::RegressArgs;
+use crate::error::{CliError, CliResult};
+use crate::output::{Format, print_json, print_table};
+use risktwin_cloud::trainer::HeldOut;
+use risktwin_cloud::trainer::gate::{Driver, SetComparison, gate};
+use risktwin_learn::PolicyNet;
+use std::path::Path;
+
+fn load(path: &Path) -> CliResult<PolicyNet> {
+    PolicyNet::load(path).map_err(|e| CliError::input(format!("policy {}: {e}", path.display())))
+}
+
+pub fn regress(args: RegressArgs) -> CliResult {
+    if args.per_kind == 0 || args.per_kind > 1000 {
+        return Err(CliError::input(format!("--per-kind {} is out of range [1, 1000]", args.per_kind)));
+    }
+    let library = open_existing_library(&args.db)?;
+    let candidate = load(&args.policy)?;
+    let deployed = args.against.as_deref().map(load).transpose()?;
+    let deployed = deployed.as_ref().map_or(Driver::Reference, Driver::Policy);
+    let held_out = HeldOut::new(args.seed, args.per_kind as usize);
+    let report = gate(&library, &candidate, deployed, &held_out, worker_threads()).map_err(CliError::runtime)?;
+    match args.format {
+        Format::Json => print_json(&report),
+        _ => {
+            let row = |set: &str, c: &SetComparison| {
+                vec![
+                    set.to_owned(),
+                    c.scenarios.to_string(),
+                    format!("{} / {}", c.candidate.collisions, c.deployed.collisions),
+                    format!("{} / {}", c.candidate.successes, c.deployed.successes),
+                    format!("{:.3} / {:.3}", c.candidate.mean_route_completion, c.deployed.mean_route_completion),
+                ]
+            };
+            let header =
+                ["set", "scenarios", "collisions (candidate / deployed)", "successes", "mean route completion"];
+            print_table(&header, &[row("regression", &report.regression), row("held-out", &report.held_out)])?;
+            println!("decision: {:?}", report.decision);
+            for reason in &report.reasons {
+                println!("  {reason}");
+            }
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,56 @@
+//! `scenarios regress`: the regression gate holds back a policy that drives worse than the
+//! deployed version and lets through one that drives no worse.
+
+use crate::support::{assert_input_error, generate, ok_json, uint};
+use serde_json::Value;
+use tempfile::tempdir;
+
+fn regress(dir: &std::path::Path, extra: &[&str]) -> Value {
+    let args = ["scenarios", "regress", "--db", "lib.db", "--policy", "weak/policy.safetensors", "--per-kind", "4"];
+    ok_json(dir, &[&args[..], extra, &["--format", "json"]].concat())
+}
+
+#[test]
+fn a_barely_trained_policy_is_held_back_and_one_no_worse_is_pushed() {
+    let dir = tempdir().unwrap();
+    generate(dir.path(), "lib.db", 6, 5);
+    // 4,096 steps of PPO: a policy that has not learnt to drive the route.
+    ok_json(dir.path(), &["train", "--steps", "4096", "--variant", "base", "--out", "weak", "--format", "json"]);
+
+    let held = regress(dir.path(), &[]);
+    assert_eq!(held["decision"], "hold", "{held}");
+    let reasons: Vec<&str> = held["reasons"].as_array().expect("reasons").iter().filter_map(Value::as_str).collect();
+    assert!(reasons.iter().any(|r| r.starts_with("held-out set: ")), "{reasons:?}");
+    let held_out = &held["held_out"];
+    assert_eq!(uint(held_out, "scenarios"), 20, "4 per kind");
+    let completion = |who: &str| held_out[who]["mean_route_completion"].as_f64().expect("completion");
+    assert!(completion("candidate") < completion("deployed") - 0.02, "{held_out}");
+    // The regression set is the library's: every scenario some driver collided in.
+    let db = rusqlite::Connection::open(dir.path().join("lib.db")).expect("the library opens");
+    let marked: i64 = db.query_row("SELECT COUNT(*) FROM regression", [], |r| r.get(0)).expect("a count");
+    assert!(marked > 0, "the reference driver collides in one of these 30 generated scenarios");
+    assert_eq!(uint(&held["regression"], "scenarios"), marked as u64);
+
+    let same = regress(dir.path(), &["--against", "weak/policy.safetensors"]);
+    assert_eq!(same["decision"], "push", "{same}");
+    assert_eq!(same["reasons"], Value::Array(Vec::new()));
+    for set in ["regression", "held_out"] {
+        assert_eq!(same[set]["candidate"], same[set]["deployed"], "the same policy drives the same: {same}");
+        assert_eq!(same[set]["newly_colliding"], Value::Array(Vec::new()));
+    }
+}
+
+#[test]
+fn bad_gate_input_is_refused_by_name() {
+    let dir = tempdir().unwrap();
+    generate(dir.path(), "lib.db", 1, 5);
+    let gate = |policy: &str, extra: &[&str], needle: &str| {
+        let args = ["scenarios", "regress", "--db", "lib.db", "--policy", policy];
+        assert_input_error(dir.path(), &[&args[..], extra].concat(), needle);
+    };
+    gate("missing.safetensors", &[], "policy missing.safetensors");
+    gate("lib.db", &[], "policy lib.db");
+    gate("lib.db", &["--per-kind", "0"], "--per-kind 0 is out of range");
+    let missing_db = ["scenarios", "regress", "--db", "missing.db", "--policy", "lib.db"];
+    assert_input_error(dir.path(), &missing_db, "missing.db");
+}

@@ -40,8 +40,10 @@ pub struct FanoutConfig {
 impl FanoutConfig {
     /// Refuses a configuration that measures nothing.
     pub fn check(&self) -> Result<(), BenchError> {
-        if self.echoes == 0 || self.rounds == 0 || self.out_bytes < 8 {
-            return Err(BenchError::Input("--echoes and --rounds must be positive, --out-bytes at least 8".into()));
+        if self.echoes == 0 || self.rounds == 0 || self.out_bytes < 8 || self.reply_bytes < 16 {
+            return Err(BenchError::Input(
+                "--echoes and --rounds must be positive, --out-bytes at least 8, --reply-bytes at least 16".into(),
+            ));
         }
         Ok(())
     }
@@ -58,38 +60,50 @@ pub struct FanoutReport {
     pub ms_per_round: f64,
 }
 
-/// The answers to the current round, tallied by the replies' callback.
+/// The answers to the current round, tallied by the replies' callback: each echo counts once.
 struct Tally {
-    /// (round, answers to it).
-    state: Mutex<(u64, usize)>,
+    state: Mutex<Round>,
     all_in: Condvar,
-    echoes: usize,
+}
+
+struct Round {
+    round: u64,
+    answered: Vec<bool>,
+    missing: usize,
 }
 
 impl Tally {
+    /// A reply carries the round, then the echo's index (8 bytes each, little-endian).
     fn on_reply(&self, payload: &[u8]) {
-        let Some(round) = payload.get(..8).and_then(|b| b.try_into().ok()).map(u64::from_le_bytes) else { return };
+        let word = |at: usize| payload.get(at..at + 8).and_then(|b| b.try_into().ok()).map(u64::from_le_bytes);
+        let (Some(round), Some(echo)) = (word(0), word(8)) else { return };
         let mut state = self.state.lock().unwrap_or_else(PoisonError::into_inner);
-        if state.0 == round {
-            state.1 += 1;
-            if state.1 == self.echoes {
+        if state.round != round {
+            return;
+        }
+        if let Some(seen) = state.answered.get_mut(echo as usize)
+            && !std::mem::replace(seen, true)
+        {
+            state.missing -= 1;
+            if state.missing == 0 {
                 self.all_in.notify_one();
             }
         }
     }
 
-    /// Waits until every echo answered `round`; false on the timeout.
-    fn wait(&self, round: u64, timeout: Duration) -> bool {
+    /// Waits until every echo answered the current round; false on the timeout.
+    fn wait(&self, timeout: Duration) -> bool {
         let state = self.state.lock().unwrap_or_else(PoisonError::into_inner);
-        let (state, _) = self
-            .all_in
-            .wait_timeout_while(state, timeout, |s| s.0 == round && s.1 < self.echoes)
-            .unwrap_or_else(PoisonError::into_inner);
-        state.1 >= self.echoes
+        let (state, _) =
+            self.all_in.wait_timeout_while(state, timeout, |s| s.missing > 0).unwrap_or_else(PoisonError::into_inner);
+        state.missing == 0
     }
 
     fn start(&self, round: u64) {
-        *self.state.lock().unwrap_or_else(PoisonError::into_inner) = (round, 0);
+        let mut state = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        state.round = round;
+        state.answered.fill(false);
+        state.missing = state.answered.len();
     }
 }
 
@@ -100,7 +114,8 @@ fn zenoh_error(what: &str) -> impl Fn(Box<dyn std::error::Error + Send + Sync>) 
 /// The coordinator's side: `session` listens, and `config.echoes` echo processes connect to it.
 pub fn coordinate(session: &Session, config: FanoutConfig) -> Result<FanoutReport, BenchError> {
     config.check()?;
-    let tally = Arc::new(Tally { state: Mutex::new((0, 0)), all_in: Condvar::new(), echoes: config.echoes });
+    let round = Round { round: 0, answered: vec![false; config.echoes], missing: config.echoes };
+    let tally = Arc::new(Tally { state: Mutex::new(round), all_in: Condvar::new() });
     let _replies = session
         .declare_subscriber(format!("{REPLIES}/*"))
         .callback({
@@ -127,7 +142,7 @@ pub fn coordinate(session: &Session, config: FanoutConfig) -> Result<FanoutRepor
     loop {
         round += 1;
         put_round(round)?;
-        if tally.wait(round, Duration::from_millis(200)) {
+        if tally.wait(Duration::from_millis(200)) {
             break;
         }
         if Instant::now() >= joined_by {
@@ -139,7 +154,7 @@ pub fn coordinate(session: &Session, config: FanoutConfig) -> Result<FanoutRepor
         for _ in 0..rounds {
             round += 1;
             put_round(round)?;
-            if !tally.wait(round, ROUND_TIMEOUT) {
+            if !tally.wait(ROUND_TIMEOUT) {
                 return Err(BenchError::Runtime(format!("round {round} was not answered by every echo")));
             }
         }
@@ -156,8 +171,8 @@ pub fn coordinate(session: &Session, config: FanoutConfig) -> Result<FanoutRepor
     })
 }
 
-/// One echo: answers every round with `reply_bytes` bytes (the round number first) from the
-/// subscriber's callback, until the process is stopped.
+/// One echo: answers every round with `reply_bytes` bytes (the round number, then `id`) from the
+/// subscriber's callback, until its standard input ends (the coordinator exited or closed it).
 pub fn echo(session: &Session, id: usize, reply_bytes: usize) -> Result<(), BenchError> {
     let reply_key = format!("{REPLIES}/{id}");
     let publisher = session
@@ -166,7 +181,9 @@ pub fn echo(session: &Session, id: usize, reply_bytes: usize) -> Result<(), Benc
         .reliability(Reliability::Reliable)
         .wait()
         .map_err(zenoh_error("reply"))?;
-    let reply = Mutex::new(vec![0u8; reply_bytes.max(8)]);
+    let mut reply = vec![0u8; reply_bytes.max(16)];
+    reply[8..16].copy_from_slice(&(id as u64).to_le_bytes());
+    let reply = Mutex::new(reply);
     let _rounds = session
         .declare_subscriber(ROUNDS_KEY)
         .callback(move |sample: Sample| {
@@ -180,7 +197,7 @@ pub fn echo(session: &Session, id: usize, reply_bytes: usize) -> Result<(), Benc
         })
         .wait()
         .map_err(zenoh_error("rounds"))?;
-    loop {
-        std::thread::park();
-    }
+    // Returns at end of input, or on a read error: either way the coordinator is gone.
+    let _ = std::io::copy(&mut std::io::stdin(), &mut std::io::sink());
+    Ok(())
 }

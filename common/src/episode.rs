@@ -73,69 +73,148 @@ pub fn run_stepped<E>(
     observe: &mut dyn FnMut(&World, &StepReport),
     step: &mut dyn FnMut(&mut World) -> Result<StepReport, E>,
 ) -> Result<EpisodeResult, E> {
-    let field = RiskFieldParams::default();
-    let mut metrics = MetricsAccumulator::default();
-    let mut risk = RiskAccumulator::new(RiskWeights::default(), ScoreReferences::default());
+    let mut scorer = EpisodeScorer::new(*weights, world.progress_m());
     let mut objects = Vec::new();
     let mut others = Vec::new();
     let (mut collision, mut offroad) = (false, false);
-    let mut progress_prev = world.progress_m();
     while !world.finished() && !collision && !offroad {
         let report = step(world)?;
         collision = report.contacts.collision;
         offroad = report.contacts.offroad;
         observe(world, &report);
-        let jerk = metrics.jerk_of(world.ego.state.accel_mps2, world.dt_s);
+        let jerk_mps3 = scorer.jerk_of(world.ego.state.accel_mps2, world.dt_s);
         // `step` left the post-step scene in the world: no second rebuild.
-        let ego = field_inputs(world, jerk, &mut objects);
-        let ego_risk = field.evaluate_footprint(&world.road, &objects, &ego);
-        let lane_pos = world.road.locate_heading(ego.pose.position(), ego.pose.heading_rad);
-        let progress = world.progress_m();
-        let reward = step_reward(
-            weights,
-            &RewardInputs {
-                progress_m: progress - progress_prev,
-                desired_speed_mps: world.desired_speed_mps,
-                speed_mps: world.ego.state.speed_mps,
-                dt_s: world.dt_s,
-                risk: ego_risk,
-                lane_offset_m: lane_pos.frenet.e_y_m,
-                jerk_mps3: jerk,
-                collision,
-                offroad,
-            },
-        );
-        progress_prev = progress;
-        metrics.observe(StepSample {
-            dt_s: world.dt_s,
-            speed_mps: world.ego.state.speed_mps,
-            steer_rad: world.ego.state.steer_rad,
-            accel_mps2: world.ego.state.accel_mps2,
-            reward,
-        });
+        let ego = field_inputs(world, jerk_mps3, &mut objects);
         critical_states(world, &mut others);
-        let ego_state =
-            VehicleState { obb: ego.obb(), velocity: ego.velocity, accel: ego.obb().axis * world.ego.state.accel_mps2 };
-        risk.push(
+        scorer.push(
             &world.road,
-            &RiskStep {
-                ego: ego_state,
-                lane_offset_m: lane_pos.frenet.e_y_m,
-                lane_width_m: world.road.lane(lane_pos.lane).width_m,
-                jerk_mps3: jerk,
+            &ScoredStep {
+                dt_s: world.dt_s,
+                ego,
+                speed_mps: world.ego.state.speed_mps,
+                steer_rad: world.ego.state.steer_rad,
+                accel_mps2: world.ego.state.accel_mps2,
+                progress_m: world.progress_m(),
+                desired_speed_mps: world.desired_speed_mps,
+                objects: &objects,
                 others: &others,
                 collision,
                 offroad,
             },
         );
     }
-    let completion = world.progress_m() / world.route.length_m;
-    let mut m = metrics.finish(completion, collision, offroad);
-    let (terms, summary) = risk.finish();
-    m.min_ttc_s = summary.min_ttc_s;
-    m.min_distance_m = summary.min_distance_m;
-    m.risk_score = terms.score;
-    Ok(EpisodeResult { metrics: m, risk: terms })
+    Ok(scorer.finish(world.progress_m() / world.route.length_m))
+}
+
+/// One step of an episode as it is scored: the ego and everything around it after the step.
+/// `run_stepped` fills it from the world; an observer of the episode (the cloud twin, from what
+/// a vehicle reported) fills it from what it saw.
+#[derive(Debug, Clone, Copy)]
+pub struct ScoredStep<'a> {
+    pub dt_s: f64,
+    /// The ego for the risk field; its jerk from [`EpisodeScorer::jerk_of`].
+    pub ego: EgoKinematics,
+    pub speed_mps: f64,
+    pub steer_rad: f64,
+    pub accel_mps2: f64,
+    /// Distance along the route from its start, m.
+    pub progress_m: f64,
+    pub desired_speed_mps: f64,
+    /// Everything around the ego, for the risk field at its footprint.
+    pub objects: &'a [FieldObject],
+    /// Everything around the ego with accelerations, for the criticality measures.
+    pub others: &'a [VehicleState],
+    pub collision: bool,
+    pub offroad: bool,
+}
+
+/// Reduces an episode to its [`EpisodeResult`] one [`ScoredStep`] at a time: the reward, the
+/// metrics and the risk terms, allocation-free per step. One definition for every episode,
+/// whoever observed it.
+#[derive(Debug, Clone)]
+pub struct EpisodeScorer {
+    weights: RewardWeights,
+    field: RiskFieldParams,
+    metrics: MetricsAccumulator,
+    risk: RiskAccumulator,
+    progress_prev_m: f64,
+    collision: bool,
+    offroad: bool,
+}
+
+impl EpisodeScorer {
+    /// An episode that starts `start_progress_m` along its route, scored with `weights`.
+    pub fn new(weights: RewardWeights, start_progress_m: f64) -> Self {
+        EpisodeScorer {
+            weights,
+            field: RiskFieldParams::default(),
+            metrics: MetricsAccumulator::default(),
+            risk: RiskAccumulator::new(RiskWeights::default(), ScoreReferences::default()),
+            progress_prev_m: start_progress_m,
+            collision: false,
+            offroad: false,
+        }
+    }
+
+    /// The jerk of a step with this acceleration, from the previous step's (0 on the first).
+    pub fn jerk_of(&self, accel_mps2: f64, dt_s: f64) -> f64 {
+        self.metrics.jerk_of(accel_mps2, dt_s)
+    }
+
+    /// Feeds one step on `road`.
+    pub fn push(&mut self, road: &Road, step: &ScoredStep<'_>) {
+        let ego = &step.ego;
+        let ego_risk = self.field.evaluate_footprint(road, step.objects, ego);
+        let lane_pos = road.locate_heading(ego.pose.position(), ego.pose.heading_rad);
+        let reward = step_reward(
+            &self.weights,
+            &RewardInputs {
+                progress_m: step.progress_m - self.progress_prev_m,
+                desired_speed_mps: step.desired_speed_mps,
+                speed_mps: step.speed_mps,
+                dt_s: step.dt_s,
+                risk: ego_risk,
+                lane_offset_m: lane_pos.frenet.e_y_m,
+                jerk_mps3: ego.jerk_mps3,
+                collision: step.collision,
+                offroad: step.offroad,
+            },
+        );
+        self.progress_prev_m = step.progress_m;
+        self.metrics.observe(StepSample {
+            dt_s: step.dt_s,
+            speed_mps: step.speed_mps,
+            steer_rad: step.steer_rad,
+            accel_mps2: step.accel_mps2,
+            reward,
+        });
+        let ego_state =
+            VehicleState { obb: ego.obb(), velocity: ego.velocity, accel: ego.obb().axis * step.accel_mps2 };
+        self.risk.push(
+            road,
+            &RiskStep {
+                ego: ego_state,
+                lane_offset_m: lane_pos.frenet.e_y_m,
+                lane_width_m: road.lane(lane_pos.lane).width_m,
+                jerk_mps3: ego.jerk_mps3,
+                others: step.others,
+                collision: step.collision,
+                offroad: step.offroad,
+            },
+        );
+        self.collision |= step.collision;
+        self.offroad |= step.offroad;
+    }
+
+    /// The episode so far, with `route_completion` (a share of the route, clamped to [0, 1]).
+    pub fn finish(&self, route_completion: f64) -> EpisodeResult {
+        let mut m = self.metrics.finish(route_completion, self.collision, self.offroad);
+        let (terms, summary) = self.risk.finish();
+        m.min_ttc_s = summary.min_ttc_s;
+        m.min_distance_m = summary.min_distance_m;
+        m.risk_score = terms.score;
+        EpisodeResult { metrics: m, risk: terms }
+    }
 }
 
 /// The scenario driven by the reference driver, with the default reward weights.

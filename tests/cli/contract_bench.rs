@@ -44,7 +44,7 @@ fn bench_fanout_json_and_bad_sizes() {
     }
     assert_eq!((uint(&b, "echoes"), uint(&b, "rounds"), uint(&b, "out_bytes")), (2, 20, 64), "echoes its flags");
     assert!(num(&b, "ms_per_round") > 0.0);
-    for bad in [["--echoes", "0"], ["--out-bytes", "4"]] {
+    for bad in [["--echoes", "0"], ["--out-bytes", "4"], ["--reply-bytes", "8"]] {
         let args: Vec<&str> = ["bench", "fanout"].into_iter().chain(bad).collect();
         assert_input_error(dir.path(), &args, "--echoes and --rounds must be positive");
     }

@@ -402,9 +402,13 @@ struct Stopped(u32);
 
 impl Drop for Stopped {
     fn drop(&mut self) {
-        // Gone already is fine: the launcher reaps its children.
-        let mut kill = std::process::Command::new("kill");
-        let _ = kill.args(["-KILL", &self.0.to_string()]).stderr(std::process::Stdio::null()).status();
+        // Only if it is still the stopped process: once the launcher has reaped it, the pid may
+        // belong to another.
+        let stat = std::fs::read_to_string(format!("/proc/{}/stat", self.0)).unwrap_or_default();
+        if stat.rsplit_once(')').is_some_and(|(_, rest)| rest.trim_start().starts_with('T')) {
+            let mut kill = std::process::Command::new("kill");
+            let _ = kill.args(["-KILL", &self.0.to_string()]).stderr(std::process::Stdio::null()).status();
+        }
     }
 }
 

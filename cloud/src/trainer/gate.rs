@@ -1,9 +1,11 @@
 //! The regression gate: before a policy version is pushed to the fleet, it drives the
 //! regression set (every library scenario some driver collided in) and the held-out set, and is
-//! compared scenario for scenario with the version deployed now (the reference driver before
-//! the first push). A candidate with more collisions than the deployed version on either set,
+//! compared with the version deployed now (the reference driver before the first push) driving
+//! the same scenarios. A candidate with more collisions than the deployed version on either set,
 //! or a mean route completion lower by more than [`COMPLETION_TOLERANCE`], is held back, and the
-//! report says which set and which figure.
+//! report says which set and which figure. The rule is on the totals; the scenarios the
+//! candidate newly collides in are listed beside them (a candidate may trade one collision for
+//! another).
 
 use super::drive::drive_all;
 use super::held_out::HeldOut;

@@ -12,8 +12,10 @@
 //! from consecutive ticks of the same vehicle, since the state stream carries neither.
 //!
 //! [`risk`] evaluates the risk field and report of an ego on a site's twin; [`outputs`] turns
-//! each tick into the scene and risk outputs the network side records and publishes.
+//! each tick into the scene and risk outputs the network side records and publishes;
+//! [`episode`] scores one vehicle's episode as the twin saw it.
 
+pub mod episode;
 pub mod fidelity;
 pub mod outputs;
 pub mod risk;

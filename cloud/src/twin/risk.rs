@@ -11,6 +11,7 @@
 //! takes the maximum over objects per cell.
 
 use super::{SiteTwin, TwinVehicle};
+use risktwin_common::episode::{EpisodeScorer, ScoredStep};
 use risktwin_common::geometry::{Obb, Vec2};
 use risktwin_common::risk::{
     EgoKinematics, FieldError, FieldObject, GridEvaluator, RiskAccumulator, RiskFieldParams, RiskGrid, RiskStep,
@@ -43,6 +44,16 @@ impl Default for RiskConfig {
     fn default() -> Self {
         RiskConfig { grid_cells: 160, resolution_m: 0.5, params: RiskFieldParams::default(), period_ns: 500_000_000 }
     }
+}
+
+/// What the twin cannot know of an episode's step from the streams: how long it was, where the
+/// ego is along its route, the speed it wants.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwinStep {
+    pub dt_s: f64,
+    /// Distance along the route from its start, m.
+    pub progress_m: f64,
+    pub desired_speed_mps: f64,
 }
 
 /// The risk of one ego at one tick.
@@ -177,6 +188,36 @@ impl RiskAssessor {
         let (terms, summary) = accumulator.finish();
         let at_ego = self.raster.evaluate_footprint(&self.road, &self.objects, &ego_kin);
         Some(InstantRisk { terms, min_ttc_s: summary.min_ttc_s, min_distance_m: summary.min_distance_m, at_ego })
+    }
+
+    /// Feeds `site.vehicles[ego]` at this tick to an episode's `scorer`, as `simulate` feeds its
+    /// world's step: the same field, reward and criticality code on what the twin shows (its
+    /// surroundings as [`Self::instant`] sees them; contact is an overlap with any of them,
+    /// leaving the road is the footprint leaving it). The twin has no steering angle (the state
+    /// stream does not carry it), so the episode's steering smoothness is 0. False if there is
+    /// no such vehicle.
+    pub fn score(&mut self, site: &SiteTwin, ego: usize, step: TwinStep, scorer: &mut EpisodeScorer) -> bool {
+        let Some(ego_vehicle) = site.vehicles.get(ego) else { return false };
+        let k = ego_vehicle.kinematics;
+        let mut ego_kin = ego_kinematics(ego_vehicle);
+        ego_kin.jerk_mps3 = scorer.jerk_of(k.accel_mps2, step.dt_s);
+        self.surroundings(site, ego);
+        let ego_obb = ego_kin.obb();
+        let scored = ScoredStep {
+            dt_s: step.dt_s,
+            ego: ego_kin,
+            speed_mps: k.speed_mps,
+            steer_rad: 0.0,
+            accel_mps2: k.accel_mps2,
+            progress_m: step.progress_m,
+            desired_speed_mps: step.desired_speed_mps,
+            objects: &self.objects,
+            others: &self.others,
+            collision: self.others.iter().any(|o| o.obb.overlaps(&ego_obb)),
+            offroad: !self.road.contains_footprint(&ego_obb),
+        };
+        scorer.push(&self.road, &scored);
+        true
     }
 
     /// The objects around the ego of the last evaluation, and who each is: `Ok(i)` vehicle `i`

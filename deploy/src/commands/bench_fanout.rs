@@ -35,7 +35,8 @@ pub fn fanout(args: BenchFanoutArgs) -> CliResult {
         let child = Command::new(&exe)
             .args(["bench", "fanout", "--echo-connect", &locator, "--echo-id", &id.to_string()])
             .args(["--reply-bytes", &args.reply_bytes.to_string()])
-            .stdin(Stdio::null())
+            // Its input stays open while this process lives: the echo exits when it ends.
+            .stdin(Stdio::piped())
             .stdout(Stdio::null())
             .spawn()
             .map_err(|e| CliError::runtime(format!("cannot start echo {id}: {e}")))?;
@@ -57,7 +58,7 @@ pub fn fanout(args: BenchFanoutArgs) -> CliResult {
     }
 }
 
-/// The echo processes: they run until stopped, so they are killed and reaped on drop.
+/// The echo processes: they run until their input ends, and are killed and reaped on drop.
 struct Echoes(Vec<Child>);
 
 impl Drop for Echoes {

@@ -9,6 +9,7 @@ use risktwin_cloud::library::{
     COMMONROAD_KIND, REPLAY_POLICY, RankOutcome, RankedCase, RankedScenario, ScenarioLibrary,
 };
 use risktwin_common::risk::RiskTerms;
+use risktwin_common::scenario::MutateError;
 use serde::Serialize;
 
 /// Worker threads for episode batches: all cores.
@@ -54,7 +55,10 @@ pub fn mutate(args: MutateArgs) -> CliResult {
     let report = mutate_stored(&mut library, &args.id, args.count, radius, args.seed, worker_threads()).map_err(
         |e| match e {
             MutationError::Library(e) => CliError::runtime(e),
-            MutationError::Mutate(e) => CliError::input(format!("--radius {radius}: {e}")),
+            MutationError::Mutate(e @ MutateError::InvalidRadius(_)) => {
+                CliError::input(format!("--radius {radius}: {e}"))
+            }
+            MutationError::Mutate(e) => CliError::runtime(format!("stored scenario {}: {e}", args.id)),
             unknown => CliError::input(unknown),
         },
     )?;

@@ -114,6 +114,8 @@ struct Tally {
 struct Answers {
     /// The step whose answers count; `None` while the participants join.
     step: Option<u64>,
+    /// Joins are taken until stepping starts; later ones (repeats in flight) are dropped.
+    joining: bool,
     answered: Vec<bool>,
     /// Participants yet to answer `step`.
     missing: usize,
@@ -135,10 +137,11 @@ impl Tally {
         let reply = Reply::decode(payload);
         let mut answers = lock(&self.state);
         match reply {
-            Ok(Reply::Join { participant, scene, describe, .. }) => {
+            Ok(Reply::Join { participant, scene, describe, .. }) if answers.joining => {
                 answers.joins.push((participant, scene, describe));
                 self.ready.notify_one();
             }
+            Ok(Reply::Join { .. }) => {}
             Ok(Reply::Step { participant, step, controls }) if answers.step == Some(step) => {
                 let Some(k) = self.participants.iter().position(|p| *p == participant) else { return };
                 if std::mem::replace(&mut answers.answered[k], true) {
@@ -147,7 +150,7 @@ impl Tally {
                 if k == 0 {
                     answers.ego = controls.map(controls_of);
                 }
-                answers.missing -= 1;
+                answers.missing = answers.missing.saturating_sub(1);
                 if answers.missing == 0 {
                     self.ready.notify_one();
                 }
@@ -190,7 +193,7 @@ impl ZenohAuthority {
     /// names who.
     pub fn open(session: &Session, site: &SiteId, setup: &SceneSetup, timeouts: Timeouts) -> Result<Self, SceneError> {
         let participants = setup.participants();
-        let answers = Answers { answered: vec![false; participants.len()], ..Answers::default() };
+        let answers = Answers { answered: vec![false; participants.len()], joining: true, ..Answers::default() };
         let tally =
             Arc::new(Tally { state: Mutex::new(answers), ready: Condvar::new(), participants: participants.clone() });
         let replies_key = scene_replies(site);
@@ -241,6 +244,14 @@ impl ZenohAuthority {
     }
 
     fn await_joins(&mut self, setup: &SceneSetup) -> Result<(), SceneError> {
+        let joined = self.take_joins(setup);
+        let mut answers = lock(&self.tally.state);
+        answers.joining = false;
+        answers.joins.clear();
+        joined
+    }
+
+    fn take_joins(&mut self, setup: &SceneSetup) -> Result<(), SceneError> {
         let (digest, ours) = (setup.digest(), setup.describe());
         let deadline = Instant::now() + self.timeouts.join;
         let mut joined = vec![false; self.participants.len()];
@@ -441,8 +452,9 @@ struct Answering {
     digest: u64,
     describe: String,
     summary: ParticipantSummary,
-    /// The last step answered and when its truth arrived.
-    last: Option<(u64, Instant)>,
+    /// The last step answered and when: shared with the thread that watches for silence, which
+    /// must not wait on this stack's lock (held while a step is answered and published).
+    last: Arc<Mutex<Option<(u64, Instant)>>>,
     /// Set once the scene is over for this participant: later truths are ignored.
     over: bool,
 }
@@ -477,7 +489,7 @@ impl Answering {
         if let Err(e) = self.outbox.put(reply).wait().map_err(transport("reply")) {
             return Some(Err(e));
         }
-        self.last = Some((truth.step, Instant::now()));
+        *lock(&self.last) = Some((truth.step, Instant::now()));
         self.streams.publish(&self.stack, &truth).err().map(Err)
     }
 }
@@ -511,8 +523,17 @@ pub fn run_participant(
         malformed: 0,
         sent: StreamsSent::default(),
     };
-    let answering =
-        Answering { stack, streams, outbox, digest, describe: setup.describe(), summary, last: None, over: false };
+    let last = Arc::new(Mutex::new(None));
+    let answering = Answering {
+        stack,
+        streams,
+        outbox,
+        digest,
+        describe: setup.describe(),
+        summary,
+        last: Arc::clone(&last),
+        over: false,
+    };
     let answering = Arc::new(Mutex::new(answering));
     let (end_tx, end) = std::sync::mpsc::sync_channel(1);
     let truth_key = scene_truth(site);
@@ -540,8 +561,8 @@ pub fn run_participant(
     let mut next_join = Instant::now();
     loop {
         let now = Instant::now();
-        let last = lock(&answering).last;
-        let wake = match last {
+        let last_step = *lock(&last);
+        let wake = match last_step {
             None if now >= join_deadline => return Err(SceneError::NoAuthority { waited_s: timeouts.join.as_secs() }),
             None => {
                 if now >= next_join {
@@ -594,9 +615,12 @@ mod tests {
     }
 
     #[test]
-    fn joins_are_queued_for_the_stepping_thread_whatever_the_step() {
+    fn joins_are_queued_for_the_stepping_thread_until_stepping_starts() {
         let tally = tally(0);
-        lock(&tally.state).step = None;
+        {
+            let mut answers = lock(&tally.state);
+            (answers.step, answers.joining) = (None, true);
+        }
         let join =
             |id: &str| Reply::Join { schema: SCHEMA_VERSION, participant: id.into(), scene: 7, describe: "d".into() };
         tally.on_reply(&join("v0").encode());
@@ -605,6 +629,10 @@ mod tests {
         let ids: Vec<&str> = answers.joins.iter().map(|(id, ..)| id.as_str()).collect();
         assert_eq!(ids, ["v0", "v9"], "an unknown participant is refused by the stepping thread, by name");
         assert_eq!(answers.missing, 2);
+        drop(answers);
+        lock(&tally.state).joining = false;
+        tally.on_reply(&join("v0").encode());
+        assert_eq!(lock(&tally.state).joins.len(), 2, "a join repeated after stepping started is dropped");
     }
 
     #[test]

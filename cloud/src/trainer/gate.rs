@@ -133,3 +133,32 @@ pub fn gate(
     let decision = if reasons.is_empty() { Decision::Push } else { Decision::Hold };
     Ok(GateReport { decision, reasons, regression, held_out, completion_tolerance: COMPLETION_TOLERANCE })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn comparison(candidate: (usize, f64), deployed: (usize, f64)) -> SetComparison {
+        let summary =
+            |(collisions, mean_route_completion)| SetSummary { collisions, successes: 0, mean_route_completion };
+        SetComparison {
+            scenarios: 10,
+            candidate: summary(candidate),
+            deployed: summary(deployed),
+            newly_colliding: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn more_collisions_or_completion_short_by_more_than_the_tolerance_hold_a_candidate_back() {
+        assert!(comparison((2, 0.90), (2, 0.90)).regressions("set").is_empty(), "equal passes");
+        assert!(comparison((1, 0.95), (2, 0.90)).regressions("set").is_empty(), "better passes");
+        assert!(comparison((2, 0.89), (2, 0.90)).regressions("set").is_empty(), "within the tolerance");
+        let more = comparison((3, 0.90), (2, 0.90)).regressions("regression set");
+        assert_eq!(more, ["regression set: 3 collisions against 2 of the deployed version"]);
+        let short = comparison((2, 0.85), (2, 0.90)).regressions("held-out set");
+        assert_eq!(short.len(), 1);
+        assert!(short[0].starts_with("held-out set: mean route completion 0.850 against 0.900"), "{short:?}");
+        assert_eq!(comparison((3, 0.5), (2, 0.9)).regressions("set").len(), 2, "both reasons are given");
+    }
+}

@@ -25,7 +25,6 @@ pub struct TwinEpisode {
     desired_speed_mps: f64,
     last_tick_ns: Option<i64>,
     progress_m: f64,
-    ticks: u64,
 }
 
 impl TwinEpisode {
@@ -45,7 +44,6 @@ impl TwinEpisode {
             assessor: RiskAssessor::new(world.road, config)?,
             last_tick_ns: None,
             progress_m,
-            ticks: 0,
         })
     }
 
@@ -62,12 +60,6 @@ impl TwinEpisode {
         let step = TwinStep { dt_s, progress_m: self.progress_m, desired_speed_mps: self.desired_speed_mps };
         self.assessor.score(site, ego, step, &mut self.scorer);
         self.last_tick_ns = Some(tick_ns);
-        self.ticks += 1;
-    }
-
-    /// Ticks scored so far.
-    pub fn ticks(&self) -> u64 {
-        self.ticks
     }
 
     /// The episode so far.

@@ -94,9 +94,6 @@ pub struct ZenohAuthority {
     /// Wall time at the scene's t = 0 by the authority's clock, ns since the Unix epoch: the
     /// ground truth's stamps, on the same clock as the participants' streams.
     epoch_ns: Option<i64>,
-    participants: Vec<String>,
-    /// Who answered the last step (a copy of the tally's, kept to avoid allocating per step).
-    answered: Vec<bool>,
     timeouts: Timeouts,
     bytes: Vec<u8>,
     realtime: Option<RealTime>,
@@ -194,8 +191,7 @@ impl ZenohAuthority {
     pub fn open(session: &Session, site: &SiteId, setup: &SceneSetup, timeouts: Timeouts) -> Result<Self, SceneError> {
         let participants = setup.participants();
         let answers = Answers { answered: vec![false; participants.len()], joining: true, ..Answers::default() };
-        let tally =
-            Arc::new(Tally { state: Mutex::new(answers), ready: Condvar::new(), participants: participants.clone() });
+        let tally = Arc::new(Tally { state: Mutex::new(answers), ready: Condvar::new(), participants });
         let replies_key = scene_replies(site);
         let replies = session
             .declare_subscriber(replies_key.clone())
@@ -214,7 +210,7 @@ impl ZenohAuthority {
         let mut world = setup.world()?;
         let map = scene_road_map(&world);
         let mut ground_truth = Vec::new();
-        for id in participants.iter().filter(|id| !id.starts_with("rsu")) {
+        for id in tally.participants.iter().filter(|id| !id.starts_with("rsu")) {
             let source = SourceId::new(id.clone()).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
             let publisher = declare(scene_ground_truth(site, &source), VehicleStateSample::PROTO_NAME)?;
             ground_truth.push((id.clone(), setup.role_of(id)?, publisher));
@@ -222,8 +218,6 @@ impl ZenohAuthority {
         let mut plane = ZenohAuthority {
             _replies: replies,
             tally,
-            answered: vec![false; participants.len()],
-            participants,
             truth,
             map: (map_publisher, encode(&map)),
             ground_truth,
@@ -254,12 +248,12 @@ impl ZenohAuthority {
     fn take_joins(&mut self, setup: &SceneSetup) -> Result<(), SceneError> {
         let (digest, ours) = (setup.digest(), setup.describe());
         let deadline = Instant::now() + self.timeouts.join;
-        let mut joined = vec![false; self.participants.len()];
+        let mut joined = vec![false; self.tally.participants.len()];
         let mut answers = lock(&self.tally.state);
         while joined.iter().any(|j| !j) {
             for (participant, scene, describe) in std::mem::take(&mut answers.joins) {
-                let Some(k) = self.participants.iter().position(|p| *p == participant) else {
-                    let known = self.participants.join(", ");
+                let Some(k) = self.tally.participants.iter().position(|p| *p == participant) else {
+                    let known = self.tally.participants.join(", ");
                     return Err(SceneError::UnknownParticipant { id: participant, known });
                 };
                 if scene != digest {
@@ -272,7 +266,7 @@ impl ZenohAuthority {
                 break;
             }
             if now >= deadline {
-                let missing = self.participants.iter().zip(&joined).filter(|(_, j)| !**j);
+                let missing = self.tally.participants.iter().zip(&joined).filter(|(_, j)| !**j);
                 let ids = missing.map(|(p, _)| p.as_str()).collect::<Vec<_>>().join(", ");
                 return Err(SceneError::NotJoined { ids, waited_s: self.timeouts.join.as_secs() });
             }
@@ -284,7 +278,7 @@ impl ZenohAuthority {
     /// Steps on the wall clock from now on, one every `period`; answers are due before the next
     /// step, and a late one is counted, not waited for.
     pub fn realtime(mut self, period: Duration) -> Self {
-        let last_answer = vec![Instant::now(); self.participants.len()];
+        let last_answer = vec![Instant::now(); self.tally.participants.len()];
         let deadlines = Deadlines::default();
         self.realtime = Some(RealTime { period, start: None, last_answer, held: Controls::default(), deadlines });
         self
@@ -354,26 +348,23 @@ impl Plane for ZenohAuthority {
             let mut answers = lock(&self.tally.state);
             answers.step = Some(truth.step);
             answers.answered.fill(false);
-            answers.missing = self.participants.len();
+            answers.missing = self.tally.participants.len();
             answers.ego = None;
         }
         self.publish(truth)?;
-        let mut answers = lock(&self.tally.state);
+        // A handle of its own, so that the answers can be read while `self` concludes the step.
+        let tally = Arc::clone(&self.tally);
+        let mut answers = lock(&tally.state);
         loop {
             let now = Instant::now();
             if answers.missing == 0 || now >= deadline {
                 break;
             }
-            answers = self.tally.ready.wait_timeout(answers, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
+            answers = tally.ready.wait_timeout(answers, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
         }
         answers.step = None;
-        self.answered.copy_from_slice(&answers.answered);
         let ego = answers.ego;
-        drop(answers);
-        let answered = std::mem::take(&mut self.answered);
-        let result = self.conclude(truth.step, start, &answered, ego);
-        self.answered = answered;
-        result
+        self.conclude(truth.step, start, &answers.answered, ego)
     }
 
     fn finish(&mut self, last: &Truth) -> Result<(), SceneError> {
@@ -394,7 +385,7 @@ impl ZenohAuthority {
             return self.past_deadline(step, answered, ego);
         }
         if answered.iter().any(|a| !a) {
-            let silent = self.participants.iter().zip(answered).filter(|(_, a)| !**a);
+            let silent = self.tally.participants.iter().zip(answered).filter(|(_, a)| !**a);
             let ids = silent.map(|(p, _)| p.as_str()).collect::<Vec<_>>().join(", ");
             return Err(SceneError::Stalled { ids, step, waited_ms: start.elapsed().as_millis() as u64 });
         }
@@ -414,7 +405,8 @@ impl ZenohAuthority {
                 rt.deadlines.missed += 1;
             }
         }
-        let silent = rt.last_answer.iter().zip(&self.participants).filter(|(t, _)| now - **t > self.timeouts.step);
+        let silent =
+            rt.last_answer.iter().zip(&self.tally.participants).filter(|(t, _)| now - **t > self.timeouts.step);
         let silent: Vec<&str> = silent.map(|(_, p)| p.as_str()).collect();
         if !silent.is_empty() {
             let waited_ms = self.timeouts.step.as_millis() as u64;

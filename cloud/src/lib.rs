@@ -7,6 +7,8 @@
 //!   the risk field and report of every vehicle) — transport-free too;
 //! - [`network`]: the `risktwin cloud` roles on Zenoh (subscriptions, queryables, the
 //!   publisher of the twin's outputs, liveliness) and the cloud→edge pushes;
+//! - [`fleet_loop`]: the closed loop over the fleet (what the `loop` role decides), on the
+//!   library's state;
 //! - [`library`]: the scenario library (SQLite); [`criticality`]: CommonRoad criticality of a
 //!   replayed scenario; [`trainer`], [`generate`], [`episode_recording`]: the offline side.
 //!
@@ -51,6 +53,7 @@
 pub mod commonroad_recording;
 pub mod criticality;
 pub mod episode_recording;
+pub mod fleet_loop;
 pub mod generate;
 pub mod ingest;
 pub mod library;

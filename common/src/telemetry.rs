@@ -194,4 +194,7 @@ pub struct ScenarioResult {
     pub risk: RiskTerms,
     /// The received policy that drove the ego; `None`: the scenario's reference driver.
     pub policy: Option<PolicyRef>,
+    /// Sequence numbers of the first and last `state` message the episode was published on;
+    /// `None`: none was.
+    pub state_seqs: Option<(u64, u64)>,
 }

@@ -114,6 +114,7 @@ impl Vehicle {
             metrics: done.tape.result.metrics.clone(),
             risk: done.tape.result.risk,
             policy: done.tape.driven_by.clone(),
+            state_seqs: done.state_seqs,
         };
         self.results_sent += 1;
         let driver = result

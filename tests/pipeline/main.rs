@@ -9,6 +9,7 @@
 mod cloudloop;
 mod criticality;
 mod fleet;
+mod fleetloop;
 #[path = "../interop/peer_python.rs"]
 mod peer_python;
 mod policyloop;

@@ -296,6 +296,16 @@ pub fn edge_report_all(site: Option<&SiteId>, report: EdgeReport) -> String {
     format!("{ROOT}/{}/*/{}", site_or_star(site), report.as_str())
 }
 
+/// The site and source of a report key `risktwin/v1/<site>/<source>/<report>`; `None` otherwise.
+pub fn parse_edge_report_key(key: &str, report: EdgeReport) -> Option<(&str, &str)> {
+    let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
+    let mut chunks = rest.split('/');
+    let (site, source, last) = (chunks.next()?, chunks.next()?, chunks.next()?);
+    let reserved = source == CLOUD_CHUNK || source == ALIVE_CHUNK || source == SCENE_CHUNK;
+    (last == report.as_str() && chunks.next().is_none() && !site.is_empty() && !source.is_empty() && !reserved)
+        .then_some((site, source))
+}
+
 /// `risktwin/v1/<site>/cloud/library/ranked`: the ranked-scenarios query of the library
 /// (parameters in the selector, e.g. `?top=5;kind=cut-in`).
 pub fn library_ranked(site: &SiteId) -> String {
@@ -487,6 +497,11 @@ mod tests {
         assert_eq!(report, "risktwin/v1/track-1/veh_0.a/scenario_result");
         assert_eq!(parse_edge_key(&report), None, "a report is not an ingest stream");
         assert_eq!(edge_report_all(None, EdgeReport::ScenarioResult), "risktwin/v1/*/*/scenario_result");
+        assert_eq!(parse_edge_report_key(&report, EdgeReport::ScenarioResult), Some(("track-1", "veh_0.a")));
+        for bad in ["risktwin/v1/s/cloud/scenario_result", "risktwin/v1/s/v/state", "risktwin/v1/s/v/scenario_result/x"]
+        {
+            assert_eq!(parse_edge_report_key(bad, EdgeReport::ScenarioResult), None, "{bad}");
+        }
         assert_eq!(liveliness_token(&site, &src), "risktwin/v1/track-1/alive/veh_0.a");
         assert_eq!(liveliness_all(None), "risktwin/v1/*/alive/*");
     }

@@ -15,6 +15,10 @@ pub struct ObservedKinematics {
     pub speed_mps: f64,
     pub accel_mps2: f64,
     pub footprint: Footprint,
+    /// The header seqs of the state samples it comes from: `(n, n)` for one sample, `(a, b)`
+    /// when interpolated between samples `a` and `b` (how the cloud finds an edge's episode
+    /// among its ticks).
+    pub seqs: (u64, u64),
 }
 
 impl From<&VehicleStateSample> for ObservedKinematics {
@@ -25,6 +29,7 @@ impl From<&VehicleStateSample> for ObservedKinematics {
             speed_mps: s.speed_mps,
             accel_mps2: s.accel_mps2,
             footprint: s.footprint,
+            seqs: (s.header.seq, s.header.seq),
         }
     }
 }
@@ -42,6 +47,7 @@ impl Interpolate for ObservedKinematics {
             speed_mps: lerp(x.speed_mps, y.speed_mps, t),
             accel_mps2: lerp(x.accel_mps2, y.accel_mps2, t),
             footprint: y.footprint,
+            seqs: (x.seqs.0, y.seqs.1),
         }
     }
 }

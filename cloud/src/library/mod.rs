@@ -9,7 +9,7 @@
 //! or a newer schema fails with a typed [`LibraryError`] naming the path; such files are never
 //! written to. Every batch is one transaction.
 //!
-//! # Schema (version 2; all tables `STRICT`)
+//! # Schema (version 3; all tables `STRICT`)
 //! - `scenarios(id TEXT PK, kind TEXT, seed INTEGER, params TEXT, parent_id TEXT NULL → scenarios,
 //!   generation INTEGER, origin TEXT, created_seq INTEGER UNIQUE)`:
 //!   `id` is the content id ([`content_id`]: FNV-1a 64 of kind, seed and parameter bits, 16 hex
@@ -38,14 +38,28 @@
 //!   outcome. An outcome equal to its policy's latest is not written again. Collisions here do
 //!   not enter `regression` (that set holds generated scenarios).
 //!
+//! - `pushes(seq INTEGER PK, scenario_id → scenarios, site, edge, attempts ≥ 1, state
+//!   'outstanding'|'done'|'abandoned')` (version 3): scenarios the loop pushed to fleet edges;
+//!   at most one outstanding per `(site, edge)` (a partial unique index).
+//! - `twin_outcomes(seq INTEGER PK, scenario_id → scenarios, <the outcome columns>)` (version 3):
+//!   the twin's score of a fleet episode.
+//! - `fleet_episodes(seq INTEGER PK, scenario_id → scenarios, site, edge, policy_id NULL,
+//!   policy_version NULL, scene NULL, push_seq NULL → pushes, edge_outcome_seq → outcomes,
+//!   twin_outcome_seq NULL → twin_outcomes, twin_ticks, disagreement NULL)` (version 3): one
+//!   episode played by the fleet; the edge's own outcome is an ordinary row of `outcomes`.
+//! - `policies(version INTEGER PK, policy_id, algo, weights BLOB, decision 'pushed'|'held-back',
+//!   reasons, failures)` and `policy_pushes(version → policies, site, edge)` (version 3): the
+//!   policy versions the trainer produced, the gate's decision, and where each went.
+//!
 //! # Versions
 //! `schema::MIGRATIONS[v]` takes a file from version `v` to `v + 1` inside one IMMEDIATE
 //! transaction at open; a new file runs them all, so new and upgraded files are the same.
-//! Migrations only add tables: a version-1 file opens, keeps every row, and gains the
-//! recorded tables (after which builds that read version 1 only refuse it).
+//! Migrations only add tables: a version-1 or version-2 file opens, keeps every row, and gains
+//! the later tables (after which builds that read the older version only refuse it).
 
 mod connection;
 mod error;
+mod fleet;
 mod query;
 mod rank;
 mod record;
@@ -59,6 +73,7 @@ mod fixtures;
 
 pub use connection::ScenarioLibrary;
 pub use error::{LibraryError, RecordError};
+pub use fleet::{FleetCounts, FleetEpisode, Push, StoredFleetEpisode, policy_label};
 pub use rank::{RankOutcome, RankedScenario};
 pub use record::{
     DEFAULT_POLICY, InsertSummary, KindCounts, Origin, Outcome, Rejection, ScenarioRecord, StoredScenario, content_id,

@@ -16,31 +16,37 @@ pub(super) const OUTCOME_COLUMNS: &str = "policy, collision, offroad, success, r
      risk_score, risk_ttc, risk_dist, risk_lane, risk_jerk, risk_collision";
 
 pub(super) fn outcome_from_row(r: &Row<'_>) -> rusqlite::Result<Outcome> {
-    let steps: i64 = r.get(12)?;
+    outcome_from_row_at(r, 0)
+}
+
+/// The outcome whose [`OUTCOME_COLUMNS`] start at column `first` of the row.
+pub(super) fn outcome_from_row_at(r: &Row<'_>, first: usize) -> rusqlite::Result<Outcome> {
+    let at = |k: usize| first + k;
+    let steps: i64 = r.get(at(12))?;
     Ok(Outcome {
-        policy: r.get(0)?,
+        policy: r.get(at(0))?,
         metrics: EpisodeMetrics {
-            collision: r.get(1)?,
-            offroad: r.get(2)?,
-            success: r.get(3)?,
-            route_completion: r.get(4)?,
-            avg_speed_mps: r.get(5)?,
-            steering_smoothness: r.get(6)?,
-            longitudinal_smoothness: r.get(7)?,
-            min_ttc_s: r.get(8)?,
-            min_distance_m: r.get(9)?,
-            risk_score: r.get(10)?,
-            reward: r.get(11)?,
+            collision: r.get(at(1))?,
+            offroad: r.get(at(2))?,
+            success: r.get(at(3))?,
+            route_completion: r.get(at(4))?,
+            avg_speed_mps: r.get(at(5))?,
+            steering_smoothness: r.get(at(6))?,
+            longitudinal_smoothness: r.get(at(7))?,
+            min_ttc_s: r.get(at(8))?,
+            min_distance_m: r.get(at(9))?,
+            risk_score: r.get(at(10))?,
+            reward: r.get(at(11))?,
             // The column CHECK keeps steps non-negative.
             steps: steps.max(0) as u64,
         },
         risk: RiskTerms {
-            score: r.get(13)?,
-            ttc: r.get(14)?,
-            dist: r.get(15)?,
-            lane: r.get(16)?,
-            jerk: r.get(17)?,
-            collision: r.get(18)?,
+            score: r.get(at(13))?,
+            ttc: r.get(at(14))?,
+            dist: r.get(at(15))?,
+            lane: r.get(at(16))?,
+            jerk: r.get(at(17))?,
+            collision: r.get(at(18))?,
         },
     })
 }

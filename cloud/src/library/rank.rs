@@ -51,6 +51,22 @@ impl ScenarioLibrary {
         top: Option<usize>,
         kind: Option<ScenarioKind>,
     ) -> Result<Vec<RankedScenario>, LibraryError> {
+        self.rank_where(policy, top, kind, false)
+    }
+
+    /// The riskiest scenario (by the reference driver's latest outcome) never pushed to an
+    /// edge: what the loop sends next.
+    pub fn riskiest_unpushed(&self) -> Result<Option<RankedScenario>, LibraryError> {
+        Ok(self.rank_where(DEFAULT_POLICY, Some(1), None, true)?.pop())
+    }
+
+    fn rank_where(
+        &self,
+        policy: &str,
+        top: Option<usize>,
+        kind: Option<ScenarioKind>,
+        unpushed: bool,
+    ) -> Result<Vec<RankedScenario>, LibraryError> {
         // SQLite reads a negative LIMIT as "no limit".
         let limit = top.map_or(-1, |k| i64::try_from(k).unwrap_or(i64::MAX));
         let mut stmt = self.conn.prepare_cached(
@@ -61,11 +77,12 @@ impl ScenarioLibrary {
              WHERE o.policy = ?1 \
                AND o.seq = (SELECT MAX(seq) FROM outcomes WHERE scenario_id = s.id AND policy = ?1) \
                AND (?2 IS NULL OR s.kind = ?2) \
+               AND (?4 = 0 OR NOT EXISTS (SELECT 1 FROM pushes p WHERE p.scenario_id = s.id)) \
              ORDER BY o.risk_score DESC, s.id ASC \
              LIMIT ?3",
         )?;
         let rows: Vec<RankRow> = stmt
-            .query_map(rusqlite::params![policy, kind.map(ScenarioKind::name), limit], |r| {
+            .query_map(rusqlite::params![policy, kind.map(ScenarioKind::name), limit, unpushed], |r| {
                 Ok((
                     r.get(0)?,
                     r.get(1)?,

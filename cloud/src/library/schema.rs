@@ -9,7 +9,7 @@ use std::time::Duration;
 /// `PRAGMA application_id` of a RiskTwin library: "RTWL" in ASCII.
 pub const APPLICATION_ID: i32 = 0x5254_574C;
 /// `PRAGMA user_version`: bumped whenever the tables change.
-pub const SCHEMA_VERSION: i64 = 2;
+pub const SCHEMA_VERSION: i64 = 3;
 /// How long a writer waits for another connection's lock (the cloud role and the CLI may share
 /// a file) before reporting SQLITE_BUSY.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
@@ -106,9 +106,69 @@ CREATE INDEX recorded_outcomes_latest ON recorded_outcomes(case_id, policy, seq)
 "
 );
 
+/// Version 3: the closed loop's state. Scenarios pushed to fleet edges (one outstanding per
+/// edge, enforced by a partial unique index), the episodes the fleet played with the edge's
+/// own outcome (in `outcomes`) beside the twin's view of it, and the policy versions the
+/// trainer produced with the gate's decision and where each went.
+const V3_DDL: &str = concat!(
+    "
+CREATE TABLE pushes (
+    seq         INTEGER PRIMARY KEY,
+    scenario_id TEXT NOT NULL REFERENCES scenarios(id),
+    site        TEXT NOT NULL CHECK (site <> ''),
+    edge        TEXT NOT NULL CHECK (edge <> ''),
+    attempts    INTEGER NOT NULL CHECK (attempts >= 1),
+    state       TEXT NOT NULL CHECK (state IN ('outstanding', 'done', 'abandoned'))
+) STRICT;
+CREATE UNIQUE INDEX pushes_one_outstanding ON pushes(site, edge) WHERE state = 'outstanding';
+CREATE INDEX pushes_by_scenario ON pushes(scenario_id);
+
+CREATE TABLE twin_outcomes (
+    seq                     INTEGER PRIMARY KEY,
+    scenario_id             TEXT NOT NULL REFERENCES scenarios(id),
+",
+    outcome_columns!(),
+    ") STRICT;
+
+CREATE TABLE fleet_episodes (
+    seq              INTEGER PRIMARY KEY,
+    scenario_id      TEXT NOT NULL REFERENCES scenarios(id),
+    site             TEXT NOT NULL CHECK (site <> ''),
+    edge             TEXT NOT NULL CHECK (edge <> ''),
+    policy_id        TEXT CHECK (policy_id <> ''),
+    policy_version   INTEGER CHECK (policy_version >= 0),
+    scene            TEXT,
+    push_seq         INTEGER UNIQUE REFERENCES pushes(seq),
+    edge_outcome_seq INTEGER NOT NULL UNIQUE REFERENCES outcomes(seq),
+    twin_outcome_seq INTEGER UNIQUE REFERENCES twin_outcomes(seq),
+    twin_ticks       INTEGER NOT NULL CHECK (twin_ticks >= 0),
+    disagreement     TEXT CHECK (disagreement <> ''),
+    CHECK ((policy_id IS NULL) = (policy_version IS NULL))
+) STRICT;
+CREATE INDEX fleet_episodes_by_scenario ON fleet_episodes(scenario_id);
+
+CREATE TABLE policies (
+    version     INTEGER PRIMARY KEY CHECK (version >= 1),
+    policy_id   TEXT NOT NULL CHECK (policy_id <> ''),
+    algo        TEXT NOT NULL CHECK (algo <> ''),
+    weights     BLOB NOT NULL,
+    decision    TEXT NOT NULL CHECK (decision IN ('pushed', 'held-back')),
+    reasons     TEXT NOT NULL,
+    failures    INTEGER NOT NULL CHECK (failures >= 0)
+) STRICT;
+
+CREATE TABLE policy_pushes (
+    version INTEGER NOT NULL REFERENCES policies(version),
+    site    TEXT NOT NULL,
+    edge    TEXT NOT NULL,
+    PRIMARY KEY (version, site, edge)
+) STRICT;
+"
+);
+
 /// `MIGRATIONS[v]` takes a file from version `v` to `v + 1`; a new file runs them all, so new
 /// and upgraded files have the same schema. Frozen once released: add, never edit.
-const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [V1_DDL, V2_DDL];
+const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [V1_DDL, V2_DDL, V3_DDL];
 
 /// Maps the first error that reading a file raises to "not SQLite" when SQLite says so.
 fn read_error(path: &Path, err: rusqlite::Error) -> LibraryError {
@@ -303,6 +363,51 @@ mod tests {
         // Opening again runs nothing more.
         let again = ScenarioLibrary::open(&path).expect("reopen");
         assert_eq!(again.rank(None, None).expect("rank").len(), 0, "the v1 row has no outcome");
+    }
+
+    #[test]
+    fn a_version_2_file_is_upgraded_and_keeps_its_rows() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("v2.db");
+        let rec = sampled(ScenarioKind::EmergencyBraking, 2, 0.5, true);
+        let id = crate::library::content_id(&rec.spec);
+        {
+            // A version-2 file as that build wrote it: its DDL, its pragmas, a scenario with an
+            // outcome, a regression mark and a recorded case.
+            let raw = Connection::open(&path).expect("raw");
+            raw.execute_batch(V1_DDL).expect("v1 ddl");
+            raw.execute_batch(V2_DDL).expect("v2 ddl");
+            raw.pragma_update(None, "application_id", APPLICATION_ID).expect("app id");
+            raw.pragma_update(None, "user_version", 2).expect("version");
+            raw.execute(
+                "INSERT INTO scenarios VALUES (?1, 'emergency-braking', ?2, ?3, NULL, 0, 'sampled', 1)",
+                rusqlite::params![id, rec.spec.seed as i64, serde_json::to_string(&rec.spec.params).expect("params")],
+            )
+            .expect("v2 scenario");
+            raw.execute(
+                "INSERT INTO outcomes VALUES (1, ?1, 'idm', 1, 0, 0, 0.5, 10.0, 0.1, 0.2, 0.4, 0.0, 0.9, -3.0, 80, \
+                 0.5, 0.5, 0.25, 0.125, 0.0625, 1.0)",
+                [&id],
+            )
+            .expect("v2 outcome");
+            raw.execute("INSERT INTO regression VALUES (?1, 'collision', 1)", [&id]).expect("v2 mark");
+            raw.execute("INSERT INTO recorded VALUES ('c1', 'commonroad', 'x.xml', 'X-1', 7, '<xml/>', 1)", [])
+                .expect("v2 case");
+        }
+        let mut lib = ScenarioLibrary::open(&path).expect("a version-2 file opens");
+        let version: i64 = lib.conn.pragma_query_value(None, "user_version", |r| r.get(0)).expect("pragma");
+        assert_eq!(version, SCHEMA_VERSION);
+        let (_fresh_dir, fresh) = file_library();
+        assert_eq!(schema_of(&lib.conn), schema_of(&fresh.conn), "upgraded and new files have one schema");
+        let ranked = lib.rank(None, None).expect("rank");
+        assert_eq!((ranked.len(), ranked[0].id.as_str(), ranked[0].outcome.collision), (1, id.as_str(), true));
+        assert_eq!(lib.regression_set().expect("regression").len(), 1);
+        let cases: i64 = lib.conn.query_row("SELECT COUNT(*) FROM recorded", [], |r| r.get(0)).expect("count");
+        assert_eq!(cases, 1);
+        // The loop's tables work on the upgraded file.
+        let push = lib.start_push(&id, "s", "v1").expect("a push");
+        assert_eq!(lib.outstanding_pushes().expect("read"), [push]);
+        assert_eq!(lib.riskiest_unpushed().expect("rank"), None);
     }
 
     #[test]

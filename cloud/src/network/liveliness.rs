@@ -35,6 +35,12 @@ impl LivenessLog {
         }
     }
 
+    /// The edges alive now, as `(site, source)`.
+    pub fn alive(&self) -> Vec<(String, String)> {
+        let split = |name: &String| name.split_once('/').map(|(site, source)| (site.to_owned(), source.to_owned()));
+        self.0.alive.iter().filter_map(split).collect()
+    }
+
     /// Everything seen so far.
     pub fn summary(&self) -> LivenessSummary {
         self.0.clone()

@@ -19,11 +19,16 @@
 //!   (a replayed `risktwin import commonroad` recording), and on shutdown their CommonRoad
 //!   criticality, written as `risktwin criticality` writes it ([`criticality`]).
 //!
+//! - `loop` (needs `twin` and `--db`): the closed loop over the fleet ([`fleet_loop`]): pushes
+//!   the library's riskiest untested scenarios to live vehicles, stores what comes back (the
+//!   edge's outcome beside the twin's) and mutates around failures.
+//!
 //! With `--record`, the twin's scene and risk outputs are recorded next to the accepted edge
 //! messages, under their keys. `trainer` is not built yet.
 
 pub mod criticality;
 pub mod edges;
+pub mod fleet_loop;
 pub mod library;
 pub mod liveliness;
 mod publisher;
@@ -33,10 +38,12 @@ mod scene;
 #[cfg(test)]
 mod wire_tests;
 
+use crate::fleet_loop::{FleetLoop, LoopConfig};
 use crate::library::ScenarioLibrary;
 use crate::twin::outputs::{TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
 use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, CriticalitySummary};
+use fleet_loop::LoopRoleSummary;
 use library::LibrarySummary;
 use liveliness::LivenessLog;
 pub use receive::{IngestSummary, LiveIngest, OUTPUT_SCHEMAS, RecordError, RecordingFile};
@@ -63,6 +70,8 @@ pub enum Role {
     Library,
     /// CommonRoad criticality of a replayed scenario, on shutdown.
     Criticality,
+    /// The closed loop over the fleet.
+    Loop,
     /// Policy training (not built yet).
     Trainer,
 }
@@ -75,6 +84,7 @@ impl Role {
             Role::Risk => "risk",
             Role::Library => "library",
             Role::Criticality => "criticality",
+            Role::Loop => "loop",
             Role::Trainer => "trainer",
         }
     }
@@ -89,6 +99,7 @@ impl std::str::FromStr for Role {
             "risk" => Ok(Role::Risk),
             "library" => Ok(Role::Library),
             "criticality" => Ok(Role::Criticality),
+            "loop" => Ok(Role::Loop),
             "trainer" => Ok(Role::Trainer),
             other => Err(CloudError::UnknownRole { role: other.to_owned() }),
         }
@@ -98,14 +109,14 @@ impl std::str::FromStr for Role {
 /// Why the cloud role failed.
 #[derive(Debug, Error)]
 pub enum CloudError {
-    #[error("role {role:?} is not one of ingest, twin, risk, library, criticality, trainer")]
+    #[error("role {role:?} is not one of ingest, twin, risk, library, criticality, loop, trainer")]
     UnknownRole { role: String },
-    #[error("role {role:?} is not built yet; available: ingest, twin, risk, library, criticality")]
+    #[error("role {role:?} is not built yet; available: ingest, twin, risk, library, criticality, loop")]
     RoleNotBuilt { role: String },
     #[error("role {role:?} needs role {needs:?} in the same process (e.g. --roles ingest,twin,risk)")]
     RoleNeeds { role: &'static str, needs: &'static str },
-    #[error("role library needs --db FILE")]
-    LibraryNeedsDb,
+    #[error("role {role} needs --db FILE")]
+    NeedsDb { role: &'static str },
     #[error("role criticality needs --criticality-out FILE.csv|FILE.json")]
     CriticalityNeedsOut,
     #[error(transparent)]
@@ -151,6 +162,8 @@ pub struct CloudConfig {
     pub db: Option<PathBuf>,
     /// Where the `criticality` role writes, and for which ego.
     pub criticality: Option<CriticalityConfig>,
+    /// How the `loop` role behaves.
+    pub fleet_loop: LoopConfig,
 }
 
 impl CloudConfig {
@@ -169,6 +182,7 @@ impl CloudConfig {
             risk: RiskConfig::default(),
             db: None,
             criticality: None,
+            fleet_loop: LoopConfig::default(),
         }
     }
 
@@ -184,13 +198,15 @@ impl CloudConfig {
         if let Some(role) = self.roles.iter().find(|r| **r == Role::Trainer) {
             return Err(CloudError::RoleNotBuilt { role: role.name().to_owned() });
         }
-        for (role, needs) in [(Role::Twin, Role::Ingest), (Role::Risk, Role::Twin)] {
+        for (role, needs) in [(Role::Twin, Role::Ingest), (Role::Risk, Role::Twin), (Role::Loop, Role::Twin)] {
             if self.has(role) && !self.has(needs) {
                 return Err(CloudError::RoleNeeds { role: role.name(), needs: needs.name() });
             }
         }
-        if self.has(Role::Library) && self.db.is_none() {
-            return Err(CloudError::LibraryNeedsDb);
+        for role in [Role::Library, Role::Loop] {
+            if self.has(role) && self.db.is_none() {
+                return Err(CloudError::NeedsDb { role: role.name() });
+            }
         }
         if self.has(Role::Criticality) {
             self.criticality.as_ref().ok_or(CloudError::CriticalityNeedsOut)?.format()?;
@@ -216,6 +232,9 @@ pub struct CloudSummary {
     /// The criticality role, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub criticality: Option<CriticalitySummary>,
+    /// The loop role, when it ran.
+    #[serde(rename = "loop", skip_serializing_if = "Option::is_none")]
+    pub fleet_loop: Option<LoopRoleSummary>,
 }
 
 /// Runs the cloud roles until `shutdown` fires; `on_ready` is called once every subscription
@@ -229,12 +248,17 @@ pub async fn run(
     // Open the library and build the risk raster before joining: a bad file or config fails fast.
     let library = config.db.as_ref().filter(|_| config.has(Role::Library)).map(ScenarioLibrary::open).transpose()?;
     let risk = if config.has(Role::Risk) { Some(RiskAssessor::new(config.road.clone(), config.risk)?) } else { None };
+    let fleet = match config.db.as_ref().filter(|_| config.has(Role::Loop)) {
+        Some(db) => Some(FleetLoop::open(ScenarioLibrary::open(db)?, config.fleet_loop.clone())?),
+        None => None,
+    };
     let empty = CloudSummary {
         ingest: IngestSummary::default(),
         liveliness: Default::default(),
         twin: None,
         library: None,
         criticality: None,
+        fleet_loop: None,
     };
     let session = tokio::select! {
         opened = connect(&config.transport) => opened?,
@@ -248,9 +272,11 @@ pub async fn run(
         Some(lib) => Some((library::declare(&session, config.site.as_ref()).await?, lib)),
         None => None,
     };
+    let (episodes_tx, episodes_rx) = tokio::sync::mpsc::unbounded_channel();
     let ingest = LiveIngest::new(config.record.as_deref(), outputs)?
         .with_replay_time(config.replay_time)
-        .with_publisher(config.has(Role::Twin).then_some(publish_tx));
+        .with_publisher(config.has(Role::Twin).then_some(publish_tx))
+        .with_episodes(fleet.is_some().then_some(episodes_tx));
     let ingest = Arc::new(Mutex::new(ingest));
     let subscriber = if config.has(Role::Ingest) {
         Some(
@@ -282,6 +308,14 @@ pub async fn run(
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
     let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness)).await?;
     let library_task = queryable.map(|(q, lib)| tokio::spawn(library::serve(q, lib, shutdown.clone())));
+    let loop_role = match fleet {
+        Some(fleet) => {
+            let (ingest, liveness) = (Arc::clone(&ingest), Arc::clone(&liveness));
+            let site = config.site.as_ref();
+            Some(fleet_loop::start(&session, site, fleet, ingest, liveness, episodes_rx, shutdown.clone()).await?)
+        }
+        None => None,
+    };
     on_ready();
 
     shutdown.wait().await;
@@ -312,6 +346,11 @@ pub async fn run(
         Some(task) => Some(task.await.map_err(|e| join_error("library", e))??),
         None => None,
     };
+    // Before the ingest is taken apart: the loop's task holds it.
+    let fleet_loop = match loop_role {
+        Some(role) => Some(role.finish(&ingest).await?),
+        None => None,
+    };
     // The publisher task ends once the ingest lets go of its sender and the queue is empty.
     ingest.lock().unwrap_or_else(PoisonError::into_inner).close_publisher();
     publisher.await.map_err(|e| join_error("publisher", e))??;
@@ -333,7 +372,7 @@ pub async fn run(
         }
         None => None,
     };
-    Ok(CloudSummary { ingest, liveliness, twin, library: library_summary, criticality })
+    Ok(CloudSummary { ingest, liveliness, twin, library: library_summary, criticality, fleet_loop })
 }
 
 fn join_error(what: &str, e: tokio::task::JoinError) -> CloudError {

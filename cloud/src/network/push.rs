@@ -69,7 +69,8 @@ pub struct PolicyPushReport {
     pub delivered: bool,
 }
 
-fn header(seq: u64) -> Header {
+/// The header of a cloud→edge message, stamped now.
+pub(crate) fn header(seq: u64) -> Header {
     let now_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
     Header { source: "cloud".to_owned(), seq, capture_time_ns: now_ns, publish_time_ns: now_ns, frame: Frame::World }
 }

@@ -9,11 +9,13 @@
 //! Publishing from inside a Zenoh callback could block it: outputs go to the publisher task
 //! through a channel.
 
-use crate::ingest::{IngestStats, IngestWorker, SnapshotDigest};
+use crate::ingest::{IngestStats, IngestWorker, ObservedKinematics, SnapshotDigest};
 use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
+use crate::twin::watch::{WatchCounts, WatchedEpisode};
 use risktwin_common::align::{DropReason, IngestConfig};
-use risktwin_common::telemetry::{ObjectList, RiskReport, VehicleStateSample};
+use risktwin_common::scenario::ScenarioSpec;
+use risktwin_common::telemetry::{ObjectList, RiskReport, ScenarioResult, VehicleStateSample};
 use risktwin_protos::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE, risk_grid, vehicle_boxes};
 use risktwin_protos::recording::{Recorder, RecordingError};
 use risktwin_protos::{WireMessage, encode};
@@ -107,6 +109,8 @@ pub struct LiveIngest {
     named: usize,
     outputs: Option<TwinOutputs>,
     publish: Option<UnboundedSender<Publication>>,
+    /// Where finished episodes go (the loop role), when it runs.
+    episodes: Option<UnboundedSender<WatchedEpisode>>,
     digest: SnapshotDigest,
     last_receive_ns: i64,
     last_sample: Option<Instant>,
@@ -146,6 +150,7 @@ impl LiveIngest {
             named: 0,
             outputs,
             publish: None,
+            episodes: None,
             digest: SnapshotDigest::default(),
             last_receive_ns: i64::MIN,
             last_sample: None,
@@ -243,15 +248,18 @@ impl LiveIngest {
             return Ok(());
         }
         let digest = &mut self.digest;
-        let mut twin = self.outputs.as_mut().map(TwinOutputs::twin_mut);
+        let mut outputs = self.outputs.as_mut();
         let mut ticked = false;
         let accepted = self.worker.handle(parsed.source, parsed.stream, key, payload, receive_ns, |s| {
             digest.add(s);
-            if let Some(twin) = twin.as_mut() {
-                twin.update(s);
+            if let Some(outputs) = outputs.as_mut() {
+                outputs.apply(s);
                 ticked = true;
             }
         })?;
+        if accepted && parsed.stream == EdgeStream::State {
+            self.watch_state(parsed.site, parsed.source, payload);
+        }
         if accepted {
             if !self.sites.contains_key(parsed.source) {
                 self.sites.insert(parsed.source.to_owned(), parsed.site.to_owned());
@@ -275,7 +283,64 @@ impl LiveIngest {
                 emit(tick, receive_ns, self.worker.recorder_mut(), self.publish.as_ref())?;
             }
         }
+        self.forward_episodes();
         Ok(())
+    }
+
+    /// Hands the episodes the twin finished watching to `episodes` (the loop role).
+    pub(crate) fn with_episodes(mut self, episodes: Option<UnboundedSender<WatchedEpisode>>) -> Self {
+        self.episodes = episodes;
+        self
+    }
+
+    /// Watches `site/edge` in the twin for the episode of `spec` the loop is pushing.
+    pub(crate) fn watch_episode(
+        &mut self,
+        site: &str,
+        edge: &str,
+        spec_id: &str,
+        spec: &ScenarioSpec,
+        push_seq: Option<i64>,
+    ) {
+        if let Some(outputs) = self.outputs.as_mut() {
+            outputs.watch_mut().begin(site, edge, spec_id, spec, push_seq);
+        }
+    }
+
+    /// An edge's `ScenarioResult`: scored against the twin's watch, then on to the loop.
+    pub(crate) fn episode_result(&mut self, site: &str, edge: &str, result: ScenarioResult) {
+        if let Some(outputs) = self.outputs.as_mut() {
+            outputs.episode_result(site, edge, result, Instant::now());
+        }
+        self.forward_episodes();
+    }
+
+    /// The number of state messages accepted from `source` so far (a vehicle has some, an RSU
+    /// none).
+    pub(crate) fn states_from(&self, source: &str) -> u64 {
+        self.received.get(source).map_or(0, |c| c[EdgeStream::State.index()])
+    }
+
+    /// The twin's watch of pushed episodes, so far.
+    pub(crate) fn watch_counts(&self) -> WatchCounts {
+        self.outputs.as_ref().map(|o| o.watch().counts()).unwrap_or_default()
+    }
+
+    /// A state message of an edge the twin watches goes to the watch as well (decoded again:
+    /// only a pushed episode's vehicle, 50 messages a second).
+    fn watch_state(&mut self, site: &str, source: &str, payload: &[u8]) {
+        let Some(outputs) = self.outputs.as_mut().filter(|o| o.watch().is_watching(site, source)) else { return };
+        if let Ok(sample) = risktwin_protos::decode::<VehicleStateSample>(payload) {
+            outputs.watch_mut().state(site, source, ObservedKinematics::from(&sample));
+        }
+    }
+
+    fn forward_episodes(&mut self) {
+        let (Some(outputs), Some(tx)) = (self.outputs.as_mut(), self.episodes.as_ref()) else { return };
+        for episode in outputs.watch_mut().take_done() {
+            // A closed channel means the loop has stopped: nothing more to hand over.
+            let _ = tx.send(episode);
+        }
     }
 
     /// When the last sample (accepted or not) arrived.

@@ -5,11 +5,10 @@
 //! `ScenarioResult`, it shows what the fleet's streams let the cloud know of the episode.
 
 use super::SiteTwin;
-use super::risk::{RiskAssessor, RiskConfig, TwinStep};
+use super::risk::{Surroundings, TwinStep};
 use risktwin_common::episode::{EpisodeResult, EpisodeScorer};
 use risktwin_common::metrics::RewardWeights;
-use risktwin_common::risk::FieldError;
-use risktwin_common::road::Lane;
+use risktwin_common::road::{Lane, Road};
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_common::world::STEP_S;
 
@@ -17,7 +16,8 @@ use risktwin_common::world::STEP_S;
 #[derive(Debug, Clone)]
 pub struct TwinEpisode {
     source: String,
-    assessor: RiskAssessor,
+    road: Road,
+    around: Surroundings,
     scorer: EpisodeScorer,
     route: Lane,
     route_start_s_m: f64,
@@ -29,22 +29,22 @@ pub struct TwinEpisode {
 
 impl TwinEpisode {
     /// The episode of `spec` driven by vehicle `source`, before its first tick.
-    pub fn new(spec: &ScenarioSpec, source: &str) -> Result<Self, FieldError> {
+    pub fn new(spec: &ScenarioSpec, source: &str) -> Self {
         let world = build(spec);
         let route = world.road.lane(world.route.lane).clone();
         let progress_m = world.progress_m();
-        let config = RiskConfig::default();
-        Ok(TwinEpisode {
+        TwinEpisode {
             source: source.to_owned(),
             scorer: EpisodeScorer::new(RewardWeights::default(), progress_m),
             route,
             route_start_s_m: world.route.start_s_m,
             route_length_m: world.route.length_m,
             desired_speed_mps: world.desired_speed_mps,
-            assessor: RiskAssessor::new(world.road, config)?,
+            road: world.road,
+            around: Surroundings::default(),
             last_tick_ns: None,
             progress_m,
-        })
+        }
     }
 
     /// Scores the tick `tick_ns` of the vehicle's site; a tick without the vehicle (its state
@@ -58,7 +58,7 @@ impl TwinEpisode {
         let position = site.vehicles[ego].kinematics.pose.position();
         self.progress_m = self.route.project(position).s_m - self.route_start_s_m;
         let step = TwinStep { dt_s, progress_m: self.progress_m, desired_speed_mps: self.desired_speed_mps };
-        self.assessor.score(site, ego, step, &mut self.scorer);
+        self.around.score(&self.road, site, ego, step, &mut self.scorer);
         self.last_tick_ns = Some(tick_ns);
     }
 
@@ -82,7 +82,7 @@ mod tests {
     /// The twin of a site that received every step of `spec`'s reference episode exactly as it
     /// happened (no noise, no loss, no latency), scored; beside the library's own episode.
     fn perfectly_observed(spec: &ScenarioSpec) -> (EpisodeResult, EpisodeResult) {
-        let mut twin = TwinEpisode::new(spec, "veh-1").expect("an episode");
+        let mut twin = TwinEpisode::new(spec, "veh-1");
         let mut tick_ns = 0;
         let library = evaluate_observed(spec, &mut |world, _| {
             tick_ns += (world.dt_s * 1e9).round() as i64;
@@ -93,6 +93,7 @@ mod tests {
                 speed_mps: e.state.speed_mps,
                 accel_mps2: e.state.accel_mps2,
                 footprint: e.params.footprint(),
+                seqs: (0, 0),
             };
             let vehicle =
                 TwinVehicle { source: Arc::from("veh-1"), kinematics, jerk_mps3: 0.0, lateral_accel_mps2: 0.0 };

@@ -13,12 +13,14 @@
 //!
 //! [`risk`] evaluates the risk field and report of an ego on a site's twin; [`outputs`] turns
 //! each tick into the scene and risk outputs the network side records and publishes;
-//! [`episode`] scores one vehicle's episode as the twin saw it.
+//! [`episode`] scores one vehicle's episode as the twin saw it; [`watch`] finds a pushed
+//! episode among the ticks and scores it.
 
 pub mod episode;
 pub mod fidelity;
 pub mod outputs;
 pub mod risk;
+pub mod watch;
 
 use crate::ingest::stream::aligner_index;
 use crate::ingest::{ObservedKinematics, TwinSample};

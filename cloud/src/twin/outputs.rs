@@ -7,10 +7,13 @@
 
 use super::fidelity::{Fidelity, SeriesPoint, VehicleFidelity};
 use super::risk::{RiskAssessment, RiskAssessor, RiskConfig};
+use super::watch::EpisodeWatch;
 use super::{SiteTwin, Twin};
-use risktwin_common::telemetry::{Frame, Header, ObjectList, VehicleStateSample};
+use risktwin_common::align::Snapshot;
+use risktwin_common::telemetry::{Frame, Header, ObjectList, ScenarioResult, VehicleStateSample};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
+use std::time::Instant;
 
 /// What the twin and risk roles did, for the cloud's summary.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -64,6 +67,8 @@ pub struct TwinOutputs {
     /// Assessors on the road maps sites published; a site without one uses `risk`.
     site_risk: HashMap<String, RiskAssessor>,
     fidelity: Fidelity,
+    /// The pushed episodes being watched (the loop role's).
+    watch: EpisodeWatch,
     last_risk_tick: HashMap<String, i64>,
     summary: TwinSummary,
     scenes: Vec<SiteScene>,
@@ -79,6 +84,7 @@ impl TwinOutputs {
             risk,
             site_risk: HashMap::new(),
             fidelity: Fidelity::default(),
+            watch: EpisodeWatch::default(),
             last_risk_tick: HashMap::new(),
             summary: TwinSummary::default(),
             scenes: Vec::new(),
@@ -93,6 +99,25 @@ impl TwinOutputs {
 
     pub fn twin(&self) -> &Twin {
         &self.twin
+    }
+
+    /// Applies one ingest snapshot to the twin; the watched episodes see the tick.
+    pub fn apply(&mut self, snapshot: &Snapshot<crate::ingest::TwinSample>) {
+        self.twin.update(snapshot);
+        self.watch.observe(&self.twin);
+    }
+
+    pub fn watch(&self) -> &EpisodeWatch {
+        &self.watch
+    }
+
+    pub fn watch_mut(&mut self) -> &mut EpisodeWatch {
+        &mut self.watch
+    }
+
+    /// An edge's result of a pushed episode, placed against the twin's latest tick.
+    pub fn episode_result(&mut self, site: &str, edge: &str, result: ScenarioResult, received: Instant) {
+        self.watch.result(site, edge, result, self.twin.tick_ns(), received);
     }
 
     /// The summary so far.

@@ -95,10 +95,7 @@ pub struct RiskAssessor {
     evaluator: GridEvaluator,
     grid: RiskGrid,
     config: RiskConfig,
-    objects: Vec<FieldObject>,
-    others: Vec<VehicleState>,
-    /// Who each of `others` is (see [`RiskAssessor::others`]).
-    who: Vec<Result<usize, usize>>,
+    around: Surroundings,
     pair_ttc_s: Vec<f64>,
     seq: u64,
 }
@@ -116,9 +113,7 @@ impl RiskAssessor {
             evaluator: GridEvaluator::new(config.params),
             grid,
             config,
-            objects: Vec::new(),
-            others: Vec::new(),
-            who: Vec::new(),
+            around: Surroundings::default(),
             pair_ttc_s: Vec::new(),
             seq: 0,
         })
@@ -142,7 +137,7 @@ impl RiskAssessor {
         let instant = self.instant(site, ego)?;
         let half_m = 0.5 * self.config.resolution_m * self.config.grid_cells as f64;
         self.grid.origin_m = self.raster.snap_origin(ego_kin.pose.position() - Vec2::new(half_m, half_m));
-        self.evaluator.fill(&mut self.grid, &self.raster, &self.road, &self.objects, &ego_kin);
+        self.evaluator.fill(&mut self.grid, &self.raster, &self.road, &self.around.objects, &ego_kin);
         let header = self.header(ego_vehicle, tick_ns);
         self.seq += 1;
         Some(RiskAssessment {
@@ -164,11 +159,11 @@ impl RiskAssessor {
         let ego_vehicle = site.vehicles.get(ego)?;
         let k = &ego_vehicle.kinematics;
         let ego_kin = ego_kinematics(ego_vehicle);
-        self.surroundings(site, ego);
+        self.around.fill(site, ego);
         let ego_obb = Obb::new(k.pose, k.footprint);
         let ego_state = VehicleState { obb: ego_obb, velocity: k.velocity, accel: ego_obb.axis * k.accel_mps2 };
         let at = self.road.locate_heading(k.pose.position(), k.pose.heading_rad);
-        let collision = self.others.iter().any(|o| o.obb.overlaps(&ego_obb));
+        let collision = self.around.others.iter().any(|o| o.obb.overlaps(&ego_obb));
         let offroad = !self.road.contains_footprint(&ego_obb);
         let mut accumulator = RiskAccumulator::new(RiskWeights::default(), ScoreReferences::default());
         accumulator.push(
@@ -178,7 +173,7 @@ impl RiskAssessor {
                 lane_offset_m: at.frenet.e_y_m,
                 lane_width_m: self.road.lane(at.lane).width_m,
                 jerk_mps3: ego_vehicle.jerk_mps3,
-                others: &self.others,
+                others: &self.around.others,
                 collision,
                 offroad,
             },
@@ -186,22 +181,65 @@ impl RiskAssessor {
         self.pair_ttc_s.clear();
         self.pair_ttc_s.extend(accumulator.pairs().iter().map(|p| p.min_ttc_s));
         let (terms, summary) = accumulator.finish();
-        let at_ego = self.raster.evaluate_footprint(&self.road, &self.objects, &ego_kin);
+        let at_ego = self.raster.evaluate_footprint(&self.road, &self.around.objects, &ego_kin);
         Some(InstantRisk { terms, min_ttc_s: summary.min_ttc_s, min_distance_m: summary.min_distance_m, at_ego })
     }
 
+    /// The objects around the ego of the last evaluation, and who each is: `Ok(i)` vehicle `i`
+    /// of the site, `Err(j)` object `j`.
+    pub fn others(&self) -> impl Iterator<Item = (&VehicleState, Result<usize, usize>)> {
+        self.around.others.iter().zip(self.around.who.iter().copied())
+    }
+
+    /// The TTC to each of [`Self::others`] at the last [`Self::instant`], s (∞: not closing in
+    /// the ego's lane).
+    pub fn pair_ttc_s(&self) -> &[f64] {
+        &self.pair_ttc_s
+    }
+
+    fn header(&self, ego: &TwinVehicle, tick_ns: i64) -> Header {
+        Header {
+            source: ego.source.to_string(),
+            seq: self.seq,
+            capture_time_ns: tick_ns,
+            publish_time_ns: tick_ns,
+            frame: Frame::World,
+        }
+    }
+}
+
+/// What surrounds an ego at a tick (see the module doc): the objects of the risk field, their
+/// states for the criticality measures, and who each is. Scoring an episode needs only these
+/// and the road, not the raster of the field, which takes 60–100 ms (seconds on a long curved
+/// road) to build.
+#[derive(Debug, Clone, Default)]
+pub struct Surroundings {
+    objects: Vec<FieldObject>,
+    others: Vec<VehicleState>,
+    /// Who each of `others` is (see [`RiskAssessor::others`]).
+    who: Vec<Result<usize, usize>>,
+}
+
+impl Surroundings {
     /// Feeds `site.vehicles[ego]` at this tick to an episode's `scorer`, as `simulate` feeds its
     /// world's step: the same field, reward and criticality code on what the twin shows (its
-    /// surroundings as [`Self::instant`] sees them; contact is an overlap with any of them,
+    /// surroundings as [`RiskAssessor::instant`] sees them; contact is an overlap with any of them,
     /// leaving the road is the footprint leaving it). The twin has no steering angle (the state
     /// stream does not carry it), so the episode's steering smoothness is 0. False if there is
     /// no such vehicle.
-    pub fn score(&mut self, site: &SiteTwin, ego: usize, step: TwinStep, scorer: &mut EpisodeScorer) -> bool {
+    pub fn score(
+        &mut self,
+        road: &Road,
+        site: &SiteTwin,
+        ego: usize,
+        step: TwinStep,
+        scorer: &mut EpisodeScorer,
+    ) -> bool {
         let Some(ego_vehicle) = site.vehicles.get(ego) else { return false };
         let k = ego_vehicle.kinematics;
         let mut ego_kin = ego_kinematics(ego_vehicle);
         ego_kin.jerk_mps3 = scorer.jerk_of(k.accel_mps2, step.dt_s);
-        self.surroundings(site, ego);
+        self.fill(site, ego);
         let ego_obb = ego_kin.obb();
         let scored = ScoredStep {
             dt_s: step.dt_s,
@@ -214,26 +252,14 @@ impl RiskAssessor {
             objects: &self.objects,
             others: &self.others,
             collision: self.others.iter().any(|o| o.obb.overlaps(&ego_obb)),
-            offroad: !self.road.contains_footprint(&ego_obb),
+            offroad: !road.contains_footprint(&ego_obb),
         };
-        scorer.push(&self.road, &scored);
+        scorer.push(road, &scored);
         true
     }
 
-    /// The objects around the ego of the last evaluation, and who each is: `Ok(i)` vehicle `i`
-    /// of the site, `Err(j)` object `j`.
-    pub fn others(&self) -> impl Iterator<Item = (&VehicleState, Result<usize, usize>)> {
-        self.others.iter().zip(self.who.iter().copied())
-    }
-
-    /// The TTC to each of [`Self::others`] at the last [`Self::instant`], s (∞: not closing in
-    /// the ego's lane).
-    pub fn pair_ttc_s(&self) -> &[f64] {
-        &self.pair_ttc_s
-    }
-
     /// Fills the field objects and the criticality states of everything around `ego`.
-    fn surroundings(&mut self, site: &SiteTwin, ego: usize) {
+    fn fill(&mut self, site: &SiteTwin, ego: usize) {
         self.objects.clear();
         self.others.clear();
         self.who.clear();
@@ -260,16 +286,6 @@ impl RiskAssessor {
             self.objects.push(FieldObject { obb, velocity: obj.velocity });
             self.others.push(VehicleState { obb, velocity: obj.velocity, accel: obb.axis * obj.accel_mps2 });
             self.who.push(Err(j));
-        }
-    }
-
-    fn header(&self, ego: &TwinVehicle, tick_ns: i64) -> Header {
-        Header {
-            source: ego.source.to_string(),
-            seq: self.seq,
-            capture_time_ns: tick_ns,
-            publish_time_ns: tick_ns,
-            frame: Frame::World,
         }
     }
 }

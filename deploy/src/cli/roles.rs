@@ -102,7 +102,7 @@ pub struct EdgeArgs {
 #[derive(Debug, Args)]
 pub struct CloudArgs {
     /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db),
-    /// criticality (needs --criticality-out).
+    /// criticality (needs --criticality-out), loop (needs twin and --db).
     #[arg(long, default_value = "ingest", value_delimiter = ',')]
     pub roles: Vec<String>,
     /// Serve one site only (default: every site).
@@ -116,9 +116,16 @@ pub struct CloudArgs {
     /// of this cloud's clock (messages without one are dropped as `no-replay-time`).
     #[arg(long)]
     pub replay_time: bool,
-    /// The scenario library the library role serves.
+    /// The scenario library the library role serves and the loop role works on.
     #[arg(long)]
     pub db: Option<PathBuf>,
+    /// The loop role sends a pushed scenario again when its result has not come back within
+    /// this many seconds (and gives it up after 3 sends).
+    #[arg(long, default_value_t = 60.0)]
+    pub push_timeout_s: f64,
+    /// The loop role writes its report here on shutdown (Markdown).
+    #[arg(long, value_name = "FILE.md")]
+    pub loop_report: Option<PathBuf>,
     /// The risk role evaluates on the road of this scenario kind (the edges' `--kind`).
     #[arg(long, default_value = "cut-in")]
     pub road: String,

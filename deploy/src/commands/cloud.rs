@@ -3,7 +3,9 @@
 //! `--record FILE.mcap` records what was accepted). `ready` on stderr says the
 //! subscriptions are in place. `--roles ingest,twin,risk` adds the live twin and risk on it,
 //! `--roles library --db FILE` the library queryable, `--roles criticality --criticality-out
-//! FILE.csv|json [--ego ID]` the criticality of a replayed CommonRoad scenario, written on exit. Also `risktwin bench zenoh|latency`.
+//! FILE.csv|json [--ego ID]` the criticality of a replayed CommonRoad scenario, written on exit,
+//! `--roles ingest,twin,loop --db FILE [--loop-report FILE.md]` the closed loop over the fleet.
+//! Also `risktwin bench zenoh|latency`.
 
 use super::router::{transport_config, with_signals};
 use crate::cli::{BenchLatencyArgs, BenchZenohArgs, CloudArgs};
@@ -17,6 +19,7 @@ use risktwin_common::align::IngestConfig;
 use risktwin_common::scenario::ScenarioKind;
 use risktwin_pipeline::fidelity::write_fidelity_report;
 use risktwin_transport::SiteId;
+use std::time::Duration;
 
 pub fn cloud(args: CloudArgs) -> CliResult {
     let roles =
@@ -31,6 +34,13 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     if args.fidelity_report.is_some() && !config.roles.contains(&Role::Twin) {
         return Err(CliError::input("--fidelity-report needs the twin role (--roles ingest,twin[,risk])"));
     }
+    if !(args.push_timeout_s.is_finite() && (0.1..=86_400.0).contains(&args.push_timeout_s)) {
+        return Err(CliError::input(format!("--push-timeout-s {} must lie in [0.1, 86400]", args.push_timeout_s)));
+    }
+    config.fleet_loop.result_timeout = Duration::from_secs_f64(args.push_timeout_s);
+    if args.loop_report.is_some() && !config.roles.contains(&Role::Loop) {
+        return Err(CliError::input("--loop-report needs the loop role (--roles ingest,twin,loop --db FILE)"));
+    }
     let road_kind: ScenarioKind = args.road.parse().map_err(CliError::input)?;
     config.road = risktwin_cloud::twin::scenario_road(road_kind);
     let summary = with_signals(|shutdown| async move {
@@ -43,6 +53,10 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     })?;
     if let (Some(dir), Some(twin)) = (&args.fidelity_report, &summary.twin) {
         write_fidelity_report(dir, twin).map_err(CliError::runtime)?;
+    }
+    if let (Some(path), Some(fleet)) = (&args.loop_report, &summary.fleet_loop) {
+        std::fs::write(path, &fleet.fleet.report)
+            .map_err(|e| CliError::runtime(format!("writing the loop report {}: {e}", path.display())))?;
     }
     print_json(&summary)
 }

@@ -112,6 +112,7 @@ impl From<&ScenarioResult> for v1::ScenarioResult {
             metrics: Some((&r.metrics).into()),
             risk: Some((&r.risk).into()),
             policy: r.policy.as_ref().map(|p| v1::PolicyRef { policy_id: p.policy_id.clone(), version: p.version }),
+            state_seqs: r.state_seqs.map(|(first, last)| v1::SeqRange { first, last }),
         }
     }
 }
@@ -132,6 +133,12 @@ impl TryFrom<v1::ScenarioResult> for ScenarioResult {
                         .map(|id| PolicyRef { policy_id: id, version: p.version })
                 })
                 .transpose()?,
+            state_seqs: match r.state_seqs {
+                Some(v1::SeqRange { first, last }) if first > last => {
+                    return Err(invalid(M, "state_seqs", format!("first {first} > last {last}")));
+                }
+                range => range.map(|s| (s.first, s.last)),
+            },
         })
     }
 }

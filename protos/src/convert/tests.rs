@@ -147,6 +147,7 @@ fn every_message_round_trips_bit_exactly() {
         metrics: metrics(),
         risk: terms(),
         policy: None,
+        state_seqs: None,
     });
     round_trip(&ScenarioResult {
         header: hdr(13),
@@ -154,6 +155,7 @@ fn every_message_round_trips_bit_exactly() {
         metrics: EpisodeMetrics { min_ttc_s: Some(0.0), ..metrics() },
         risk: terms(),
         policy: Some(PolicyRef { policy_id: "ppo-main".into(), version: 7 }),
+        state_seqs: Some((40, 240)),
     });
 }
 
@@ -197,8 +199,14 @@ fn missing_sub_messages_and_ids_are_rejected() {
         metrics: metrics(),
         risk: terms(),
         policy: Some(PolicyRef { policy_id: "p".into(), version: 1 }),
+        state_seqs: Some((3, 3)),
     };
     rejects(&r, |p| p.metrics = None, missing("ScenarioResult", "metrics"));
+    rejects(
+        &r,
+        |p| p.state_seqs = Some(crate::v1::SeqRange { first: 4, last: 3 }),
+        bad("ScenarioResult", "state_seqs", "first 4 > last 3"),
+    );
     rejects(&r, |p| p.policy.as_mut().map_or((), |q| q.policy_id.clear()), missing("PolicyRef", "policy_id"));
     rejects(&r, |p| p.risk = None, missing("ScenarioResult", "risk"));
     let push = ScenarioPush { header: hdr(1), spec_id: "a".into(), spec: sample(1, ScenarioKind::LowFriction, 0) };
@@ -295,7 +303,14 @@ fn negative_sizes_and_out_of_range_values_are_rejected() {
         bad("Lane", "centre_m", "lane 2 repeats vertex 1 (zero-length segment)"),
     );
     rejects(&map, |p| p.friction_patches[0].s_end_m = 0.0, bad("FrictionPatch", "s_end_m", "0 is before s_start_m 10"));
-    let r = ScenarioResult { header: hdr(1), spec_id: "a".into(), metrics: metrics(), risk: terms(), policy: None };
+    let r = ScenarioResult {
+        header: hdr(1),
+        spec_id: "a".into(),
+        metrics: metrics(),
+        risk: terms(),
+        policy: None,
+        state_seqs: None,
+    };
     rejects(
         &r,
         |p| p.metrics.as_mut().map_or((), |m| m.min_distance_m = -0.5),

@@ -1,0 +1,347 @@
+//! The closed loop's state in the library (schema version 3): scenarios pushed to fleet edges,
+//! the episodes the fleet played (the edge's own outcome beside the twin's view of it) and the
+//! policy versions the trainer produced. Every change is one transaction, so a cloud killed
+//! at any point leaves a file whose pushes, episodes and outcomes agree.
+
+use super::connection::ScenarioLibrary;
+use super::error::LibraryError;
+use super::query::{OUTCOME_COLUMNS, outcome_from_row_at};
+use super::record::{DEFAULT_POLICY, Outcome, validate_outcome};
+use super::store::{insert_outcome, outcome_insert_sql};
+use risktwin_common::telemetry::PolicyRef;
+use rusqlite::{OptionalExtension, TransactionBehavior, params};
+
+/// The `policy` column of an outcome an edge reported: the reference driver's name, or
+/// `<policy_id>/v<version>` for a pushed policy.
+pub fn policy_label(policy: Option<&PolicyRef>) -> String {
+    policy.map_or_else(|| DEFAULT_POLICY.to_owned(), |p| format!("{}/v{}", p.policy_id, p.version))
+}
+
+/// A scenario pushed to an edge whose result has not come back.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Push {
+    pub seq: i64,
+    pub scenario_id: String,
+    pub site: String,
+    pub edge: String,
+    /// Times it was sent (1 + retries).
+    pub attempts: u32,
+}
+
+/// One episode the fleet played, as the loop stores it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FleetEpisode {
+    pub scenario_id: String,
+    pub site: String,
+    pub edge: String,
+    /// The pushed policy that drove; `None`: the reference driver.
+    pub policy: Option<PolicyRef>,
+    /// The distributed scene the episode belonged to, if any.
+    pub scene: Option<String>,
+    /// The push it answers, when the loop sent it.
+    pub push_seq: Option<i64>,
+    /// What the edge reported (its `policy` is [`policy_label`] of `policy`).
+    pub edge_outcome: Outcome,
+    /// The twin's view of the same episode, when the twin watched it.
+    pub twin_outcome: Option<Outcome>,
+    /// Twin ticks the twin's view was scored from.
+    pub twin_ticks: u64,
+    /// Where the edge and the twin disagree, in words; `None` when they agree.
+    pub disagreement: Option<String>,
+}
+
+/// A stored fleet episode.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StoredFleetEpisode {
+    pub seq: i64,
+    pub episode: FleetEpisode,
+}
+
+/// What the library holds of the loop, for summaries and reports.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct FleetCounts {
+    /// Generated scenarios in the library.
+    pub scenarios: u64,
+    /// Episodes the fleet played.
+    pub episodes: u64,
+    /// Of those, the ones the edge reported a collision or leaving the road in.
+    pub failures: u64,
+    /// Of those, the ones whose row says the twin disagrees.
+    pub disagreements: u64,
+    /// Pushes waiting for their result.
+    pub outstanding: u64,
+    /// Pushes given up.
+    pub abandoned: u64,
+}
+
+impl ScenarioLibrary {
+    /// Notes that scenario `scenario_id` is being pushed to `site/edge` for the first time.
+    /// Refused while another push to that edge is outstanding (one per edge, by the schema).
+    pub fn start_push(&mut self, scenario_id: &str, site: &str, edge: &str) -> Result<Push, LibraryError> {
+        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        tx.execute(
+            "INSERT INTO pushes (scenario_id, site, edge, attempts, state) VALUES (?1, ?2, ?3, 1, 'outstanding')",
+            params![scenario_id, site, edge],
+        )?;
+        let seq = tx.last_insert_rowid();
+        tx.commit()?;
+        Ok(Push { seq, scenario_id: scenario_id.to_owned(), site: site.to_owned(), edge: edge.to_owned(), attempts: 1 })
+    }
+
+    /// Counts one more attempt of outstanding push `seq`; its attempts so far.
+    pub fn retry_push(&mut self, seq: i64) -> Result<u32, LibraryError> {
+        let attempts: i64 = self.conn.query_row(
+            "UPDATE pushes SET attempts = attempts + 1 WHERE seq = ?1 AND state = 'outstanding' RETURNING attempts",
+            [seq],
+            |r| r.get(0),
+        )?;
+        Ok(u32::try_from(attempts).unwrap_or(u32::MAX))
+    }
+
+    /// Gives outstanding push `seq` up: no result came after its attempts.
+    pub fn abandon_push(&mut self, seq: i64) -> Result<(), LibraryError> {
+        self.conn.execute("UPDATE pushes SET state = 'abandoned' WHERE seq = ?1 AND state = 'outstanding'", [seq])?;
+        Ok(())
+    }
+
+    /// The pushes waiting for a result, oldest first.
+    pub fn outstanding_pushes(&self) -> Result<Vec<Push>, LibraryError> {
+        let mut stmt = self.conn.prepare_cached(
+            "SELECT seq, scenario_id, site, edge, attempts FROM pushes WHERE state = 'outstanding' ORDER BY seq",
+        )?;
+        let rows = stmt.query_map([], |r| {
+            Ok(Push {
+                seq: r.get(0)?,
+                scenario_id: r.get(1)?,
+                site: r.get(2)?,
+                edge: r.get(3)?,
+                attempts: u32::try_from(r.get::<_, i64>(4)?).unwrap_or(u32::MAX),
+            })
+        })?;
+        Ok(rows.collect::<Result<_, _>>()?)
+    }
+
+    /// Stores one fleet episode in one transaction: the edge's outcome (which ranks the
+    /// scenario from now on and, on a collision, puts it in the regression set), the twin's, the
+    /// episode row, and the end of the push it answers. The scenario must be in the library.
+    pub fn record_fleet_episode(&mut self, e: &FleetEpisode) -> Result<i64, LibraryError> {
+        let invalid = |source| LibraryError::InvalidRecord { id: e.scenario_id.clone(), source };
+        validate_outcome(&e.edge_outcome).map_err(invalid)?;
+        if let Some(twin) = &e.twin_outcome {
+            validate_outcome(twin).map_err(invalid)?;
+        }
+        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let exists: bool =
+            tx.query_row("SELECT EXISTS (SELECT 1 FROM scenarios WHERE id = ?1)", [&e.scenario_id], |r| r.get(0))?;
+        if !exists {
+            return Err(LibraryError::UnknownScenario(e.scenario_id.clone()));
+        }
+        let mut edge_stmt = tx.prepare_cached(&outcome_insert_sql("outcomes", "scenario_id"))?;
+        insert_outcome(&mut edge_stmt, &e.scenario_id, &e.edge_outcome)?;
+        drop(edge_stmt);
+        let edge_seq = tx.last_insert_rowid();
+        let twin_seq = match &e.twin_outcome {
+            Some(twin) => {
+                let mut twin_stmt = tx.prepare_cached(&outcome_insert_sql("twin_outcomes", "scenario_id"))?;
+                insert_outcome(&mut twin_stmt, &e.scenario_id, twin)?;
+                Some(tx.last_insert_rowid())
+            }
+            None => None,
+        };
+        if e.edge_outcome.metrics.collision {
+            tx.execute(
+                "INSERT INTO regression (scenario_id, reason, marked_seq) \
+                 VALUES (?1, 'collision', (SELECT COALESCE(MAX(marked_seq), 0) + 1 FROM regression)) \
+                 ON CONFLICT (scenario_id) DO NOTHING",
+                [&e.scenario_id],
+            )?;
+        }
+        tx.execute(
+            "INSERT INTO fleet_episodes (scenario_id, site, edge, policy_id, policy_version, scene, push_seq, \
+             edge_outcome_seq, twin_outcome_seq, twin_ticks, disagreement) \
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
+            params![
+                e.scenario_id,
+                e.site,
+                e.edge,
+                e.policy.as_ref().map(|p| &p.policy_id),
+                e.policy.as_ref().map(|p| p.version),
+                e.scene,
+                e.push_seq,
+                edge_seq,
+                twin_seq,
+                i64::try_from(e.twin_ticks).unwrap_or(i64::MAX),
+                e.disagreement,
+            ],
+        )?;
+        let seq = tx.last_insert_rowid();
+        if let Some(push) = e.push_seq {
+            tx.execute("UPDATE pushes SET state = 'done' WHERE seq = ?1", [push])?;
+        }
+        tx.commit()?;
+        Ok(seq)
+    }
+
+    /// Every fleet episode, oldest first.
+    pub fn fleet_episodes(&self) -> Result<Vec<StoredFleetEpisode>, LibraryError> {
+        let twin_columns = OUTCOME_COLUMNS.split(", ").map(|c| format!("t.{c}")).collect::<Vec<_>>().join(", ");
+        let edge_columns = OUTCOME_COLUMNS.split(", ").map(|c| format!("o.{c}")).collect::<Vec<_>>().join(", ");
+        let mut stmt = self.conn.prepare_cached(&format!(
+            "SELECT f.seq, f.scenario_id, f.site, f.edge, f.policy_id, f.policy_version, f.scene, f.push_seq, \
+                    f.twin_ticks, f.disagreement, f.twin_outcome_seq IS NOT NULL, {edge_columns}, {twin_columns} \
+             FROM fleet_episodes f JOIN outcomes o ON o.seq = f.edge_outcome_seq \
+             LEFT JOIN twin_outcomes t ON t.seq = f.twin_outcome_seq ORDER BY f.seq"
+        ))?;
+        let columns = OUTCOME_COLUMNS.split(", ").count();
+        let rows = stmt.query_map([], |r| {
+            let policy = match (r.get::<_, Option<String>>(4)?, r.get::<_, Option<i64>>(5)?) {
+                (Some(policy_id), Some(version)) => {
+                    Some(PolicyRef { policy_id, version: u32::try_from(version).unwrap_or(u32::MAX) })
+                }
+                _ => None,
+            };
+            let watched: bool = r.get(10)?;
+            let episode = FleetEpisode {
+                scenario_id: r.get(1)?,
+                site: r.get(2)?,
+                edge: r.get(3)?,
+                policy,
+                scene: r.get(6)?,
+                push_seq: r.get(7)?,
+                twin_ticks: r.get::<_, i64>(8)?.max(0) as u64,
+                disagreement: r.get(9)?,
+                edge_outcome: outcome_from_row_at(r, 11)?,
+                twin_outcome: if watched { Some(outcome_from_row_at(r, 11 + columns)?) } else { None },
+            };
+            Ok(StoredFleetEpisode { seq: r.get(0)?, episode })
+        })?;
+        Ok(rows.collect::<Result<_, _>>()?)
+    }
+
+    /// Counts of the loop's state.
+    pub fn fleet_counts(&self) -> Result<FleetCounts, LibraryError> {
+        let count = |sql: &str| -> Result<u64, LibraryError> {
+            Ok(self.conn.query_row(sql, [], |r| r.get::<_, i64>(0))?.max(0) as u64)
+        };
+        Ok(FleetCounts {
+            scenarios: count("SELECT COUNT(*) FROM scenarios")?,
+            episodes: count("SELECT COUNT(*) FROM fleet_episodes")?,
+            failures: count(
+                "SELECT COUNT(*) FROM fleet_episodes f JOIN outcomes o ON o.seq = f.edge_outcome_seq \
+                 WHERE o.collision = 1 OR o.offroad = 1",
+            )?,
+            disagreements: count("SELECT COUNT(*) FROM fleet_episodes WHERE disagreement IS NOT NULL")?,
+            outstanding: count("SELECT COUNT(*) FROM pushes WHERE state = 'outstanding'")?,
+            abandoned: count("SELECT COUNT(*) FROM pushes WHERE state = 'abandoned'")?,
+        })
+    }
+
+    /// The push outstanding at `site/edge`, if any.
+    pub fn outstanding_push(&self, site: &str, edge: &str) -> Result<Option<Push>, LibraryError> {
+        Ok(self
+            .conn
+            .prepare_cached(
+                "SELECT seq, scenario_id, attempts FROM pushes WHERE site = ?1 AND edge = ?2 AND state = 'outstanding'",
+            )?
+            .query_row(params![site, edge], |r| {
+                Ok(Push {
+                    seq: r.get(0)?,
+                    scenario_id: r.get(1)?,
+                    site: site.to_owned(),
+                    edge: edge.to_owned(),
+                    attempts: u32::try_from(r.get::<_, i64>(2)?).unwrap_or(u32::MAX),
+                })
+            })
+            .optional()?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::fixtures::{file_library, outcome, sampled};
+    use super::super::{LibraryError, content_id};
+    use super::*;
+    use risktwin_common::scenario::ScenarioKind;
+
+    fn episode(id: &str, push_seq: Option<i64>, collision: bool) -> FleetEpisode {
+        let edge_outcome = outcome(0.5, collision, Some(1.5));
+        let twin_outcome =
+            Some(Outcome { risk: RiskTerms { score: 0.25, ..edge_outcome.risk }, ..edge_outcome.clone() });
+        FleetEpisode {
+            scenario_id: id.to_owned(),
+            site: "s".into(),
+            edge: "v1".into(),
+            policy: None,
+            scene: None,
+            push_seq,
+            edge_outcome,
+            twin_outcome,
+            twin_ticks: 120,
+            disagreement: Some("S_risk: edge 0.500, twin 0.250".into()),
+        }
+    }
+    use risktwin_common::risk::RiskTerms;
+
+    #[test]
+    fn pushes_go_riskiest_first_one_outstanding_per_edge_and_end_with_their_episode() {
+        let (_dir, mut lib) = file_library();
+        let records = [sampled(ScenarioKind::CutIn, 0, 0.2, false), sampled(ScenarioKind::CutIn, 1, 0.9, false)];
+        lib.insert_batch(&records).expect("stored");
+        let (low, high) = (content_id(&records[0].spec), content_id(&records[1].spec));
+        assert_eq!(lib.riskiest_unpushed().expect("ranked").map(|r| r.id), Some(high.clone()));
+        let push = lib.start_push(&high, "s", "v1").expect("pushed");
+        assert_eq!(lib.riskiest_unpushed().expect("ranked").map(|r| r.id), Some(low.clone()), "pushed once only");
+        // A second outstanding push to the same edge is refused by the schema; another edge is fine.
+        assert!(matches!(lib.start_push(&low, "s", "v1"), Err(LibraryError::Sqlite(_))));
+        let other = lib.start_push(&low, "s", "v2").expect("another edge");
+        assert_eq!(lib.riskiest_unpushed().expect("ranked"), None);
+        assert_eq!(lib.retry_push(push.seq).expect("retried"), 2);
+        assert_eq!(lib.outstanding_push("s", "v1").expect("read").map(|p| p.attempts), Some(2));
+
+        lib.record_fleet_episode(&episode(&high, Some(push.seq), true)).expect("stored");
+        lib.abandon_push(other.seq).expect("given up");
+        assert_eq!(lib.outstanding_pushes().expect("read"), []);
+        let counts = lib.fleet_counts().expect("counts");
+        assert_eq!(
+            counts,
+            FleetCounts { scenarios: 2, episodes: 1, failures: 1, disagreements: 1, outstanding: 0, abandoned: 1 }
+        );
+        // The edge's collision put the scenario in the regression set, and ranks it now.
+        assert_eq!(lib.regression_set().expect("read").len(), 1);
+        let stored = lib.fleet_episodes().expect("read");
+        assert_eq!(stored.len(), 1);
+        assert_eq!(stored[0].episode, episode(&high, Some(push.seq), true));
+        assert!(lib.get(&high).expect("read").expect("held").outcomes.iter().any(|o| o.metrics.collision));
+    }
+
+    #[test]
+    fn an_episode_of_an_unknown_scenario_or_with_a_bad_outcome_writes_nothing() {
+        let (_dir, mut lib) = file_library();
+        let rec = sampled(ScenarioKind::LowFriction, 0, 0.3, false);
+        lib.insert_batch(std::slice::from_ref(&rec)).expect("stored");
+        let id = content_id(&rec.spec);
+        let push = lib.start_push(&id, "s", "v1").expect("pushed");
+        assert!(matches!(
+            lib.record_fleet_episode(&episode("feedfacefeedface", Some(push.seq), false)),
+            Err(LibraryError::UnknownScenario(_))
+        ));
+        let mut bad = episode(&id, Some(push.seq), false);
+        if let Some(twin) = bad.twin_outcome.as_mut() {
+            twin.risk.score = 2.0;
+        }
+        assert!(matches!(lib.record_fleet_episode(&bad), Err(LibraryError::InvalidRecord { .. })));
+        assert_eq!(lib.fleet_counts().expect("counts").episodes, 0);
+        assert_eq!(lib.outstanding_pushes().expect("read").len(), 1, "the push is still outstanding");
+        assert_eq!(lib.get(&id).expect("read").expect("held").outcomes.len(), 1, "no outcome added");
+        // A policy's episode names its version, and its outcome the policy's label.
+        let mut driven = episode(&id, Some(push.seq), false);
+        driven.policy = Some(PolicyRef { policy_id: "ppo".into(), version: 3 });
+        driven.edge_outcome.policy = policy_label(driven.policy.as_ref());
+        lib.record_fleet_episode(&driven).expect("stored");
+        assert_eq!(lib.fleet_episodes().expect("read")[0].episode.policy, driven.policy);
+        assert_eq!(
+            lib.get(&id).expect("read").expect("held").latest_outcome("ppo/v3").map(|o| o.risk.score),
+            Some(0.5)
+        );
+    }
+}

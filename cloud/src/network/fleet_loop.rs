@@ -1,0 +1,225 @@
+//! The `loop` role on Zenoh: the edges' `ScenarioResult`s come in on
+//! `risktwin/v1/<site>/*/scenario_result` and go to the twin's watch ([`LiveIngest`]), which
+//! hands each finished episode, with the twin's ticks of it, to the task here; the task runs
+//! [`FleetLoop`] and sends the scenarios it decides on to the edges' push keys
+//! (`…/<edge>/scenario`), starting the twin's watch first so that no tick of the episode is
+//! missed. Live vehicles are the edges whose liveliness token is up and whose `state` stream
+//! the ingest has received (an RSU has none, and runs no pushed scenario).
+//!
+//! A result that does not decode, or whose header names another source than its key, is
+//! counted and dropped.
+
+use super::CloudError;
+use super::liveliness::LivenessLog;
+use super::push::header;
+use super::receive::LiveIngest;
+use crate::fleet_loop::{FleetLoop, LoopSummary, PushOrder};
+use crate::twin::watch::WatchedEpisode;
+use risktwin_common::telemetry::{ScenarioPush, ScenarioResult};
+use risktwin_protos::{decode_tagged, encode};
+use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report_all, parse_edge_report_key};
+use risktwin_transport::zenoh::Session;
+use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
+use risktwin_transport::zenoh::qos::CongestionControl;
+use risktwin_transport::{Shutdown, SiteId, SourceId, TransportError, protobuf};
+use serde::Serialize;
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
+use tokio::sync::mpsc::UnboundedReceiver;
+use tokio::task::JoinHandle;
+
+/// How often live edges are looked at for a first push, a resend or a timeout.
+const IDLE_PERIOD: Duration = Duration::from_millis(200);
+
+/// Results received on the wire.
+#[derive(Debug, Default)]
+struct ResultCounts {
+    received: AtomicU64,
+    malformed: AtomicU64,
+    source_mismatch: AtomicU64,
+}
+
+/// What the loop role did, for the cloud's summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LoopRoleSummary {
+    #[serde(flatten)]
+    pub fleet: LoopSummary,
+    /// Results received on the wire.
+    pub results_received: u64,
+    /// Results that did not decode (or were tagged with another schema), dropped.
+    pub results_malformed: u64,
+    /// Results whose header named another edge than their key, dropped.
+    pub results_source_mismatch: u64,
+    /// The twin's watch: episodes with ticks, results it had not watched, ticks dropped.
+    pub watch: crate::twin::watch::WatchCounts,
+}
+
+/// The running role: undeclare `results`, then await `task`.
+pub(crate) struct LoopRole {
+    pub(crate) results: Subscriber<()>,
+    pub(crate) task: JoinHandle<Result<LoopSummary, CloudError>>,
+    counts: Arc<ResultCounts>,
+}
+
+impl LoopRole {
+    /// Ends the role (after `shutdown` fired): the summary of the loop and its results.
+    pub(crate) async fn finish(self, ingest: &Mutex<LiveIngest>) -> Result<LoopRoleSummary, CloudError> {
+        self.results.undeclare().await.map_err(|e| super::undeclare_error("result subscriber", e))?;
+        let fleet = self.task.await.map_err(|e| super::join_error("loop", e))??;
+        let watch = lock(ingest).watch_counts();
+        Ok(LoopRoleSummary {
+            fleet,
+            results_received: self.counts.received.load(Ordering::Relaxed),
+            results_malformed: self.counts.malformed.load(Ordering::Relaxed),
+            results_source_mismatch: self.counts.source_mismatch.load(Ordering::Relaxed),
+            watch,
+        })
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Starts the loop role: the result subscriber and the task running `fleet`.
+pub(crate) async fn start(
+    session: &Session,
+    site: Option<&SiteId>,
+    fleet: FleetLoop,
+    ingest: Arc<Mutex<LiveIngest>>,
+    liveness: Arc<Mutex<LivenessLog>>,
+    episodes: UnboundedReceiver<WatchedEpisode>,
+    shutdown: Shutdown,
+) -> Result<LoopRole, CloudError> {
+    let counts = Arc::new(ResultCounts::default());
+    let key = edge_report_all(site, EdgeReport::ScenarioResult);
+    let results = {
+        let (ingest, counts) = (Arc::clone(&ingest), Arc::clone(&counts));
+        session
+            .declare_subscriber(key.clone())
+            .callback(move |sample| {
+                let Some((site, edge)) = parse_edge_report_key(sample.key_expr().as_str(), EdgeReport::ScenarioResult)
+                else {
+                    return;
+                };
+                counts.received.fetch_add(1, Ordering::Relaxed);
+                let payload = sample.payload().to_bytes();
+                match decode_tagged::<ScenarioResult>(&sample.encoding().to_string(), &payload) {
+                    Ok(result) if result.header.source != edge => {
+                        counts.source_mismatch.fetch_add(1, Ordering::Relaxed);
+                        tracing::warn!("loop: dropped a result on {site}/{edge} from {}", result.header.source);
+                    }
+                    Ok(result) => lock(&ingest).episode_result(site, edge, result),
+                    Err(e) => {
+                        counts.malformed.fetch_add(1, Ordering::Relaxed);
+                        tracing::warn!("loop: dropped a result from {site}/{edge}: {e}");
+                    }
+                }
+            })
+            .await
+            .map_err(|e| TransportError::Declare { what: "subscriber", key, reason: e.to_string() })?
+    };
+    let task = tokio::spawn(drive(session.clone(), fleet, ingest, liveness, episodes, shutdown));
+    Ok(LoopRole { results, task, counts })
+}
+
+/// The loop's task, until `shutdown` fires.
+async fn drive(
+    session: Session,
+    mut fleet: FleetLoop,
+    ingest: Arc<Mutex<LiveIngest>>,
+    liveness: Arc<Mutex<LivenessLog>>,
+    mut episodes: UnboundedReceiver<WatchedEpisode>,
+    mut shutdown: Shutdown,
+) -> Result<LoopSummary, CloudError> {
+    let mut pushes = Pushes { session, publishers: HashMap::new(), sent: 0 };
+    let mut idle = tokio::time::interval(IDLE_PERIOD);
+    let failed = |e: &dyn std::fmt::Display| tracing::error!("loop: stopped: {e}");
+    loop {
+        tokio::select! {
+            episode = episodes.recv() => {
+                let Some(episode) = episode else { break };
+                let key = (episode.site.clone(), episode.edge.clone());
+                let alive = lock(&liveness).alive().contains(&key);
+                let order = fleet.on_episode(&episode, alive).inspect_err(|e| failed(e))?;
+                if let Some(order) = order {
+                    pushes.send(&order, &ingest).await.inspect_err(|e| failed(e))?;
+                    fleet.sent(&order, Some(&episode));
+                }
+                // After the next push is out: the children rank in for the pushes after it.
+                fleet.mutate_failures().inspect_err(|e| failed(e))?;
+            }
+            _ = idle.tick() => {
+                let alive: Vec<(String, String)> = {
+                    let ingest = lock(&ingest);
+                    lock(&liveness).alive().into_iter().filter(|(_, edge)| ingest.states_from(edge) > 0).collect()
+                };
+                for order in fleet.on_idle(&alive, Instant::now()).inspect_err(|e| failed(e))? {
+                    pushes.send(&order, &ingest).await.inspect_err(|e| failed(e))?;
+                    fleet.sent(&order, None);
+                }
+            }
+            () = shutdown.wait() => break,
+        }
+    }
+    pushes.close().await?;
+    Ok(fleet.finish()?)
+}
+
+/// The publishers of the edges' scenario keys, declared on first use.
+struct Pushes {
+    session: Session,
+    publishers: HashMap<(String, String), Publisher<'static>>,
+    sent: u64,
+}
+
+impl Pushes {
+    /// Starts the twin's watch of `order`'s episode, then sends it.
+    async fn send(&mut self, order: &PushOrder, ingest: &Mutex<LiveIngest>) -> Result<(), CloudError> {
+        let key = (order.site.clone(), order.edge.clone());
+        if !self.publishers.contains_key(&key) {
+            let bad_id = |e: risktwin_transport::keyexpr::KeyError| TransportError::Declare {
+                what: "publisher",
+                key: format!("{}/{}", order.site, order.edge),
+                reason: e.to_string(),
+            };
+            let site = SiteId::new(order.site.clone()).map_err(bad_id)?;
+            let edge = SourceId::new(order.edge.clone()).map_err(bad_id)?;
+            let push_key = cloud_to_edge(&site, &edge, CloudToEdge::Scenario);
+            let publisher = self
+                .session
+                .declare_publisher(push_key.clone())
+                .encoding(protobuf(CloudToEdge::Scenario.message()))
+                .congestion_control(CongestionControl::Block)
+                .await
+                .map_err(|e| TransportError::Declare { what: "publisher", key: push_key, reason: e.to_string() })?;
+            self.publishers.insert(key.clone(), publisher);
+        }
+        lock(ingest).watch_episode(&order.site, &order.edge, &order.spec_id, &order.spec, Some(order.push_seq));
+        let push = ScenarioPush { header: header(self.sent), spec_id: order.spec_id.clone(), spec: order.spec.clone() };
+        self.sent += 1;
+        let publisher = &self.publishers[&key];
+        publisher
+            .put(encode(&push))
+            .await
+            .map_err(|e| TransportError::Put { key: publisher.key_expr().to_string(), reason: e.to_string() })?;
+        tracing::info!(
+            "loop: pushed scenario {} to {}/{} (push {}, attempt {})",
+            order.spec_id,
+            order.site,
+            order.edge,
+            order.push_seq,
+            order.attempt
+        );
+        Ok(())
+    }
+
+    async fn close(self) -> Result<(), CloudError> {
+        for (_, publisher) in self.publishers {
+            publisher.undeclare().await.map_err(|e| super::undeclare_error("push publisher", e))?;
+        }
+        Ok(())
+    }
+}

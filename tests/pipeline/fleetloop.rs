@@ -1,0 +1,167 @@
+//! The loop role closing the loop by itself, as processes around a real router: a cloud with
+//! `ingest,twin,loop` on a library file and two edge vehicles, unattended. The test reads the
+//! library file: fleet episodes stored with the edge's outcome beside the twin's, one push per
+//! scenario; then the cloud is killed (SIGKILL) with pushes outstanding, the file is checked
+//! for consistency, and a restarted cloud sends the outstanding pushes again (a retry of the
+//! same push) and stores their episodes, without pushing any scenario twice.
+
+use crate::support::{Proc, run_json, start_router};
+use rusqlite::Connection;
+use std::time::{Duration, Instant};
+
+const STEP: Duration = Duration::from_secs(60);
+/// An episode lasts at most 15 s of scene at the edge's real-time default rate.
+const EPISODES: Duration = Duration::from_secs(90);
+
+/// Polls `query` (one integer) on the library until `done` holds, within `timeout`.
+fn wait_for(db: &str, timeout: Duration, query: &str, done: impl Fn(i64) -> bool) -> i64 {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let conn = Connection::open(db).expect("the library opens");
+        let value: i64 = conn.query_row(query, [], |r| r.get(0)).expect("the query runs");
+        if done(value) {
+            return value;
+        }
+        assert!(Instant::now() < deadline, "{query} is still {value} after {timeout:?}");
+        drop(conn);
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+fn count(conn: &Connection, query: &str) -> i64 {
+    conn.query_row(query, [], |r| r.get(0)).expect("the query runs")
+}
+
+fn start_cloud(name: &str, db: &str, locator: &str, report: &str) -> Proc {
+    let args = ["cloud", "--roles", "ingest,twin,loop", "--db", db, "--connect", locator, "--loop-report", report];
+    let mut cloud = Proc::spawn(name, &args);
+    cloud.wait_line(STEP, |l| l == "ready");
+    cloud
+}
+
+#[test]
+fn the_loop_pushes_stores_fleet_outcomes_and_resumes_after_a_crash() {
+    let (router, locator) = start_router();
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let db = dir.path().join("lib.db").to_str().expect("a UTF-8 path").to_owned();
+    let report = dir.path().join("loop.md").to_str().expect("a UTF-8 path").to_owned();
+    run_json(&[
+        "scenarios",
+        "generate",
+        "--kind",
+        "emergency-braking",
+        "--count",
+        "12",
+        "--seed",
+        "5",
+        "--db",
+        &db,
+        "--format",
+        "json",
+    ]);
+    let library = count(&Connection::open(&db).expect("opens"), "SELECT COUNT(*) FROM scenarios");
+    assert!(library >= 6, "{library} scenarios");
+
+    let cloud = start_cloud("cloud", &db, &locator, &report);
+    let edge = |id: &str| Proc::spawn(id, &["edge", "vehicle", "--id", id, "--site", "fleet", "--connect", &locator]);
+    let (v1, v2) = (edge("v1"), edge("v2"));
+
+    // Unattended: both vehicles get pushes, play them and report; the cloud stores each.
+    wait_for(&db, EPISODES, "SELECT COUNT(*) FROM fleet_episodes", |n| n >= 2);
+    let conn = Connection::open(&db).expect("opens");
+    let scored = count(&conn, "SELECT COUNT(*) FROM fleet_episodes WHERE twin_outcome_seq IS NOT NULL");
+    assert!(scored >= 1, "the twin scored none of the first episodes");
+    // The twin saw the episodes from the vehicles' own streams: at 50 Hz of state and 20 Hz of
+    // twin ticks, a 5–15 s episode is 100–300 ticks.
+    let ticks = count(&conn, "SELECT MIN(twin_ticks) FROM fleet_episodes WHERE twin_outcome_seq IS NOT NULL");
+    assert!(ticks >= 50, "an episode scored from {ticks} ticks");
+    // The riskiest scenarios went first, one push each.
+    let first: String =
+        conn.query_row("SELECT scenario_id FROM pushes ORDER BY seq LIMIT 1", [], |r| r.get(0)).expect("a push");
+    let riskiest = run_json(&["scenarios", "rank", "--db", &db, "--top", "1", "--format", "json"]);
+    assert_eq!(riskiest[0]["id"], first.as_str(), "{riskiest}");
+    drop(conn);
+
+    // A crash with pushes outstanding: the next ones are out as soon as results are stored.
+    wait_for(&db, STEP, "SELECT COUNT(*) FROM pushes WHERE state = 'outstanding'", |n| n >= 1);
+    let mut cloud = cloud;
+    cloud.kill();
+    let _ = cloud.wait_exit(STEP);
+    let conn = Connection::open(&db).expect("opens");
+    let integrity: String = conn.query_row("PRAGMA integrity_check", [], |r| r.get(0)).expect("runs");
+    assert_eq!(integrity, "ok");
+    let orphans = count(
+        &conn,
+        "SELECT COUNT(*) FROM pushes p WHERE p.state = 'done' \
+         AND NOT EXISTS (SELECT 1 FROM fleet_episodes f WHERE f.push_seq = p.seq)",
+    );
+    assert_eq!(orphans, 0, "a push is done only with its episode stored");
+    let outstanding: Vec<i64> = conn
+        .prepare("SELECT seq FROM pushes WHERE state = 'outstanding' ORDER BY seq")
+        .expect("prepares")
+        .query_map([], |r| r.get(0))
+        .expect("runs")
+        .collect::<Result<_, _>>()
+        .expect("reads");
+    let pushed_before = count(&conn, "SELECT COUNT(*) FROM pushes");
+    drop(conn);
+
+    // Restarted, the loop resumes: the outstanding pushes go out again and come back.
+    let mut cloud = start_cloud("cloud-2", &db, &locator, &report);
+    for seq in &outstanding {
+        let query = format!("SELECT COUNT(*) FROM fleet_episodes WHERE push_seq = {seq}");
+        wait_for(&db, EPISODES, &query, |n| n == 1);
+    }
+    cloud.terminate();
+    let summary = cloud.exit_json(STEP);
+    let (mut v1, mut v2) = (v1, v2);
+    v1.terminate();
+    v2.terminate();
+    let _ = (v1.exit_json(STEP), v2.exit_json(STEP));
+    router.terminate();
+
+    let conn = Connection::open(&db).expect("opens");
+    let twice =
+        count(&conn, "SELECT COUNT(*) FROM (SELECT scenario_id FROM pushes GROUP BY scenario_id HAVING COUNT(*) > 1)");
+    assert_eq!(twice, 0, "no scenario is pushed twice");
+    let retried = count(&conn, "SELECT COUNT(*) FROM pushes WHERE attempts >= 2");
+    assert!(retried >= outstanding.len() as i64, "{retried} retried, {} were outstanding", outstanding.len());
+    assert!(count(&conn, "SELECT COUNT(*) FROM pushes") >= pushed_before);
+    // Every stored episode has the edge's outcome; its policy is the reference driver's.
+    let edge_outcomes = count(
+        &conn,
+        "SELECT COUNT(*) FROM fleet_episodes f JOIN outcomes o ON o.seq = f.edge_outcome_seq WHERE o.policy = 'idm'",
+    );
+    assert_eq!(edge_outcomes, count(&conn, "SELECT COUNT(*) FROM fleet_episodes"));
+
+    let fleet = &summary["loop"];
+    assert!(fleet["retries"].as_u64().is_some_and(|n| n >= outstanding.len() as u64), "{fleet}");
+    assert!(fleet["episodes"].as_u64().is_some_and(|n| n >= outstanding.len() as u64), "{fleet}");
+    assert_eq!(fleet["results_malformed"], 0, "{fleet}");
+    assert!(fleet["iteration"]["count"].as_u64().is_some_and(|n| n >= 1), "{fleet}");
+    let text = std::fs::read_to_string(&report).expect("the loop report is written");
+    assert!(text.starts_with("# Closed loop over the fleet"), "{text}");
+    assert!(text.contains("| 1 | "), "the episodes are listed:\n{text}");
+}
+
+#[test]
+fn the_loop_role_refuses_what_it_cannot_run_with_exit_2() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let junk = dir.path().join("junk.db");
+    std::fs::write(&junk, b"not a database at all, just text that is long enough to fill a header").expect("written");
+    let junk = junk.to_str().expect("a UTF-8 path");
+    for (args, says) in [
+        (&["cloud", "--roles", "ingest,twin,loop"][..], "role loop needs --db FILE"),
+        (&["cloud", "--roles", "ingest,loop", "--db", "x.db"], "role \"loop\" needs role \"twin\""),
+        (&["cloud", "--roles", "ingest,twin,loop", "--db", junk], "is not a SQLite database"),
+        (&["cloud", "--roles", "ingest", "--loop-report", "x.md"], "--loop-report needs the loop role"),
+        (&["cloud", "--roles", "ingest,twin,loop", "--db", "x.db", "--push-timeout-s", "0"], "--push-timeout-s 0"),
+    ] {
+        let mut p = Proc::spawn("bad", args);
+        let (status, stdout) = p.wait_exit(STEP);
+        let stderr = p.drain_stderr();
+        assert_eq!(status.code(), Some(2), "{args:?}: stdout {stdout}, stderr {stderr}");
+        assert!(stdout.is_empty(), "{args:?} printed on stdout: {stdout}");
+        assert!(stderr.contains("error: ") && stderr.contains(says), "{args:?}: {stderr}");
+    }
+}

@@ -200,6 +200,8 @@ pub enum CloudOutput {
     Snapshot,
     /// The twin's vehicles as boxes (`foxglove.SceneUpdate`).
     Scene,
+    /// The closed loop's events (`risktwin.v1.LoopEvent`: pushes, retries, episodes stored).
+    Loop,
 }
 
 impl CloudOutput {
@@ -210,6 +212,7 @@ impl CloudOutput {
             CloudOutput::RiskReport => "risk_report",
             CloudOutput::Snapshot => "snapshot",
             CloudOutput::Scene => "scene",
+            CloudOutput::Loop => "loop",
         }
     }
 }

@@ -15,18 +15,22 @@
 //!   [`LoopConfig::max_attempts`] times, then given up (counted).
 
 pub mod report;
+pub mod trainer;
 
 use crate::generate::mutate_stored;
 use crate::library::{
-    FleetCounts, FleetEpisode, LibraryError, Outcome, Push, ScenarioLibrary, content_id, policy_label,
+    FleetCounts, FleetEpisode, LibraryError, Outcome, PolicyVersion, Push, ScenarioLibrary, content_id, policy_label,
 };
+use crate::trainer::TrainerError;
+use crate::trainer::gate::GateReport;
+use trainer::{TrainJob, TrainerConfig};
 use crate::twin::watch::WatchedEpisode;
 use risktwin_common::digest::fnv1a64;
 use risktwin_common::episode::EpisodeResult;
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::ScenarioResult;
 use serde::Serialize;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
 
 /// Route completion the edge and the twin may differ by before the row says they disagree.
@@ -70,6 +74,31 @@ pub struct PushOrder {
     pub attempt: u32,
 }
 
+/// A policy version to send to an edge.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PolicyOrder {
+    pub site: String,
+    pub edge: String,
+    pub version: u32,
+    pub policy_id: String,
+    pub algo: String,
+    pub weights: Vec<u8>,
+}
+
+/// The gate's decision on one version, for the summary and the report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GateLine {
+    pub version: u32,
+    pub pushed: bool,
+    pub reasons: Vec<String>,
+    /// Fleet failures in the library when it was trained.
+    pub failures: u64,
+    /// Collisions and mean route completion on the regression and held-out sets: the
+    /// candidate's, then the deployed version's.
+    pub regression: (usize, f64, usize, f64),
+    pub held_out: (usize, f64, usize, f64),
+}
+
 /// Latency of the loop's iterations, ms.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct IterationTimes {
@@ -94,6 +123,23 @@ impl IterationTimes {
         let ((p50_ms, max_ms), (from_result_p50_ms, from_result_max_ms)) = (p50_max(work_ms), p50_max(from_result_ms));
         IterationTimes { count: work_ms.len() as u64, p50_ms, max_ms, from_result_p50_ms, from_result_max_ms }
     }
+}
+
+/// One thing the loop did, for the recording.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoopEvent {
+    /// `push`, `retry`, `abandon` or `episode`.
+    pub kind: &'static str,
+    pub site: String,
+    pub edge: String,
+    pub scenario_id: String,
+    pub push_seq: Option<i64>,
+    pub attempt: u32,
+    /// An episode's outcome as the edge reported it.
+    pub collision: bool,
+    pub risk_score: f64,
+    /// An episode's disagreement with the twin.
+    pub detail: Option<String>,
 }
 
 /// What the loop did, for the cloud's summary and the report.
@@ -121,9 +167,21 @@ pub struct LoopSummary {
     pub unknown_scenario: u64,
     /// Children stored by mutating around failures.
     pub mutants: u64,
-    /// Times an edge was free but every scenario had been pushed.
+    /// Times a vehicle was free but every scenario had been pushed (once per dry spell).
     pub exhausted: u64,
+    /// Results whose outcome the library refused (out of range), dropped; their push stays
+    /// outstanding.
+    pub invalid_results: u64,
     pub iteration: IterationTimes,
+    /// Policy versions trained and gated by this run, with the gate's decisions.
+    pub gate: Vec<GateLine>,
+    /// The version the fleet is driven by (`None`: the reference driver).
+    pub deployed_version: Option<u32>,
+    /// Policy versions sent to edges by this run.
+    pub policy_pushes: u64,
+    /// Why training stopped, if it failed (the loop goes on without it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub training_error: Option<String>,
     /// The report ([`report::markdown`]), filled in at the end of the run.
     #[serde(skip)]
     pub report: String,
@@ -147,12 +205,27 @@ pub struct FleetLoop {
     started: Instant,
     /// Per iteration: the loop's work and the time from the result, ms.
     iterations_ms: (Vec<f64>, Vec<f64>),
+    /// Vehicles that found no scenario left to push at their last try.
+    idle_without_scenario: HashSet<(String, String)>,
+    /// Events since the last [`FleetLoop::take_events`].
+    events: Vec<LoopEvent>,
+    /// The trainer role, when it runs; a training run is in flight while `training` is set.
+    trainer: Option<TrainerConfig>,
+    training: bool,
+    /// The latest version the gate let through.
+    deployed: Option<PolicyVersion>,
     summary: LoopSummary,
 }
 
 impl FleetLoop {
-    /// The loop on `library`, resuming the pushes it holds as outstanding.
-    pub fn open(library: ScenarioLibrary, config: LoopConfig) -> Result<Self, LibraryError> {
+    /// The loop on `library`, resuming the pushes it holds as outstanding; with `trainer`, it
+    /// retrains and gates policies too.
+    pub fn open(
+        library: ScenarioLibrary,
+        config: LoopConfig,
+        trainer: Option<TrainerConfig>,
+    ) -> Result<Self, LibraryError> {
+        let deployed = library.policy_versions()?.into_iter().rev().find(|v| v.pushed);
         let outstanding = library
             .outstanding_pushes()?
             .into_iter()
@@ -165,6 +238,11 @@ impl FleetLoop {
             new_failures: Vec::new(),
             started: Instant::now(),
             iterations_ms: (Vec::new(), Vec::new()),
+            idle_without_scenario: HashSet::new(),
+            events: Vec::new(),
+            trainer,
+            training: false,
+            deployed,
             summary: LoopSummary::default(),
         })
     }
@@ -189,11 +267,27 @@ impl FleetLoop {
                 self.summary.unknown_scenario += 1;
                 return Ok(None);
             }
+            Err(e @ LibraryError::InvalidRecord { .. }) => {
+                tracing::warn!("loop: dropped the result of {}/{}: {e}", key.0, key.1);
+                self.summary.invalid_results += 1;
+                return Ok(None);
+            }
             Err(e) => return Err(e),
         }
         if answers.is_some() {
             self.outstanding.remove(&key);
         }
+        self.events.push(LoopEvent {
+            kind: "episode",
+            site: key.0.clone(),
+            edge: key.1.clone(),
+            scenario_id: spec_id.clone(),
+            push_seq: answers,
+            attempt: 0,
+            collision: episode.result.metrics.collision,
+            risk_score: episode.result.risk.score,
+            detail: row.disagreement.clone(),
+        });
         let m = &episode.result.metrics;
         self.summary.episodes += 1;
         self.summary.twin_scored += u64::from(twin.is_some());
@@ -215,6 +309,17 @@ impl FleetLoop {
         if let Some(o) = self.outstanding.get_mut(&key) {
             o.sent = Some(Instant::now());
         }
+        self.events.push(LoopEvent {
+            kind: if order.attempt > 1 { "retry" } else { "push" },
+            site: order.site.clone(),
+            edge: order.edge.clone(),
+            scenario_id: order.spec_id.clone(),
+            push_seq: Some(order.push_seq),
+            attempt: order.attempt,
+            collision: false,
+            risk_score: 0.0,
+            detail: None,
+        });
         if let Some(episode) = after {
             self.iterations_ms.0.push(episode.handed.elapsed().as_secs_f64() * 1e3);
             self.iterations_ms.1.push(episode.received.elapsed().as_secs_f64() * 1e3);
@@ -222,49 +327,83 @@ impl FleetLoop {
     }
 
     /// The pushes due with the live vehicles `alive` (as `(site, edge)`): a first one for a
-    /// vehicle without one, and resends of overdue or not yet sent ones.
+    /// vehicle without one, and resends of overdue or not yet sent ones. A push is given up once
+    /// it was sent `max_attempts` times and is overdue again, or when its vehicle has not been
+    /// live for `result_timeout` (since its last send, or since this loop started).
     pub fn on_idle(&mut self, alive: &[(String, String)], now: Instant) -> Result<Vec<PushOrder>, LibraryError> {
+        let timeout = self.config.result_timeout;
+        let gone: Vec<(String, String)> = self
+            .outstanding
+            .iter()
+            .filter(|(key, o)| {
+                !alive.contains(key) && now.duration_since(o.sent.unwrap_or(self.started)) >= timeout
+            })
+            .map(|(key, _)| key.clone())
+            .collect();
+        for key in gone {
+            self.abandon(&key, "its vehicle is gone")?;
+        }
         let mut orders = Vec::new();
         for (site, edge) in alive {
             let key = (site.clone(), edge.clone());
-            match self.outstanding.get(&key).cloned() {
-                None => orders.extend(self.next_push(site, edge)?),
-                Some(o) if o.sent.is_some_and(|t| now.duration_since(t) < self.config.result_timeout) => {}
-                Some(o) if o.push.attempts >= self.config.max_attempts && o.sent.is_some() => {
-                    tracing::warn!(
-                        "loop: giving up push {} of scenario {} to {site}/{edge} after {} attempts",
-                        o.push.seq,
-                        o.push.scenario_id,
-                        o.push.attempts
-                    );
-                    self.library.abandon_push(o.push.seq)?;
-                    self.outstanding.remove(&key);
-                    self.summary.abandoned += 1;
-                    orders.extend(self.next_push(site, edge)?);
-                }
-                Some(o) => {
-                    let attempts = self.library.retry_push(o.push.seq)?;
-                    let Some(stored) = self.library.get(&o.push.scenario_id)? else {
-                        self.library.abandon_push(o.push.seq)?;
-                        self.outstanding.remove(&key);
-                        continue;
-                    };
-                    self.summary.retries += 1;
-                    if let Some(entry) = self.outstanding.get_mut(&key) {
-                        entry.push.attempts = attempts;
-                    }
-                    orders.push(PushOrder {
-                        site: site.clone(),
-                        edge: edge.clone(),
-                        push_seq: o.push.seq,
-                        spec_id: o.push.scenario_id.clone(),
-                        spec: stored.spec,
-                        attempt: attempts,
-                    });
-                }
+            let Some(o) = self.outstanding.get(&key).cloned() else {
+                orders.extend(self.next_push(site, edge)?);
+                continue;
+            };
+            if o.sent.is_some_and(|t| now.duration_since(t) < timeout) {
+                continue;
             }
+            if o.push.attempts >= self.config.max_attempts {
+                self.abandon(&key, "no result after its attempts")?;
+                orders.extend(self.next_push(site, edge)?);
+                continue;
+            }
+            let Some(stored) = self.library.get(&o.push.scenario_id)? else {
+                self.abandon(&key, "its scenario is no longer in the library")?;
+                continue;
+            };
+            let attempts = self.library.retry_push(o.push.seq)?;
+            self.summary.retries += 1;
+            if let Some(entry) = self.outstanding.get_mut(&key) {
+                entry.push.attempts = attempts;
+            }
+            orders.push(PushOrder {
+                site: site.clone(),
+                edge: edge.clone(),
+                push_seq: o.push.seq,
+                spec_id: o.push.scenario_id.clone(),
+                spec: stored.spec,
+                attempt: attempts,
+            });
         }
         Ok(orders)
+    }
+
+    /// Gives up the push outstanding at `key` (`why`, logged).
+    fn abandon(&mut self, key: &(String, String), why: &str) -> Result<(), LibraryError> {
+        let Some(o) = self.outstanding.remove(key) else { return Ok(()) };
+        tracing::warn!(
+            "loop: giving up push {} of scenario {} to {}/{} after {} attempts: {why}",
+            o.push.seq,
+            o.push.scenario_id,
+            key.0,
+            key.1,
+            o.push.attempts
+        );
+        self.library.abandon_push(o.push.seq)?;
+        self.summary.abandoned += 1;
+        self.events.push(LoopEvent {
+            kind: "abandon",
+            site: key.0.clone(),
+            edge: key.1.clone(),
+            scenario_id: o.push.scenario_id,
+            push_seq: Some(o.push.seq),
+            attempt: o.push.attempts,
+            collision: false,
+            risk_score: 0.0,
+            detail: Some(why.to_owned()),
+        });
+        Ok(())
     }
 
     /// Mutates around the failures stored since the last call; the children stored.
@@ -284,11 +423,116 @@ impl FleetLoop {
         Ok(stored)
     }
 
+    /// The next training run, when the trainer runs, none is in flight and enough new failures
+    /// are in the library; it is then in flight until [`Self::on_trained`].
+    pub fn due_training(&mut self) -> Result<Option<TrainJob>, LibraryError> {
+        let Some(config) = self.trainer.as_ref().filter(|_| !self.training) else { return Ok(None) };
+        let job = trainer::due(&self.library, config)?;
+        self.training = job.is_some();
+        if let Some(job) = &job {
+            tracing::info!("trainer: training version {} ({} fleet failures in the library)", job.version, job.failures);
+        }
+        Ok(job)
+    }
+
+    /// A training run ended: the version is stored with the gate's decision; a version let
+    /// through is deployed (sent to every live vehicle by [`Self::policy_orders`]). A failed run
+    /// stops the trainer, said in the summary; the loop goes on.
+    pub fn on_trained(&mut self, run: Result<(PolicyVersion, GateReport), TrainerError>) -> Result<(), LibraryError> {
+        self.training = false;
+        let (version, report) = match run {
+            Ok(done) => done,
+            Err(e) => {
+                tracing::error!("trainer: stopped: {e}");
+                self.summary.training_error = Some(e.to_string());
+                self.trainer = None;
+                return Ok(());
+            }
+        };
+        self.library.record_policy(&version)?;
+        let figures = |c: &crate::trainer::gate::SetComparison| {
+            (
+                c.candidate.collisions,
+                c.candidate.mean_route_completion,
+                c.deployed.collisions,
+                c.deployed.mean_route_completion,
+            )
+        };
+        self.summary.gate.push(GateLine {
+            version: version.version,
+            pushed: version.pushed,
+            reasons: version.reasons.clone(),
+            failures: version.failures,
+            regression: figures(&report.regression),
+            held_out: figures(&report.held_out),
+        });
+        let verdict = if version.pushed { "pushed" } else { "held back" };
+        tracing::info!("trainer: version {} {verdict}: {}", version.version, version.reasons.join("; "));
+        self.events.push(LoopEvent {
+            kind: if version.pushed { "policy-pushed" } else { "policy-held-back" },
+            site: String::new(),
+            edge: String::new(),
+            scenario_id: String::new(),
+            push_seq: None,
+            attempt: version.version,
+            collision: false,
+            risk_score: 0.0,
+            detail: (!version.reasons.is_empty()).then(|| version.reasons.join("; ")),
+        });
+        if version.pushed {
+            self.deployed = Some(version);
+        }
+        Ok(())
+    }
+
+    /// The deployed version for each live vehicle that has not been sent it.
+    pub fn policy_orders(&self, alive: &[(String, String)]) -> Result<Vec<PolicyOrder>, LibraryError> {
+        let Some(deployed) = &self.deployed else { return Ok(Vec::new()) };
+        let mut orders = Vec::new();
+        for (site, edge) in alive {
+            if !self.library.policy_delivered(deployed.version, site, edge)? {
+                orders.push(PolicyOrder {
+                    site: site.clone(),
+                    edge: edge.clone(),
+                    version: deployed.version,
+                    policy_id: deployed.policy_id.clone(),
+                    algo: deployed.algo.clone(),
+                    weights: deployed.weights.clone(),
+                });
+            }
+        }
+        Ok(orders)
+    }
+
+    /// Notes that `order` went out.
+    pub fn policy_sent(&mut self, order: &PolicyOrder) -> Result<(), LibraryError> {
+        self.library.note_policy_delivered(order.version, &order.site, &order.edge)?;
+        self.summary.policy_pushes += 1;
+        self.events.push(LoopEvent {
+            kind: "policy",
+            site: order.site.clone(),
+            edge: order.edge.clone(),
+            scenario_id: String::new(),
+            push_seq: None,
+            attempt: order.version,
+            collision: false,
+            risk_score: 0.0,
+            detail: None,
+        });
+        Ok(())
+    }
+
+    /// The events since the last call, oldest first.
+    pub fn take_events(&mut self) -> Vec<LoopEvent> {
+        std::mem::take(&mut self.events)
+    }
+
     /// The summary so far, with the library's counts.
     pub fn summary(&self) -> Result<LoopSummary, LibraryError> {
         let mut summary = self.summary.clone();
         summary.library = self.library.fleet_counts()?;
         summary.iteration = IterationTimes::of(&self.iterations_ms.0, &self.iterations_ms.1);
+        summary.deployed_version = self.deployed.as_ref().map(|v| v.version);
         let hours = self.started.elapsed().as_secs_f64() / 3600.0;
         summary.failures_per_hour = if hours > 0.0 { summary.failures as f64 / hours } else { 0.0 };
         Ok(summary)
@@ -303,14 +547,18 @@ impl FleetLoop {
 
     /// The riskiest scenario never pushed, as a push to `site/edge` (noted in the library).
     fn next_push(&mut self, site: &str, edge: &str) -> Result<Option<PushOrder>, LibraryError> {
-        let Some(next) = self.library.riskiest_unpushed()? else {
-            self.summary.exhausted += 1;
+        let key = (site.to_owned(), edge.to_owned());
+        let Some((push, next)) = self.library.start_riskiest_push(site, edge)? else {
+            // Counted once per vehicle and dry spell, not once per idle check.
+            if self.idle_without_scenario.insert(key) {
+                self.summary.exhausted += 1;
+            }
             return Ok(None);
         };
+        self.idle_without_scenario.remove(&key);
         let spec = ScenarioSpec::new(next.kind, next.seed, next.params)
             .map_err(|e| LibraryError::Corrupt { id: next.id.clone(), reason: e.to_string() })?;
         debug_assert_eq!(content_id(&spec), next.id);
-        let push = self.library.start_push(&next.id, site, edge)?;
         let order = PushOrder {
             site: site.to_owned(),
             edge: edge.to_owned(),
@@ -319,7 +567,7 @@ impl FleetLoop {
             spec,
             attempt: 1,
         };
-        self.outstanding.insert((site.to_owned(), edge.to_owned()), Outstanding { push, sent: None });
+        self.outstanding.insert(key, Outstanding { push, sent: None });
         self.summary.pushes += 1;
         Ok(Some(order))
     }
@@ -428,7 +676,7 @@ mod tests {
         let dir = tempfile::tempdir().expect("a temporary directory");
         let path = library(dir.path(), 5);
         let config = LoopConfig { mutants_per_failure: 2, ..LoopConfig::default() };
-        let mut fleet = FleetLoop::open(ScenarioLibrary::open(&path).expect("opens"), config.clone()).expect("a loop");
+        let mut fleet = FleetLoop::open(ScenarioLibrary::open(&path).expect("opens"), config.clone(), None).expect("a loop");
         let now = Instant::now();
         let orders = fleet.on_idle(&alive(&["v1", "v2"]), now).expect("orders");
         assert_eq!(orders.len(), 2, "one push per live vehicle");
@@ -453,7 +701,7 @@ mod tests {
 
         // A crash: the file holds v1's and v2's outstanding pushes; a new loop sends them again.
         drop(fleet);
-        let mut fleet = FleetLoop::open(ScenarioLibrary::open(&path).expect("reopens"), config).expect("a loop");
+        let mut fleet = FleetLoop::open(ScenarioLibrary::open(&path).expect("reopens"), config, None).expect("a loop");
         let resent = fleet.on_idle(&alive(&["v1", "v2"]), Instant::now()).expect("orders");
         let mut seqs: Vec<(i64, u32)> = resent.iter().map(|o| (o.push_seq, o.attempt)).collect();
         seqs.sort_unstable();
@@ -471,7 +719,7 @@ mod tests {
         let dir = tempfile::tempdir().expect("a temporary directory");
         let path = library(dir.path(), 3);
         let config = LoopConfig { result_timeout: Duration::ZERO, max_attempts: 2, ..LoopConfig::default() };
-        let mut fleet = FleetLoop::open(ScenarioLibrary::open(&path).expect("opens"), config).expect("a loop");
+        let mut fleet = FleetLoop::open(ScenarioLibrary::open(&path).expect("opens"), config, None).expect("a loop");
         let first = fleet.on_idle(&alive(&["v1"]), Instant::now()).expect("orders").remove(0);
         fleet.sent(&first, None);
         let again = fleet.on_idle(&alive(&["v1"]), Instant::now()).expect("orders");
@@ -482,6 +730,8 @@ mod tests {
         assert_ne!(after[0].push_seq, first.push_seq, "given up after 2 sends; the next scenario goes");
         let summary = fleet.summary().expect("summary");
         assert_eq!((summary.retries, summary.abandoned, summary.library.abandoned), (1, 1, 1));
+        let kinds: Vec<&str> = fleet.take_events().iter().map(|e| e.kind).collect();
+        assert_eq!(kinds, ["push", "retry", "abandon"], "the events, for the recording");
 
         // A failure reported by the edge is mutated around: its children join the library.
         let mut failed = played(&after[0]);
@@ -494,4 +744,70 @@ mod tests {
         let regression = fleet.library().regression_set().expect("read");
         assert!(regression.iter().any(|case| case.id == after[0].spec_id), "the failure is a regression case");
     }
+
+    /// A gate report with the given decision (the figures do not matter here).
+    fn report(pushed: bool) -> GateReport {
+        use crate::trainer::gate::{Decision, SetComparison, SetSummary};
+        let summary = SetSummary { collisions: 0, successes: 0, mean_route_completion: 0.5 };
+        let set = SetComparison { scenarios: 0, candidate: summary.clone(), deployed: summary, newly_colliding: Vec::new() };
+        GateReport {
+            decision: if pushed { Decision::Push } else { Decision::Hold },
+            reasons: if pushed { Vec::new() } else { vec!["held-out set: worse".into()] },
+            regression: set.clone(),
+            held_out: set,
+            completion_tolerance: 0.02,
+        }
+    }
+
+    #[test]
+    fn training_waits_for_new_failures_and_only_a_version_the_gate_lets_through_goes_out() {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let path = library(dir.path(), 4);
+        let trainer = TrainerConfig { retrain_failures: 1, steps: 1000, held_out_per_kind: 1, seed: 1 };
+        let open = || {
+            let library = ScenarioLibrary::open(&path).expect("opens");
+            FleetLoop::open(library, LoopConfig { mutants_per_failure: 0, ..LoopConfig::default() }, Some(trainer.clone()))
+                .expect("a loop")
+        };
+        let mut fleet = open();
+        assert!(fleet.due_training().expect("checked").is_none(), "no fleet failure yet");
+        let order = fleet.on_idle(&alive(&["v1"]), Instant::now()).expect("orders").remove(0);
+        let mut failed = played(&order);
+        failed.result.metrics.collision = true;
+        fleet.on_episode(&failed, false).expect("stored");
+        let job = fleet.due_training().expect("checked").expect("one failure is enough");
+        assert_eq!((job.version, job.failures, job.deployed.clone()), (1, 1, None));
+        assert!(fleet.due_training().expect("checked").is_none(), "one run at a time");
+
+        let version = |v: u32, pushed: bool| PolicyVersion {
+            version: v,
+            policy_id: trainer::POLICY_ID.into(),
+            algo: "ppo".into(),
+            weights: vec![v as u8; 4],
+            pushed,
+            reasons: report(pushed).reasons,
+            failures: 1,
+        };
+        fleet.on_trained(Ok((version(1, false), report(false)))).expect("stored");
+        assert_eq!(fleet.policy_orders(&alive(&["v1", "v2"])).expect("orders"), [], "held back: nothing goes out");
+        assert!(fleet.due_training().expect("checked").is_none(), "no new failure since version 1");
+        fleet.on_trained(Ok((version(2, true), report(true)))).expect("stored");
+        let orders = fleet.policy_orders(&alive(&["v1", "v2"])).expect("orders");
+        assert_eq!(orders.iter().map(|o| (o.edge.as_str(), o.version)).collect::<Vec<_>>(), [("v1", 2), ("v2", 2)]);
+        fleet.policy_sent(&orders[0]).expect("noted");
+        let summary = fleet.summary().expect("summary");
+        assert_eq!((summary.deployed_version, summary.policy_pushes, summary.gate.len()), (Some(2), 1, 2));
+
+        // After a restart the deployed version is known, and only v2 still needs it.
+        drop(fleet);
+        let fleet = open();
+        let left = fleet.policy_orders(&alive(&["v1", "v2"])).expect("orders");
+        assert_eq!(left.iter().map(|o| (o.edge.as_str(), o.version)).collect::<Vec<_>>(), [("v2", 2)]);
+        // A failed run stops the trainer and says why; the loop goes on.
+        let mut fleet = fleet;
+        fleet.on_trained(Err(TrainerError::EmptyLibrary)).expect("handled");
+        assert!(fleet.summary().expect("summary").training_error.is_some());
+        assert!(fleet.due_training().expect("checked").is_none());
+    }
 }
+

@@ -39,6 +39,25 @@ pub fn markdown(summary: &LoopSummary, episodes: &[StoredFleetEpisode]) -> Strin
     ] {
         let _ = writeln!(md, "| {name} | {value} |");
     }
+    let deployed = summary.deployed_version.map_or("the reference driver".to_owned(), |v| format!("version {v}"));
+    let _ = writeln!(md, "\n## Policy versions (this run; the fleet drives {deployed})\n");
+    let _ = writeln!(
+        md,
+        "| version | fleet failures | decision | regression set: collisions, completion (candidate / deployed) | held-out set: the same | why held back |\n|---|---|---|---|---|---|"
+    );
+    for g in &summary.gate {
+        let set = |(c, cc, d, dc): (usize, f64, usize, f64)| format!("{c}, {cc:.3} / {d}, {dc:.3}");
+        let decision = if g.pushed { "pushed" } else { "held back" };
+        let _ = writeln!(
+            md,
+            "| {} | {} | {decision} | {} | {} | {} |",
+            g.version,
+            g.failures,
+            set(g.regression),
+            set(g.held_out),
+            g.reasons.join("; ")
+        );
+    }
     let _ = writeln!(md, "\n## Fleet episodes\n");
     let _ = writeln!(
         md,

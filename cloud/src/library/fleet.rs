@@ -6,6 +6,7 @@
 use super::connection::ScenarioLibrary;
 use super::error::LibraryError;
 use super::query::{OUTCOME_COLUMNS, outcome_from_row_at};
+use super::rank::RankedScenario;
 use super::record::{DEFAULT_POLICY, Outcome, validate_outcome};
 use super::store::{insert_outcome, outcome_insert_sql};
 use risktwin_common::telemetry::PolicyRef;
@@ -86,6 +87,22 @@ impl ScenarioLibrary {
         let seq = tx.last_insert_rowid();
         tx.commit()?;
         Ok(Push { seq, scenario_id: scenario_id.to_owned(), site: site.to_owned(), edge: edge.to_owned(), attempts: 1 })
+    }
+
+    /// Picks the riskiest scenario never pushed and notes it pushed to `site/edge`, in one
+    /// transaction: two processes on one file cannot push the same scenario. `None` when every
+    /// scenario has been pushed.
+    pub fn start_riskiest_push(&mut self, site: &str, edge: &str) -> Result<Option<(Push, RankedScenario)>, LibraryError> {
+        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let Some(next) = ScenarioLibrary::riskiest_unpushed_in(&tx)? else { return Ok(None) };
+        tx.execute(
+            "INSERT INTO pushes (scenario_id, site, edge, attempts, state) VALUES (?1, ?2, ?3, 1, 'outstanding')",
+            params![next.id, site, edge],
+        )?;
+        let seq = tx.last_insert_rowid();
+        tx.commit()?;
+        let push = Push { seq, scenario_id: next.id.clone(), site: site.to_owned(), edge: edge.to_owned(), attempts: 1 };
+        Ok(Some((push, next)))
     }
 
     /// Counts one more attempt of outstanding push `seq`; its attempts so far.
@@ -256,6 +273,96 @@ impl ScenarioLibrary {
     }
 }
 
+/// A policy version the trainer produced, with the gate's decision.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PolicyVersion {
+    pub version: u32,
+    pub policy_id: String,
+    pub algo: String,
+    /// The safetensors file, as pushed to the edges.
+    pub weights: Vec<u8>,
+    /// Whether the gate let it through (it is then the deployed version until a later one is).
+    pub pushed: bool,
+    /// Why the gate held it back (empty when pushed).
+    pub reasons: Vec<String>,
+    /// Fleet failures in the library when it was trained (the next one waits for more).
+    pub failures: u64,
+}
+
+impl ScenarioLibrary {
+    /// Stores a policy version and the gate's decision on it.
+    pub fn record_policy(&mut self, p: &PolicyVersion) -> Result<(), LibraryError> {
+        let reasons = serde_json::to_string(&p.reasons).expect("strings serialise");
+        self.conn.execute(
+            "INSERT INTO policies (version, policy_id, algo, weights, decision, reasons, failures) \
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+            params![
+                p.version,
+                p.policy_id,
+                p.algo,
+                p.weights,
+                if p.pushed { "pushed" } else { "held-back" },
+                reasons,
+                i64::try_from(p.failures).unwrap_or(i64::MAX)
+            ],
+        )?;
+        Ok(())
+    }
+
+    /// Every policy version, oldest first.
+    pub fn policy_versions(&self) -> Result<Vec<PolicyVersion>, LibraryError> {
+        let mut stmt = self.conn.prepare_cached(
+            "SELECT version, policy_id, algo, weights, decision, reasons, failures FROM policies ORDER BY version",
+        )?;
+        let rows = stmt.query_map([], |r| {
+            Ok((
+                r.get::<_, i64>(0)?,
+                r.get::<_, String>(1)?,
+                r.get::<_, String>(2)?,
+                r.get::<_, Vec<u8>>(3)?,
+                r.get::<_, String>(4)?,
+                r.get::<_, String>(5)?,
+                r.get::<_, i64>(6)?,
+            ))
+        })?;
+        let mut out = Vec::new();
+        for row in rows {
+            let (version, policy_id, algo, weights, decision, reasons, failures) = row?;
+            let corrupt = |reason: String| LibraryError::Corrupt { id: format!("policy version {version}"), reason };
+            let reasons: Vec<String> =
+                serde_json::from_str(&reasons).map_err(|e| corrupt(format!("reasons are not a JSON list: {e}")))?;
+            out.push(PolicyVersion {
+                version: u32::try_from(version).map_err(|_| corrupt("version out of range".into()))?,
+                policy_id,
+                algo,
+                weights,
+                pushed: decision == "pushed",
+                reasons,
+                failures: failures.max(0) as u64,
+            });
+        }
+        Ok(out)
+    }
+
+    /// Notes that policy `version` went to `site/edge`.
+    pub fn note_policy_delivered(&mut self, version: u32, site: &str, edge: &str) -> Result<(), LibraryError> {
+        self.conn.execute(
+            "INSERT INTO policy_pushes (version, site, edge) VALUES (?1, ?2, ?3) ON CONFLICT DO NOTHING",
+            params![version, site, edge],
+        )?;
+        Ok(())
+    }
+
+    /// Whether policy `version` went to `site/edge`.
+    pub fn policy_delivered(&self, version: u32, site: &str, edge: &str) -> Result<bool, LibraryError> {
+        Ok(self.conn.query_row(
+            "SELECT EXISTS (SELECT 1 FROM policy_pushes WHERE version = ?1 AND site = ?2 AND edge = ?3)",
+            params![version, site, edge],
+            |r| r.get(0),
+        )?)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::fixtures::{file_library, outcome, sampled};
@@ -343,5 +450,30 @@ mod tests {
             lib.get(&id).expect("read").expect("held").latest_outcome("ppo/v3").map(|o| o.risk.score),
             Some(0.5)
         );
+    }
+
+    #[test]
+    fn policy_versions_keep_the_gate_decision_and_where_each_went() {
+        let (_dir, mut lib) = file_library();
+        let held = PolicyVersion {
+            version: 1,
+            policy_id: "risktwin-full".into(),
+            algo: "ppo".into(),
+            weights: vec![1, 2, 3],
+            pushed: false,
+            reasons: vec!["held-out set: 3 collisions against 1 of the deployed version".into()],
+            failures: 5,
+        };
+        let pushed = PolicyVersion { version: 2, pushed: true, reasons: Vec::new(), failures: 9, ..held.clone() };
+        lib.record_policy(&held).expect("stored");
+        lib.record_policy(&pushed).expect("stored");
+        assert!(lib.record_policy(&pushed).is_err(), "a version is stored once");
+        assert_eq!(lib.policy_versions().expect("read"), [held, pushed]);
+        assert!(!lib.policy_delivered(2, "s", "v1").expect("read"));
+        lib.note_policy_delivered(2, "s", "v1").expect("noted");
+        lib.note_policy_delivered(2, "s", "v1").expect("noted twice is once");
+        assert!(lib.policy_delivered(2, "s", "v1").expect("read"));
+        assert!(!lib.policy_delivered(2, "s", "v2").expect("read"));
+        assert!(lib.note_policy_delivered(7, "s", "v1").is_err(), "an unknown version");
     }
 }

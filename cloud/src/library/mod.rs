@@ -73,7 +73,7 @@ mod fixtures;
 
 pub use connection::ScenarioLibrary;
 pub use error::{LibraryError, RecordError};
-pub use fleet::{FleetCounts, FleetEpisode, Push, StoredFleetEpisode, policy_label};
+pub use fleet::{FleetCounts, FleetEpisode, PolicyVersion, Push, StoredFleetEpisode, policy_label};
 pub use rank::{RankOutcome, RankedScenario};
 pub use record::{
     DEFAULT_POLICY, InsertSummary, KindCounts, Origin, Outcome, Rejection, ScenarioRecord, StoredScenario, content_id,

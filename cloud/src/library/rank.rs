@@ -5,6 +5,7 @@
 //! order or on SQLite's plan.
 
 use super::connection::ScenarioLibrary;
+use rusqlite::Connection;
 use super::error::LibraryError;
 use super::query::decode_spec;
 use super::record::DEFAULT_POLICY;
@@ -57,7 +58,12 @@ impl ScenarioLibrary {
     /// The riskiest scenario (by the reference driver's latest outcome) never pushed to an
     /// edge: what the loop sends next.
     pub fn riskiest_unpushed(&self) -> Result<Option<RankedScenario>, LibraryError> {
-        Ok(self.rank_where(DEFAULT_POLICY, Some(1), None, true)?.pop())
+        Self::riskiest_unpushed_in(&self.conn)
+    }
+
+    /// [`Self::riskiest_unpushed`] on `conn` (a transaction of the library's connection).
+    pub(super) fn riskiest_unpushed_in(conn: &Connection) -> Result<Option<RankedScenario>, LibraryError> {
+        Ok(rank_on(conn, DEFAULT_POLICY, Some(1), None, true)?.pop())
     }
 
     fn rank_where(
@@ -67,9 +73,49 @@ impl ScenarioLibrary {
         kind: Option<ScenarioKind>,
         unpushed: bool,
     ) -> Result<Vec<RankedScenario>, LibraryError> {
-        // SQLite reads a negative LIMIT as "no limit".
-        let limit = top.map_or(-1, |k| i64::try_from(k).unwrap_or(i64::MAX));
-        let mut stmt = self.conn.prepare_cached(
+        rank_on(&self.conn, policy, top, kind, unpushed)
+    }
+
+    /// The `k` riskiest scenarios, to replay through the pipeline.
+    pub fn select_for_replay(&self, k: usize) -> Result<Vec<RankedScenario>, LibraryError> {
+        self.rank(Some(k), None)
+    }
+
+    /// `k` parents for mutation: failures (collisions) first, then the highest risk.
+    ///
+    /// Equal candidates are ordered by a hash of their id salted from `rng`, so repeated rounds
+    /// with a fresh rng spread over a plateau of equal scores instead of always mutating the
+    /// lexicographically smallest ids; the same rng state gives the same choice.
+    pub fn select_for_mutation(&self, k: usize, rng: &mut Rng) -> Result<Vec<RankedScenario>, LibraryError> {
+        let salt = rng.next_u64();
+        let mut all = self.rank(None, None)?;
+        let tie_key = |id: &str| Rng::derive(salt, fnv1a64(id.bytes())).next_u64();
+        all.sort_by(|a, b| {
+            b.outcome
+                .collision
+                .cmp(&a.outcome.collision)
+                .then(b.risk.score.total_cmp(&a.risk.score))
+                .then_with(|| tie_key(&a.id).cmp(&tie_key(&b.id)))
+                .then_with(|| a.id.cmp(&b.id))
+        });
+        all.truncate(k);
+        Ok(all)
+    }
+}
+
+
+/// The ranking on `conn`: by `policy`'s latest outcome, highest risk first, ties by id; of one
+/// kind or all; only scenarios never pushed when `unpushed`.
+fn rank_on(
+    conn: &Connection,
+    policy: &str,
+    top: Option<usize>,
+    kind: Option<ScenarioKind>,
+    unpushed: bool,
+) -> Result<Vec<RankedScenario>, LibraryError> {
+    // SQLite reads a negative LIMIT as "no limit".
+    let limit = top.map_or(-1, |k| i64::try_from(k).unwrap_or(i64::MAX));
+    let mut stmt = conn.prepare_cached(
             "SELECT s.id, s.kind, s.seed, s.params, \
                     o.risk_score, o.risk_ttc, o.risk_dist, o.risk_lane, o.risk_jerk, o.risk_collision, \
                     o.collision, o.min_ttc_s, o.min_distance_m \
@@ -120,33 +166,6 @@ impl ScenarioLibrary {
             )
             .collect()
     }
-
-    /// The `k` riskiest scenarios, to replay through the pipeline.
-    pub fn select_for_replay(&self, k: usize) -> Result<Vec<RankedScenario>, LibraryError> {
-        self.rank(Some(k), None)
-    }
-
-    /// `k` parents for mutation: failures (collisions) first, then the highest risk.
-    ///
-    /// Equal candidates are ordered by a hash of their id salted from `rng`, so repeated rounds
-    /// with a fresh rng spread over a plateau of equal scores instead of always mutating the
-    /// lexicographically smallest ids; the same rng state gives the same choice.
-    pub fn select_for_mutation(&self, k: usize, rng: &mut Rng) -> Result<Vec<RankedScenario>, LibraryError> {
-        let salt = rng.next_u64();
-        let mut all = self.rank(None, None)?;
-        let tie_key = |id: &str| Rng::derive(salt, fnv1a64(id.bytes())).next_u64();
-        all.sort_by(|a, b| {
-            b.outcome
-                .collision
-                .cmp(&a.outcome.collision)
-                .then(b.risk.score.total_cmp(&a.risk.score))
-                .then_with(|| tie_key(&a.id).cmp(&tie_key(&b.id)))
-                .then_with(|| a.id.cmp(&b.id))
-        });
-        all.truncate(k);
-        Ok(all)
-    }
-}
 
 #[cfg(test)]
 mod tests {

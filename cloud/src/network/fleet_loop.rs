@@ -3,7 +3,8 @@
 //! hands each finished episode, with the twin's ticks of it, to the task here; the task runs
 //! [`FleetLoop`] and sends the scenarios it decides on to the edges' push keys
 //! (`…/<edge>/scenario`), starting the twin's watch first so that no tick of the episode is
-//! missed. Live vehicles are the edges whose liveliness token is up and whose `state` stream
+//! missed; with the trainer, training runs go to a thread of their own and the version the gate
+//! lets through goes to every live vehicle (`…/<edge>/policy`). Live vehicles are the edges whose liveliness token is up and whose `state` stream
 //! the ingest has received (an RSU has none, and runs no pushed scenario).
 //!
 //! A result that does not decode, or whose header names another source than its key, is
@@ -13,10 +14,13 @@ use super::CloudError;
 use super::liveliness::LivenessLog;
 use super::push::header;
 use super::receive::LiveIngest;
-use crate::fleet_loop::{FleetLoop, LoopSummary, PushOrder};
+use crate::fleet_loop::{FleetLoop, LoopSummary, PolicyOrder, PushOrder};
+use crate::library::PolicyVersion;
+use crate::trainer::TrainerError;
+use crate::trainer::gate::GateReport;
 use crate::twin::watch::WatchedEpisode;
-use risktwin_common::telemetry::{ScenarioPush, ScenarioResult};
-use risktwin_protos::{decode_tagged, encode};
+use risktwin_common::telemetry::{PolicyUpdate, ScenarioPush, ScenarioResult};
+use risktwin_protos::{decode_tagged, encode, v1};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report_all, parse_edge_report_key};
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
@@ -125,6 +129,9 @@ pub(crate) async fn start(
     Ok(LoopRole { results, task, counts })
 }
 
+/// A training run on its own thread.
+type Training = JoinHandle<Result<(PolicyVersion, GateReport), TrainerError>>;
+
 /// The loop's task, until `shutdown` fires.
 async fn drive(
     session: Session,
@@ -136,75 +143,114 @@ async fn drive(
 ) -> Result<LoopSummary, CloudError> {
     let mut pushes = Pushes { session, publishers: HashMap::new(), sent: 0 };
     let mut idle = tokio::time::interval(IDLE_PERIOD);
+    let mut training: Option<Training> = None;
     let failed = |e: &dyn std::fmt::Display| tracing::error!("loop: stopped: {e}");
     loop {
         tokio::select! {
             episode = episodes.recv() => {
                 let Some(episode) = episode else { break };
                 let key = (episode.site.clone(), episode.edge.clone());
-                let alive = lock(&liveness).alive().contains(&key);
+                let alive = live_vehicles(&ingest, &liveness).contains(&key);
                 let order = fleet.on_episode(&episode, alive).inspect_err(|e| failed(e))?;
                 if let Some(order) = order {
-                    pushes.send(&order, &ingest).await.inspect_err(|e| failed(e))?;
+                    pushes.scenario(&order, &ingest).await.inspect_err(|e| failed(e))?;
                     fleet.sent(&order, Some(&episode));
                 }
                 // After the next push is out: the children rank in for the pushes after it.
                 fleet.mutate_failures().inspect_err(|e| failed(e))?;
+                if training.is_none()
+                    && let Some(job) = fleet.due_training().inspect_err(|e| failed(e))?
+                {
+                    training = Some(tokio::task::spawn_blocking(move || job.run()));
+                }
+                record(&mut fleet, &ingest, &liveness);
+            }
+            done = async { training.as_mut().expect("guarded by the condition").await }, if training.is_some() => {
+                training = None;
+                let run = done.map_err(|e| super::join_error("training", e))?;
+                fleet.on_trained(run).inspect_err(|e| failed(e))?;
+                record(&mut fleet, &ingest, &liveness);
             }
             _ = idle.tick() => {
-                let alive: Vec<(String, String)> = {
-                    let ingest = lock(&ingest);
-                    lock(&liveness).alive().into_iter().filter(|(_, edge)| ingest.states_from(edge) > 0).collect()
-                };
+                let alive = live_vehicles(&ingest, &liveness);
+                for order in fleet.policy_orders(&alive).inspect_err(|e| failed(e))? {
+                    pushes.policy(&order).await.inspect_err(|e| failed(e))?;
+                    fleet.policy_sent(&order).inspect_err(|e| failed(e))?;
+                }
                 for order in fleet.on_idle(&alive, Instant::now()).inspect_err(|e| failed(e))? {
-                    pushes.send(&order, &ingest).await.inspect_err(|e| failed(e))?;
+                    pushes.scenario(&order, &ingest).await.inspect_err(|e| failed(e))?;
                     fleet.sent(&order, None);
                 }
+                record(&mut fleet, &ingest, &liveness);
             }
             () = shutdown.wait() => break,
         }
+    }
+    // Episodes already handed on are stored (no next push goes out any more).
+    while let Ok(episode) = episodes.try_recv() {
+        fleet.on_episode(&episode, false)?;
+    }
+    // A run in flight is waited for and its version kept (deployed on the next start).
+    if let Some(run) = training {
+        fleet.on_trained(run.await.map_err(|e| super::join_error("training", e))?)?;
+        record(&mut fleet, &ingest, &liveness);
     }
     pushes.close().await?;
     Ok(fleet.finish()?)
 }
 
-/// The publishers of the edges' scenario keys, declared on first use.
+/// The live vehicles: edges whose liveliness token is up and whose `state` stream the ingest has
+/// received (an RSU has none).
+fn live_vehicles(ingest: &Mutex<LiveIngest>, liveness: &Mutex<LivenessLog>) -> Vec<(String, String)> {
+    let ingest = lock(ingest);
+    lock(liveness).alive().into_iter().filter(|(site, edge)| ingest.states_from(site, edge) > 0).collect()
+}
+
+/// Records the loop's events into the cloud's recording (when it records): each on its
+/// site's loop topic; a fleet-wide one (a gate decision) on that of every site with a live edge.
+fn record(fleet: &mut FleetLoop, ingest: &Mutex<LiveIngest>, liveness: &Mutex<LivenessLog>) {
+    let events = fleet.take_events();
+    if events.is_empty() {
+        return;
+    }
+    let mut sites: Vec<String> = lock(liveness).alive().into_iter().map(|(site, _)| site).collect();
+    sites.dedup();
+    let mut ingest = lock(ingest);
+    for (seq, e) in events.into_iter().enumerate() {
+        let event = v1::LoopEvent {
+            header: Some((&header(seq as u64)).into()),
+            kind: e.kind.to_owned(),
+            edge: e.edge,
+            scenario_id: e.scenario_id,
+            push_seq: e.push_seq.unwrap_or(0),
+            attempt: e.attempt,
+            collision: e.collision,
+            risk_score: e.risk_score,
+            detail: e.detail.unwrap_or_default(),
+        };
+        let on: &[String] = if e.site.is_empty() { &sites } else { std::slice::from_ref(&e.site) };
+        for site in on {
+            if let Err(err) = ingest.record_loop_event(site, &event) {
+                // The recording failing must not stop the loop; the ingest reports the same file.
+                tracing::error!("loop: recording an event failed: {err}");
+            }
+        }
+    }
+}
+
+/// The publishers of the edges' push keys, declared on first use.
 struct Pushes {
     session: Session,
-    publishers: HashMap<(String, String), Publisher<'static>>,
+    publishers: HashMap<(String, String, CloudToEdge), Publisher<'static>>,
     sent: u64,
 }
 
 impl Pushes {
     /// Starts the twin's watch of `order`'s episode, then sends it.
-    async fn send(&mut self, order: &PushOrder, ingest: &Mutex<LiveIngest>) -> Result<(), CloudError> {
-        let key = (order.site.clone(), order.edge.clone());
-        if !self.publishers.contains_key(&key) {
-            let bad_id = |e: risktwin_transport::keyexpr::KeyError| TransportError::Declare {
-                what: "publisher",
-                key: format!("{}/{}", order.site, order.edge),
-                reason: e.to_string(),
-            };
-            let site = SiteId::new(order.site.clone()).map_err(bad_id)?;
-            let edge = SourceId::new(order.edge.clone()).map_err(bad_id)?;
-            let push_key = cloud_to_edge(&site, &edge, CloudToEdge::Scenario);
-            let publisher = self
-                .session
-                .declare_publisher(push_key.clone())
-                .encoding(protobuf(CloudToEdge::Scenario.message()))
-                .congestion_control(CongestionControl::Block)
-                .await
-                .map_err(|e| TransportError::Declare { what: "publisher", key: push_key, reason: e.to_string() })?;
-            self.publishers.insert(key.clone(), publisher);
-        }
+    async fn scenario(&mut self, order: &PushOrder, ingest: &Mutex<LiveIngest>) -> Result<(), CloudError> {
         lock(ingest).watch_episode(&order.site, &order.edge, &order.spec_id, &order.spec, Some(order.push_seq));
         let push = ScenarioPush { header: header(self.sent), spec_id: order.spec_id.clone(), spec: order.spec.clone() };
-        self.sent += 1;
-        let publisher = &self.publishers[&key];
-        publisher
-            .put(encode(&push))
-            .await
-            .map_err(|e| TransportError::Put { key: publisher.key_expr().to_string(), reason: e.to_string() })?;
+        self.put(&order.site, &order.edge, CloudToEdge::Scenario, encode(&push)).await?;
         tracing::info!(
             "loop: pushed scenario {} to {}/{} (push {}, attempt {})",
             order.spec_id,
@@ -213,6 +259,47 @@ impl Pushes {
             order.push_seq,
             order.attempt
         );
+        Ok(())
+    }
+
+    /// Sends a policy version.
+    async fn policy(&mut self, order: &PolicyOrder) -> Result<(), CloudError> {
+        let update = PolicyUpdate {
+            header: header(self.sent),
+            policy_id: order.policy_id.clone(),
+            version: order.version,
+            algo: order.algo.clone(),
+            weights: order.weights.clone(),
+        };
+        self.put(&order.site, &order.edge, CloudToEdge::Policy, encode(&update)).await?;
+        tracing::info!("loop: pushed policy {} version {} to {}/{}", order.policy_id, order.version, order.site, order.edge);
+        Ok(())
+    }
+
+    async fn put(&mut self, site: &str, edge: &str, push: CloudToEdge, payload: Vec<u8>) -> Result<(), CloudError> {
+        let key = (site.to_owned(), edge.to_owned(), push);
+        if !self.publishers.contains_key(&key) {
+            let bad_id = |e: risktwin_transport::keyexpr::KeyError| TransportError::Declare {
+                what: "publisher",
+                key: format!("{site}/{edge}"),
+                reason: e.to_string(),
+            };
+            let push_key = cloud_to_edge(&SiteId::new(site).map_err(bad_id)?, &SourceId::new(edge).map_err(bad_id)?, push);
+            let publisher = self
+                .session
+                .declare_publisher(push_key.clone())
+                .encoding(protobuf(push.message()))
+                .congestion_control(CongestionControl::Block)
+                .await
+                .map_err(|e| TransportError::Declare { what: "publisher", key: push_key, reason: e.to_string() })?;
+            self.publishers.insert(key.clone(), publisher);
+        }
+        self.sent += 1;
+        let publisher = &self.publishers[&key];
+        publisher.put(payload).await.map_err(|e| TransportError::Put {
+            key: publisher.key_expr().to_string(),
+            reason: e.to_string(),
+        })?;
         Ok(())
     }
 

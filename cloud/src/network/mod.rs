@@ -21,10 +21,13 @@
 //!
 //! - `loop` (needs `twin` and `--db`): the closed loop over the fleet ([`fleet_loop`]): pushes
 //!   the library's riskiest untested scenarios to live vehicles, stores what comes back (the
-//!   edge's outcome beside the twin's) and mutates around failures.
+//!   edge's outcome beside the twin's) and mutates around failures;
+//! - `trainer` (needs `loop`): retrains a policy on the library when enough new fleet failures
+//!   are in, gates it against the deployed version and has the loop push the versions it lets
+//!   through ([`crate::fleet_loop::trainer`]).
 //!
 //! With `--record`, the twin's scene and risk outputs are recorded next to the accepted edge
-//! messages, under their keys. `trainer` is not built yet.
+//! messages, under their keys.
 
 pub mod criticality;
 pub mod edges;
@@ -38,6 +41,7 @@ mod scene;
 #[cfg(test)]
 mod wire_tests;
 
+use crate::fleet_loop::trainer::TrainerConfig;
 use crate::fleet_loop::{FleetLoop, LoopConfig};
 use crate::library::ScenarioLibrary;
 use crate::twin::outputs::{TwinOutputs, TwinSummary};
@@ -72,7 +76,7 @@ pub enum Role {
     Criticality,
     /// The closed loop over the fleet.
     Loop,
-    /// Policy training (not built yet).
+    /// Policy retraining on the library, gated before every push (with `loop`).
     Trainer,
 }
 
@@ -111,8 +115,6 @@ impl std::str::FromStr for Role {
 pub enum CloudError {
     #[error("role {role:?} is not one of ingest, twin, risk, library, criticality, loop, trainer")]
     UnknownRole { role: String },
-    #[error("role {role:?} is not built yet; available: ingest, twin, risk, library, criticality, loop")]
-    RoleNotBuilt { role: String },
     #[error("role {role:?} needs role {needs:?} in the same process (e.g. --roles ingest,twin,risk)")]
     RoleNeeds { role: &'static str, needs: &'static str },
     #[error("role {role} needs --db FILE")]
@@ -164,6 +166,8 @@ pub struct CloudConfig {
     pub criticality: Option<CriticalityConfig>,
     /// How the `loop` role behaves.
     pub fleet_loop: LoopConfig,
+    /// How the `trainer` role trains and gates.
+    pub trainer: TrainerConfig,
 }
 
 impl CloudConfig {
@@ -183,6 +187,7 @@ impl CloudConfig {
             db: None,
             criticality: None,
             fleet_loop: LoopConfig::default(),
+            trainer: TrainerConfig::default(),
         }
     }
 
@@ -195,10 +200,7 @@ impl CloudConfig {
         if self.roles.is_empty() {
             return Err(CloudError::NoRole);
         }
-        if let Some(role) = self.roles.iter().find(|r| **r == Role::Trainer) {
-            return Err(CloudError::RoleNotBuilt { role: role.name().to_owned() });
-        }
-        for (role, needs) in [(Role::Twin, Role::Ingest), (Role::Risk, Role::Twin), (Role::Loop, Role::Twin)] {
+        for (role, needs) in [(Role::Twin, Role::Ingest), (Role::Risk, Role::Twin), (Role::Loop, Role::Twin), (Role::Trainer, Role::Loop)] {
             if self.has(role) && !self.has(needs) {
                 return Err(CloudError::RoleNeeds { role: role.name(), needs: needs.name() });
             }
@@ -249,7 +251,10 @@ pub async fn run(
     let library = config.db.as_ref().filter(|_| config.has(Role::Library)).map(ScenarioLibrary::open).transpose()?;
     let risk = if config.has(Role::Risk) { Some(RiskAssessor::new(config.road.clone(), config.risk)?) } else { None };
     let fleet = match config.db.as_ref().filter(|_| config.has(Role::Loop)) {
-        Some(db) => Some(FleetLoop::open(ScenarioLibrary::open(db)?, config.fleet_loop.clone())?),
+        Some(db) => {
+            let trainer = config.has(Role::Trainer).then(|| config.trainer.clone());
+            Some(FleetLoop::open(ScenarioLibrary::open(db)?, config.fleet_loop.clone(), trainer)?)
+        }
         None => None,
     };
     let empty = CloudSummary {

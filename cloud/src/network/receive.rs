@@ -84,11 +84,15 @@ pub enum RecordError {
 }
 
 /// Schema names of the cloud outputs, as recorded (for readers of a recording).
-pub const OUTPUT_SCHEMAS: [(CloudOutput, &str); 3] = [
+pub const OUTPUT_SCHEMAS: [(CloudOutput, &str); 4] = [
     (CloudOutput::RiskField, FOXGLOVE_GRID),
     (CloudOutput::RiskReport, "risktwin.v1.RiskReport"),
     (CloudOutput::Scene, FOXGLOVE_SCENE_UPDATE),
+    (CloudOutput::Loop, LOOP_EVENT),
 ];
+
+/// The schema of the loop's events in a recording.
+const LOOP_EVENT: &str = "risktwin.v1.LoopEvent";
 
 /// One message for the publisher task.
 #[derive(Debug, Clone, PartialEq)]
@@ -315,10 +319,21 @@ impl LiveIngest {
         self.forward_episodes();
     }
 
-    /// The number of state messages accepted from `source` so far (a vehicle has some, an RSU
-    /// none).
-    pub(crate) fn states_from(&self, source: &str) -> u64 {
+    /// The number of state messages accepted from `source` of `site` so far (a vehicle has
+    /// some, an RSU none).
+    pub(crate) fn states_from(&self, site: &str, source: &str) -> u64 {
+        if self.sites.get(source).is_none_or(|s| s != site) {
+            return 0;
+        }
         self.received.get(source).map_or(0, |c| c[EdgeStream::State.index()])
+    }
+
+    /// Records one event of the loop (when recording) on `site`'s loop topic, stamped now.
+    pub(crate) fn record_loop_event(&mut self, site: &str, event: &risktwin_protos::v1::LoopEvent) -> Result<(), RecordingError> {
+        let (Some(rec), Ok(site)) = (self.worker.recorder_mut(), SiteId::new(site)) else { return Ok(()) };
+        let log_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64);
+        let channel = rec.channel(&cloud_output(&site, CloudOutput::Loop), LOOP_EVENT)?;
+        rec.write(channel, log_ns, log_ns, &prost::Message::encode_to_vec(event))
     }
 
     /// The twin's watch of pushed episodes, so far.

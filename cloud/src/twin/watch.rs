@@ -18,11 +18,11 @@ use std::time::Instant;
 
 /// Ticks kept per watched episode (4 minutes of 20 Hz ticks); older ones are dropped, counted.
 pub const MAX_VIEWS: usize = 4_800;
-/// State messages kept per watched edge (the episode's last one arrives with or before the
-/// result: 0.3 s of 50 Hz state).
-const RAW_STATES: usize = 16;
+/// State messages kept per watched edge before its result names the last one (1.3 s of 50 Hz
+/// state; after the result only the episode's own are taken).
+const RAW_STATES: usize = 64;
 /// How long after the result the twin may still be catching up with the episode's end, ns of
-/// twin time (the aligner's lateness is 100 ms).
+/// twin time (the aligner waits out its lateness, 30 ms by default).
 pub const SETTLE_NS: i64 = 1_000_000_000;
 
 /// One episode under watch.
@@ -97,9 +97,15 @@ pub struct EpisodeWatch {
 impl EpisodeWatch {
     /// Starts watching `site/edge` for the episode of `spec` (library id `spec_id`), pushed now.
     pub fn begin(&mut self, site: &str, edge: &str, spec_id: &str, spec: &ScenarioSpec, push_seq: Option<i64>) {
-        let before = self.watched.len();
-        self.watched.retain(|w| w.site != site || w.edge != edge);
-        self.counts.replaced += (before - self.watched.len()) as u64;
+        // A watch the new push replaces: one with its result is handed on with what it saw.
+        while let Some(k) = self.watched.iter().position(|w| w.site == site && w.edge == edge) {
+            let old = self.watched.swap_remove(k);
+            if old.result.is_some() {
+                self.finish(old);
+            } else {
+                self.counts.replaced += 1;
+            }
+        }
         self.watched.push(Watched {
             site: site.to_owned(),
             edge: edge.to_owned(),
@@ -139,12 +145,12 @@ impl EpisodeWatch {
         let mut k = 0;
         while k < self.watched.len() {
             let w = &mut self.watched[k];
-            if let Some(site) = twin.site(&w.site).filter(|s| s.vehicles.iter().any(|v| *v.source == *w.edge)) {
+            if let Some(view) = twin.site(&w.site).and_then(|site| own_view(site, &w.edge)) {
                 if w.views.len() == MAX_VIEWS {
                     w.views.pop_front();
                     self.counts.views_dropped += 1;
                 }
-                w.views.push_back((tick_ns, site.clone()));
+                w.views.push_back((tick_ns, view));
             }
             if w.is_settled(tick_ns) {
                 let w = self.watched.swap_remove(k);
@@ -221,14 +227,24 @@ impl Watched {
     }
 }
 
+/// What a pushed episode's vehicle is scored against at a tick: the vehicle and what it
+/// perceived itself. A pushed scenario is the vehicle's own world: the site's other vehicles and
+/// roadside units drive and watch other worlds on the same coordinates, and would be phantoms
+/// in it. `None` when the vehicle is not in the twin at this tick.
+fn own_view(site: &SiteTwin, edge: &str) -> Option<SiteTwin> {
+    let vehicle = site.vehicles.iter().find(|v| *v.source == *edge)?;
+    let objects = site.objects.iter().filter(|o| *o.observer == *edge).cloned().collect();
+    Some(SiteTwin { vehicles: vec![vehicle.clone()], objects })
+}
+
 /// The seqs of the state messages `edge`'s kinematics come from at a tick.
 fn edge_seqs(site: &SiteTwin, edge: &str) -> Option<(u64, u64)> {
     site.vehicles.iter().find(|v| *v.source == *edge).map(|v| v.kinematics.seqs)
 }
 
 /// The ticks of the episode published on state messages `first..=last`: every tick made only of
-/// those messages, then the first tick after the end with the vehicle at its last message (the
-/// episode's final state, as received).
+/// those messages, then (unless one of them already showed the last message) the first tick
+/// after the end with the vehicle at its last message (the episode's final state, as received).
 fn episode_views(
     views: VecDeque<(i64, SiteTwin)>,
     raw: &VecDeque<ObservedKinematics>,
@@ -239,7 +255,13 @@ fn episode_views(
     let mut episode = Vec::new();
     for (tick_ns, mut site) in views {
         match edge_seqs(&site, edge) {
-            Some((a, b)) if first <= a && b <= last => episode.push((tick_ns, site)),
+            Some((a, b)) if first <= a && b <= last => {
+                episode.push((tick_ns, site));
+                if a == last {
+                    // This tick already shows the final state as it is.
+                    break;
+                }
+            }
             Some((a, b)) if a <= last && last < b && first <= a => {
                 let Some(state) = final_state else { break };
                 if let Some(v) = site.vehicles.iter_mut().find(|v| *v.source == *edge) {

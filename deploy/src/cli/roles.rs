@@ -102,7 +102,7 @@ pub struct EdgeArgs {
 #[derive(Debug, Args)]
 pub struct CloudArgs {
     /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db),
-    /// criticality (needs --criticality-out), loop (needs twin and --db).
+    /// criticality (needs --criticality-out), loop (needs twin and --db), trainer (needs loop).
     #[arg(long, default_value = "ingest", value_delimiter = ',')]
     pub roles: Vec<String>,
     /// Serve one site only (default: every site).
@@ -126,6 +126,22 @@ pub struct CloudArgs {
     /// The loop role writes its report here on shutdown (Markdown).
     #[arg(long, value_name = "FILE.md")]
     pub loop_report: Option<PathBuf>,
+    /// The loop role mutates this many children around each failure.
+    #[arg(long, default_value_t = 4)]
+    pub mutants_per_failure: u64,
+    /// The trainer role trains the next policy version once this many new fleet failures are
+    /// in the library.
+    #[arg(long, default_value_t = 5)]
+    pub retrain_failures: u64,
+    /// Environment steps of each training run of the trainer role.
+    #[arg(long, default_value_t = 200_000)]
+    pub train_steps: u64,
+    /// Held-out scenarios per kind the trainer's regression gate drives.
+    #[arg(long, default_value_t = 6)]
+    pub held_out_per_kind: usize,
+    /// Seed of the trainer's held-out set and runs (version V trains with seed + V).
+    #[arg(long, default_value_t = 1)]
+    pub train_seed: u64,
     /// The risk role evaluates on the road of this scenario kind (the edges' `--kind`).
     #[arg(long, default_value = "cut-in")]
     pub road: String,

@@ -4,7 +4,8 @@
 //! subscriptions are in place. `--roles ingest,twin,risk` adds the live twin and risk on it,
 //! `--roles library --db FILE` the library queryable, `--roles criticality --criticality-out
 //! FILE.csv|json [--ego ID]` the criticality of a replayed CommonRoad scenario, written on exit,
-//! `--roles ingest,twin,loop --db FILE [--loop-report FILE.md]` the closed loop over the fleet.
+//! `--roles ingest,twin,loop[,trainer] --db FILE [--loop-report FILE.md]` the closed loop over
+//! the fleet, with policy retraining and the regression gate.
 //! Also `risktwin bench zenoh|latency`.
 
 use super::router::{transport_config, with_signals};
@@ -14,6 +15,7 @@ use crate::output::{Format, print_json, print_table};
 use risktwin_bench::latency::{LatencyConfig, latency};
 use risktwin_bench::zenoh_throughput::{BenchConfig, throughput};
 use risktwin_cloud::network::criticality::{CriticalityConfig, CriticalityRoleError};
+use risktwin_cloud::fleet_loop::trainer::TrainerConfig;
 use risktwin_cloud::network::{CloudConfig, CloudError, Role, run};
 use risktwin_common::align::IngestConfig;
 use risktwin_common::scenario::ScenarioKind;
@@ -38,6 +40,25 @@ pub fn cloud(args: CloudArgs) -> CliResult {
         return Err(CliError::input(format!("--push-timeout-s {} must lie in [0.1, 86400]", args.push_timeout_s)));
     }
     config.fleet_loop.result_timeout = Duration::from_secs_f64(args.push_timeout_s);
+    if args.mutants_per_failure > 100 {
+        return Err(CliError::input(format!("--mutants-per-failure {} must lie in [0, 100]", args.mutants_per_failure)));
+    }
+    config.fleet_loop.mutants_per_failure = args.mutants_per_failure;
+    if args.retrain_failures == 0 {
+        return Err(CliError::input("--retrain-failures 0: must be positive"));
+    }
+    if !(1_000..=100_000_000).contains(&args.train_steps) {
+        return Err(CliError::input(format!("--train-steps {} must lie in [1000, 100000000]", args.train_steps)));
+    }
+    if !(1..=1000).contains(&args.held_out_per_kind) {
+        return Err(CliError::input(format!("--held-out-per-kind {} must lie in [1, 1000]", args.held_out_per_kind)));
+    }
+    config.trainer = TrainerConfig {
+        retrain_failures: args.retrain_failures,
+        steps: args.train_steps,
+        held_out_per_kind: args.held_out_per_kind,
+        seed: args.train_seed,
+    };
     if args.loop_report.is_some() && !config.roles.contains(&Role::Loop) {
         return Err(CliError::input("--loop-report needs the loop role (--roles ingest,twin,loop --db FILE)"));
     }

@@ -1,0 +1,128 @@
+//! The `trainer` role's work: once enough new fleet failures are in the library, a policy is
+//! trained on the library (the `full` variant: the library's riskiest scenarios replayed among
+//! fresh samples, with the risk-shaped reward) and put through the regression gate against the
+//! version deployed now (the reference driver before the first). The decision is stored with the
+//! version in `policies`; only a version the gate lets through is pushed to the fleet.
+//!
+//! A run takes seconds, so it runs on a thread of its own with its own connection to the
+//! library file, while the loop goes on.
+
+use crate::library::{LibraryError, PolicyVersion, ScenarioLibrary};
+use crate::trainer::gate::{Decision, Driver, GateReport, gate};
+use crate::trainer::{HeldOut, TrainerError, TrainingPlan, train_variant};
+use risktwin_common::env::Variant;
+use risktwin_learn::{Algo, PolicyNet};
+use std::path::{Path, PathBuf};
+
+/// The policy id of the versions the trainer produces.
+pub const POLICY_ID: &str = "risktwin-full";
+
+/// How the trainer trains and gates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainerConfig {
+    /// New fleet failures (collision or leaving the road, as the edges reported) since the last
+    /// version that start the next training.
+    pub retrain_failures: u64,
+    /// Environment steps per training run.
+    pub steps: u64,
+    /// Held-out scenarios per kind the gate drives.
+    pub held_out_per_kind: usize,
+    /// Seed of the held-out set and of the training runs (version `v` trains with `seed + v`).
+    pub seed: u64,
+}
+
+impl Default for TrainerConfig {
+    fn default() -> Self {
+        TrainerConfig { retrain_failures: 5, steps: 200_000, held_out_per_kind: 6, seed: 1 }
+    }
+}
+
+impl TrainerConfig {
+    /// The training plan of one run: PPO, one phase (the library is read once, at the start), the
+    /// riskiest 60 and 30 other library scenarios replayed in half the episodes.
+    pub fn plan(&self) -> TrainingPlan {
+        TrainingPlan {
+            algo: Algo::Ppo,
+            steps: self.steps,
+            n_envs: 32,
+            phases: 1,
+            curve_points: 1,
+            replay_top: 60,
+            background: 30,
+            replay_share: 0.5,
+            mutations: 0,
+            mutation_radius: 0.1,
+            threads: 1,
+        }
+    }
+}
+
+/// One training run to do.
+#[derive(Debug, Clone)]
+pub struct TrainJob {
+    pub db: PathBuf,
+    pub version: u32,
+    /// The version deployed now; `None`: the reference driver.
+    pub deployed: Option<PolicyVersion>,
+    pub failures: u64,
+    pub config: TrainerConfig,
+}
+
+impl TrainJob {
+    /// Trains version `version` and gates it (blocking: seconds). The version is not stored:
+    /// the loop stores it with its decision.
+    pub fn run(self) -> Result<(PolicyVersion, GateReport), TrainerError> {
+        let mut library = ScenarioLibrary::open(&self.db)?;
+        let held_out = HeldOut::new(self.config.seed, self.config.held_out_per_kind);
+        let seed = self.config.seed.wrapping_add(u64::from(self.version));
+        let plan = self.config.plan();
+        let trained = train_variant(&plan, Variant::Full, seed, &mut library, &held_out, &mut |_, _| {})?;
+        let dir = tempfile::tempdir().map_err(|e| io_error("a temporary directory", &e))?;
+        let weights = policy_bytes(&trained.policy, &dir.path().join("candidate.safetensors"))?;
+        let deployed = match &self.deployed {
+            Some(v) => Some(policy_from(&v.weights, &dir.path().join("deployed.safetensors"))?),
+            None => None,
+        };
+        let driver = deployed.as_ref().map_or(Driver::Reference, Driver::Policy);
+        let report = gate(&library, &trained.policy, driver, &held_out, plan.threads)?;
+        let version = PolicyVersion {
+            version: self.version,
+            policy_id: POLICY_ID.to_owned(),
+            algo: plan.algo.name().to_owned(),
+            weights,
+            pushed: report.decision == Decision::Push,
+            reasons: report.reasons.clone(),
+            failures: self.failures,
+        };
+        Ok((version, report))
+    }
+}
+
+fn io_error(what: &str, e: &std::io::Error) -> TrainerError {
+    TrainerError::BadPlan(format!("{what}: {e}"))
+}
+
+/// The policy's safetensors file, as bytes (written through `path`).
+fn policy_bytes(policy: &PolicyNet, path: &Path) -> Result<Vec<u8>, TrainerError> {
+    policy.save(path)?;
+    std::fs::read(path).map_err(|e| io_error("reading the trained policy back", &e))
+}
+
+/// The policy of a stored safetensors file (written out to `path` to load it).
+fn policy_from(weights: &[u8], path: &Path) -> Result<PolicyNet, TrainerError> {
+    std::fs::write(path, weights).map_err(|e| io_error("writing the deployed policy out", &e))?;
+    Ok(PolicyNet::load(path)?)
+}
+
+/// The next job, if `library` has enough new failures since the last version.
+pub fn due(library: &ScenarioLibrary, config: &TrainerConfig) -> Result<Option<TrainJob>, LibraryError> {
+    let versions = library.policy_versions()?;
+    let failures = library.fleet_counts()?.failures;
+    let since = versions.last().map_or(0, |v| v.failures);
+    if failures < since + config.retrain_failures {
+        return Ok(None);
+    }
+    let version = versions.last().map_or(1, |v| v.version + 1);
+    let deployed = versions.into_iter().rev().find(|v| v.pushed);
+    Ok(Some(TrainJob { db: library.path().to_path_buf(), version, deployed, failures, config: config.clone() }))
+}

@@ -16,6 +16,8 @@ use std::time::{Duration, Instant};
 const STEP: Duration = Duration::from_secs(60);
 /// An episode lasts at most 15 s of scene at the edge's real-time default rate.
 const EPISODES: Duration = Duration::from_secs(90);
+/// The trainer of the passing test: found to pass the gate on this library.
+const TRAINED: &[&str] = &["--train-steps", "200000", "--held-out-per-kind", "2", "--train-seed", "1"];
 
 /// Polls `query` (one integer) on the library until `done` holds, within `timeout`.
 fn wait_for(db: &str, timeout: Duration, query: &str, done: impl Fn(i64) -> bool) -> i64 {
@@ -30,6 +32,24 @@ fn wait_for(db: &str, timeout: Duration, query: &str, done: impl Fn(i64) -> bool
         drop(conn);
         std::thread::sleep(Duration::from_millis(200));
     }
+}
+
+/// Stores 12 generated scenarios of `kind` (seed 5) in the library `db`.
+fn generate(db: &str, kind: &str) {
+    run_json(&[
+        "scenarios",
+        "generate",
+        "--kind",
+        kind,
+        "--count",
+        "12",
+        "--seed",
+        "5",
+        "--db",
+        db,
+        "--format",
+        "json",
+    ]);
 }
 
 fn count(conn: &Connection, query: &str) -> i64 {
@@ -50,20 +70,7 @@ fn the_loop_pushes_stores_fleet_outcomes_and_resumes_after_a_crash() {
     let dir = tempfile::tempdir().expect("a temporary directory");
     let db = dir.path().join("lib.db").to_str().expect("a UTF-8 path").to_owned();
     let report = dir.path().join("loop.md").to_str().expect("a UTF-8 path").to_owned();
-    run_json(&[
-        "scenarios",
-        "generate",
-        "--kind",
-        "emergency-braking",
-        "--count",
-        "12",
-        "--seed",
-        "5",
-        "--db",
-        &db,
-        "--format",
-        "json",
-    ]);
+    generate(&db, "emergency-braking");
     let library = count(&Connection::open(&db).expect("opens"), "SELECT COUNT(*) FROM scenarios");
     assert!(library >= 6, "{library} scenarios");
     // Ranked before the loop adds outcomes and children: the first push must be this one.
@@ -205,7 +212,7 @@ fn the_loop_role_refuses_what_it_cannot_run_with_exit_2() {
 fn trainer_run(dir: &std::path::Path, locator: &str, trainer: &[&str]) -> (Proc, Proc, Proc, String) {
     let db = dir.join("lib.db").to_str().expect("a UTF-8 path").to_owned();
     for kind in ["emergency-braking", "cut-in"] {
-        run_json(&["scenarios", "generate", "--kind", kind, "--count", "12", "--seed", "5", "--db", &db, "--format", "json"]);
+        generate(&db, kind);
     }
     let report = dir.join("loop.md").to_str().expect("a UTF-8 path").to_owned();
     let mut args = vec!["cloud", "--roles", "ingest,twin,loop,trainer", "--db", &db, "--connect", locator];
@@ -233,8 +240,7 @@ fn a_barely_trained_version_is_held_back_and_never_reaches_the_fleet() {
     let (router, locator) = start_router();
     let dir = tempfile::tempdir().expect("a temporary directory");
     // 2,048 steps of PPO: a policy that has not learnt to drive the route.
-    let (cloud, v1, v2, db) =
-        trainer_run(dir.path(), &locator, &["--train-steps", "2048", "--held-out-per-kind", "2"]);
+    let (cloud, v1, v2, db) = trainer_run(dir.path(), &locator, &["--train-steps", "2048", "--held-out-per-kind", "2"]);
     wait_for(&db, EPISODES, "SELECT COUNT(*) FROM policies", |n| n >= 1);
     // The loop goes on after the decision: another episode is stored.
     let episodes = count(&Connection::open(&db).expect("opens"), "SELECT COUNT(*) FROM fleet_episodes");

@@ -23,7 +23,6 @@ use crate::library::{
 };
 use crate::trainer::TrainerError;
 use crate::trainer::gate::GateReport;
-use trainer::{TrainJob, TrainerConfig};
 use crate::twin::watch::WatchedEpisode;
 use risktwin_common::digest::fnv1a64;
 use risktwin_common::episode::EpisodeResult;
@@ -32,6 +31,7 @@ use risktwin_common::telemetry::ScenarioResult;
 use serde::Serialize;
 use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
+use trainer::{TrainJob, TrainerConfig};
 
 /// Route completion the edge and the twin may differ by before the row says they disagree.
 pub const COMPLETION_AGREEMENT: f64 = 0.05;
@@ -335,9 +335,7 @@ impl FleetLoop {
         let gone: Vec<(String, String)> = self
             .outstanding
             .iter()
-            .filter(|(key, o)| {
-                !alive.contains(key) && now.duration_since(o.sent.unwrap_or(self.started)) >= timeout
-            })
+            .filter(|(key, o)| !alive.contains(key) && now.duration_since(o.sent.unwrap_or(self.started)) >= timeout)
             .map(|(key, _)| key.clone())
             .collect();
         for key in gone {
@@ -430,7 +428,11 @@ impl FleetLoop {
         let job = trainer::due(&self.library, config)?;
         self.training = job.is_some();
         if let Some(job) = &job {
-            tracing::info!("trainer: training version {} ({} fleet failures in the library)", job.version, job.failures);
+            tracing::info!(
+                "trainer: training version {} ({} fleet failures in the library)",
+                job.version,
+                job.failures
+            );
         }
         Ok(job)
     }
@@ -466,8 +468,11 @@ impl FleetLoop {
             regression: figures(&report.regression),
             held_out: figures(&report.held_out),
         });
-        let verdict = if version.pushed { "pushed" } else { "held back" };
-        tracing::info!("trainer: version {} {verdict}: {}", version.version, version.reasons.join("; "));
+        if version.pushed {
+            tracing::info!("trainer: version {} passed the gate: pushed to the fleet", version.version);
+        } else {
+            tracing::info!("trainer: version {} held back: {}", version.version, version.reasons.join("; "));
+        }
         self.events.push(LoopEvent {
             kind: if version.pushed { "policy-pushed" } else { "policy-held-back" },
             site: String::new(),
@@ -676,7 +681,8 @@ mod tests {
         let dir = tempfile::tempdir().expect("a temporary directory");
         let path = library(dir.path(), 5);
         let config = LoopConfig { mutants_per_failure: 2, ..LoopConfig::default() };
-        let mut fleet = FleetLoop::open(ScenarioLibrary::open(&path).expect("opens"), config.clone(), None).expect("a loop");
+        let mut fleet =
+            FleetLoop::open(ScenarioLibrary::open(&path).expect("opens"), config.clone(), None).expect("a loop");
         let now = Instant::now();
         let orders = fleet.on_idle(&alive(&["v1", "v2"]), now).expect("orders");
         assert_eq!(orders.len(), 2, "one push per live vehicle");
@@ -749,7 +755,8 @@ mod tests {
     fn report(pushed: bool) -> GateReport {
         use crate::trainer::gate::{Decision, SetComparison, SetSummary};
         let summary = SetSummary { collisions: 0, successes: 0, mean_route_completion: 0.5 };
-        let set = SetComparison { scenarios: 0, candidate: summary.clone(), deployed: summary, newly_colliding: Vec::new() };
+        let set =
+            SetComparison { scenarios: 0, candidate: summary.clone(), deployed: summary, newly_colliding: Vec::new() };
         GateReport {
             decision: if pushed { Decision::Push } else { Decision::Hold },
             reasons: if pushed { Vec::new() } else { vec!["held-out set: worse".into()] },
@@ -766,8 +773,12 @@ mod tests {
         let trainer = TrainerConfig { retrain_failures: 1, steps: 1000, held_out_per_kind: 1, seed: 1 };
         let open = || {
             let library = ScenarioLibrary::open(&path).expect("opens");
-            FleetLoop::open(library, LoopConfig { mutants_per_failure: 0, ..LoopConfig::default() }, Some(trainer.clone()))
-                .expect("a loop")
+            FleetLoop::open(
+                library,
+                LoopConfig { mutants_per_failure: 0, ..LoopConfig::default() },
+                Some(trainer.clone()),
+            )
+            .expect("a loop")
         };
         let mut fleet = open();
         assert!(fleet.due_training().expect("checked").is_none(), "no fleet failure yet");
@@ -810,4 +821,3 @@ mod tests {
         assert!(fleet.due_training().expect("checked").is_none());
     }
 }
-

@@ -84,7 +84,15 @@ impl TrainJob {
             None => None,
         };
         let driver = deployed.as_ref().map_or(Driver::Reference, Driver::Policy);
+        let gate_start = std::time::Instant::now();
         let report = gate(&library, &trained.policy, driver, &held_out, plan.threads)?;
+        tracing::info!(
+            "trainer: version {} trained in {:.1} s ({} steps), gated in {:.1} s",
+            self.version,
+            trained.wall_s,
+            trained.env_steps,
+            gate_start.elapsed().as_secs_f64()
+        );
         let version = PolicyVersion {
             version: self.version,
             policy_id: POLICY_ID.to_owned(),

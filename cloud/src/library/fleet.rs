@@ -92,7 +92,11 @@ impl ScenarioLibrary {
     /// Picks the riskiest scenario never pushed and notes it pushed to `site/edge`, in one
     /// transaction: two processes on one file cannot push the same scenario. `None` when every
     /// scenario has been pushed.
-    pub fn start_riskiest_push(&mut self, site: &str, edge: &str) -> Result<Option<(Push, RankedScenario)>, LibraryError> {
+    pub fn start_riskiest_push(
+        &mut self,
+        site: &str,
+        edge: &str,
+    ) -> Result<Option<(Push, RankedScenario)>, LibraryError> {
         let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
         let Some(next) = ScenarioLibrary::riskiest_unpushed_in(&tx)? else { return Ok(None) };
         tx.execute(
@@ -101,7 +105,8 @@ impl ScenarioLibrary {
         )?;
         let seq = tx.last_insert_rowid();
         tx.commit()?;
-        let push = Push { seq, scenario_id: next.id.clone(), site: site.to_owned(), edge: edge.to_owned(), attempts: 1 };
+        let push =
+            Push { seq, scenario_id: next.id.clone(), site: site.to_owned(), edge: edge.to_owned(), attempts: 1 };
         Ok(Some((push, next)))
     }
 

@@ -5,7 +5,6 @@
 //! order or on SQLite's plan.
 
 use super::connection::ScenarioLibrary;
-use rusqlite::Connection;
 use super::error::LibraryError;
 use super::query::decode_spec;
 use super::record::DEFAULT_POLICY;
@@ -13,6 +12,7 @@ use risktwin_common::digest::fnv1a64;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::ScenarioKind;
+use rusqlite::Connection;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -103,7 +103,6 @@ impl ScenarioLibrary {
     }
 }
 
-
 /// The ranking on `conn`: by `policy`'s latest outcome, highest risk first, ties by id; of one
 /// kind or all; only scenarios never pushed when `unpushed`.
 fn rank_on(
@@ -116,7 +115,7 @@ fn rank_on(
     // SQLite reads a negative LIMIT as "no limit".
     let limit = top.map_or(-1, |k| i64::try_from(k).unwrap_or(i64::MAX));
     let mut stmt = conn.prepare_cached(
-            "SELECT s.id, s.kind, s.seed, s.params, \
+        "SELECT s.id, s.kind, s.seed, s.params, \
                     o.risk_score, o.risk_ttc, o.risk_dist, o.risk_lane, o.risk_jerk, o.risk_collision, \
                     o.collision, o.min_ttc_s, o.min_distance_m \
              FROM outcomes o JOIN scenarios s ON s.id = o.scenario_id \
@@ -126,46 +125,46 @@ fn rank_on(
                AND (?4 = 0 OR NOT EXISTS (SELECT 1 FROM pushes p WHERE p.scenario_id = s.id)) \
              ORDER BY o.risk_score DESC, s.id ASC \
              LIMIT ?3",
-        )?;
-        let rows: Vec<RankRow> = stmt
-            .query_map(rusqlite::params![policy, kind.map(ScenarioKind::name), limit, unpushed], |r| {
-                Ok((
-                    r.get(0)?,
-                    r.get(1)?,
-                    r.get(2)?,
-                    r.get(3)?,
-                    [r.get(4)?, r.get(5)?, r.get(6)?, r.get(7)?, r.get(8)?, r.get(9)?],
-                    r.get(10)?,
-                    r.get(11)?,
-                    r.get(12)?,
-                ))
-            })?
-            .collect::<Result<_, _>>()?;
-        rows.into_iter()
-            .map(
-                |(
+    )?;
+    let rows: Vec<RankRow> = stmt
+        .query_map(rusqlite::params![policy, kind.map(ScenarioKind::name), limit, unpushed], |r| {
+            Ok((
+                r.get(0)?,
+                r.get(1)?,
+                r.get(2)?,
+                r.get(3)?,
+                [r.get(4)?, r.get(5)?, r.get(6)?, r.get(7)?, r.get(8)?, r.get(9)?],
+                r.get(10)?,
+                r.get(11)?,
+                r.get(12)?,
+            ))
+        })?
+        .collect::<Result<_, _>>()?;
+    rows.into_iter()
+        .map(
+            |(
+                id,
+                kind,
+                seed,
+                params,
+                [score, ttc, dist, lane, jerk, collision_term],
+                collision,
+                min_ttc_s,
+                min_distance_m,
+            )| {
+                let spec = decode_spec(&id, &kind, seed, &params)?;
+                Ok(RankedScenario {
                     id,
-                    kind,
-                    seed,
-                    params,
-                    [score, ttc, dist, lane, jerk, collision_term],
-                    collision,
-                    min_ttc_s,
-                    min_distance_m,
-                )| {
-                    let spec = decode_spec(&id, &kind, seed, &params)?;
-                    Ok(RankedScenario {
-                        id,
-                        kind: spec.kind,
-                        seed: spec.seed,
-                        params: spec.params,
-                        risk: RiskTerms { score, ttc, dist, lane, jerk, collision: collision_term },
-                        outcome: RankOutcome { collision, min_ttc_s, min_distance_m },
-                    })
-                },
-            )
-            .collect()
-    }
+                    kind: spec.kind,
+                    seed: spec.seed,
+                    params: spec.params,
+                    risk: RiskTerms { score, ttc, dist, lane, jerk, collision: collision_term },
+                    outcome: RankOutcome { collision, min_ttc_s, min_distance_m },
+                })
+            },
+        )
+        .collect()
+}
 
 #[cfg(test)]
 mod tests {

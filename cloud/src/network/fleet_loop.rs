@@ -272,7 +272,13 @@ impl Pushes {
             weights: order.weights.clone(),
         };
         self.put(&order.site, &order.edge, CloudToEdge::Policy, encode(&update)).await?;
-        tracing::info!("loop: pushed policy {} version {} to {}/{}", order.policy_id, order.version, order.site, order.edge);
+        tracing::info!(
+            "loop: pushed policy {} version {} to {}/{}",
+            order.policy_id,
+            order.version,
+            order.site,
+            order.edge
+        );
         Ok(())
     }
 
@@ -284,7 +290,8 @@ impl Pushes {
                 key: format!("{site}/{edge}"),
                 reason: e.to_string(),
             };
-            let push_key = cloud_to_edge(&SiteId::new(site).map_err(bad_id)?, &SourceId::new(edge).map_err(bad_id)?, push);
+            let push_key =
+                cloud_to_edge(&SiteId::new(site).map_err(bad_id)?, &SourceId::new(edge).map_err(bad_id)?, push);
             let publisher = self
                 .session
                 .declare_publisher(push_key.clone())
@@ -296,10 +303,10 @@ impl Pushes {
         }
         self.sent += 1;
         let publisher = &self.publishers[&key];
-        publisher.put(payload).await.map_err(|e| TransportError::Put {
-            key: publisher.key_expr().to_string(),
-            reason: e.to_string(),
-        })?;
+        publisher
+            .put(payload)
+            .await
+            .map_err(|e| TransportError::Put { key: publisher.key_expr().to_string(), reason: e.to_string() })?;
         Ok(())
     }
 

@@ -200,7 +200,12 @@ impl CloudConfig {
         if self.roles.is_empty() {
             return Err(CloudError::NoRole);
         }
-        for (role, needs) in [(Role::Twin, Role::Ingest), (Role::Risk, Role::Twin), (Role::Loop, Role::Twin), (Role::Trainer, Role::Loop)] {
+        for (role, needs) in [
+            (Role::Twin, Role::Ingest),
+            (Role::Risk, Role::Twin),
+            (Role::Loop, Role::Twin),
+            (Role::Trainer, Role::Loop),
+        ] {
             if self.has(role) && !self.has(needs) {
                 return Err(CloudError::RoleNeeds { role: role.name(), needs: needs.name() });
             }

@@ -329,7 +329,11 @@ impl LiveIngest {
     }
 
     /// Records one event of the loop (when recording) on `site`'s loop topic, stamped now.
-    pub(crate) fn record_loop_event(&mut self, site: &str, event: &risktwin_protos::v1::LoopEvent) -> Result<(), RecordingError> {
+    pub(crate) fn record_loop_event(
+        &mut self,
+        site: &str,
+        event: &risktwin_protos::v1::LoopEvent,
+    ) -> Result<(), RecordingError> {
         let (Some(rec), Ok(site)) = (self.worker.recorder_mut(), SiteId::new(site)) else { return Ok(()) };
         let log_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64);
         let channel = rec.channel(&cloud_output(&site, CloudOutput::Loop), LOOP_EVENT)?;

@@ -14,8 +14,8 @@ use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_bench::latency::{LatencyConfig, latency};
 use risktwin_bench::zenoh_throughput::{BenchConfig, throughput};
-use risktwin_cloud::network::criticality::{CriticalityConfig, CriticalityRoleError};
 use risktwin_cloud::fleet_loop::trainer::TrainerConfig;
+use risktwin_cloud::network::criticality::{CriticalityConfig, CriticalityRoleError};
 use risktwin_cloud::network::{CloudConfig, CloudError, Role, run};
 use risktwin_common::align::IngestConfig;
 use risktwin_common::scenario::ScenarioKind;
@@ -41,7 +41,10 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     }
     config.fleet_loop.result_timeout = Duration::from_secs_f64(args.push_timeout_s);
     if args.mutants_per_failure > 100 {
-        return Err(CliError::input(format!("--mutants-per-failure {} must lie in [0, 100]", args.mutants_per_failure)));
+        return Err(CliError::input(format!(
+            "--mutants-per-failure {} must lie in [0, 100]",
+            args.mutants_per_failure
+        )));
     }
     config.fleet_loop.mutants_per_failure = args.mutants_per_failure;
     if args.retrain_failures == 0 {

@@ -16,6 +16,8 @@ use std::time::{Duration, Instant};
 const STEP: Duration = Duration::from_secs(60);
 /// An episode lasts at most 15 s of scene at the edge's real-time default rate.
 const EPISODES: Duration = Duration::from_secs(90);
+/// Failures to collect, a training run and its gate, on a 2-core machine running other tests.
+const TRAINING: Duration = Duration::from_secs(240);
 /// The trainer of the passing test: found to pass the gate on this library.
 const TRAINED: &[&str] = &["--train-steps", "200000", "--held-out-per-kind", "2", "--train-seed", "1"];
 
@@ -241,7 +243,7 @@ fn a_barely_trained_version_is_held_back_and_never_reaches_the_fleet() {
     let dir = tempfile::tempdir().expect("a temporary directory");
     // 2,048 steps of PPO: a policy that has not learnt to drive the route.
     let (cloud, v1, v2, db) = trainer_run(dir.path(), &locator, &["--train-steps", "2048", "--held-out-per-kind", "2"]);
-    wait_for(&db, EPISODES, "SELECT COUNT(*) FROM policies", |n| n >= 1);
+    wait_for(&db, TRAINING, "SELECT COUNT(*) FROM policies", |n| n >= 1);
     // The loop goes on after the decision: another episode is stored.
     let episodes = count(&Connection::open(&db).expect("opens"), "SELECT COUNT(*) FROM fleet_episodes");
     wait_for(&db, EPISODES, "SELECT COUNT(*) FROM fleet_episodes", |n| n > episodes);
@@ -266,10 +268,12 @@ fn a_barely_trained_version_is_held_back_and_never_reaches_the_fleet() {
 fn a_retrained_version_that_passes_the_gate_reaches_the_fleet_and_drives_its_next_episode() {
     let (router, locator) = start_router();
     let dir = tempfile::tempdir().expect("a temporary directory");
-    // Seeded and small, and with mutation off the trainer reads the same library in every run:
-    // this version passes the gate (checked by running it), so the test waits for nothing open.
+    // Seeded and small: with mutation off, the library the trainer's snapshot holds when the
+    // second failure is stored is the same in every run (the vehicles' reference-driver outcomes
+    // equal the library's), so version 1 is the same policy and passes the gate (checked by
+    // running it): the test waits for nothing open.
     let (cloud, v1, v2, db) = trainer_run(dir.path(), &locator, TRAINED);
-    wait_for(&db, EPISODES, "SELECT COUNT(*) FROM policies WHERE decision = 'pushed'", |n| n >= 1);
+    wait_for(&db, TRAINING, "SELECT COUNT(*) FROM policies WHERE decision = 'pushed'", |n| n >= 1);
     let version: i64 = Connection::open(&db)
         .expect("opens")
         .query_row("SELECT MIN(version) FROM policies WHERE decision = 'pushed'", [], |r| r.get(0))
@@ -291,8 +295,11 @@ fn a_retrained_version_that_passes_the_gate_reaches_the_fleet_and_drives_its_nex
         ),
     );
     assert!(labelled >= 1, "the outcome names the version that drove");
+    // A later version may have passed too before the stop: the fleet drives this one or later.
     for edge in &edges {
-        assert_eq!(edge["pushes"]["policy"]["version"].as_i64(), Some(version), "{edge}");
+        let held = &edge["pushes"]["policy"];
+        assert_eq!(held["policy_id"], "risktwin-full", "{edge}");
+        assert!(held["version"].as_i64().is_some_and(|v| v >= version), "{edge}");
     }
-    assert_eq!(summary["loop"]["deployed_version"].as_i64(), Some(version), "{summary}");
+    assert!(summary["loop"]["deployed_version"].as_i64().is_some_and(|v| v >= version), "{summary}");
 }

@@ -27,7 +27,7 @@ use crate::twin::watch::WatchedEpisode;
 use risktwin_common::digest::fnv1a64;
 use risktwin_common::episode::EpisodeResult;
 use risktwin_common::scenario::ScenarioSpec;
-use risktwin_common::telemetry::ScenarioResult;
+use risktwin_common::telemetry::{PolicyRef, ScenarioResult};
 use serde::Serialize;
 use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
@@ -93,10 +93,28 @@ pub struct GateLine {
     pub reasons: Vec<String>,
     /// Fleet failures in the library when it was trained.
     pub failures: u64,
-    /// Collisions and mean route completion on the regression and held-out sets: the
-    /// candidate's, then the deployed version's.
-    pub regression: (usize, f64, usize, f64),
-    pub held_out: (usize, f64, usize, f64),
+    pub regression: SetFigures,
+    pub held_out: SetFigures,
+}
+
+/// The candidate against the deployed version on one set of the gate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SetFigures {
+    pub collisions: usize,
+    pub mean_route_completion: f64,
+    pub deployed_collisions: usize,
+    pub deployed_mean_route_completion: f64,
+}
+
+impl From<&crate::trainer::gate::SetComparison> for SetFigures {
+    fn from(c: &crate::trainer::gate::SetComparison) -> Self {
+        SetFigures {
+            collisions: c.candidate.collisions,
+            mean_route_completion: c.candidate.mean_route_completion,
+            deployed_collisions: c.deployed.collisions,
+            deployed_mean_route_completion: c.deployed.mean_route_completion,
+        }
+    }
 }
 
 /// Latency of the loop's iterations, ms.
@@ -128,18 +146,40 @@ impl IterationTimes {
 /// One thing the loop did, for the recording.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoopEvent {
-    /// `push`, `retry`, `abandon` or `episode`.
+    /// `push`, `retry`, `abandon`, `episode`, `policy-pushed`, `policy-held-back` (the gate's
+    /// decision) or `policy` (a version sent to an edge).
     pub kind: &'static str,
+    /// Empty for an event of the whole fleet (a gate decision).
     pub site: String,
     pub edge: String,
     pub scenario_id: String,
     pub push_seq: Option<i64>,
+    /// The send of a push (1 for the first).
     pub attempt: u32,
+    pub policy_version: Option<u32>,
     /// An episode's outcome as the edge reported it.
     pub collision: bool,
     pub risk_score: f64,
     /// An episode's disagreement with the twin.
     pub detail: Option<String>,
+}
+
+impl LoopEvent {
+    /// An event of `kind` at `site/edge` with nothing else set.
+    fn at(kind: &'static str, site: &str, edge: &str) -> Self {
+        LoopEvent {
+            kind,
+            site: site.to_owned(),
+            edge: edge.to_owned(),
+            scenario_id: String::new(),
+            push_seq: None,
+            attempt: 0,
+            policy_version: None,
+            collision: false,
+            risk_score: 0.0,
+            detail: None,
+        }
+    }
 }
 
 /// What the loop did, for the cloud's summary and the report.
@@ -225,7 +265,7 @@ impl FleetLoop {
         config: LoopConfig,
         trainer: Option<TrainerConfig>,
     ) -> Result<Self, LibraryError> {
-        let deployed = library.policy_versions()?.into_iter().rev().find(|v| v.pushed);
+        let deployed = library.deployed_policy()?;
         let outstanding = library
             .outstanding_pushes()?
             .into_iter()
@@ -278,16 +318,14 @@ impl FleetLoop {
             self.outstanding.remove(&key);
         }
         self.events.push(LoopEvent {
-            kind: "episode",
-            site: key.0.clone(),
-            edge: key.1.clone(),
             scenario_id: spec_id.clone(),
             push_seq: answers,
-            attempt: 0,
             collision: episode.result.metrics.collision,
             risk_score: episode.result.risk.score,
             detail: row.disagreement.clone(),
+            ..LoopEvent::at("episode", &key.0, &key.1)
         });
+        self.check_policy(&key, episode.result.policy.as_ref())?;
         let m = &episode.result.metrics;
         self.summary.episodes += 1;
         self.summary.twin_scored += u64::from(twin.is_some());
@@ -309,16 +347,12 @@ impl FleetLoop {
         if let Some(o) = self.outstanding.get_mut(&key) {
             o.sent = Some(Instant::now());
         }
+        let kind = if order.attempt > 1 { "retry" } else { "push" };
         self.events.push(LoopEvent {
-            kind: if order.attempt > 1 { "retry" } else { "push" },
-            site: order.site.clone(),
-            edge: order.edge.clone(),
             scenario_id: order.spec_id.clone(),
             push_seq: Some(order.push_seq),
             attempt: order.attempt,
-            collision: false,
-            risk_score: 0.0,
-            detail: None,
+            ..LoopEvent::at(kind, &order.site, &order.edge)
         });
         if let Some(episode) = after {
             self.iterations_ms.0.push(episode.handed.elapsed().as_secs_f64() * 1e3);
@@ -391,15 +425,11 @@ impl FleetLoop {
         self.library.abandon_push(o.push.seq)?;
         self.summary.abandoned += 1;
         self.events.push(LoopEvent {
-            kind: "abandon",
-            site: key.0.clone(),
-            edge: key.1.clone(),
             scenario_id: o.push.scenario_id,
             push_seq: Some(o.push.seq),
             attempt: o.push.attempts,
-            collision: false,
-            risk_score: 0.0,
             detail: Some(why.to_owned()),
+            ..LoopEvent::at("abandon", &key.0, &key.1)
         });
         Ok(())
     }
@@ -425,7 +455,14 @@ impl FleetLoop {
     /// are in the library; it is then in flight until [`Self::on_trained`].
     pub fn due_training(&mut self) -> Result<Option<TrainJob>, LibraryError> {
         let Some(config) = self.trainer.as_ref().filter(|_| !self.training) else { return Ok(None) };
-        let job = trainer::due(&self.library, config)?;
+        let job = match trainer::due(&self.library, config) {
+            Ok(job) => job,
+            Err(TrainerError::Library(e)) => return Err(e),
+            Err(e) => {
+                self.on_trained(Err(e))?;
+                return Ok(None);
+            }
+        };
         self.training = job.is_some();
         if let Some(job) = &job {
             tracing::info!(
@@ -452,37 +489,24 @@ impl FleetLoop {
             }
         };
         self.library.record_policy(&version)?;
-        let figures = |c: &crate::trainer::gate::SetComparison| {
-            (
-                c.candidate.collisions,
-                c.candidate.mean_route_completion,
-                c.deployed.collisions,
-                c.deployed.mean_route_completion,
-            )
-        };
         self.summary.gate.push(GateLine {
             version: version.version,
             pushed: version.pushed,
             reasons: version.reasons.clone(),
             failures: version.failures,
-            regression: figures(&report.regression),
-            held_out: figures(&report.held_out),
+            regression: (&report.regression).into(),
+            held_out: (&report.held_out).into(),
         });
         if version.pushed {
             tracing::info!("trainer: version {} passed the gate: pushed to the fleet", version.version);
         } else {
             tracing::info!("trainer: version {} held back: {}", version.version, version.reasons.join("; "));
         }
+        let kind = if version.pushed { "policy-pushed" } else { "policy-held-back" };
         self.events.push(LoopEvent {
-            kind: if version.pushed { "policy-pushed" } else { "policy-held-back" },
-            site: String::new(),
-            edge: String::new(),
-            scenario_id: String::new(),
-            push_seq: None,
-            attempt: version.version,
-            collision: false,
-            risk_score: 0.0,
+            policy_version: Some(version.version),
             detail: (!version.reasons.is_empty()).then(|| version.reasons.join("; ")),
+            ..LoopEvent::at(kind, "", "")
         });
         if version.pushed {
             self.deployed = Some(version);
@@ -509,20 +533,25 @@ impl FleetLoop {
         Ok(orders)
     }
 
+    /// A vehicle that reports driving without the deployed version though it was sent it (it
+    /// restarted since) is sent it again. (An episode it recorded before the version arrived
+    /// says the same: the vehicle then refuses the repeat as stale, and counts it.)
+    fn check_policy(&mut self, key: &(String, String), driver: Option<&PolicyRef>) -> Result<(), LibraryError> {
+        let Some(deployed) = &self.deployed else { return Ok(()) };
+        let drives_it = driver.is_some_and(|p| p.policy_id == deployed.policy_id && p.version == deployed.version);
+        if !drives_it && self.library.policy_delivered(deployed.version, &key.0, &key.1)? {
+            self.library.forget_policy_delivery(deployed.version, &key.0, &key.1)?;
+        }
+        Ok(())
+    }
+
     /// Notes that `order` went out.
     pub fn policy_sent(&mut self, order: &PolicyOrder) -> Result<(), LibraryError> {
         self.library.note_policy_delivered(order.version, &order.site, &order.edge)?;
         self.summary.policy_pushes += 1;
         self.events.push(LoopEvent {
-            kind: "policy",
-            site: order.site.clone(),
-            edge: order.edge.clone(),
-            scenario_id: String::new(),
-            push_seq: None,
-            attempt: order.version,
-            collision: false,
-            risk_score: 0.0,
-            detail: None,
+            policy_version: Some(order.version),
+            ..LoopEvent::at("policy", &order.site, &order.edge)
         });
         Ok(())
     }

@@ -2,7 +2,7 @@
 //! loop's state in figures, then every fleet episode of the library, the edge's outcome beside
 //! the twin's.
 
-use super::LoopSummary;
+use super::{LoopSummary, SetFigures};
 use crate::library::{Outcome, StoredFleetEpisode};
 use std::fmt::Write;
 
@@ -46,7 +46,10 @@ pub fn markdown(summary: &LoopSummary, episodes: &[StoredFleetEpisode]) -> Strin
         "| version | fleet failures | decision | regression set: collisions, completion (candidate / deployed) | held-out set: the same | why held back |\n|---|---|---|---|---|---|"
     );
     for g in &summary.gate {
-        let set = |(c, cc, d, dc): (usize, f64, usize, f64)| format!("{c}, {cc:.3} / {d}, {dc:.3}");
+        let set = |f: SetFigures| {
+            let (c, cc) = (f.collisions, f.mean_route_completion);
+            format!("{c}, {cc:.3} / {}, {:.3}", f.deployed_collisions, f.deployed_mean_route_completion)
+        };
         let decision = if g.pushed { "pushed" } else { "held back" };
         let _ = writeln!(
             md,

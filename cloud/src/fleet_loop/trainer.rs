@@ -4,15 +4,15 @@
 //! version deployed now (the reference driver before the first). The decision is stored with the
 //! version in `policies`; only a version the gate lets through is pushed to the fleet.
 //!
-//! A run takes seconds, so it runs on a thread of its own with its own connection to the
-//! library file, while the loop goes on.
+//! A run takes seconds, so it runs on a thread of its own, on a snapshot of the library taken
+//! when it was decided on, while the loop goes on.
 
-use crate::library::{LibraryError, PolicyVersion, ScenarioLibrary};
+use crate::library::{PolicyVersion, ScenarioLibrary};
 use crate::trainer::gate::{Decision, Driver, GateReport, gate};
 use crate::trainer::{HeldOut, TrainerError, TrainingPlan, train_variant};
 use risktwin_common::env::Variant;
 use risktwin_learn::{Algo, PolicyNet};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The policy id of the versions the trainer produces.
 pub const POLICY_ID: &str = "risktwin-full";
@@ -57,10 +57,12 @@ impl TrainerConfig {
     }
 }
 
-/// One training run to do.
-#[derive(Debug, Clone)]
+/// One training run to do, on a snapshot of the library taken when it was decided on (so that
+/// what it trains on and is gated on does not depend on what the fleet reports meanwhile).
+#[derive(Debug)]
 pub struct TrainJob {
-    pub db: PathBuf,
+    /// Holds the snapshot `library.db` (removed with it).
+    dir: tempfile::TempDir,
     pub version: u32,
     /// The version deployed now; `None`: the reference driver.
     pub deployed: Option<PolicyVersion>,
@@ -72,15 +74,14 @@ impl TrainJob {
     /// Trains version `version` and gates it (blocking: seconds). The version is not stored:
     /// the loop stores it with its decision.
     pub fn run(self) -> Result<(PolicyVersion, GateReport), TrainerError> {
-        let mut library = ScenarioLibrary::open(&self.db)?;
+        let mut library = ScenarioLibrary::open(self.dir.path().join("library.db"))?;
         let held_out = HeldOut::new(self.config.seed, self.config.held_out_per_kind);
         let seed = self.config.seed.wrapping_add(u64::from(self.version));
         let plan = self.config.plan();
         let trained = train_variant(&plan, Variant::Full, seed, &mut library, &held_out, &mut |_, _| {})?;
-        let dir = tempfile::tempdir().map_err(|e| io_error("a temporary directory", &e))?;
-        let weights = policy_bytes(&trained.policy, &dir.path().join("candidate.safetensors"))?;
+        let weights = policy_bytes(&trained.policy, &self.dir.path().join("candidate.safetensors"))?;
         let deployed = match &self.deployed {
-            Some(v) => Some(policy_from(&v.weights, &dir.path().join("deployed.safetensors"))?),
+            Some(v) => Some(policy_from(&v.weights, &self.dir.path().join("deployed.safetensors"))?),
             None => None,
         };
         let driver = deployed.as_ref().map_or(Driver::Reference, Driver::Policy);
@@ -107,7 +108,7 @@ impl TrainJob {
 }
 
 fn io_error(what: &str, e: &std::io::Error) -> TrainerError {
-    TrainerError::BadPlan(format!("{what}: {e}"))
+    TrainerError::Io(format!("{what}: {e}"))
 }
 
 /// The policy's safetensors file, as bytes (written through `path`).
@@ -122,15 +123,17 @@ fn policy_from(weights: &[u8], path: &Path) -> Result<PolicyNet, TrainerError> {
     Ok(PolicyNet::load(path)?)
 }
 
-/// The next job, if `library` has enough new failures since the last version.
-pub fn due(library: &ScenarioLibrary, config: &TrainerConfig) -> Result<Option<TrainJob>, LibraryError> {
-    let versions = library.policy_versions()?;
+/// The next job, if `library` has enough new failures since the last version (at least one).
+pub fn due(library: &ScenarioLibrary, config: &TrainerConfig) -> Result<Option<TrainJob>, TrainerError> {
+    let latest = library.latest_policy()?;
     let failures = library.fleet_counts()?.failures;
-    let since = versions.last().map_or(0, |v| v.failures);
-    if failures < since + config.retrain_failures {
+    let since = latest.map_or(0, |(_, failures)| failures);
+    if failures < since + config.retrain_failures.max(1) {
         return Ok(None);
     }
-    let version = versions.last().map_or(1, |v| v.version + 1);
-    let deployed = versions.into_iter().rev().find(|v| v.pushed);
-    Ok(Some(TrainJob { db: library.path().to_path_buf(), version, deployed, failures, config: config.clone() }))
+    let dir = tempfile::tempdir().map_err(|e| io_error("a temporary directory", &e))?;
+    library.snapshot(&dir.path().join("library.db"))?;
+    let version = latest.map_or(1, |(v, _)| v + 1);
+    let deployed = library.deployed_policy()?;
+    Ok(Some(TrainJob { dir, version, deployed, failures, config: config.clone() }))
 }

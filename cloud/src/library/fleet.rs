@@ -11,6 +11,7 @@ use super::record::{DEFAULT_POLICY, Outcome, validate_outcome};
 use super::store::{insert_outcome, outcome_insert_sql};
 use risktwin_common::telemetry::PolicyRef;
 use rusqlite::{OptionalExtension, TransactionBehavior, params};
+use std::path::Path;
 
 /// The `policy` column of an outcome an edge reported: the reference driver's name, or
 /// `<policy_id>/v<version>` for a pushed policy.
@@ -91,7 +92,7 @@ impl ScenarioLibrary {
 
     /// Picks the riskiest scenario never pushed and notes it pushed to `site/edge`, in one
     /// transaction: two processes on one file cannot push the same scenario. `None` when every
-    /// scenario has been pushed.
+    /// scenario has been pushed, or another process has a push outstanding at that edge.
     pub fn start_riskiest_push(
         &mut self,
         site: &str,
@@ -99,10 +100,15 @@ impl ScenarioLibrary {
     ) -> Result<Option<(Push, RankedScenario)>, LibraryError> {
         let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
         let Some(next) = ScenarioLibrary::riskiest_unpushed_in(&tx)? else { return Ok(None) };
-        tx.execute(
+        let inserted = tx.execute(
             "INSERT INTO pushes (scenario_id, site, edge, attempts, state) VALUES (?1, ?2, ?3, 1, 'outstanding')",
             params![next.id, site, edge],
-        )?;
+        );
+        match inserted {
+            // Another process on this file has a push outstanding at that edge.
+            Err(e) if e.sqlite_error_code() == Some(rusqlite::ErrorCode::ConstraintViolation) => return Ok(None),
+            other => other?,
+        };
         let seq = tx.last_insert_rowid();
         tx.commit()?;
         let push =
@@ -316,9 +322,13 @@ impl ScenarioLibrary {
 
     /// Every policy version, oldest first.
     pub fn policy_versions(&self) -> Result<Vec<PolicyVersion>, LibraryError> {
-        let mut stmt = self.conn.prepare_cached(
-            "SELECT version, policy_id, algo, weights, decision, reasons, failures FROM policies ORDER BY version",
-        )?;
+        self.policy_versions_where("1 ORDER BY version")
+    }
+
+    fn policy_versions_where(&self, filter: &str) -> Result<Vec<PolicyVersion>, LibraryError> {
+        let mut stmt = self.conn.prepare_cached(&format!(
+            "SELECT version, policy_id, algo, weights, decision, reasons, failures FROM policies WHERE {filter}"
+        ))?;
         let rows = stmt.query_map([], |r| {
             Ok((
                 r.get::<_, i64>(0)?,
@@ -347,6 +357,43 @@ impl ScenarioLibrary {
             });
         }
         Ok(out)
+    }
+
+    /// The latest policy version and the fleet failures it was trained at, if any.
+    pub fn latest_policy(&self) -> Result<Option<(u32, u64)>, LibraryError> {
+        let row: Option<(i64, i64)> = self
+            .conn
+            .query_row("SELECT version, failures FROM policies ORDER BY version DESC LIMIT 1", [], |r| {
+                Ok((r.get(0)?, r.get(1)?))
+            })
+            .optional()?;
+        Ok(row.map(|(v, f)| (u32::try_from(v).unwrap_or(u32::MAX), f.max(0) as u64)))
+    }
+
+    /// The version the fleet is driven by: the latest the gate let through.
+    pub fn deployed_policy(&self) -> Result<Option<PolicyVersion>, LibraryError> {
+        Ok(self.policy_versions_where("decision = 'pushed' ORDER BY version DESC LIMIT 1")?.pop())
+    }
+
+    /// A consistent copy of the whole library in a new file at `path` (`VACUUM INTO`): what a
+    /// training run reads, as it was when the run was decided on.
+    pub fn snapshot(&self, path: &Path) -> Result<(), LibraryError> {
+        let path = path.to_str().ok_or_else(|| LibraryError::Corrupt {
+            id: path.display().to_string(),
+            reason: "a snapshot path must be UTF-8".into(),
+        })?;
+        self.conn.execute("VACUUM INTO ?1", [path])?;
+        Ok(())
+    }
+
+    /// Forgets that policy `version` went to `site/edge` (the vehicle drove without it since:
+    /// it restarted), so that it is sent again.
+    pub fn forget_policy_delivery(&mut self, version: u32, site: &str, edge: &str) -> Result<(), LibraryError> {
+        self.conn.execute(
+            "DELETE FROM policy_pushes WHERE version = ?1 AND site = ?2 AND edge = ?3",
+            params![version, site, edge],
+        )?;
+        Ok(())
     }
 
     /// Notes that policy `version` went to `site/edge`.
@@ -470,7 +517,9 @@ mod tests {
             failures: 5,
         };
         let pushed = PolicyVersion { version: 2, pushed: true, reasons: Vec::new(), failures: 9, ..held.clone() };
+        assert_eq!(lib.latest_policy().expect("read"), None);
         lib.record_policy(&held).expect("stored");
+        assert_eq!(lib.deployed_policy().expect("read"), None, "held back: not deployed");
         lib.record_policy(&pushed).expect("stored");
         assert!(lib.record_policy(&pushed).is_err(), "a version is stored once");
         assert_eq!(lib.policy_versions().expect("read"), [held, pushed]);
@@ -480,5 +529,14 @@ mod tests {
         assert!(lib.policy_delivered(2, "s", "v1").expect("read"));
         assert!(!lib.policy_delivered(2, "s", "v2").expect("read"));
         assert!(lib.note_policy_delivered(7, "s", "v1").is_err(), "an unknown version");
+        lib.forget_policy_delivery(2, "s", "v1").expect("forgotten");
+        assert!(!lib.policy_delivered(2, "s", "v1").expect("read"));
+        assert_eq!(lib.latest_policy().expect("read"), Some((2, 9)));
+        assert_eq!(lib.deployed_policy().expect("read").map(|p| p.version), Some(2));
+        let dir = tempfile::tempdir().expect("tempdir");
+        let copy = dir.path().join("snapshot.db");
+        lib.snapshot(&copy).expect("copied");
+        let copy = ScenarioLibrary::open(&copy).expect("a library");
+        assert_eq!(copy.policy_versions().expect("read"), lib.policy_versions().expect("read"));
     }
 }

@@ -14,6 +14,7 @@ use super::CloudError;
 use super::liveliness::LivenessLog;
 use super::push::header;
 use super::receive::LiveIngest;
+use crate::fleet_loop::trainer::TrainJob;
 use crate::fleet_loop::{FleetLoop, LoopSummary, PolicyOrder, PushOrder};
 use crate::library::PolicyVersion;
 use crate::trainer::TrainerError;
@@ -32,6 +33,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc::UnboundedReceiver;
+use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
 
 /// How often live edges are looked at for a first push, a resend or a timeout.
@@ -129,8 +131,20 @@ pub(crate) async fn start(
     Ok(LoopRole { results, task, counts })
 }
 
-/// A training run on its own thread.
-type Training = JoinHandle<Result<(PolicyVersion, GateReport), TrainerError>>;
+/// A training run on a thread of its own: its result comes on this channel. The thread is not
+/// joined: a run still going at shutdown is left behind (the process ends with it; the trainer
+/// only reads a snapshot, and the next start trains the version again).
+type Training = oneshot::Receiver<Result<(PolicyVersion, GateReport), TrainerError>>;
+
+/// Starts `job` on a thread of its own.
+fn start_training(job: TrainJob) -> Training {
+    let (tx, rx) = oneshot::channel();
+    std::thread::spawn(move || {
+        // The receiver is gone only at shutdown: nobody wants the result then.
+        let _ = tx.send(job.run());
+    });
+    rx
+}
 
 /// The loop's task, until `shutdown` fires.
 async fn drive(
@@ -144,6 +158,8 @@ async fn drive(
     let mut pushes = Pushes { session, publishers: HashMap::new(), sent: 0 };
     let mut idle = tokio::time::interval(IDLE_PERIOD);
     let mut training: Option<Training> = None;
+    // The header seq of the loop's recorded events.
+    let mut events = 0u64;
     let failed = |e: &dyn std::fmt::Display| tracing::error!("loop: stopped: {e}");
     loop {
         tokio::select! {
@@ -161,15 +177,16 @@ async fn drive(
                 if training.is_none()
                     && let Some(job) = fleet.due_training().inspect_err(|e| failed(e))?
                 {
-                    training = Some(tokio::task::spawn_blocking(move || job.run()));
+                    training = Some(start_training(job));
                 }
-                record(&mut fleet, &ingest, &liveness);
+                record(&mut fleet, &ingest, &liveness, &mut events);
             }
             done = async { training.as_mut().expect("guarded by the condition").await }, if training.is_some() => {
                 training = None;
-                let run = done.map_err(|e| super::join_error("training", e))?;
+                // A thread that ended without sending panicked: its run is lost, the loop goes on.
+                let run = done.unwrap_or(Err(TrainerError::Lost));
                 fleet.on_trained(run).inspect_err(|e| failed(e))?;
-                record(&mut fleet, &ingest, &liveness);
+                record(&mut fleet, &ingest, &liveness, &mut events);
             }
             _ = idle.tick() => {
                 let alive = live_vehicles(&ingest, &liveness);
@@ -181,7 +198,7 @@ async fn drive(
                     pushes.scenario(&order, &ingest).await.inspect_err(|e| failed(e))?;
                     fleet.sent(&order, None);
                 }
-                record(&mut fleet, &ingest, &liveness);
+                record(&mut fleet, &ingest, &liveness, &mut events);
             }
             () = shutdown.wait() => break,
         }
@@ -190,11 +207,8 @@ async fn drive(
     while let Ok(episode) = episodes.try_recv() {
         fleet.on_episode(&episode, false)?;
     }
-    // A run in flight is waited for and its version kept (deployed on the next start).
-    if let Some(run) = training {
-        fleet.on_trained(run.await.map_err(|e| super::join_error("training", e))?)?;
-        record(&mut fleet, &ingest, &liveness);
-    }
+    record(&mut fleet, &ingest, &liveness, &mut events);
+    drop(training);
     pushes.close().await?;
     Ok(fleet.finish()?)
 }
@@ -208,7 +222,7 @@ fn live_vehicles(ingest: &Mutex<LiveIngest>, liveness: &Mutex<LivenessLog>) -> V
 
 /// Records the loop's events into the cloud's recording (when it records): each on its
 /// site's loop topic; a fleet-wide one (a gate decision) on that of every site with a live edge.
-fn record(fleet: &mut FleetLoop, ingest: &Mutex<LiveIngest>, liveness: &Mutex<LivenessLog>) {
+fn record(fleet: &mut FleetLoop, ingest: &Mutex<LiveIngest>, liveness: &Mutex<LivenessLog>, seq: &mut u64) {
     let events = fleet.take_events();
     if events.is_empty() {
         return;
@@ -216,14 +230,16 @@ fn record(fleet: &mut FleetLoop, ingest: &Mutex<LiveIngest>, liveness: &Mutex<Li
     let mut sites: Vec<String> = lock(liveness).alive().into_iter().map(|(site, _)| site).collect();
     sites.dedup();
     let mut ingest = lock(ingest);
-    for (seq, e) in events.into_iter().enumerate() {
+    for e in events {
+        *seq += 1;
         let event = v1::LoopEvent {
-            header: Some((&header(seq as u64)).into()),
+            header: Some((&header(*seq)).into()),
             kind: e.kind.to_owned(),
             edge: e.edge,
             scenario_id: e.scenario_id,
             push_seq: e.push_seq.unwrap_or(0),
             attempt: e.attempt,
+            policy_version: e.policy_version.unwrap_or(0),
             collision: e.collision,
             risk_score: e.risk_score,
             detail: e.detail.unwrap_or_default(),

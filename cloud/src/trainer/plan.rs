@@ -19,6 +19,10 @@ pub enum TrainerError {
     EmptyLibrary,
     #[error("bad training plan: {0}")]
     BadPlan(String),
+    #[error("{0}")]
+    Io(String),
+    #[error("the training run ended without a result (it panicked)")]
+    Lost,
 }
 
 /// How every training run of an ablation is done.

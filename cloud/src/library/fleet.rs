@@ -77,19 +77,6 @@ pub struct FleetCounts {
 }
 
 impl ScenarioLibrary {
-    /// Notes that scenario `scenario_id` is being pushed to `site/edge` for the first time.
-    /// Refused while another push to that edge is outstanding (one per edge, by the schema).
-    pub fn start_push(&mut self, scenario_id: &str, site: &str, edge: &str) -> Result<Push, LibraryError> {
-        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
-        tx.execute(
-            "INSERT INTO pushes (scenario_id, site, edge, attempts, state) VALUES (?1, ?2, ?3, 1, 'outstanding')",
-            params![scenario_id, site, edge],
-        )?;
-        let seq = tx.last_insert_rowid();
-        tx.commit()?;
-        Ok(Push { seq, scenario_id: scenario_id.to_owned(), site: site.to_owned(), edge: edge.to_owned(), attempts: 1 })
-    }
-
     /// Picks the riskiest scenario never pushed and notes it pushed to `site/edge`, in one
     /// transaction: two processes on one file cannot push the same scenario. `None` when every
     /// scenario has been pushed, or another process has a push outstanding at that edge.
@@ -212,8 +199,8 @@ impl ScenarioLibrary {
 
     /// Every fleet episode, oldest first.
     pub fn fleet_episodes(&self) -> Result<Vec<StoredFleetEpisode>, LibraryError> {
-        let twin_columns = OUTCOME_COLUMNS.split(", ").map(|c| format!("t.{c}")).collect::<Vec<_>>().join(", ");
-        let edge_columns = OUTCOME_COLUMNS.split(", ").map(|c| format!("o.{c}")).collect::<Vec<_>>().join(", ");
+        let columns_of = |table: &str| OUTCOME_COLUMNS.split(", ").map(|c| format!("{table}.{c}")).collect::<Vec<_>>();
+        let (edge_columns, twin_columns) = (columns_of("o").join(", "), columns_of("t").join(", "));
         let mut stmt = self.conn.prepare_cached(&format!(
             "SELECT f.seq, f.scenario_id, f.site, f.edge, f.policy_id, f.policy_version, f.scene, f.push_seq, \
                     f.twin_ticks, f.disagreement, f.twin_outcome_seq IS NOT NULL, {edge_columns}, {twin_columns} \
@@ -262,25 +249,6 @@ impl ScenarioLibrary {
             outstanding: count("SELECT COUNT(*) FROM pushes WHERE state = 'outstanding'")?,
             abandoned: count("SELECT COUNT(*) FROM pushes WHERE state = 'abandoned'")?,
         })
-    }
-
-    /// The push outstanding at `site/edge`, if any.
-    pub fn outstanding_push(&self, site: &str, edge: &str) -> Result<Option<Push>, LibraryError> {
-        Ok(self
-            .conn
-            .prepare_cached(
-                "SELECT seq, scenario_id, attempts FROM pushes WHERE site = ?1 AND edge = ?2 AND state = 'outstanding'",
-            )?
-            .query_row(params![site, edge], |r| {
-                Ok(Push {
-                    seq: r.get(0)?,
-                    scenario_id: r.get(1)?,
-                    site: site.to_owned(),
-                    edge: edge.to_owned(),
-                    attempts: u32::try_from(r.get::<_, i64>(2)?).unwrap_or(u32::MAX),
-                })
-            })
-            .optional()?)
     }
 }
 
@@ -448,14 +416,19 @@ mod tests {
         lib.insert_batch(&records).expect("stored");
         let (low, high) = (content_id(&records[0].spec), content_id(&records[1].spec));
         assert_eq!(lib.riskiest_unpushed().expect("ranked").map(|r| r.id), Some(high.clone()));
-        let push = lib.start_push(&high, "s", "v1").expect("pushed");
+        let (push, first) = lib.start_riskiest_push("s", "v1").expect("pushed").expect("a scenario");
+        assert_eq!(first.id, high);
         assert_eq!(lib.riskiest_unpushed().expect("ranked").map(|r| r.id), Some(low.clone()), "pushed once only");
         // A second outstanding push to the same edge is refused by the schema; another edge is fine.
-        assert!(matches!(lib.start_push(&low, "s", "v1"), Err(LibraryError::Sqlite(_))));
-        let other = lib.start_push(&low, "s", "v2").expect("another edge");
+        assert_eq!(lib.start_riskiest_push("s", "v1").expect("checked"), None, "one outstanding per edge");
+        let (other, second) = lib.start_riskiest_push("s", "v2").expect("another edge").expect("a scenario");
+        assert_eq!(second.id, low);
         assert_eq!(lib.riskiest_unpushed().expect("ranked"), None);
         assert_eq!(lib.retry_push(push.seq).expect("retried"), 2);
-        assert_eq!(lib.outstanding_push("s", "v1").expect("read").map(|p| p.attempts), Some(2));
+        assert_eq!(
+            lib.outstanding_pushes().expect("read").iter().find(|p| p.edge == "v1").map(|p| p.attempts),
+            Some(2)
+        );
 
         lib.record_fleet_episode(&episode(&high, Some(push.seq), true)).expect("stored");
         lib.abandon_push(other.seq).expect("given up");
@@ -479,7 +452,7 @@ mod tests {
         let rec = sampled(ScenarioKind::LowFriction, 0, 0.3, false);
         lib.insert_batch(std::slice::from_ref(&rec)).expect("stored");
         let id = content_id(&rec.spec);
-        let push = lib.start_push(&id, "s", "v1").expect("pushed");
+        let (push, _) = lib.start_riskiest_push("s", "v1").expect("pushed").expect("the one scenario");
         assert!(matches!(
             lib.record_fleet_episode(&episode("feedfacefeedface", Some(push.seq), false)),
             Err(LibraryError::UnknownScenario(_))

@@ -405,7 +405,7 @@ mod tests {
         let cases: i64 = lib.conn.query_row("SELECT COUNT(*) FROM recorded", [], |r| r.get(0)).expect("count");
         assert_eq!(cases, 1);
         // The loop's tables work on the upgraded file.
-        let push = lib.start_push(&id, "s", "v1").expect("a push");
+        let (push, _) = lib.start_riskiest_push("s", "v1").expect("a push").expect("the one scenario");
         assert_eq!(lib.outstanding_pushes().expect("read"), [push]);
         assert_eq!(lib.riskiest_unpushed().expect("rank"), None);
     }

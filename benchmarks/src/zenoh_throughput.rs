@@ -18,6 +18,7 @@
 use crate::standin::StandIn;
 use crate::standin_ingest::StandInCounters;
 use risktwin_cloud::network::CloudError;
+use risktwin_cloud::network::LiveIngest;
 use risktwin_cloud::network::edges::watch_edges;
 use risktwin_cloud::network::liveliness::LivenessLog;
 use risktwin_transport::zenoh::qos::CongestionControl;
@@ -206,7 +207,8 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     .await?;
     // As in the cloud: the edge's liveliness token makes the cloud declare its stream keys.
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
-    let mut edges = watch_edges(&sub_side, Some(&site), liveness).await?;
+    let ingest = Arc::new(Mutex::new(LiveIngest::new(None, None).map_err(|e| bench_error(e.to_string()))?));
+    let mut edges = watch_edges(&sub_side, Some(&site), liveness, ingest).await?;
     let token = declare_alive(&pub_side, &site, &source).await?;
     let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State).await?;
     tokio::time::timeout(Duration::from_secs(10), edges.declared.wait_for(|n| *n >= 1))

@@ -197,4 +197,15 @@ pub struct ScenarioResult {
     /// Sequence numbers of the first and last `state` message the episode was published on;
     /// `None`: none was.
     pub state_seqs: Option<(u64, u64)>,
+    /// The distributed scene the episode was played in; `None`: a pushed scenario.
+    pub scene: Option<SceneRef>,
+}
+
+/// A distributed scene (`risktwin scene`) an episode was played in.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneRef {
+    /// The scene's digest, 16 hex digits (the authority's `scene`).
+    pub digest: String,
+    /// The generated scenario it ran; its content id is the result's `spec_id`.
+    pub spec: ScenarioSpec,
 }

@@ -115,6 +115,7 @@ impl Vehicle {
             risk: done.tape.result.risk,
             policy: done.tape.driven_by.clone(),
             state_seqs: done.state_seqs,
+            scene: None,
         };
         self.results_sent += 1;
         let driver = result

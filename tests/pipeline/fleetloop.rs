@@ -4,7 +4,8 @@
 //! scenario; then the cloud is killed (SIGKILL) with pushes outstanding, the file is checked
 //! for consistency, and a restarted cloud answers the outstanding pushes (sending them again as
 //! retries of the same push) and stores their episodes, without pushing any scenario twice; its
-//! recording holds the loop's events.
+//! recording holds the loop's events. The ego's episodes of distributed scenes are kept the
+//! same way, scored by the twin on the whole scene.
 
 use crate::support::{Proc, run_json, start_router};
 use prost::Message;
@@ -184,6 +185,81 @@ fn the_loop_pushes_stores_fleet_outcomes_and_resumes_after_a_crash() {
     let text = std::fs::read_to_string(&report).expect("the loop report is written");
     assert!(text.starts_with("# Closed loop over the fleet"), "{text}");
     assert!(text.contains("| 1 | "), "the episodes are listed:\n{text}");
+}
+
+#[test]
+fn the_ego_episodes_of_scenes_are_scored_by_the_twin_and_kept_in_the_library() {
+    let (router, locator) = start_router();
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let path = |name: &str| dir.path().join(name).to_str().expect("a UTF-8 path").to_owned();
+    let db = path("lib.db");
+    let mut cloud = start_cloud("cloud", &db, &locator, &path("loop.md"), &path("loop.mcap"));
+    // Two real-time scenes back to back at one site, each its own processes (authority, the ego
+    // v0, the connected v1, an RSU) under the same names: the second numbers its messages
+    // from 0 again, and neither scenario is in the library beforehand.
+    let mut outcomes = Vec::new();
+    for (kind, seed) in [("emergency-braking", "5"), ("cut-in", "3")] {
+        let args = ["scene", "run", "--kind", kind, "--seed", seed, "--connected", "2", "--rsus", "1"];
+        let mut scene = Proc::spawn("scene", &[&args[..], &["--clock", "realtime", "--router", &locator]].concat());
+        outcomes.push(scene.exit_json(EPISODES));
+    }
+    wait_for(&db, STEP, "SELECT COUNT(*) FROM fleet_episodes", |n| n == 2);
+    cloud.terminate();
+    let summary = cloud.exit_json(STEP);
+    router.terminate();
+
+    let conn = Connection::open(&db).expect("the library opens");
+    assert_eq!(count(&conn, "SELECT COUNT(*) FROM pushes"), 0, "a scene's participants are pushed nothing");
+    let mut rows = conn
+        .prepare(
+            "SELECT f.scene, f.edge, f.push_seq IS NULL, f.twin_ticks, s.kind, s.origin, e.collision, \
+             e.route_completion, e.steps, t.collision, t.route_completion \
+             FROM fleet_episodes f JOIN scenarios s ON s.id = f.scenario_id \
+             JOIN outcomes e ON e.seq = f.edge_outcome_seq JOIN twin_outcomes t ON t.seq = f.twin_outcome_seq \
+             ORDER BY f.seq",
+        )
+        .expect("prepares");
+    type Row = (String, String, bool, i64, String, String, bool, f64, i64, bool, f64);
+    let rows: Vec<Row> = rows
+        .query_map([], |r| {
+            Ok((
+                r.get(0)?,
+                r.get(1)?,
+                r.get(2)?,
+                r.get(3)?,
+                r.get(4)?,
+                r.get(5)?,
+                r.get(6)?,
+                r.get(7)?,
+                r.get(8)?,
+                r.get(9)?,
+                r.get(10)?,
+            ))
+        })
+        .expect("runs")
+        .collect::<Result<_, _>>()
+        .expect("reads");
+    assert_eq!(rows.len(), 2, "one episode per scene, each with the twin's score: {rows:?}");
+    for (row, outcome) in rows.iter().zip(&outcomes) {
+        let (scene, edge, unpushed, ticks, kind, origin, collision, completion, steps, twin_collision, twin_completion) =
+            row;
+        let m = &outcome["metrics"];
+        assert_eq!(Some(scene.as_str()), outcome["scene"].as_str(), "the scene's digest: {row:?}");
+        assert_eq!((edge.as_str(), *unpushed), ("v0", true), "{row:?}");
+        assert_eq!((Some(kind.as_str()), origin.as_str()), (outcome["kind"].as_str(), "imported"), "{row:?}");
+        assert_eq!(Some(*collision), m["collision"].as_bool(), "the authority's outcome, as the ego reported it");
+        assert_eq!(Some(*completion), m["route_completion"].as_f64());
+        assert_eq!(Some(*steps as u64), m["steps"].as_u64());
+        // The twin saw the scene from its streams: most ticks, no phantom contact, the route
+        // driven (a tick of the end may be missed on a loaded machine).
+        assert!(*ticks as u64 > outcome["steps"].as_u64().expect("steps") / 2, "{row:?}");
+        assert!(!twin_collision, "{row:?}");
+        assert!(*twin_completion > 0.9, "{row:?}");
+    }
+    let fleet = &summary["loop"];
+    assert_eq!(fleet["scene_episodes"], 2, "{fleet}");
+    assert_eq!(fleet["watch"]["scenes"], 2, "{fleet}");
+    assert_eq!(summary["total_dropped"], 0, "the second scene's numbers from 0 are not duplicates: {summary}");
 }
 
 #[test]

@@ -85,7 +85,8 @@ fn a_cloud_mirrors_a_realtime_recording_scene_on_its_lanelet_road() {
     }
     cloud.terminate();
     let summary = cloud.exit_json(Duration::from_secs(30));
-    assert_eq!(summary["received"]["v0"]["state"], steps, "{summary}");
+    // A state at every step and the final one the scene ended in.
+    assert_eq!(summary["received"]["v0"]["state"], steps + 1, "{summary}");
     // v1 (obstacle 35) is recorded until 3.3 s: a state at each of the 67 steps it is there.
     assert_eq!(summary["received"]["v1"]["state"], 67, "{summary}");
     assert_eq!(summary["total_dropped"], 0, "{summary}");
@@ -149,10 +150,12 @@ fn a_realtime_scene_keeps_the_wall_clock_and_a_cloud_mirrors_it_on_its_road() {
     cloud.terminate();
     let summary = cloud.exit_json(Duration::from_secs(30));
     let lists = steps.div_ceil(2);
+    // A state at every step and the final one the scene ended in.
+    let states = steps + 1;
     let expected = serde_json::json!({
-        "v0": {"state": steps, "perception": lists},
-        "v1": {"state": steps, "perception": lists},
-        "v2": {"state": steps, "perception": lists},
+        "v0": {"state": states, "perception": lists},
+        "v1": {"state": states, "perception": lists},
+        "v2": {"state": states, "perception": lists},
         "rsu0": {"rsu": lists},
     });
     assert_eq!(summary["received"], expected, "state 20 Hz, object lists 10 Hz: {summary}");

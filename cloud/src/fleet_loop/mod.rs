@@ -8,7 +8,9 @@
 //!   ticks, both outcomes are stored with the episode (and where they disagree, the row says
 //!   so), the edge gets the riskiest scenario never pushed, and a failure (collision or leaving
 //!   the road) is mutated around ([`FleetLoop::mutate_failures`], feasibility-checked children
-//!   that rank in from then on).
+//!   that rank in from then on). The ego's episode of a distributed scene comes back the same
+//!   way, with the scene's digest (its scenario enters the library if it was not there); its
+//!   edge is the scene's and gets no push.
 //! - Edges ([`FleetLoop::on_idle`]): a live vehicle without an outstanding push gets one; an
 //!   outstanding push not sent by this process (restart) is sent again; one whose result did
 //!   not come within [`LoopConfig::result_timeout`] is sent again, up to
@@ -19,7 +21,8 @@ pub mod trainer;
 
 use crate::generate::mutate_stored;
 use crate::library::{
-    FleetCounts, FleetEpisode, LibraryError, Outcome, PolicyVersion, Push, ScenarioLibrary, content_id, policy_label,
+    FleetCounts, FleetEpisode, LibraryError, Origin, Outcome, PolicyVersion, Push, ScenarioLibrary, ScenarioRecord,
+    content_id, policy_label,
 };
 use crate::trainer::TrainerError;
 use crate::trainer::gate::GateReport;
@@ -195,6 +198,8 @@ pub struct LoopSummary {
     pub abandoned: u64,
     /// Episodes stored by this process.
     pub episodes: u64,
+    /// Of those, the egos' episodes of distributed scenes.
+    pub scene_episodes: u64,
     /// Of those, failures (collision or leaving the road, as the edge reported).
     pub failures: u64,
     /// Failures per hour of this process's run.
@@ -300,6 +305,13 @@ impl FleetLoop {
         let answers = self.outstanding.get(&key).filter(|o| o.push.scenario_id == *spec_id).map(|o| o.push.seq);
         let twin = episode.score();
         let row = fleet_episode(episode, answers, twin.as_ref());
+        if let Some(scene) = &episode.result.scene {
+            // A scene's scenario may come from outside the library (`--spec`, `--kind`): it
+            // enters it, to be ranked and pushed like any other (a stored one stays as it is).
+            let record = ScenarioRecord { spec: scene.spec.clone(), origin: Origin::Imported, parent_id: None, outcome: None };
+            self.library.insert_batch(std::slice::from_ref(&record))?;
+            self.summary.scene_episodes += 1;
+        }
         match self.library.record_fleet_episode(&row) {
             Ok(_) => {}
             Err(LibraryError::UnknownScenario(id)) => {
@@ -616,7 +628,7 @@ fn fleet_episode(episode: &WatchedEpisode, push_seq: Option<i64>, twin: Option<&
         site: episode.site.clone(),
         edge: episode.edge.clone(),
         policy: r.policy.clone(),
-        scene: None,
+        scene: r.scene.as_ref().map(|s| s.digest.clone()),
         push_seq,
         edge_outcome: Outcome { policy: policy.clone(), metrics: r.metrics.clone(), risk: r.risk },
         twin_outcome: twin.map(|t| Outcome { policy, metrics: t.metrics.clone(), risk: t.risk }),

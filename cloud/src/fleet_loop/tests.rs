@@ -35,6 +35,7 @@ fn played(order: &PushOrder) -> WatchedEpisode {
         risk: r.risk,
         policy: None,
         state_seqs: Some((10, 200)),
+        scene: None,
     };
     WatchedEpisode {
         site: order.site.clone(),

@@ -134,6 +134,14 @@ impl<W: Write + Seek> IngestWorker<W> {
         }
     }
 
+    /// `source` left (its liveliness token went away): a process that comes back under its name
+    /// numbers its messages from the start again, and is taken as a new incarnation.
+    pub fn restart_source(&mut self, source: &str) {
+        if let Some(index) = self.sources.get(source) {
+            self.core.restart_source(index);
+        }
+    }
+
     /// Counts a message dropped before it reached the worker (its key or its attachment was
     /// wrong), so that every drop is counted in one place.
     pub fn reject(&mut self, reason: DropReason) {

@@ -2,9 +2,9 @@
 //! the value checks done before anything is written.
 
 use super::error::RecordError;
-use risktwin_common::digest::fnv1a64;
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;
+pub use risktwin_common::scenario::content_id;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
 
 /// The policy whose outcomes rank the library: the reference driver of docs/cli.md.
@@ -120,24 +120,6 @@ pub struct InsertSummary {
     pub duplicates: usize,
     /// Outcome rows written.
     pub outcomes: usize,
-}
-
-/// The stable content id of a spec: FNV-1a over kind, seed and the exact parameter bits, in hex.
-///
-/// Same kind, seed and parameters give the same id on every machine, so storing a scenario
-/// twice yields one row. −0.0 and +0.0 count as the same value.
-pub fn content_id(spec: &ScenarioSpec) -> String {
-    let mut bytes = Vec::with_capacity(32 + 40 * spec.params.len());
-    bytes.extend_from_slice(spec.kind.name().as_bytes());
-    bytes.push(0);
-    bytes.extend_from_slice(&spec.seed.to_le_bytes());
-    for (name, value) in &spec.params {
-        bytes.extend_from_slice(name.as_bytes());
-        bytes.push(0);
-        let canonical = if *value == 0.0 { 0.0f64 } else { *value };
-        bytes.extend_from_slice(&canonical.to_bits().to_le_bytes());
-    }
-    format!("{:016x}", fnv1a64(bytes))
 }
 
 fn finite(field: &'static str, value: f64) -> Result<(), RecordError> {

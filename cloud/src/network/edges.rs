@@ -4,6 +4,7 @@
 //! subscription.
 
 use super::liveliness::LivenessLog;
+use super::receive::LiveIngest;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
 use risktwin_transport::{SiteId, SourceId, TransportError, declare_edge_keys, watch_liveliness};
@@ -19,15 +20,21 @@ pub struct EdgeWatch {
     pub declared: watch::Receiver<usize>,
 }
 
-/// Starts watching the edges at `site` (every site if `None`), recording joins and leaves.
+/// Starts watching the edges at `site` (every site if `None`), recording joins and leaves; an
+/// edge that left is a new incarnation for `ingest` when it comes back (a restarted process
+/// numbers its messages from 0 again, which would otherwise be refused as duplicates).
 pub async fn watch_edges(
     session: &Session,
     site: Option<&SiteId>,
     log: Arc<Mutex<LivenessLog>>,
+    ingest: Arc<Mutex<LiveIngest>>,
 ) -> Result<EdgeWatch, TransportError> {
     let (joined_tx, mut joined) = mpsc::unbounded_channel();
     let subscriber = watch_liveliness(session, site, move |change| {
         log.lock().unwrap_or_else(PoisonError::into_inner).record(&change);
+        if !change.alive {
+            ingest.lock().unwrap_or_else(PoisonError::into_inner).edge_left(&change.site, &change.source);
+        }
         if change.alive {
             // The receiver lives as long as the subscriber; a closed one means shutdown.
             let _ = joined_tx.send((change.site, change.source));

@@ -189,6 +189,7 @@ async fn drive(
                 record(&mut fleet, &ingest, &liveness, &mut events);
             }
             _ = idle.tick() => {
+                lock(&ingest).expire_episodes();
                 let alive = live_vehicles(&ingest, &liveness);
                 for order in fleet.policy_orders(&alive).inspect_err(|e| failed(e))? {
                     pushes.policy(&order).await.inspect_err(|e| failed(e))?;
@@ -213,11 +214,13 @@ async fn drive(
     Ok(fleet.finish()?)
 }
 
-/// The live vehicles: edges whose liveliness token is up and whose `state` stream the ingest has
-/// received (an RSU has none).
+/// The live vehicles a scenario can be pushed to: edges whose liveliness token is up and whose
+/// `state` stream the ingest has received (an RSU has none), at a site where no scene runs (a
+/// scene's participants drive the scene).
 fn live_vehicles(ingest: &Mutex<LiveIngest>, liveness: &Mutex<LivenessLog>) -> Vec<(String, String)> {
     let ingest = lock(ingest);
-    lock(liveness).alive().into_iter().filter(|(site, edge)| ingest.states_from(site, edge) > 0).collect()
+    let alive = lock(liveness).alive().into_iter();
+    alive.filter(|(site, edge)| !ingest.is_scene_site(site) && ingest.states_from(site, edge) > 0).collect()
 }
 
 /// Records the loop's events into the cloud's recording (when it records): each on its

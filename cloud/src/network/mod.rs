@@ -305,7 +305,8 @@ pub async fn run(
         Some(_) => Some(criticality::subscribe(&session, config.site.as_ref(), Arc::clone(&crit)).await?),
         None => None,
     };
-    let map_subscriber = if config.has(Role::Risk) {
+    // The loop needs the scene maps too: they start the twin's watch of a scene's episode.
+    let map_subscriber = if config.has(Role::Risk) || config.has(Role::Loop) {
         Some(scene::subscribe_maps(&session, config.site.as_ref(), Arc::clone(&ingest)).await?)
     } else {
         None
@@ -316,7 +317,7 @@ pub async fn run(
         None
     };
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
-    let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness)).await?;
+    let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness), Arc::clone(&ingest)).await?;
     let library_task = queryable.map(|(q, lib)| tokio::spawn(library::serve(q, lib, shutdown.clone())));
     let loop_role = match fleet {
         Some(fleet) => {

@@ -110,6 +110,8 @@ pub struct LiveIngest {
     received: HashMap<String, [u64; STREAMS]>,
     /// Each source's site (from the key of its first accepted message).
     sites: HashMap<String, String>,
+    /// Sites a scene's road map came from.
+    scene_sites: HashSet<String>,
     named: usize,
     outputs: Option<TwinOutputs>,
     publish: Option<UnboundedSender<Publication>>,
@@ -151,6 +153,7 @@ impl LiveIngest {
             worker: IngestWorker::new(config, recorder),
             received: HashMap::new(),
             sites: HashMap::new(),
+            scene_sites: HashSet::new(),
             named: 0,
             outputs,
             publish: None,
@@ -315,6 +318,38 @@ impl LiveIngest {
     pub(crate) fn episode_result(&mut self, site: &str, edge: &str, result: ScenarioResult) {
         if let Some(outputs) = self.outputs.as_mut() {
             outputs.episode_result(site, edge, result, Instant::now());
+        }
+        self.forward_episodes();
+    }
+
+    /// Edge `site/source` left: its next process starts its sequence numbers over.
+    pub(crate) fn edge_left(&mut self, site: &str, source: &str) {
+        if self.sites.get(source).is_some_and(|s| s == site) {
+            self.worker.restart_source(source);
+        }
+    }
+
+    /// A scene's road map came from `site`: the twin watches the scene's episode, and the site's
+    /// edges are scene participants from now on (the loop pushes them nothing).
+    pub(crate) fn scene_seen(&mut self, site: &str) {
+        if !self.scene_sites.contains(site) {
+            self.scene_sites.insert(site.to_owned());
+        }
+        if let Some(outputs) = self.outputs.as_mut() {
+            outputs.watch_mut().begin_scene(site);
+        }
+    }
+
+    /// Whether a scene runs (or ran) at `site`.
+    pub(crate) fn is_scene_site(&self, site: &str) -> bool {
+        self.scene_sites.contains(site)
+    }
+
+    /// Hands on the watched episodes whose results are older than the watch waits
+    /// ([`crate::twin::watch::SETTLE`]).
+    pub(crate) fn expire_episodes(&mut self) {
+        if let Some(outputs) = self.outputs.as_mut() {
+            outputs.watch_mut().expire(Instant::now());
         }
         self.forward_episodes();
     }

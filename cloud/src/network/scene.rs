@@ -1,7 +1,8 @@
 //! What a scene's authority publishes for the cloud (never mixed into the edge streams):
 //! - its road map on `risktwin/v1/<site>/scene/map`, every second: the first one, and any that
 //!   differs from the last, moves that site's risk assessment onto it (sites without a scene
-//!   keep `--road`);
+//!   keep `--road`); every one tells the twin's watch that a scene runs there (its ego's
+//!   episode is scored for the loop) and marks the site's edges as scene participants;
 //! - its ground truth, every physics step: each connected vehicle's state on
 //!   `risktwin/v1/<site>/scene/gt/<source>` and every other object on `…/scene/objects`. The
 //!   twin's fidelity is measured against it, and a recording keeps it on those topics.
@@ -34,6 +35,7 @@ pub(crate) async fn subscribe_maps(
         .callback(move |sample| {
             let Some(site) = parse_scene_topic_key(sample.key_expr().as_str(), SceneTopic::Map) else { return };
             let payload = sample.payload().to_bytes();
+            ingest.lock().unwrap_or_else(PoisonError::into_inner).scene_seen(site);
             let mut last = last.lock().unwrap_or_else(PoisonError::into_inner);
             if last.get(site).is_some_and(|bytes| bytes[..] == payload[..]) {
                 return;

@@ -171,6 +171,17 @@ impl Deduper {
         verdict
     }
 
+    /// `source` started over (a new process under the same name, numbering from its first
+    /// number again): its window is emptied and its count starts again as for a new source;
+    /// its counters go on summing (the accounting identity then holds per incarnation).
+    pub fn restart(&mut self, source: SourceIndex) {
+        let s = source.as_usize();
+        if let Some(st) = self.states.get_mut(s) {
+            st.started = false;
+            self.bits[s * self.words..(s + 1) * self.words].fill(0);
+        }
+    }
+
     /// The counters of one source (zeros for a source never seen).
     pub fn counts(&self, source: SourceIndex) -> SeqCounts {
         self.states.get(source.as_usize()).map(|s| s.counts).unwrap_or_default()
@@ -326,5 +337,22 @@ mod tests {
         assert_eq!(d.accept(A, 499), Verdict::TooOld);
         assert_eq!(d.accept(A, u64::MAX), Verdict::Fresh);
         assert_eq!(d.accept(A, u64::MAX), Verdict::Duplicate, "no overflow at the top");
+    }
+
+    #[test]
+    fn a_restarted_source_counts_from_its_first_number_again_and_keeps_its_counters() {
+        let mut d = Deduper::new(DedupConfig::default());
+        for seq in 0..10 {
+            assert_eq!(d.accept(A, seq), Verdict::Fresh);
+        }
+        assert_eq!(d.accept(A, 3), Verdict::Duplicate, "the same incarnation");
+        d.restart(A);
+        assert_eq!(d.accept(A, 1), Verdict::Fresh, "a new process numbers from its start again");
+        assert_eq!(d.accept(A, 0), Verdict::Fresh);
+        assert_eq!(d.accept(A, 1), Verdict::Duplicate);
+        let c = d.counts(A);
+        assert_eq!((c.fresh, c.duplicate, c.presumed_lost, c.recovered), (12, 2, 0, 1));
+        d.restart(B);
+        assert_eq!(d.counts(B), SeqCounts::default(), "restarting a source never seen changes nothing");
     }
 }

@@ -173,6 +173,27 @@ impl<T: Clone> IngestCore<T> {
         Ok(Accepted { cloud_ns, push })
     }
 
+    /// `source` started over (its process left and a new one may come under the same name):
+    /// its sequence numbers count from the start again and its clock estimate is dropped.
+    pub fn restart_source(&mut self, source: SourceIndex) {
+        match self.cfg.sequence_scope {
+            SequenceScope::PerSource => self.dedup.restart(source),
+            SequenceScope::PerStream => {
+                let streams = self.aligner.streams();
+                for stream in 0..streams {
+                    let key = source.as_usize().saturating_mul(streams).saturating_add(stream);
+                    if let Ok(key) = u32::try_from(key) {
+                        self.dedup.restart(SourceIndex(key));
+                    }
+                }
+            }
+        }
+        if let Some(clock) = self.clocks.get_mut(source.as_usize()) {
+            clock.reset();
+            self.future_streak[source.as_usize()] = 0;
+        }
+    }
+
     /// Moves the cloud clock without a message (a timer while idle), emitting due snapshots.
     pub fn advance(&mut self, now_ns: i64, on_snapshot: impl FnMut(&Snapshot<T>)) -> u64 {
         self.aligner.advance(now_ns, on_snapshot)

@@ -13,4 +13,4 @@ pub use feasibility::{Infeasible, check as check_feasible};
 pub use kind::{ParamDef, ScenarioKind, UnknownKind};
 pub use mutate::{MAX_MUTATION_TRIES, MutateError, mutate};
 pub use sample::{candidate_seed, sample};
-pub use spec::{ScenarioSpec, SpecError};
+pub use spec::{ScenarioSpec, SpecError, content_id};

@@ -163,7 +163,7 @@ pub fn run_scene(setup: &SceneSetup, plane: &mut dyn Plane) -> Result<SceneOutco
         }
     };
     last.end = Some(match &result {
-        Ok(_) => SceneEnd::Done,
+        Ok((metrics, risk)) => SceneEnd::Done { metrics: metrics.clone(), risk: *risk },
         Err(e) => SceneEnd::Failed(e.to_string()),
     });
     let finished = out.plane.finish(&last);

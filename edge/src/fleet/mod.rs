@@ -170,6 +170,16 @@ impl SceneSetup {
         Ok(self)
     }
 
+    /// The generated scenario whose episode the ego reports to the cloud when the scene ends:
+    /// `None` for a recording (not a library scenario) and for a counterfactual (its episode is
+    /// not the scenario's).
+    pub fn reported_spec(&self) -> Option<&ScenarioSpec> {
+        match &self.source {
+            SceneSource::Generated(spec) if self.without.is_empty() => Some(spec),
+            _ => None,
+        }
+    }
+
     /// The scene's world at t = 0: the scenario's (or the recording at the ego's first state),
     /// less the vehicles taken out.
     pub fn world(&self) -> Result<SceneWorld<'_>, SceneError> {

@@ -15,6 +15,7 @@ use super::streams::unix_ns;
 use super::streams::{Streams, StreamsSent};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
+use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{DetectedObject, Frame, Header, ObjectList, RoadMap, VehicleStateSample};
 use risktwin_common::vehicle::Controls;
 use risktwin_protos::{WireMessage, encode};
@@ -443,6 +444,9 @@ struct Answering {
     outbox: Publisher<'static>,
     digest: u64,
     describe: String,
+    /// The ego's scenario, whose outcome it reports when the scene ends (see
+    /// [`SceneSetup::reported_spec`]).
+    reported: Option<ScenarioSpec>,
     summary: ParticipantSummary,
     /// The last step answered and when: shared with the thread that watches for silence, which
     /// must not wait on this stack's lock (held while a step is answered and published).
@@ -463,7 +467,14 @@ impl Answering {
             }
         };
         match truth.end {
-            Some(SceneEnd::Done) => {
+            Some(SceneEnd::Done { ref metrics, risk }) => {
+                let reported = self.streams.publish_state(&self.stack, &truth).and_then(|()| match &self.reported {
+                    Some(spec) => self.streams.report(spec, self.digest, metrics.clone(), risk),
+                    None => Ok(()),
+                });
+                if let Err(e) = reported {
+                    return Some(Err(e));
+                }
                 return Some(Ok(ParticipantSummary { sent: self.streams.sent.clone(), ..self.summary.clone() }));
             }
             Some(SceneEnd::Failed(reason)) => return Some(Err(SceneError::Failed { reason })),
@@ -506,7 +517,8 @@ pub fn run_participant(
         describe: setup.describe(),
     }
     .encode();
-    let streams = Streams::open(session, site, &participant, matches!(stack.role(), Role::Rsu { .. }))?;
+    let reported = setup.reported_spec().filter(|_| stack.role() == Role::Ego).cloned();
+    let streams = Streams::open(session, site, &participant, matches!(stack.role(), Role::Rsu { .. }), reported.is_some())?;
     let summary = ParticipantSummary {
         participant: id.to_owned(),
         scene: format!("{digest:016x}"),
@@ -522,6 +534,7 @@ pub fn run_participant(
         outbox,
         digest,
         describe: setup.describe(),
+        reported,
         summary,
         last: Arc::clone(&last),
         over: false,

@@ -4,14 +4,20 @@
 //! Stamped by the participant's own clock: the wall time at which it received step 0 plus the
 //! scene's time, so in real time the stamps follow the wall clock, and in lockstep they advance
 //! at the scene's pace. Reliable with blocking congestion control: a scene loses nothing.
+//! The ego of a generated scene reports its episode when the scene ends, as a `ScenarioResult`
+//! on its `scenario_result` key (as `edge vehicle` reports a pushed scenario's), naming the
+//! scene and its scenario, so that the cloud's loop keeps it.
 
 use super::SceneError;
 use super::onboard::Onboard;
 use super::wire::Truth;
 use crate::scene::detected;
-use risktwin_common::telemetry::{Frame, Header, ObjectList, RsuObservation};
+use risktwin_common::metrics::EpisodeMetrics;
+use risktwin_common::risk::RiskTerms;
+use risktwin_common::scenario::{ScenarioSpec, content_id};
+use risktwin_common::telemetry::{Frame, Header, ObjectList, RsuObservation, ScenarioResult, SceneRef};
 use risktwin_protos::encode;
-use risktwin_transport::keyexpr::{edge_stream, liveliness_token};
+use risktwin_transport::keyexpr::{EdgeReport, edge_report, edge_stream, liveliness_token};
 use risktwin_transport::zenoh::Wait;
 use risktwin_transport::zenoh::liveliness::LivelinessToken;
 use risktwin_transport::zenoh::pubsub::Publisher;
@@ -38,6 +44,8 @@ pub struct Streams {
     is_rsu: bool,
     state: Publisher<'static>,
     objects: Publisher<'static>,
+    /// The ego's result publisher, when it reports its episode.
+    result: Option<Publisher<'static>>,
     _alive: LivelinessToken,
     /// Wall time at the scene's t = 0 by this participant's clock, ns since the Unix epoch.
     epoch_ns: Option<i64>,
@@ -50,19 +58,28 @@ pub(super) fn unix_ns() -> i64 {
 }
 
 impl Streams {
-    /// Declares the streams of `source` (an RSU's `rsu`, a vehicle's `state` and `perception`)
-    /// and its liveliness token, so the cloud sees it join and leave like any edge.
-    pub fn open(session: &Session, site: &SiteId, source: &SourceId, is_rsu: bool) -> Result<Streams, SceneError> {
-        let declare = |stream: EdgeStream| {
-            let key = edge_stream(site, source, stream);
+    /// Declares the streams of `source` (an RSU's `rsu`, a vehicle's `state` and `perception`,
+    /// and with `reports` its `scenario_result`) and its liveliness token, so the cloud sees it
+    /// join and leave like any edge.
+    pub fn open(
+        session: &Session,
+        site: &SiteId,
+        source: &SourceId,
+        is_rsu: bool,
+        reports: bool,
+    ) -> Result<Streams, SceneError> {
+        let declare_key = |key: String, message: &str| {
             session
                 .declare_publisher(key.clone())
-                .encoding(protobuf(stream.message()))
+                .encoding(protobuf(message))
                 .congestion_control(CongestionControl::Block)
                 .reliability(Reliability::Reliable)
                 .wait()
                 .map_err(|e| SceneError::Transport(format!("{key}: {e}")))
         };
+        let declare = |stream: EdgeStream| declare_key(edge_stream(site, source, stream), stream.message());
+        let report = EdgeReport::ScenarioResult;
+        let result = reports.then(|| declare_key(edge_report(site, source, report), report.message())).transpose()?;
         // An RSU has one stream; its `state` publisher is the same key and never used.
         let (state, objects) = if is_rsu {
             (declare(EdgeStream::Rsu)?, declare(EdgeStream::Rsu)?)
@@ -76,7 +93,7 @@ impl Streams {
             .wait()
             .map_err(|e| SceneError::Transport(format!("{key}: {e}")))?;
         let sent = StreamsSent::default();
-        Ok(Streams { source: source.clone(), is_rsu, state, objects, _alive: alive, epoch_ns: None, sent })
+        Ok(Streams { source: source.clone(), is_rsu, state, objects, result, _alive: alive, epoch_ns: None, sent })
     }
 
     fn header(&self, seq: u64, time_s: f64) -> Header {
@@ -92,16 +109,7 @@ impl Streams {
 
     /// Publishes what `stack` holds for `truth`'s step (after it responded to it).
     pub fn publish(&mut self, stack: &Onboard, truth: &Truth) -> Result<(), SceneError> {
-        self.epoch_ns.get_or_insert_with(|| unix_ns() - (truth.time_s * 1e9).round() as i64);
-        let put = |publisher: &Publisher<'static>, bytes: Vec<u8>| {
-            publisher.put(ZBytes::from(bytes)).wait().map_err(|e| SceneError::Transport(format!("stream: {e}")))
-        };
-        if !self.is_rsu
-            && let Some(state) = stack.own_state(truth, self.header(self.sent.state, truth.time_s))
-        {
-            put(&self.state, encode(&state))?;
-            self.sent.state += 1;
-        }
+        self.publish_state(stack, truth)?;
         if !truth.step.is_multiple_of(STEPS_PER_OBJECT_LIST) {
             return Ok(());
         }
@@ -118,4 +126,45 @@ impl Streams {
         }
         Ok(())
     }
+
+    /// Publishes a vehicle's state in `truth` (nothing for an RSU): every step's, and the final
+    /// one the scene ended in (no step follows it, so nothing is perceived in it).
+    pub fn publish_state(&mut self, stack: &Onboard, truth: &Truth) -> Result<(), SceneError> {
+        self.epoch_ns.get_or_insert_with(|| unix_ns() - (truth.time_s * 1e9).round() as i64);
+        if !self.is_rsu
+            && let Some(state) = stack.own_state(truth, self.header(self.sent.state, truth.time_s))
+        {
+            put(&self.state, encode(&state))?;
+            self.sent.state += 1;
+        }
+        Ok(())
+    }
+
+    /// Reports the ego's episode of `spec` in scene `digest` (the authority's outcome), on the
+    /// `state` messages this process published for it.
+    pub fn report(&self, spec: &ScenarioSpec, digest: u64, metrics: EpisodeMetrics, risk: RiskTerms) -> Result<(), SceneError> {
+        let Some(publisher) = &self.result else { return Ok(()) };
+        let now_ns = unix_ns();
+        let header = Header {
+            source: self.source.as_str().to_owned(),
+            seq: 0,
+            capture_time_ns: now_ns,
+            publish_time_ns: now_ns,
+            frame: Frame::World,
+        };
+        let result = ScenarioResult {
+            header,
+            spec_id: content_id(spec),
+            metrics,
+            risk,
+            policy: None,
+            state_seqs: self.sent.state.checked_sub(1).map(|last| (0, last)),
+            scene: Some(SceneRef { digest: format!("{digest:016x}"), spec: spec.clone() }),
+        };
+        publisher.put(ZBytes::from(encode(&result))).wait().map_err(|e| SceneError::Transport(format!("result: {e}")))
+    }
+}
+
+fn put(publisher: &Publisher<'static>, bytes: Vec<u8>) -> Result<(), SceneError> {
+    publisher.put(ZBytes::from(bytes)).wait().map_err(|e| SceneError::Transport(format!("stream: {e}")))
 }

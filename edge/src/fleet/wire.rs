@@ -8,6 +8,8 @@
 
 use risktwin_common::commonroad::twin::ResimStepper;
 use risktwin_common::geometry::{Footprint, Obb, Pose, Vec2};
+use risktwin_common::metrics::EpisodeMetrics;
+use risktwin_common::risk::RiskTerms;
 use risktwin_common::sensor::{ObjectKind, SceneObject};
 use risktwin_common::telemetry::DetectedObject;
 use risktwin_common::vehicle::Controls;
@@ -16,7 +18,7 @@ use risktwin_common::world::World;
 use serde::{Deserialize, Serialize};
 
 /// Version of the physics-plane messages; bump on any change to them.
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// The ego's true state at the start of a step.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -50,8 +52,9 @@ pub struct TruthObject {
 /// How a scene ended, sent instead of a next step.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum SceneEnd {
-    /// The episode is over (horizon, route done, collision or road departure).
-    Done,
+    /// The episode is over (horizon, route done, collision or road departure): the ego's
+    /// outcome as the authority measured it (the ego's process reports it to the cloud).
+    Done { metrics: EpisodeMetrics, risk: RiskTerms },
     /// The authority gave up; the reason names who failed.
     Failed(String),
 }

@@ -8,8 +8,8 @@ use super::{
 };
 use crate::v1;
 use risktwin_common::metrics::EpisodeMetrics;
-use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
-use risktwin_common::telemetry::{PolicyRef, PolicyUpdate, ScenarioPush, ScenarioResult};
+use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, content_id};
+use risktwin_common::telemetry::{PolicyRef, PolicyUpdate, ScenarioPush, ScenarioResult, SceneRef};
 
 impl From<ScenarioKind> for v1::ScenarioKind {
     fn from(k: ScenarioKind) -> Self {
@@ -113,6 +113,7 @@ impl From<&ScenarioResult> for v1::ScenarioResult {
             risk: Some((&r.risk).into()),
             policy: r.policy.as_ref().map(|p| v1::PolicyRef { policy_id: p.policy_id.clone(), version: p.version }),
             state_seqs: r.state_seqs.map(|(first, last)| v1::SeqRange { first, last }),
+            scene: r.scene.as_ref().map(|s| v1::SceneRef { digest: s.digest.clone(), spec: Some((&s.spec).into()) }),
         }
     }
 }
@@ -121,9 +122,11 @@ impl TryFrom<v1::ScenarioResult> for ScenarioResult {
     type Error = ConvertError;
     fn try_from(r: v1::ScenarioResult) -> Result<Self, ConvertError> {
         const M: &str = "ScenarioResult";
+        let spec_id = non_empty(M, "spec_id", r.spec_id)?;
+        let scene = r.scene.map(|s| scene_ref(s, &spec_id)).transpose()?;
         Ok(Self {
             header: header(M, r.header)?,
-            spec_id: non_empty(M, "spec_id", r.spec_id)?,
+            spec_id,
             metrics: required(M, "metrics", r.metrics)?.try_into()?,
             risk: terms(M, "risk", r.risk)?,
             policy: r
@@ -139,8 +142,23 @@ impl TryFrom<v1::ScenarioResult> for ScenarioResult {
                 }
                 range => range.map(|s| (s.first, s.last)),
             },
+            scene,
         })
     }
+}
+
+/// A scene reference: a 16-hex-digit digest and the spec whose content id is `spec_id`.
+fn scene_ref(s: v1::SceneRef, spec_id: &str) -> Result<SceneRef, ConvertError> {
+    const M: &str = "SceneRef";
+    if s.digest.len() != 16 || !s.digest.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(invalid(M, "digest", format!("{:?} is not 16 hex digits", s.digest)));
+    }
+    let spec: ScenarioSpec = required(M, "spec", s.spec)?.try_into()?;
+    let id = content_id(&spec);
+    if id != spec_id {
+        return Err(invalid(M, "spec", format!("its content id {id} is not the result's spec_id {spec_id}")));
+    }
+    Ok(SceneRef { digest: s.digest, spec })
 }
 
 impl From<&PolicyUpdate> for v1::PolicyUpdate {

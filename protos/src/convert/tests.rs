@@ -6,7 +6,7 @@ use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::{RiskGrid, RiskTerms};
 use risktwin_common::road::Road;
-use risktwin_common::scenario::{ScenarioKind, sample};
+use risktwin_common::scenario::{ScenarioKind, content_id, sample};
 use risktwin_common::sensor::ObjectKind;
 use risktwin_common::telemetry::*;
 use risktwin_common::vehicle::Controls;
@@ -148,6 +148,7 @@ fn every_message_round_trips_bit_exactly() {
         risk: terms(),
         policy: None,
         state_seqs: None,
+        scene: None,
     });
     round_trip(&ScenarioResult {
         header: hdr(13),
@@ -156,6 +157,17 @@ fn every_message_round_trips_bit_exactly() {
         risk: terms(),
         policy: Some(PolicyRef { policy_id: "ppo-main".into(), version: 7 }),
         state_seqs: Some((40, 240)),
+        scene: None,
+    });
+    let spec = sample(7, ScenarioKind::CutIn, 3);
+    round_trip(&ScenarioResult {
+        header: hdr(14),
+        spec_id: content_id(&spec),
+        metrics: metrics(),
+        risk: terms(),
+        policy: None,
+        state_seqs: Some((0, 120)),
+        scene: Some(SceneRef { digest: "00ff00ff00ff00ff".into(), spec }),
     });
 }
 
@@ -200,6 +212,7 @@ fn missing_sub_messages_and_ids_are_rejected() {
         risk: terms(),
         policy: Some(PolicyRef { policy_id: "p".into(), version: 1 }),
         state_seqs: Some((3, 3)),
+        scene: None,
     };
     rejects(&r, |p| p.metrics = None, missing("ScenarioResult", "metrics"));
     rejects(
@@ -209,6 +222,20 @@ fn missing_sub_messages_and_ids_are_rejected() {
     );
     rejects(&r, |p| p.policy.as_mut().map_or((), |q| q.policy_id.clear()), missing("PolicyRef", "policy_id"));
     rejects(&r, |p| p.risk = None, missing("ScenarioResult", "risk"));
+    let spec = sample(1, ScenarioKind::CutIn, 0);
+    let in_scene = ScenarioResult {
+        spec_id: content_id(&spec),
+        scene: Some(SceneRef { digest: "0123456789abcdef".into(), spec }),
+        ..r.clone()
+    };
+    rejects(&in_scene, |p| scene_of(p).digest = "xyz".into(), bad("SceneRef", "digest", "\"xyz\" is not 16 hex digits"));
+    rejects(&in_scene, |p| scene_of(p).spec = None, missing("SceneRef", "spec"));
+    let other = content_id(&sample(2, ScenarioKind::CutIn, 0));
+    rejects(
+        &in_scene,
+        |p| p.spec_id = other.clone(),
+        bad("SceneRef", "spec", &format!("its content id {} is not the result's spec_id {other}", in_scene.spec_id)),
+    );
     let push = ScenarioPush { header: hdr(1), spec_id: "a".into(), spec: sample(1, ScenarioKind::LowFriction, 0) };
     rejects(&push, |p| p.spec = None, missing("ScenarioPush", "spec"));
     let pol = PolicyUpdate { header: hdr(1), policy_id: "p".into(), version: 1, algo: "sac".into(), weights: vec![1] };
@@ -310,6 +337,7 @@ fn negative_sizes_and_out_of_range_values_are_rejected() {
         risk: terms(),
         policy: None,
         state_seqs: None,
+        scene: None,
     };
     rejects(
         &r,
@@ -478,4 +506,8 @@ fn a_message_tagged_with_another_schema_is_refused_by_name() {
         assert_eq!(err.reason(), "wrong-schema");
         assert!(err.to_string().contains(tag), "{err}");
     }
+}
+
+fn scene_of(p: &mut crate::v1::ScenarioResult) -> &mut crate::v1::SceneRef {
+    p.scene.as_mut().expect("a scene")
 }

@@ -274,6 +274,10 @@ fn the_loop_role_refuses_what_it_cannot_run_with_exit_2() {
         (&["cloud", "--roles", "ingest,twin,loop", "--db", junk], "is not a SQLite database"),
         (&["cloud", "--roles", "ingest", "--loop-report", "x.md"], "--loop-report needs the loop role"),
         (&["cloud", "--roles", "ingest,twin,loop", "--db", "x.db", "--push-timeout-s", "0"], "--push-timeout-s 0"),
+        (
+            &["cloud", "--roles", "ingest,twin,loop,trainer", "--db", "x.db", "--retrain-every-s", "0"],
+            "--retrain-every-s 0",
+        ),
     ] {
         let mut p = Proc::spawn("bad", args);
         let (status, stdout) = p.wait_exit(STEP);

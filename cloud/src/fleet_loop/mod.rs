@@ -257,6 +257,9 @@ pub struct FleetLoop {
     /// The trainer role, when it runs; a training run is in flight while `training` is set.
     trainer: Option<TrainerConfig>,
     training: bool,
+    /// When the last training run began (the loop's start before the first): the schedule's
+    /// origin.
+    last_training: Instant,
     /// The latest version the gate let through.
     deployed: Option<PolicyVersion>,
     summary: LoopSummary,
@@ -287,6 +290,7 @@ impl FleetLoop {
             events: Vec::new(),
             trainer,
             training: false,
+            last_training: Instant::now(),
             deployed,
             summary: LoopSummary::default(),
         })
@@ -308,7 +312,8 @@ impl FleetLoop {
         if let Some(scene) = &episode.result.scene {
             // A scene's scenario may come from outside the library (`--spec`, `--kind`): it
             // enters it, to be ranked and pushed like any other (a stored one stays as it is).
-            let record = ScenarioRecord { spec: scene.spec.clone(), origin: Origin::Imported, parent_id: None, outcome: None };
+            let record =
+                ScenarioRecord { spec: scene.spec.clone(), origin: Origin::Imported, parent_id: None, outcome: None };
             self.library.insert_batch(std::slice::from_ref(&record))?;
             self.summary.scene_episodes += 1;
         }
@@ -467,7 +472,7 @@ impl FleetLoop {
     /// are in the library; it is then in flight until [`Self::on_trained`].
     pub fn due_training(&mut self) -> Result<Option<TrainJob>, LibraryError> {
         let Some(config) = self.trainer.as_ref().filter(|_| !self.training) else { return Ok(None) };
-        let job = match trainer::due(&self.library, config) {
+        let job = match trainer::due(&self.library, config, self.last_training.elapsed()) {
             Ok(job) => job,
             Err(TrainerError::Library(e)) => return Err(e),
             Err(e) => {
@@ -477,6 +482,7 @@ impl FleetLoop {
         };
         self.training = job.is_some();
         if let Some(job) = &job {
+            self.last_training = Instant::now();
             tracing::info!(
                 "trainer: training version {} ({} fleet failures in the library)",
                 job.version,

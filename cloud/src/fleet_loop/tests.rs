@@ -147,7 +147,7 @@ fn report(pushed: bool) -> GateReport {
 fn training_waits_for_new_failures_and_only_a_version_the_gate_lets_through_goes_out() {
     let dir = tempfile::tempdir().expect("a temporary directory");
     let path = library(dir.path(), 4);
-    let trainer = TrainerConfig { retrain_failures: 1, steps: 1000, held_out_per_kind: 1, seed: 1 };
+    let trainer = TrainerConfig { retrain_failures: 1, every: None, steps: 1000, held_out_per_kind: 1, seed: 1 };
     let open = || {
         let library = ScenarioLibrary::open(&path).expect("opens");
         FleetLoop::open(library, LoopConfig { mutants_per_failure: 0, ..LoopConfig::default() }, Some(trainer.clone()))
@@ -192,4 +192,24 @@ fn training_waits_for_new_failures_and_only_a_version_the_gate_lets_through_goes
     fleet.on_trained(Err(TrainerError::EmptyLibrary)).expect("handled");
     assert!(fleet.summary().expect("summary").training_error.is_some());
     assert!(fleet.due_training().expect("checked").is_none());
+}
+
+#[test]
+fn on_a_schedule_one_new_failure_is_enough_once_the_period_has_passed() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let library = ScenarioLibrary::open(library(dir.path(), 4)).expect("opens");
+    let config = LoopConfig { mutants_per_failure: 0, ..LoopConfig::default() };
+    let mut fleet = FleetLoop::open(library, config, None).expect("a loop");
+    let order = fleet.on_idle(&alive(&["v1"]), Instant::now()).expect("orders").remove(0);
+    let mut failed = played(&order);
+    failed.result.metrics.collision = true;
+    fleet.on_episode(&failed, false).expect("stored");
+    let every = Duration::from_secs(600);
+    let scheduled = TrainerConfig { retrain_failures: 3, every: Some(every), ..TrainerConfig::default() };
+    let due = |config: &TrainerConfig, since_last| trainer::due(fleet.library(), config, since_last).expect("checked");
+    assert!(due(&scheduled, every / 2).is_none(), "1 of 3 failures, the period not yet over");
+    let job = due(&scheduled, every).expect("the period is over and a failure is in");
+    assert_eq!((job.version, job.failures), (1, 1));
+    let unscheduled = TrainerConfig { every: None, ..scheduled };
+    assert!(due(&unscheduled, every * 10).is_none(), "without a schedule, 3 failures are needed");
 }

@@ -1,4 +1,5 @@
-//! The `trainer` role's work: once enough new fleet failures are in the library, a policy is
+//! The `trainer` role's work: once enough new fleet failures are in the library (or, on a
+//! schedule, one new failure once the period has passed), a policy is
 //! trained on the library (the `full` variant: the library's riskiest scenarios replayed among
 //! fresh samples, with the risk-shaped reward) and put through the regression gate against the
 //! version deployed now (the reference driver before the first). The decision is stored with the
@@ -13,6 +14,7 @@ use crate::trainer::{HeldOut, TrainerError, TrainingPlan, train_variant};
 use risktwin_common::env::Variant;
 use risktwin_learn::{Algo, PolicyNet};
 use std::path::Path;
+use std::time::Duration;
 
 /// The policy id of the versions the trainer produces.
 pub const POLICY_ID: &str = "risktwin-full";
@@ -23,6 +25,9 @@ pub struct TrainerConfig {
     /// New fleet failures (collision or leaving the road, as the edges reported) since the last
     /// version that start the next training.
     pub retrain_failures: u64,
+    /// The schedule: a run is also due this long after the last one began (or the role
+    /// started) once at least one new fleet failure is in.
+    pub every: Option<Duration>,
     /// Environment steps per training run.
     pub steps: u64,
     /// Held-out scenarios per kind the gate drives.
@@ -33,7 +38,7 @@ pub struct TrainerConfig {
 
 impl Default for TrainerConfig {
     fn default() -> Self {
-        TrainerConfig { retrain_failures: 5, steps: 200_000, held_out_per_kind: 6, seed: 1 }
+        TrainerConfig { retrain_failures: 5, every: None, steps: 200_000, held_out_per_kind: 6, seed: 1 }
     }
 }
 
@@ -123,12 +128,19 @@ fn policy_from(weights: &[u8], path: &Path) -> Result<PolicyNet, TrainerError> {
     Ok(PolicyNet::load(path)?)
 }
 
-/// The next job, if `library` has enough new failures since the last version (at least one).
-pub fn due(library: &ScenarioLibrary, config: &TrainerConfig) -> Result<Option<TrainJob>, TrainerError> {
+/// The next job, if `library` has enough new failures since the last version: `retrain_failures`,
+/// or one once the schedule's period has passed since the last run began (`since_last`).
+pub fn due(
+    library: &ScenarioLibrary,
+    config: &TrainerConfig,
+    since_last: Duration,
+) -> Result<Option<TrainJob>, TrainerError> {
     let latest = library.latest_policy()?;
     let failures = library.fleet_counts()?.failures;
     let since = latest.map_or(0, |(_, failures)| failures);
-    if failures < since + config.retrain_failures.max(1) {
+    let scheduled = config.every.is_some_and(|every| since_last >= every);
+    let needed = if scheduled { 1 } else { config.retrain_failures.max(1) };
+    if failures < since + needed {
         return Ok(None);
     }
     let dir = tempfile::tempdir().map_err(|e| io_error("a temporary directory", &e))?;

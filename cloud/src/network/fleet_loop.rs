@@ -199,6 +199,12 @@ async fn drive(
                     pushes.scenario(&order, &ingest).await.inspect_err(|e| failed(e))?;
                     fleet.sent(&order, None);
                 }
+                // The trainer's schedule comes due without an episode.
+                if training.is_none()
+                    && let Some(job) = fleet.due_training().inspect_err(|e| failed(e))?
+                {
+                    training = Some(start_training(job));
+                }
                 record(&mut fleet, &ingest, &liveness, &mut events);
             }
             () = shutdown.wait() => break,

@@ -133,6 +133,10 @@ pub struct CloudArgs {
     /// in the library.
     #[arg(long, default_value_t = 5)]
     pub retrain_failures: u64,
+    /// The trainer role also trains the next version on this schedule, seconds after the last
+    /// run began (or the role started), when at least one new fleet failure is in.
+    #[arg(long, value_name = "S")]
+    pub retrain_every_s: Option<f64>,
     /// Environment steps of each training run of the trainer role.
     #[arg(long, default_value_t = 200_000)]
     pub train_steps: u64,

@@ -50,6 +50,11 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     if args.retrain_failures == 0 {
         return Err(CliError::input("--retrain-failures 0: must be positive"));
     }
+    let every = match args.retrain_every_s {
+        Some(s) if (1.0..=604_800.0).contains(&s) => Some(Duration::from_secs_f64(s)),
+        Some(s) => return Err(CliError::input(format!("--retrain-every-s {s} must lie in [1, 604800]"))),
+        None => None,
+    };
     if !(1_000..=100_000_000).contains(&args.train_steps) {
         return Err(CliError::input(format!("--train-steps {} must lie in [1000, 100000000]", args.train_steps)));
     }
@@ -58,6 +63,7 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     }
     config.trainer = TrainerConfig {
         retrain_failures: args.retrain_failures,
+        every,
         steps: args.train_steps,
         held_out_per_kind: args.held_out_per_kind,
         seed: args.train_seed,

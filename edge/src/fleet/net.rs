@@ -518,7 +518,8 @@ pub fn run_participant(
     }
     .encode();
     let reported = setup.reported_spec().filter(|_| stack.role() == Role::Ego).cloned();
-    let streams = Streams::open(session, site, &participant, matches!(stack.role(), Role::Rsu { .. }), reported.is_some())?;
+    let streams =
+        Streams::open(session, site, &participant, matches!(stack.role(), Role::Rsu { .. }), reported.is_some())?;
     let summary = ParticipantSummary {
         participant: id.to_owned(),
         scene: format!("{digest:016x}"),

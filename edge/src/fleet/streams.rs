@@ -142,7 +142,13 @@ impl Streams {
 
     /// Reports the ego's episode of `spec` in scene `digest` (the authority's outcome), on the
     /// `state` messages this process published for it.
-    pub fn report(&self, spec: &ScenarioSpec, digest: u64, metrics: EpisodeMetrics, risk: RiskTerms) -> Result<(), SceneError> {
+    pub fn report(
+        &self,
+        spec: &ScenarioSpec,
+        digest: u64,
+        metrics: EpisodeMetrics,
+        risk: RiskTerms,
+    ) -> Result<(), SceneError> {
         let Some(publisher) = &self.result else { return Ok(()) };
         let now_ns = unix_ns();
         let header = Header {

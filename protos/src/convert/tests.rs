@@ -228,7 +228,11 @@ fn missing_sub_messages_and_ids_are_rejected() {
         scene: Some(SceneRef { digest: "0123456789abcdef".into(), spec }),
         ..r.clone()
     };
-    rejects(&in_scene, |p| scene_of(p).digest = "xyz".into(), bad("SceneRef", "digest", "\"xyz\" is not 16 hex digits"));
+    rejects(
+        &in_scene,
+        |p| scene_of(p).digest = "xyz".into(),
+        bad("SceneRef", "digest", "\"xyz\" is not 16 hex digits"),
+    );
     rejects(&in_scene, |p| scene_of(p).spec = None, missing("SceneRef", "spec"));
     let other = content_id(&sample(2, ScenarioKind::CutIn, 0));
     rejects(

@@ -228,14 +228,16 @@ fn cut_in_scene(locator: &str, site: &str, extra: &[&str]) -> (Value, Heard) {
     let argv = args(&args(&["scene", "run", "--site", site, "--router", locator], &CUT_IN), extra);
     let outcome = Proc::spawn(site, &argv).exit_json(Duration::from_secs(120));
     let steps = outcome["steps"].as_u64().expect("steps") as usize;
-    // Reliable streams: every step's state arrives; wait for the tail still in flight.
+    // Reliable streams: every step's state and the final one arrive; wait for the tail still in
+    // flight.
+    let states = steps + 1;
     let deadline = Instant::now() + Duration::from_secs(30);
-    while heard.lock().expect("not poisoned").states.len() < steps && Instant::now() < deadline {
+    while heard.lock().expect("not poisoned").states.len() < states && Instant::now() < deadline {
         std::thread::sleep(Duration::from_millis(20));
     }
     rt.block_on(async { test_session.close().await }).expect("the test session closes");
     let heard = std::mem::take(&mut *heard.lock().expect("not poisoned"));
-    assert_eq!(heard.states.len(), steps, "{site}: one ego state per step");
+    assert_eq!(heard.states.len(), states, "{site}: one ego state per step and the final one");
     (outcome, heard)
 }
 

@@ -315,7 +315,6 @@ impl FleetLoop {
             let record =
                 ScenarioRecord { spec: scene.spec.clone(), origin: Origin::Imported, parent_id: None, outcome: None };
             self.library.insert_batch(std::slice::from_ref(&record))?;
-            self.summary.scene_episodes += 1;
         }
         match self.library.record_fleet_episode(&row) {
             Ok(_) => {}
@@ -345,6 +344,7 @@ impl FleetLoop {
         self.check_policy(&key, episode.result.policy.as_ref())?;
         let m = &episode.result.metrics;
         self.summary.episodes += 1;
+        self.summary.scene_episodes += u64::from(episode.result.scene.is_some());
         self.summary.twin_scored += u64::from(twin.is_some());
         self.summary.disagreements += u64::from(row.disagreement.is_some());
         if m.collision || m.offroad {
@@ -490,6 +490,13 @@ impl FleetLoop {
             );
         }
         Ok(job)
+    }
+
+    /// Whether the trainer's schedule has come due (its period has passed since the last run
+    /// began), so that [`Self::due_training`] is worth asking without an episode.
+    pub fn schedule_due(&self) -> bool {
+        let every = self.trainer.as_ref().and_then(|t| t.every);
+        !self.training && every.is_some_and(|every| self.last_training.elapsed() >= every)
     }
 
     /// A training run ended: the version is stored with the gate's decision; a version let

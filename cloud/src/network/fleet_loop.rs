@@ -201,6 +201,7 @@ async fn drive(
                 }
                 // The trainer's schedule comes due without an episode.
                 if training.is_none()
+                    && fleet.schedule_due()
                     && let Some(job) = fleet.due_training().inspect_err(|e| failed(e))?
                 {
                     training = Some(start_training(job));

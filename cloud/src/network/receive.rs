@@ -103,6 +103,10 @@ pub(crate) struct Publication {
     pub(crate) payload: Vec<u8>,
 }
 
+/// How long after its last road map a site is no longer taken to run a scene (the authority
+/// republishes the map every second).
+const SCENE_GONE: std::time::Duration = std::time::Duration::from_secs(3);
+
 /// The worker, the twin and the counts around them; lives behind a mutex shared with the Zenoh
 /// callback.
 pub struct LiveIngest {
@@ -110,8 +114,8 @@ pub struct LiveIngest {
     received: HashMap<String, [u64; STREAMS]>,
     /// Each source's site (from the key of its first accepted message).
     sites: HashMap<String, String>,
-    /// Sites a scene's road map came from.
-    scene_sites: HashSet<String>,
+    /// Sites a scene's road map came from, and when the last one came.
+    scene_sites: HashMap<String, Instant>,
     named: usize,
     outputs: Option<TwinOutputs>,
     publish: Option<UnboundedSender<Publication>>,
@@ -153,7 +157,7 @@ impl LiveIngest {
             worker: IngestWorker::new(config, recorder),
             received: HashMap::new(),
             sites: HashMap::new(),
-            scene_sites: HashSet::new(),
+            scene_sites: HashMap::new(),
             named: 0,
             outputs,
             publish: None,
@@ -332,17 +336,23 @@ impl LiveIngest {
     /// A scene's road map came from `site`: the twin watches the scene's episode, and the site's
     /// edges are scene participants from now on (the loop pushes them nothing).
     pub(crate) fn scene_seen(&mut self, site: &str) {
-        if !self.scene_sites.contains(site) {
-            self.scene_sites.insert(site.to_owned());
+        let now = Instant::now();
+        match self.scene_sites.get_mut(site) {
+            Some(at) => *at = now,
+            None => {
+                self.scene_sites.insert(site.to_owned(), now);
+            }
         }
-        if let Some(outputs) = self.outputs.as_mut() {
+        // Only the loop takes the episodes; without it a watch would never end.
+        if let (Some(outputs), Some(_)) = (self.outputs.as_mut(), self.episodes.as_ref()) {
             outputs.watch_mut().begin_scene(site);
         }
     }
 
-    /// Whether a scene runs (or ran) at `site`.
+    /// Whether a scene runs at `site`: its road map (republished every second) came within the
+    /// last [`SCENE_GONE`].
     pub(crate) fn is_scene_site(&self, site: &str) -> bool {
-        self.scene_sites.contains(site)
+        self.scene_sites.get(site).is_some_and(|at| at.elapsed() < SCENE_GONE)
     }
 
     /// Hands on the watched episodes whose results are older than the watch waits

@@ -35,17 +35,18 @@ pub(crate) async fn subscribe_maps(
         .callback(move |sample| {
             let Some(site) = parse_scene_topic_key(sample.key_expr().as_str(), SceneTopic::Map) else { return };
             let payload = sample.payload().to_bytes();
-            ingest.lock().unwrap_or_else(PoisonError::into_inner).scene_seen(site);
             let mut last = last.lock().unwrap_or_else(PoisonError::into_inner);
             if last.get(site).is_some_and(|bytes| bytes[..] == payload[..]) {
+                ingest.lock().unwrap_or_else(PoisonError::into_inner).scene_seen(site);
                 return;
             }
             match decode_tagged::<RoadMap>(&sample.encoding().to_string(), &payload) {
                 Ok(map) => {
                     last.insert(site.to_owned(), payload.into_owned());
-                    let Some(config) = ingest.lock().unwrap_or_else(PoisonError::into_inner).risk_config() else {
-                        return;
-                    };
+                    let mut live = ingest.lock().unwrap_or_else(PoisonError::into_inner);
+                    live.scene_seen(site);
+                    let Some(config) = live.risk_config() else { return };
+                    drop(live);
                     // Rasterising a road takes ~0.1 s: never on a callback that delivers
                     // samples (they would wait, and their receive times with them).
                     let (ingest, site) = (Arc::clone(&ingest), site.to_owned());

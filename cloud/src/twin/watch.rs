@@ -1,10 +1,10 @@
 //! Episodes watched in the twin: a scenario the cloud pushed (from the push on, every tick's
 //! view of the edge: the vehicle and what it perceived) and the episode of a distributed scene
 //! (from its first road map on, every tick of the site; scored on every connected vehicle,
-//! which all live in the scene's one world, and what the ego perceived). When the edge's `ScenarioResult` names the `state` messages the episode
-//! was published on, the ticks made only of those messages (a tick interpolated across the
-//! episode's start or end mixes in the vehicle's own drive before or after it) are handed on,
-//! to be scored as a [`TwinEpisode`].
+//! which all live in the scene's one world, and what the ego perceived). When the edge's
+//! `ScenarioResult` names the `state` messages the episode was published on, the ticks made
+//! only of those messages (a tick interpolated across the episode's start or end mixes in the
+//! vehicle's own drive before or after it) are handed on, to be scored as a [`TwinEpisode`].
 //! The result comes in before the twin has ticked through the episode's end (the aligner waits
 //! out the lateness), so an episode is scored once the edge's ticks have moved past its last
 //! message (or started over: a new process), [`SETTLE_NS`] of twin time after the result, or
@@ -32,6 +32,11 @@ pub const SETTLE_NS: i64 = 1_000_000_000;
 /// How long after the result an episode is handed on with what the twin saw of it, whatever
 /// else comes (see [`EpisodeWatch::expire`]).
 pub const SETTLE: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// State messages the twin's last tick of an episode may lag its final one by for the final state
+/// to be put on the next tick: the aligner holds back its last tick or two when no data follows.
+/// A twin that missed more of the end (a lockstep scene) gets no made-up tick.
+const FINAL_GAP_MESSAGES: u64 = 5;
 
 /// What a watch is for.
 #[derive(Debug, Clone, PartialEq)]
@@ -353,9 +358,10 @@ fn edge_seqs(site: &SiteTwin, edge: &str) -> Option<(u64, u64)> {
 }
 
 /// The ticks of the episode published on state messages `first..=last`: every tick made only of
-/// those messages (since the edge's numbers last went back), then (unless one of them already showed the last message) the episode's
-/// final state as received: on the first tick after the end, or, when the twin has no tick after
-/// it (nothing came after a scene's end), on a tick one tick period after the last.
+/// those messages (since the edge's numbers last went back), then (unless one of them already
+/// showed the last message) the episode's final state as received: on the first tick after the
+/// end, or, when the twin has no tick after it (nothing came after a scene's end) but its last
+/// tick came within [`FINAL_GAP_MESSAGES`] of the final one, on a tick one tick period after that.
 fn episode_views(
     views: VecDeque<(i64, SiteTwin)>,
     raw: &VecDeque<ObservedKinematics>,
@@ -400,7 +406,9 @@ fn episode_views(
             _ => {}
         }
     }
-    if let (Some(state), Some((tick_ns, site))) = (final_state, episode.last()) {
+    let reached_end =
+        |site: &SiteTwin| edge_seqs(site, edge).is_some_and(|(_, b)| b.saturating_add(FINAL_GAP_MESSAGES) >= last);
+    if let (Some(state), Some((tick_ns, site))) = (final_state, episode.last().filter(|(_, site)| reached_end(site))) {
         let period_ns = match episode.len() {
             n if n >= 2 => tick_ns - episode[n - 2].0,
             _ => (STEP_S * 1e9) as i64,

@@ -14,6 +14,9 @@
 use super::reason::DropReason;
 use super::source::SourceIndex;
 
+/// Messages after [`Deduper::restart`] that may still show a new incarnation.
+pub const RESTART_GRACE: u32 = 64;
+
 /// The default reorder window, in sequence numbers (20 s of a 50 Hz stream).
 pub const DEFAULT_WINDOW: u64 = 1024;
 
@@ -85,6 +88,9 @@ struct SeqState {
     empty: bool,
     floor: u64,
     highest: u64,
+    /// The source may have started over ([`Deduper::restart`]): the next numbers decide, for up
+    /// to this many more messages.
+    may_restart: u32,
     counts: SeqCounts,
 }
 
@@ -126,6 +132,14 @@ impl Deduper {
         let window = self.window;
         let st = &mut self.states[s];
         let bits = &mut self.bits[s * self.words..(s + 1) * self.words];
+        if st.may_restart > 0 {
+            st.may_restart -= 1;
+            if seq <= st.highest {
+                st.may_restart = 0;
+                st.started = false;
+                bits.fill(0);
+            }
+        }
         if !st.started {
             st.started = true;
             st.empty = true;
@@ -171,14 +185,15 @@ impl Deduper {
         verdict
     }
 
-    /// `source` started over (a new process under the same name, numbering from its first
-    /// number again): its window is emptied and its count starts again as for a new source;
-    /// its counters go on summing (the accounting identity then holds per incarnation).
+    /// `source` may have started over (its process left; a new one under the same name numbers
+    /// from its first number again). The next [`RESTART_GRACE`] numbers decide: one above the
+    /// highest accepted continues the count (a message of the old process still in flight, or
+    /// the process did not restart after all); the first at or below it starts a new
+    /// incarnation, whose window is empty and whose count starts as a new source's. The
+    /// counters go on summing, so the accounting identity holds summed over incarnations.
     pub fn restart(&mut self, source: SourceIndex) {
-        let s = source.as_usize();
-        if let Some(st) = self.states.get_mut(s) {
-            st.started = false;
-            self.bits[s * self.words..(s + 1) * self.words].fill(0);
+        if let Some(st) = self.states.get_mut(source.as_usize()) {
+            st.may_restart = if st.started && !st.empty { RESTART_GRACE } else { 0 };
         }
     }
 
@@ -354,5 +369,18 @@ mod tests {
         assert_eq!((c.fresh, c.duplicate, c.presumed_lost, c.recovered), (12, 2, 0, 1));
         d.restart(B);
         assert_eq!(d.counts(B), SeqCounts::default(), "restarting a source never seen changes nothing");
+        // The old process's last message still in flight after it left, then the new process.
+        d.restart(A);
+        assert_eq!(d.accept(A, 2), Verdict::Fresh, "the old incarnation's, late");
+        assert_eq!(d.accept(A, 0), Verdict::Fresh, "the new incarnation's first");
+        assert_eq!(d.accept(A, 0), Verdict::Duplicate);
+        assert_eq!(d.counts(A).presumed_lost, 0, "nothing counted twice");
+        // A source that left and came back without restarting goes on counting past the grace.
+        d.restart(A);
+        for seq in 1..=u64::from(RESTART_GRACE) {
+            assert_eq!(d.accept(A, seq), Verdict::Fresh);
+        }
+        assert_eq!(d.accept(A, 3), Verdict::Duplicate, "the same incarnation after the grace");
+        assert_eq!(d.counts(A).presumed_lost, 0);
     }
 }

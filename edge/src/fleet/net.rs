@@ -466,24 +466,25 @@ impl Answering {
                 return None;
             }
         };
-        match truth.end {
-            Some(SceneEnd::Done { ref metrics, risk }) => {
-                let reported = self.streams.publish_state(&self.stack, &truth).and_then(|()| match &self.reported {
-                    Some(spec) => self.streams.report(spec, self.digest, metrics.clone(), risk),
-                    None => Ok(()),
-                });
-                if let Err(e) = reported {
-                    return Some(Err(e));
-                }
-                return Some(Ok(ParticipantSummary { sent: self.streams.sent.clone(), ..self.summary.clone() }));
-            }
-            Some(SceneEnd::Failed(reason)) => return Some(Err(SceneError::Failed { reason })),
-            None => {}
+        if let Some(SceneEnd::Failed(reason)) = truth.end {
+            // Said by whichever authority failed: the reason names the scene.
+            return Some(Err(SceneError::Failed { reason }));
         }
         if truth.scene != self.digest {
             let theirs = format!("scene {:016x}", truth.scene);
             let ours = self.describe.clone();
             return Some(Err(SceneError::Mismatch { id: "the authority".into(), theirs, ours }));
+        }
+        // Only this scene's end: another scene's outcome must never be reported as this one's.
+        if let Some(SceneEnd::Done { ref metrics, risk }) = truth.end {
+            let reported = self.streams.publish_state(&self.stack, &truth).and_then(|()| match &self.reported {
+                Some(spec) => self.streams.report(spec, self.digest, metrics.clone(), risk),
+                None => Ok(()),
+            });
+            if let Err(e) = reported {
+                return Some(Err(e));
+            }
+            return Some(Ok(ParticipantSummary { sent: self.streams.sent.clone(), ..self.summary.clone() }));
         }
         let controls = self.stack.respond(&truth);
         self.summary.steps += 1;

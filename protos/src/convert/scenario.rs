@@ -150,8 +150,8 @@ impl TryFrom<v1::ScenarioResult> for ScenarioResult {
 /// A scene reference: a 16-hex-digit digest and the spec whose content id is `spec_id`.
 fn scene_ref(s: v1::SceneRef, spec_id: &str) -> Result<SceneRef, ConvertError> {
     const M: &str = "SceneRef";
-    if s.digest.len() != 16 || !s.digest.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(invalid(M, "digest", format!("{:?} is not 16 hex digits", s.digest)));
+    if s.digest.len() != 16 || !s.digest.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f')) {
+        return Err(invalid(M, "digest", format!("{:?} is not 16 lower-case hex digits", s.digest)));
     }
     let spec: ScenarioSpec = required(M, "spec", s.spec)?.try_into()?;
     let id = content_id(&spec);

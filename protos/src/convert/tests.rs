@@ -231,7 +231,7 @@ fn missing_sub_messages_and_ids_are_rejected() {
     rejects(
         &in_scene,
         |p| scene_of(p).digest = "xyz".into(),
-        bad("SceneRef", "digest", "\"xyz\" is not 16 hex digits"),
+        bad("SceneRef", "digest", "\"xyz\" is not 16 lower-case hex digits"),
     );
     rejects(&in_scene, |p| scene_of(p).spec = None, missing("SceneRef", "spec"));
     let other = content_id(&sample(2, ScenarioKind::CutIn, 0));

@@ -18,7 +18,7 @@ pub struct Adjacency {
 }
 
 /// One lanelet.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Lanelet {
     pub id: u64,
     pub left_bound: Vec<Vec2>,
@@ -227,7 +227,7 @@ pub(crate) fn segment_distance_sq(p: Vec2, a: Vec2, b: Vec2) -> f64 {
 }
 
 /// All lanelets of a scenario, in file order, with an id index.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct LaneletNetwork {
     pub lanelets: Vec<Lanelet>,
     index: HashMap<u64, usize>,

@@ -1,9 +1,10 @@
 //! CommonRoad scenarios (https://commonroad.in.tum.de): import of the XML format (2020a, and the
-//! 2018b obstacle layout) into typed values, and the criticality measures of a recorded ego
-//! against the other traffic.
+//! 2018b obstacle layout) into typed values and export back to XML, and the criticality measures
+//! of a recorded ego against the other traffic.
 //!
 //! - [`parse_scenario`]: XML text → [`Scenario`] (pure, no I/O; errors name the element, its id,
 //!   its line and the reason — [`CommonRoadError`]).
+//! - [`to_xml`]: [`Scenario`] → XML text that [`parse_scenario`] reads back equal.
 //! - [`lanelet`]: the lanelet network (bounds → centrelines, widths, adjacency, links, polygons).
 //! - [`model`]: obstacles (type, shape, initial state, trajectory or occupancy set), planning
 //!   problems, intersections.
@@ -26,6 +27,7 @@ pub mod lanelet;
 pub mod model;
 mod parse;
 pub mod twin;
+mod write;
 mod xml;
 
 pub use error::CommonRoadError;
@@ -35,3 +37,4 @@ pub use model::{
     StaticObstacle,
 };
 pub use parse::parse_scenario;
+pub use write::to_xml;

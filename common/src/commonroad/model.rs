@@ -9,7 +9,7 @@ use crate::geometry::Vec2;
 use std::collections::HashMap;
 
 /// One CommonRoad scenario: road network, obstacles and planning problems.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
     /// `benchmarkID` (e.g. `OSC_CutIn-1_2_T-1`); empty when absent.
     pub benchmark_id: String,
@@ -144,7 +144,7 @@ pub struct PlacedShape {
 }
 
 /// A moving obstacle with its recorded trajectory (or a set-based prediction).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct DynamicObstacle {
     pub id: u64,
     pub obstacle_type: ObstacleType,
@@ -185,7 +185,7 @@ impl DynamicObstacle {
 }
 
 /// An obstacle that does not move.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct StaticObstacle {
     pub id: u64,
     pub obstacle_type: ObstacleType,
@@ -195,7 +195,7 @@ pub struct StaticObstacle {
 
 /// A planning problem: where the planned vehicle starts. Goal regions are counted, not typed
 /// (no measure here needs them).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PlanningProblem {
     pub id: u64,
     pub initial_state: ObstacleState,

@@ -4,12 +4,22 @@
 //! [`ScenarioCollector`] and writes its criticality with the offline report writer — so the
 //! file equals `risktwin criticality` on the same scenario.
 //!
+//! With a library (`--db`), every site's rebuilt scenario becomes a recorded case of it, as
+//! `risktwin import commonroad --db` stores a file: the scenario as CommonRoad XML (written
+//! from what travelled, [`to_xml`]), its ego, and the recorded ego replayed as its reference
+//! outcome (S_risk terms, collision, completion), so a drive the fleet replayed ranks beside
+//! the library's other cases and `simulate --db F --id ID` runs it.
+//!
 //! Every message is decoded as the ingest decodes it; one that fails is counted by reason and
 //! dropped. Messages are collected per site; the report needs exactly one site with a map
 //! (`--site` picks one when several are on the network).
 
 use crate::criticality::{Pushed, RebuildError, ReportFormat, ScenarioCollector, write_report};
+use crate::library::{LibraryError, Outcome, REPLAY_POLICY, RecordedCase, ScenarioLibrary};
 use risktwin_common::commonroad::criticality::{CriticalityError, scenario_criticality};
+use risktwin_common::commonroad::twin::{EgoMode, TwinError, TwinScene, resimulate};
+use risktwin_common::commonroad::{Scenario, to_xml};
+use risktwin_common::world::STEP_S;
 use risktwin_protos::check_encoding;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
@@ -17,25 +27,28 @@ use risktwin_transport::zenoh::sample::Locality;
 use risktwin_transport::{EdgeStream, SiteId, TransportError, keyexpr};
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 use thiserror::Error;
 
 /// Where the role writes and for which ego.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct CriticalityConfig {
     /// The report file, `.csv` or `.json` (the formats of `risktwin criticality`).
-    pub out: PathBuf,
+    pub out: Option<PathBuf>,
+    /// The library the rebuilt scenarios are stored in as recorded cases.
+    pub library: Option<PathBuf>,
     /// The ego obstacle; `None`: the scenario's first dynamic obstacle.
     pub ego: Option<u64>,
 }
 
 impl CriticalityConfig {
-    /// The report format the file name asks for.
-    pub fn format(&self) -> Result<ReportFormat, CriticalityRoleError> {
-        ReportFormat::from_path(&self.out)
-            .ok_or_else(|| CriticalityRoleError::Format { path: self.out.display().to_string() })
+    /// The report format the file name asks for (`None` without a report file).
+    pub fn format(&self) -> Result<Option<ReportFormat>, CriticalityRoleError> {
+        let Some(out) = &self.out else { return Ok(None) };
+        let format = ReportFormat::from_path(out);
+        format.map(Some).ok_or_else(|| CriticalityRoleError::Format { path: out.display().to_string() })
     }
 }
 
@@ -54,10 +67,14 @@ pub enum CriticalityRoleError {
     Measures { site: String, source: CriticalityError },
     #[error("writing {path}: {source}")]
     Write { path: String, source: std::io::Error },
+    #[error("site {site} as a library case: {source}")]
+    Case { site: String, source: TwinError },
+    #[error("storing site {site} as a library case: {source}")]
+    Library { site: String, source: LibraryError },
 }
 
 /// What the role saw and wrote, in the cloud's JSON summary.
-#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct CriticalitySummary {
     /// Road maps taken, all sites.
     pub maps: u64,
@@ -72,6 +89,24 @@ pub struct CriticalitySummary {
     /// Rows of the report (time step, other) and the file written.
     pub cells: u64,
     pub out: String,
+    /// The recorded cases stored in the library (with `--db`), one per site.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub cases: Vec<FleetCase>,
+}
+
+/// A replayed drive stored as a recorded case.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FleetCase {
+    pub site: String,
+    /// The case's content id in the library.
+    pub id: String,
+    /// False when the library held it already (the same drive replayed again).
+    pub inserted: bool,
+    pub benchmark_id: String,
+    pub ego_id: u64,
+    /// The recorded ego replayed: its collision and S_risk.
+    pub collision: bool,
+    pub risk_score: f64,
 }
 
 /// The collectors and counts; behind a mutex shared with the Zenoh callback.
@@ -117,28 +152,34 @@ impl CriticalityCollect {
         self.last_sample
     }
 
-    /// Rebuilds the scenario of the one site with a map, computes its criticality and writes the
-    /// report.
+    /// Rebuilds the scenario of every site with a map; stores each in the library (with one),
+    /// and computes the criticality of the one site and writes the report (with a file).
     pub(crate) fn finish(self, config: &CriticalityConfig) -> Result<CriticalitySummary, CriticalityRoleError> {
         let format = config.format()?;
         let mut summary = self.summary;
-        let mut with_map: Vec<(String, ScenarioCollector)> =
-            self.sites.into_iter().filter(|(_, c)| c.has_map()).collect();
-        let (site, collector) = match with_map.len() {
-            0 => return Err(CriticalityRoleError::NoSite),
-            1 => with_map.remove(0),
-            _ => {
-                let sites = with_map.iter().map(|(s, _)| s.as_str()).collect::<Vec<_>>().join(", ");
-                return Err(CriticalityRoleError::SeveralSites { sites });
-            }
-        };
-        let scenario =
-            collector.finish().map_err(|source| CriticalityRoleError::Rebuild { site: site.clone(), source })?;
+        let mut rebuilt = Vec::new();
+        for (site, collector) in self.sites.into_iter().filter(|(_, c)| c.has_map()) {
+            let scenario =
+                collector.finish().map_err(|source| CriticalityRoleError::Rebuild { site: site.clone(), source })?;
+            rebuilt.push((site, scenario));
+        }
+        if rebuilt.is_empty() {
+            return Err(CriticalityRoleError::NoSite);
+        }
+        if let Some(db) = &config.library {
+            summary.cases = store_cases(db, &rebuilt, config.ego)?;
+        }
+        let (Some(out), Some(format)) = (&config.out, format) else { return Ok(summary) };
+        if rebuilt.len() > 1 {
+            let sites = rebuilt.iter().map(|(s, _)| s.as_str()).collect::<Vec<_>>().join(", ");
+            return Err(CriticalityRoleError::SeveralSites { sites });
+        }
+        let (site, scenario) = rebuilt.remove(0);
         let measures = scenario_criticality(&scenario, config.ego)
             .map_err(|source| CriticalityRoleError::Measures { site: site.clone(), source })?;
-        let path = config.out.display().to_string();
+        let path = out.display().to_string();
         let write_error = |source| CriticalityRoleError::Write { path: path.clone(), source };
-        let file = std::fs::File::create(&config.out).map_err(write_error)?;
+        let file = std::fs::File::create(out).map_err(write_error)?;
         write_report(std::io::BufWriter::new(file), format, &scenario.benchmark_id, &measures).map_err(write_error)?;
         summary.site = Some(site);
         summary.ego_id = Some(measures.ego_id);
@@ -146,6 +187,43 @@ impl CriticalityCollect {
         summary.out = path;
         Ok(summary)
     }
+}
+
+/// Stores every rebuilt scenario in the library at `db` as a recorded case with its reference
+/// outcome (the recorded ego replayed), as `risktwin import commonroad --db` stores a file.
+fn store_cases(
+    db: &Path,
+    rebuilt: &[(String, Scenario)],
+    ego: Option<u64>,
+) -> Result<Vec<FleetCase>, CriticalityRoleError> {
+    let open_error = |site: &str, source| CriticalityRoleError::Library { site: site.to_owned(), source };
+    let first_site = rebuilt.first().map_or("", |(site, _)| site.as_str());
+    let mut library = ScenarioLibrary::open(db).map_err(|e| open_error(first_site, e))?;
+    let mut cases = Vec::new();
+    for (site, scenario) in rebuilt {
+        let case_error = |source| CriticalityRoleError::Case { site: site.clone(), source };
+        let ego_id = TwinScene::new(scenario, ego).map_err(case_error)?.ego.id;
+        let run = resimulate(scenario, Some(ego_id), EgoMode::Replay, STEP_S).map_err(case_error)?;
+        let case = RecordedCase {
+            source_name: format!("fleet site {site}"),
+            benchmark_id: scenario.benchmark_id.clone(),
+            ego_id,
+            xml: to_xml(scenario),
+        };
+        let outcome = Outcome { policy: REPLAY_POLICY.to_owned(), metrics: run.metrics.clone(), risk: run.risk };
+        let stored = library.insert_recorded(&case, &outcome).map_err(|e| open_error(site, e))?;
+        tracing::info!("criticality: site {site} stored as recorded case {} ({})", stored.id, case.benchmark_id);
+        cases.push(FleetCase {
+            site: site.clone(),
+            id: stored.id,
+            inserted: stored.inserted,
+            benchmark_id: case.benchmark_id,
+            ego_id,
+            collision: run.metrics.collision,
+            risk_score: run.risk.score,
+        });
+    }
+    Ok(cases)
 }
 
 /// Subscribes the role to every key of the shape `risktwin/v1/<site|*>/*/*` (edge streams and

@@ -119,7 +119,7 @@ pub enum CloudError {
     RoleNeeds { role: &'static str, needs: &'static str },
     #[error("role {role} needs --db FILE")]
     NeedsDb { role: &'static str },
-    #[error("role criticality needs --criticality-out FILE.csv|FILE.json")]
+    #[error("role criticality needs --criticality-out FILE.csv|FILE.json or --db FILE (or both)")]
     CriticalityNeedsOut,
     #[error(transparent)]
     Criticality(#[from] CriticalityRoleError),
@@ -216,7 +216,8 @@ impl CloudConfig {
             }
         }
         if self.has(Role::Criticality) {
-            self.criticality.as_ref().ok_or(CloudError::CriticalityNeedsOut)?.format()?;
+            let config = self.criticality.as_ref().filter(|c| c.out.is_some() || c.library.is_some());
+            config.ok_or(CloudError::CriticalityNeedsOut)?.format()?;
         }
         Ok(())
     }

@@ -102,7 +102,8 @@ pub struct EdgeArgs {
 #[derive(Debug, Args)]
 pub struct CloudArgs {
     /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db),
-    /// criticality (needs --criticality-out), loop (needs twin and --db), trainer (needs loop).
+    /// criticality (needs --criticality-out or --db: the replayed drive stored as a recorded
+    /// case), loop (needs twin and --db), trainer (needs loop).
     #[arg(long, default_value = "ingest", value_delimiter = ',')]
     pub roles: Vec<String>,
     /// Serve one site only (default: every site).
@@ -158,7 +159,7 @@ pub struct CloudArgs {
     #[arg(long, value_name = "DIR")]
     pub fidelity_report: Option<PathBuf>,
     /// The ego obstacle of the criticality role (default: the first dynamic obstacle).
-    #[arg(long, requires = "criticality_out")]
+    #[arg(long)]
     pub ego: Option<u64>,
     #[command(flatten)]
     pub zenoh: ZenohArgs,

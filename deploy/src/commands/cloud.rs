@@ -31,8 +31,11 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     config.site = args.site.map(SiteId::new).transpose().map_err(CliError::input)?;
     config.record = args.record;
     config.replay_time = args.replay_time;
+    if args.ego.is_some() && !config.roles.contains(&Role::Criticality) {
+        return Err(CliError::input("--ego needs the criticality role (--roles ingest,criticality)"));
+    }
+    config.criticality = Some(CriticalityConfig { out: args.criticality_out, library: args.db.clone(), ego: args.ego });
     config.db = args.db;
-    config.criticality = args.criticality_out.map(|out| CriticalityConfig { out, ego: args.ego });
     if args.fidelity_report.is_some() && !config.roles.contains(&Role::Twin) {
         return Err(CliError::input("--fidelity-report needs the twin role (--roles ingest,twin[,risk])"));
     }

@@ -113,14 +113,21 @@ fn a_replayed_drive_becomes_a_recorded_case_of_the_library_that_replays_as_the_f
 }
 
 #[test]
-fn the_criticality_role_without_an_output_file_is_refused_with_exit_2() {
+fn the_criticality_role_without_an_output_file_or_a_library_is_refused_with_exit_2() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let junk = dir.path().join("junk.db");
+    std::fs::write(&junk, b"not a database at all, just text that is long enough to fill a header").expect("written");
+    let junk = utf8(&junk);
     for args in [
         &["cloud", "--roles", "ingest,criticality"][..],
         &["cloud", "--roles", "criticality", "--criticality-out", "report.txt"],
         &["cloud", "--roles", "ingest", "--ego", "3"],
+        &["cloud", "--roles", "ingest,criticality", "--db", junk],
     ] {
         let mut p = Proc::spawn("bad", args);
         let (status, stdout) = p.wait_exit(STEP);
-        assert_eq!(status.code(), Some(2), "{args:?}: stdout {stdout}");
+        let stderr = p.drain_stderr();
+        assert_eq!(status.code(), Some(2), "{args:?}: stdout {stdout}, stderr {stderr}");
+        assert!(stderr.contains("error: "), "{args:?}: {stderr}");
     }
 }

@@ -9,4 +9,4 @@ pub use collect::{Pushed, RebuildError, Rejected, ScenarioCollector};
 pub use report::{CSV_HEADER, ReportFormat, write_report};
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

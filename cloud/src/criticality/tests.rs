@@ -13,7 +13,7 @@ const MAP_KEY: &str = "risktwin/v1/two/map/map";
 
 /// A 200 m lanelet along +x; cars 1 (x = 10 m, 20 m/s) and 2 (x = 40 m, 10 m/s), 21 steps of 0.1 s
 /// (the fixture common's criticality tests use too).
-fn two_cars() -> Scenario {
+pub(crate) fn two_cars() -> Scenario {
     parse_scenario(include_str!("../../../tests/fixtures/two_cars.xml")).expect("the test scenario parses")
 }
 
@@ -22,7 +22,7 @@ fn header(source: &str, seq: u64, time_ns: i64) -> Header {
 }
 
 /// The scenario as (key, payload) messages, in the order `risktwin import commonroad` writes.
-fn messages(s: &Scenario) -> Vec<(String, Vec<u8>)> {
+pub(crate) fn messages(s: &Scenario) -> Vec<(String, Vec<u8>)> {
     let (road, _) = road_from_lanelets(&s.lanelets).expect("the lanelet converts");
     let map = RoadMap { header: header("map", 0, 0), road, lanelets: s.lanelets.clone() };
     let mut out = vec![(MAP_KEY.to_owned(), encode(&map))];

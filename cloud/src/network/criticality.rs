@@ -17,7 +17,7 @@
 use crate::criticality::{Pushed, RebuildError, ReportFormat, ScenarioCollector, write_report};
 use crate::library::{LibraryError, Outcome, REPLAY_POLICY, RecordedCase, ScenarioLibrary};
 use risktwin_common::commonroad::criticality::{CriticalityError, scenario_criticality};
-use risktwin_common::commonroad::twin::{EgoMode, TwinError, TwinScene, resimulate};
+use risktwin_common::commonroad::twin::{EgoMode, TwinScene, resimulate};
 use risktwin_common::commonroad::{Scenario, to_xml};
 use risktwin_common::world::STEP_S;
 use risktwin_protos::check_encoding;
@@ -27,7 +27,7 @@ use risktwin_transport::zenoh::sample::Locality;
 use risktwin_transport::{EdgeStream, SiteId, TransportError, keyexpr};
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 use thiserror::Error;
@@ -67,10 +67,10 @@ pub enum CriticalityRoleError {
     Measures { site: String, source: CriticalityError },
     #[error("writing {path}: {source}")]
     Write { path: String, source: std::io::Error },
-    #[error("site {site} as a library case: {source}")]
-    Case { site: String, source: TwinError },
+    #[error("no replayed drive could be stored as a library case ({failed})")]
+    NoCase { failed: String },
     #[error("storing site {site} as a library case: {source}")]
-    Library { site: String, source: LibraryError },
+    StoreCase { site: String, source: LibraryError },
 }
 
 /// What the role saw and wrote, in the cloud's JSON summary.
@@ -92,6 +92,16 @@ pub struct CriticalitySummary {
     /// The recorded cases stored in the library (with `--db`), one per site.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub cases: Vec<FleetCase>,
+    /// Sites whose drive could not be stored, and why.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub failed: Vec<FailedSite>,
+}
+
+/// A site whose replayed drive was not stored.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FailedSite {
+    pub site: String,
+    pub reason: String,
 }
 
 /// A replayed drive stored as a recorded case.
@@ -152,29 +162,37 @@ impl CriticalityCollect {
         self.last_sample
     }
 
-    /// Rebuilds the scenario of every site with a map; stores each in the library (with one),
-    /// and computes the criticality of the one site and writes the report (with a file).
-    pub(crate) fn finish(self, config: &CriticalityConfig) -> Result<CriticalitySummary, CriticalityRoleError> {
+    /// Rebuilds the scenario of every site with a map; stores each in `library` (when the role
+    /// has one: a site that cannot be rebuilt or replayed is listed in `failed`, the others are
+    /// stored), and computes the criticality of the one site and writes the report (with a file).
+    pub(crate) fn finish(
+        self,
+        config: &CriticalityConfig,
+        library: Option<&mut ScenarioLibrary>,
+    ) -> Result<CriticalitySummary, CriticalityRoleError> {
         let format = config.format()?;
         let mut summary = self.summary;
-        let mut rebuilt = Vec::new();
-        for (site, collector) in self.sites.into_iter().filter(|(_, c)| c.has_map()) {
-            let scenario =
-                collector.finish().map_err(|source| CriticalityRoleError::Rebuild { site: site.clone(), source })?;
-            rebuilt.push((site, scenario));
-        }
+        let mut rebuilt: Vec<(String, Result<Scenario, RebuildError>)> =
+            self.sites.into_iter().filter(|(_, c)| c.has_map()).map(|(site, c)| (site, c.finish())).collect();
         if rebuilt.is_empty() {
             return Err(CriticalityRoleError::NoSite);
         }
-        if let Some(db) = &config.library {
-            summary.cases = store_cases(db, &rebuilt, config.ego)?;
-        }
-        let (Some(out), Some(format)) = (&config.out, format) else { return Ok(summary) };
-        if rebuilt.len() > 1 {
+        let report = config.out.as_ref().zip(format);
+        // Refused before anything is stored: the report is about one site.
+        if report.is_some() && rebuilt.len() > 1 {
             let sites = rebuilt.iter().map(|(s, _)| s.as_str()).collect::<Vec<_>>().join(", ");
             return Err(CriticalityRoleError::SeveralSites { sites });
         }
+        if let Some(library) = library {
+            store_cases(library, &rebuilt, config.ego, &mut summary)?;
+            if report.is_none() && summary.cases.is_empty() {
+                let failed = summary.failed.iter().map(|f| format!("{}: {}", f.site, f.reason)).collect::<Vec<_>>();
+                return Err(CriticalityRoleError::NoCase { failed: failed.join("; ") });
+            }
+        }
+        let Some((out, format)) = report else { return Ok(summary) };
         let (site, scenario) = rebuilt.remove(0);
+        let scenario = scenario.map_err(|source| CriticalityRoleError::Rebuild { site: site.clone(), source })?;
         let measures = scenario_criticality(&scenario, config.ego)
             .map_err(|source| CriticalityRoleError::Measures { site: site.clone(), source })?;
         let path = out.display().to_string();
@@ -189,21 +207,33 @@ impl CriticalityCollect {
     }
 }
 
-/// Stores every rebuilt scenario in the library at `db` as a recorded case with its reference
-/// outcome (the recorded ego replayed), as `risktwin import commonroad --db` stores a file.
+/// Stores every rebuilt scenario in `library` as a recorded case with its reference outcome (the
+/// recorded ego replayed), as `risktwin import commonroad --db` stores a file; a site that was
+/// not rebuilt, or whose ego cannot be replayed, goes to the summary's `failed`.
 fn store_cases(
-    db: &Path,
-    rebuilt: &[(String, Scenario)],
+    library: &mut ScenarioLibrary,
+    rebuilt: &[(String, Result<Scenario, RebuildError>)],
     ego: Option<u64>,
-) -> Result<Vec<FleetCase>, CriticalityRoleError> {
-    let open_error = |site: &str, source| CriticalityRoleError::Library { site: site.to_owned(), source };
-    let first_site = rebuilt.first().map_or("", |(site, _)| site.as_str());
-    let mut library = ScenarioLibrary::open(db).map_err(|e| open_error(first_site, e))?;
-    let mut cases = Vec::new();
+    summary: &mut CriticalitySummary,
+) -> Result<(), CriticalityRoleError> {
     for (site, scenario) in rebuilt {
-        let case_error = |source| CriticalityRoleError::Case { site: site.clone(), source };
-        let ego_id = TwinScene::new(scenario, ego).map_err(case_error)?.ego.id;
-        let run = resimulate(scenario, Some(ego_id), EgoMode::Replay, STEP_S).map_err(case_error)?;
+        let failed = |reason: String| FailedSite { site: site.clone(), reason };
+        let scenario = match scenario {
+            Ok(scenario) => scenario,
+            Err(e) => {
+                summary.failed.push(failed(e.to_string()));
+                continue;
+            }
+        };
+        let replayed = TwinScene::new(scenario, ego)
+            .and_then(|scene| Ok((scene.ego.id, resimulate(scenario, Some(scene.ego.id), EgoMode::Replay, STEP_S)?)));
+        let (ego_id, run) = match replayed {
+            Ok(replayed) => replayed,
+            Err(e) => {
+                summary.failed.push(failed(e.to_string()));
+                continue;
+            }
+        };
         let case = RecordedCase {
             source_name: format!("fleet site {site}"),
             benchmark_id: scenario.benchmark_id.clone(),
@@ -211,9 +241,11 @@ fn store_cases(
             xml: to_xml(scenario),
         };
         let outcome = Outcome { policy: REPLAY_POLICY.to_owned(), metrics: run.metrics.clone(), risk: run.risk };
-        let stored = library.insert_recorded(&case, &outcome).map_err(|e| open_error(site, e))?;
+        let stored = library
+            .insert_recorded(&case, &outcome)
+            .map_err(|source| CriticalityRoleError::StoreCase { site: site.clone(), source })?;
         tracing::info!("criticality: site {site} stored as recorded case {} ({})", stored.id, case.benchmark_id);
-        cases.push(FleetCase {
+        summary.cases.push(FleetCase {
             site: site.clone(),
             id: stored.id,
             inserted: stored.inserted,
@@ -223,7 +255,7 @@ fn store_cases(
             risk_score: run.risk.score,
         });
     }
-    Ok(cases)
+    Ok(())
 }
 
 /// Subscribes the role to every key of the shape `risktwin/v1/<site|*>/*/*` (edge streams and
@@ -245,4 +277,82 @@ pub(crate) async fn subscribe(
         })
         .await
         .map_err(|e| TransportError::Declare { what: "criticality subscriber", key, reason: e.to_string() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::criticality::tests::{messages, two_cars};
+    use risktwin_common::telemetry::VehicleStateSample;
+    use risktwin_protos::WireMessage;
+    use risktwin_transport::protobuf;
+
+    /// A collector that took the two-car scenario's messages at site `two`, and at site `gap`
+    /// the same but for one state of car 2 (a stream with a state lost).
+    fn collected() -> CriticalityCollect {
+        let mut collect = CriticalityCollect::default();
+        let mut car_2_states = 0;
+        for (key, payload) in messages(&two_cars()) {
+            let message =
+                if key.ends_with("/map") { keyexpr::EDGE_MAP_MESSAGE } else { VehicleStateSample::PROTO_NAME };
+            let encoding = protobuf(message).to_string();
+            collect.handle(&key, &encoding, &payload);
+            if key.ends_with("/dyn-2/state") {
+                car_2_states += 1;
+                if car_2_states == 10 {
+                    continue;
+                }
+            }
+            collect.handle(&key.replacen("/two/", "/gap/", 1), &encoding, &payload);
+        }
+        collect
+    }
+
+    fn library(dir: &tempfile::TempDir) -> ScenarioLibrary {
+        ScenarioLibrary::open(dir.path().join("lib.db")).expect("a library")
+    }
+
+    #[test]
+    fn a_site_that_cannot_be_stored_is_listed_and_the_others_are_stored() {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let mut library = library(&dir);
+        let config = CriticalityConfig { library: Some(dir.path().join("lib.db")), ..CriticalityConfig::default() };
+        let summary = collected().finish(&config, Some(&mut library)).expect("one site is stored");
+        let stored: Vec<(&str, u64, bool)> =
+            summary.cases.iter().map(|c| (c.site.as_str(), c.ego_id, c.inserted)).collect();
+        assert_eq!(stored, [("two", 1, true)], "{summary:?}");
+        assert_eq!(summary.failed.len(), 1, "{summary:?}");
+        assert_eq!(summary.failed[0].site, "gap");
+        assert!(summary.failed[0].reason.contains("obstacle id 2"), "{summary:?}");
+        let case = library.recorded(&summary.cases[0].id).expect("reads").expect("the case is stored");
+        assert_eq!(case.case.xml, to_xml(&two_cars_as_rebuilt(&case.case.xml)), "the XML as written");
+        assert_eq!(case.outcomes.len(), 1);
+        assert_eq!(case.outcomes[0].policy, REPLAY_POLICY);
+    }
+
+    /// The scenario a stored case's XML reads back as.
+    fn two_cars_as_rebuilt(xml: &str) -> Scenario {
+        risktwin_common::commonroad::parse_scenario(xml).expect("the stored XML parses")
+    }
+
+    #[test]
+    fn with_no_site_stored_and_no_report_the_run_fails_naming_each_site() {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let mut library = library(&dir);
+        let config = CriticalityConfig { ego: Some(99), ..CriticalityConfig::default() };
+        match collected().finish(&config, Some(&mut library)) {
+            Err(CriticalityRoleError::NoCase { failed }) => {
+                assert!(failed.contains("gap: ") && failed.contains("two: "), "{failed}");
+            }
+            other => panic!("expected NoCase, got {other:?}"),
+        }
+        // With a report file the several sites are refused before anything is stored.
+        let out = Some(dir.path().join("crit.csv"));
+        let config = CriticalityConfig { out, ..CriticalityConfig::default() };
+        assert!(matches!(
+            collected().finish(&config, Some(&mut library)),
+            Err(CriticalityRoleError::SeveralSites { .. })
+        ));
+        assert!(library.rank_recorded(REPLAY_POLICY, None).expect("ranks").is_empty(), "nothing stored");
+    }
 }

@@ -15,9 +15,10 @@
 //! - `risk` (needs `twin`): at 2 Hz of twin time per site, the risk field around every vehicle
 //!   (`foxglove.Grid` on `…/cloud/risk_field`) and its `RiskReport` (`…/cloud/risk_report`);
 //! - `library` (needs `--db`): the queryable of [`library`] answering ranked scenarios;
-//! - `criticality` (needs `--criticality-out`): the road map and obstacle states of a site
-//!   (a replayed `risktwin import commonroad` recording), and on shutdown their CommonRoad
-//!   criticality, written as `risktwin criticality` writes it ([`criticality`]).
+//! - `criticality` (needs `--criticality-out` or `--db`): the road map and obstacle states of a
+//!   site (a replayed `risktwin import commonroad` recording), and on shutdown their CommonRoad
+//!   criticality, written as `risktwin criticality` writes it, and with `--db` the drive stored
+//!   as a recorded case of the library ([`criticality`]).
 //!
 //! - `loop` (needs `twin` and `--db`): the closed loop over the fleet ([`fleet_loop`]): pushes
 //!   the library's riskiest untested scenarios to live vehicles, stores what comes back (the
@@ -255,6 +256,9 @@ pub async fn run(
     config.check_roles()?;
     // Open the library and build the risk raster before joining: a bad file or config fails fast.
     let library = config.db.as_ref().filter(|_| config.has(Role::Library)).map(ScenarioLibrary::open).transpose()?;
+    // Opened now, so that a bad file fails before the drive is collected, not after.
+    let crit_library = config.criticality.as_ref().filter(|_| config.has(Role::Criticality));
+    let mut crit_library = crit_library.and_then(|c| c.library.as_ref()).map(ScenarioLibrary::open).transpose()?;
     let risk = if config.has(Role::Risk) { Some(RiskAssessor::new(config.road.clone(), config.risk)?) } else { None };
     let fleet = match config.db.as_ref().filter(|_| config.has(Role::Loop)) {
         Some(db) => {
@@ -380,7 +384,7 @@ pub async fn run(
     let criticality = match config.criticality.as_ref().filter(|_| config.has(Role::Criticality)) {
         Some(crit_config) => {
             let collected = std::mem::take(&mut *crit.lock().unwrap_or_else(PoisonError::into_inner));
-            Some(collected.finish(crit_config)?)
+            Some(collected.finish(crit_config, crit_library.as_mut())?)
         }
         None => None,
     };

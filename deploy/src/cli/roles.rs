@@ -117,7 +117,8 @@ pub struct CloudArgs {
     /// of this cloud's clock (messages without one are dropped as `no-replay-time`).
     #[arg(long)]
     pub replay_time: bool,
-    /// The scenario library the library role serves and the loop role works on.
+    /// The scenario library the library role serves, the loop role works on and the criticality
+    /// role stores replayed drives in.
     #[arg(long)]
     pub db: Option<PathBuf>,
     /// The loop role sends a pushed scenario again when its result has not come back within

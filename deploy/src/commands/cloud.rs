@@ -3,7 +3,8 @@
 //! `--record FILE.mcap` records what was accepted). `ready` on stderr says the
 //! subscriptions are in place. `--roles ingest,twin,risk` adds the live twin and risk on it,
 //! `--roles library --db FILE` the library queryable, `--roles criticality --criticality-out
-//! FILE.csv|json [--ego ID]` the criticality of a replayed CommonRoad scenario, written on exit,
+//! FILE.csv|json [--db FILE] [--ego ID]` the criticality of a replayed CommonRoad scenario,
+//! written on exit (with `--db`, the drive stored as a recorded case of the library),
 //! `--roles ingest,twin,loop[,trainer] --db FILE [--loop-report FILE.md]` the closed loop over
 //! the fleet, with policy retraining and the regression gate.
 //! Also `risktwin bench zenoh|latency`.
@@ -81,6 +82,7 @@ pub fn cloud(args: CloudArgs) -> CliResult {
             CloudError::Transport(t) => CliError::runtime(t),
             CloudError::Record(r) => CliError::runtime(r),
             CloudError::Criticality(w @ CriticalityRoleError::Write { .. }) => CliError::runtime(w),
+            CloudError::Criticality(s @ CriticalityRoleError::StoreCase { .. }) => CliError::runtime(s),
             other => CliError::input(other),
         })
     })?;

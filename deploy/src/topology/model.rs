@@ -1,0 +1,74 @@
+//! The topology file as written: sites, hosts with the processes they run, and links. Names
+//! carry their place in the file so that a check can name the line.
+
+use serde::Deserialize;
+use toml::Spanned;
+
+/// The roles a host can run (the `risktwin` commands it starts).
+pub const ROLES: [&str; 6] = ["router", "cloud", "vehicle", "rsu", "replay", "scene"];
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct File {
+    #[serde(default)]
+    pub site: Vec<SiteDef>,
+    #[serde(default)]
+    pub host: Vec<HostDef>,
+    #[serde(default)]
+    pub link: Vec<LinkDef>,
+}
+
+/// A site: hosts that share a router (one per site unless `router = false`, when its hosts
+/// reach another site's router over a link).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct SiteDef {
+    pub name: Spanned<String>,
+    #[serde(default = "yes")]
+    pub router: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// A host: an emulated machine of a site and the processes it runs.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct HostDef {
+    pub name: Spanned<String>,
+    pub site: Spanned<String>,
+    #[serde(default)]
+    pub run: Vec<ProcessDef>,
+}
+
+/// A process of a host: a role and its arguments (addresses are the deployment's to give).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ProcessDef {
+    pub role: Spanned<String>,
+    #[serde(default)]
+    pub args: Vec<String>,
+}
+
+/// A link between two sites or hosts, as emulated in user space.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct LinkDef {
+    pub between: Spanned<Vec<String>>,
+    /// 0 when not given.
+    pub latency_ms: Option<Spanned<f64>>,
+    pub jitter: Option<Spanned<Jitter>>,
+    pub bandwidth_mbps: Option<Spanned<f64>>,
+    pub queue_kib: Option<Spanned<u64>>,
+}
+
+/// How a link's delay varies around its latency.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(tag = "dist", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum Jitter {
+    /// Normal, standard deviation `sd_ms`, cut at ± 3 standard deviations.
+    Normal { sd_ms: f64 },
+    /// Uniform in ± `max_ms`.
+    Uniform { max_ms: f64 },
+}

@@ -9,6 +9,8 @@ mod output;
 mod process_tuning;
 // Not used by a command yet (issue 15 in progress): the deploy commands come next.
 #[allow(dead_code)]
+mod emulate;
+#[allow(dead_code)]
 mod topology;
 
 use clap::Parser;

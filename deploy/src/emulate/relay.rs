@@ -1,0 +1,275 @@
+//! A link emulated in user space: a TCP relay that gives the bytes between two hosts a link's
+//! delay (latency plus jitter), bandwidth and bounded queue, and can be partitioned. This
+//! machine's kernel has no netem qdisc, so the link lives in the stream instead of the packet
+//! path (what toxiproxy does): every chunk read is released at the later of the previous
+//! chunk's release and its own read time plus a delay drawn for it, so bytes never reorder; a
+//! token bucket spends the bandwidth; a full queue stops the reading (TCP's own backpressure, no
+//! loss: message loss belongs to radio channels, not to these IP links). Partitioned, the relay
+//! forwards nothing and refuses new connections; what is queued flows on after the heal.
+
+use crate::topology::Jitter;
+use risktwin_common::rng::Rng;
+use std::io;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::{Semaphore, mpsc, watch};
+use tokio::task::JoinHandle;
+use tokio::time::Instant;
+
+/// Bytes read at most per chunk.
+const CHUNK_BYTES: usize = 16 * 1024;
+
+/// What a link does to the bytes crossing it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinkShape {
+    pub latency: Duration,
+    pub jitter: Option<Jitter>,
+    /// `None`: no limit.
+    pub bandwidth_bps: Option<f64>,
+    /// Bytes queued per direction and connection before reading stops.
+    pub queue_bytes: usize,
+}
+
+/// The link's state, changed while it runs (the deployment's event schedule).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LinkState {
+    Up(LinkShape),
+    Partitioned,
+}
+
+/// What crossed the link, both directions summed.
+#[derive(Debug, Default)]
+pub struct RelayCounts {
+    pub connections: AtomicU64,
+    pub refused: AtomicU64,
+    pub bytes: AtomicU64,
+    /// Sum of the delays drawn for the chunks, µs (with `chunks`, their mean).
+    pub delay_us: AtomicU64,
+    pub chunks: AtomicU64,
+}
+
+/// A running relay: its address, its state and its counts. Dropping it stops it.
+pub struct Relay {
+    pub addr: SocketAddr,
+    pub state: watch::Sender<LinkState>,
+    pub counts: Arc<RelayCounts>,
+    task: JoinHandle<()>,
+}
+
+impl Drop for Relay {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
+
+/// Starts a relay listening on `listen` (port 0: a free one) that forwards each connection to
+/// `upstream` through a link of `state`; `seed` seeds its jitter.
+pub async fn start(listen: SocketAddr, upstream: SocketAddr, state: LinkState, seed: u64) -> io::Result<Relay> {
+    let listener = TcpListener::bind(listen).await?;
+    let addr = listener.local_addr()?;
+    let (tx, rx) = watch::channel(state);
+    let counts = Arc::new(RelayCounts::default());
+    let task = tokio::spawn(accept(listener, upstream, rx, Arc::clone(&counts), seed));
+    Ok(Relay { addr, state: tx, counts, task })
+}
+
+async fn accept(
+    listener: TcpListener,
+    upstream: SocketAddr,
+    state: watch::Receiver<LinkState>,
+    counts: Arc<RelayCounts>,
+    seed: u64,
+) {
+    let mut connection = 0u64;
+    loop {
+        let Ok((inbound, _)) = listener.accept().await else { continue };
+        if *state.borrow() == LinkState::Partitioned {
+            counts.refused.fetch_add(1, Ordering::Relaxed);
+            continue;
+        }
+        let Ok(outbound) = TcpStream::connect(upstream).await else {
+            counts.refused.fetch_add(1, Ordering::Relaxed);
+            continue;
+        };
+        counts.connections.fetch_add(1, Ordering::Relaxed);
+        let _ = (inbound.set_nodelay(true), outbound.set_nodelay(true));
+        let (in_read, in_write) = inbound.into_split();
+        let (out_read, out_write) = outbound.into_split();
+        for (k, (from, to)) in [(in_read, out_write), (out_read, in_write)].into_iter().enumerate() {
+            let rng = Rng::derive(seed, 2 * connection + k as u64);
+            tokio::spawn(direction(from, to, state.clone(), Arc::clone(&counts), rng));
+        }
+        connection += 1;
+    }
+}
+
+/// One direction of one connection: a reader that stamps and queues chunks, a writer that
+/// releases them on time and at the link's rate.
+async fn direction(
+    mut from: OwnedReadHalf,
+    mut to: OwnedWriteHalf,
+    state: watch::Receiver<LinkState>,
+    counts: Arc<RelayCounts>,
+    mut rng: Rng,
+) {
+    let queue_bytes = match *state.borrow() {
+        LinkState::Up(shape) => shape.queue_bytes.max(CHUNK_BYTES),
+        LinkState::Partitioned => CHUNK_BYTES,
+    };
+    let room = Arc::new(Semaphore::new(queue_bytes));
+    let (tx, mut rx) = mpsc::unbounded_channel::<(Instant, Vec<u8>)>();
+    let reader = {
+        let (room, state, counts) = (Arc::clone(&room), state.clone(), Arc::clone(&counts));
+        async move {
+            let mut last_release = Instant::now();
+            loop {
+                let Ok(permit) = Arc::clone(&room).acquire_many_owned(CHUNK_BYTES as u32).await else { return };
+                let mut chunk = vec![0; CHUNK_BYTES];
+                let n = match from.read(&mut chunk).await {
+                    Ok(0) | Err(_) => return,
+                    Ok(n) => n,
+                };
+                chunk.truncate(n);
+                // Only the bytes read stay reserved.
+                permit.forget();
+                room.add_permits(CHUNK_BYTES - n);
+                let delay = match *state.borrow() {
+                    LinkState::Up(shape) => delay_of(&shape, &mut rng),
+                    LinkState::Partitioned => Duration::ZERO,
+                };
+                counts.delay_us.fetch_add(delay.as_micros() as u64, Ordering::Relaxed);
+                last_release = last_release.max(Instant::now() + delay);
+                if tx.send((last_release, chunk)).is_err() {
+                    return;
+                }
+            }
+        }
+    };
+    let writer = async move {
+        let mut state = state;
+        let mut sent_until = Instant::now();
+        while let Some((release, chunk)) = rx.recv().await {
+            tokio::time::sleep_until(release).await;
+            // A partition holds everything queued until the heal.
+            while matches!(*state.borrow_and_update(), LinkState::Partitioned) {
+                if state.changed().await.is_err() {
+                    return;
+                }
+            }
+            let now_state = *state.borrow();
+            if let LinkState::Up(LinkShape { bandwidth_bps: Some(bps), .. }) = now_state {
+                let on_wire = Duration::from_secs_f64(chunk.len() as f64 * 8.0 / bps);
+                sent_until = sent_until.max(Instant::now()) + on_wire;
+                tokio::time::sleep_until(sent_until).await;
+            }
+            if to.write_all(&chunk).await.is_err() {
+                return;
+            }
+            counts.bytes.fetch_add(chunk.len() as u64, Ordering::Relaxed);
+            counts.chunks.fetch_add(1, Ordering::Relaxed);
+            room.add_permits(chunk.len());
+        }
+        let _ = to.shutdown().await;
+    };
+    tokio::join!(reader, writer);
+}
+
+/// A delay drawn for one chunk: the latency plus jitter (normal cut at ± 3 sd, or uniform),
+/// never below zero.
+fn delay_of(shape: &LinkShape, rng: &mut Rng) -> Duration {
+    let jitter_s = match shape.jitter {
+        None => 0.0,
+        Some(Jitter::Normal { sd_ms }) => (rng.normal().clamp(-3.0, 3.0) * sd_ms) * 1e-3,
+        Some(Jitter::Uniform { max_ms }) => rng.uniform(-max_ms, max_ms) * 1e-3,
+    };
+    Duration::from_secs_f64((shape.latency.as_secs_f64() + jitter_s).max(0.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An echo server on a free port.
+    async fn echo() -> SocketAddr {
+        let listener = TcpListener::bind("127.0.0.1:0").await.expect("binds");
+        let addr = listener.local_addr().expect("an address");
+        tokio::spawn(async move {
+            while let Ok((stream, _)) = listener.accept().await {
+                tokio::spawn(async move {
+                    let (mut r, mut w) = stream.into_split();
+                    let _ = tokio::io::copy(&mut r, &mut w).await;
+                });
+            }
+        });
+        addr
+    }
+
+    fn shape(latency_ms: u64, bandwidth_bps: Option<f64>) -> LinkShape {
+        LinkShape { latency: Duration::from_millis(latency_ms), jitter: None, bandwidth_bps, queue_bytes: 1 << 20 }
+    }
+
+    async fn relay_to_echo(state: LinkState) -> (Relay, TcpStream) {
+        let relay = start("127.0.0.1:0".parse().expect("an address"), echo().await, state, 1).await.expect("starts");
+        let client = TcpStream::connect(relay.addr).await.expect("connects");
+        client.set_nodelay(true).expect("nodelay");
+        (relay, client)
+    }
+
+    #[tokio::test]
+    async fn a_round_trip_takes_the_latency_both_ways() {
+        let (_relay, mut client) = relay_to_echo(LinkState::Up(shape(20, None))).await;
+        let mut rtts = Vec::new();
+        for k in 0..10u8 {
+            let t = std::time::Instant::now();
+            client.write_all(&[k]).await.expect("writes");
+            let mut b = [0u8];
+            client.read_exact(&mut b).await.expect("reads");
+            assert_eq!(b[0], k, "in order");
+            rtts.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        rtts.sort_by(f64::total_cmp);
+        let p50 = rtts[rtts.len() / 2];
+        // 2 × 20 ms; the upper bound leaves room for a loaded 2-core machine.
+        assert!((39.0..80.0).contains(&p50), "p50 {p50} ms of {rtts:?}");
+    }
+
+    #[tokio::test]
+    async fn a_partition_holds_the_bytes_and_refuses_new_connections_until_the_heal() {
+        let (relay, mut client) = relay_to_echo(LinkState::Up(shape(0, None))).await;
+        let mut b = [0u8; 1];
+        client.write_all(b"a").await.expect("writes");
+        client.read_exact(&mut b).await.expect("reads");
+        relay.state.send(LinkState::Partitioned).expect("the relay runs");
+        client.write_all(b"b").await.expect("writes into the queue");
+        let held = tokio::time::timeout(Duration::from_millis(300), client.read_exact(&mut b)).await;
+        assert!(held.is_err(), "nothing crosses a partition");
+        let mut other = TcpStream::connect(relay.addr).await.expect("the listener accepts");
+        let refused = tokio::time::timeout(Duration::from_secs(5), other.read(&mut b)).await.expect("closed at once");
+        assert!(matches!(refused, Ok(0) | Err(_)), "a new connection is refused: {refused:?}");
+        relay.state.send(LinkState::Up(shape(0, None))).expect("the relay runs");
+        tokio::time::timeout(Duration::from_secs(5), client.read_exact(&mut b)).await.expect("healed").expect("reads");
+        assert_eq!(&b, b"b", "what was queued flows on after the heal");
+        assert_eq!(relay.counts.refused.load(Ordering::Relaxed), 1);
+    }
+
+    #[tokio::test]
+    async fn the_bandwidth_paces_the_bytes() {
+        // 1 Mbit/s one way (the echo comes back through the same link): 62,500 bytes take 0.5 s.
+        let (_relay, client) = relay_to_echo(LinkState::Up(shape(0, Some(1e6)))).await;
+        let (mut r, mut w) = client.into_split();
+        let t = std::time::Instant::now();
+        let sent = vec![7u8; 62_500];
+        let writer = tokio::spawn(async move { w.write_all(&sent).await.map(|()| w) });
+        let mut got = vec![0u8; 62_500];
+        r.read_exact(&mut got).await.expect("reads");
+        let _w = writer.await.expect("joins").expect("writes");
+        let s = t.elapsed().as_secs_f64();
+        assert!((0.45..2.0).contains(&s), "{s} s for 0.5 s of bytes");
+        assert!(got.iter().all(|&b| b == 7));
+    }
+}

@@ -154,7 +154,10 @@ async fn direction(
         let mut state = state;
         let mut sent_until = Instant::now();
         while let Some((release, chunk)) = rx.recv().await {
-            tokio::time::sleep_until(release).await;
+            // Tokio's timer counts whole milliseconds: a chunk already due must not wait for it.
+            if release > Instant::now() {
+                tokio::time::sleep_until(release).await;
+            }
             // A partition holds everything queued until the heal.
             while matches!(*state.borrow_and_update(), LinkState::Partitioned) {
                 if state.changed().await.is_err() {
@@ -165,7 +168,9 @@ async fn direction(
             if let LinkState::Up(LinkShape { bandwidth_bps: Some(bps), .. }) = now_state {
                 let on_wire = Duration::from_secs_f64(chunk.len() as f64 * 8.0 / bps);
                 sent_until = sent_until.max(Instant::now()) + on_wire;
-                tokio::time::sleep_until(sent_until).await;
+                if sent_until > Instant::now() {
+                    tokio::time::sleep_until(sent_until).await;
+                }
             }
             if to.write_all(&chunk).await.is_err() {
                 return;
@@ -271,5 +276,49 @@ mod tests {
         let s = t.elapsed().as_secs_f64();
         assert!((0.45..2.0).contains(&s), "{s} s for 0.5 s of bytes");
         assert!(got.iter().all(|&b| b == 7));
+    }
+
+    /// Side by side: a relay at 0 ms against the direct path (run by hand with `--ignored
+    /// --nocapture`; the benchmark proper comes with `risktwin bench`).
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    #[ignore]
+    async fn side_by_side_with_the_direct_path() {
+        let target = echo().await;
+        let relay = start("127.0.0.1:0".parse().expect("an address"), target, LinkState::Up(shape(0, None)), 1)
+            .await
+            .expect("starts");
+        for (name, addr) in [("direct", target), ("relay", relay.addr), ("direct", target), ("relay", relay.addr)] {
+            let mut c = TcpStream::connect(addr).await.expect("connects");
+            c.set_nodelay(true).expect("nodelay");
+            let mut rtts = Vec::new();
+            let mut b = [0u8; 1024];
+            for _ in 0..2000 {
+                let t = std::time::Instant::now();
+                c.write_all(&b).await.expect("writes");
+                c.read_exact(&mut b).await.expect("reads");
+                rtts.push(t.elapsed().as_secs_f64() * 1e6);
+            }
+            rtts.sort_by(f64::total_cmp);
+            let (mut r, mut w) = c.into_split();
+            let n = 100_000usize;
+            let t = std::time::Instant::now();
+            let writer = tokio::spawn(async move {
+                let m = [1u8; 1024];
+                for _ in 0..n {
+                    w.write_all(&m).await.expect("writes");
+                }
+                w
+            });
+            let mut got = vec![0u8; 1024];
+            for _ in 0..n {
+                r.read_exact(&mut got).await.expect("reads");
+            }
+            let _w = writer.await.expect("joins");
+            let rate = n as f64 / t.elapsed().as_secs_f64();
+            println!(
+                "{name}: 1 KiB round trip p50 {:.1} µs p99 {:.1} µs; {:.0} msgs/s echoed",
+                rtts[1000], rtts[1980], rate
+            );
+        }
     }
 }

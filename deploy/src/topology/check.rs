@@ -1,6 +1,7 @@
 //! From the file as written to a checked [`Topology`]: names resolved, values in range, every
 //! host able to reach a router. The first mistake is reported with its line.
 
+use super::events::{Event, check_event};
 use super::model::{File, Jitter, ROLES};
 use std::collections::HashMap;
 use std::ops::Range;
@@ -15,6 +16,8 @@ pub struct Topology {
     pub sites: Vec<Site>,
     pub hosts: Vec<Host>,
     pub links: Vec<Link>,
+    /// In the order of their times.
+    pub events: Vec<Event>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -50,6 +53,7 @@ pub enum Endpoint {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Link {
+    pub name: String,
     pub ends: [Endpoint; 2],
     pub latency_ms: f64,
     pub jitter: Option<Jitter>,
@@ -145,7 +149,12 @@ pub fn parse(text: &str) -> Result<Topology, TopologyError> {
             Some(q) => *q.get_ref(),
             None => DEFAULT_QUEUE_KIB,
         };
+        let name = l.name.as_ref().map_or_else(|| format!("{a}-{b}"), |n| n.get_ref().clone());
+        if links.iter().any(|k: &Link| k.name == name) {
+            return Err(at(l.between.span(), format!("duplicate link name {name:?}")));
+        }
         links.push(Link {
+            name,
             ends,
             latency_ms,
             jitter: jitter.map(|(_, j)| j),
@@ -153,7 +162,12 @@ pub fn parse(text: &str) -> Result<Topology, TopologyError> {
             queue_kib,
         });
     }
-    let topology = Topology { sites, hosts, links };
+    let mut events = Vec::new();
+    for e in &file.event {
+        events.push(check_event(e, &names, &hosts, &links, &at)?);
+    }
+    events.sort_by_key(|e: &Event| e.at);
+    let topology = Topology { sites, hosts, links, events };
     if let Some(k) = topology.unreachable_host() {
         let h = &file.host[k];
         let message =
@@ -206,10 +220,10 @@ fn line_of(text: &str, at: usize) -> usize {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
-    const TWO_SITES: &str = r#"
+    pub(in crate::topology) const TWO_SITES: &str = r#"
 [[site]]
 name = "cloud"
 

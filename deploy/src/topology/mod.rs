@@ -7,7 +7,9 @@
 //! links, the event schedule's execution and the commands come next.
 
 mod check;
+mod events;
 mod model;
 
-pub use check::{Topology, TopologyError, parse};
+pub use check::{Endpoint, Host, Link, Process, Site, Topology, TopologyError, parse};
+pub use events::{Action, Event};
 pub use model::{Jitter, ROLES};

@@ -16,6 +16,8 @@ pub(super) struct File {
     pub host: Vec<HostDef>,
     #[serde(default)]
     pub link: Vec<LinkDef>,
+    #[serde(default)]
+    pub event: Vec<EventDef>,
 }
 
 /// A site: hosts that share a router (one per site unless `router = false`, when its hosts
@@ -55,6 +57,8 @@ pub(super) struct ProcessDef {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct LinkDef {
+    /// How events name the link (default `<a>-<b>`).
+    pub name: Option<Spanned<String>>,
     pub between: Spanned<Vec<String>>,
     /// 0 when not given.
     pub latency_ms: Option<Spanned<f64>>,
@@ -71,4 +75,26 @@ pub enum Jitter {
     Normal { sd_ms: f64 },
     /// Uniform in ± `max_ms`.
     Uniform { max_ms: f64 },
+}
+
+/// A scheduled event: at `at_s` seconds into the run, one action, for `for_s` seconds where it
+/// lasts (a partition, a degraded link).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct EventDef {
+    pub at_s: Spanned<f64>,
+    pub for_s: Option<Spanned<f64>>,
+    /// A site, a host or a link: every link of it is cut.
+    pub partition: Option<Spanned<String>>,
+    /// A link, with its new `latency_ms` and/or `bandwidth_mbps`.
+    pub degrade: Option<Spanned<String>>,
+    pub latency_ms: Option<f64>,
+    pub bandwidth_mbps: Option<f64>,
+    /// `host/role`: the process is killed (and restarted by its policy).
+    pub kill: Option<Spanned<String>>,
+    /// `host/role`: the process is stopped and started again.
+    pub restart: Option<Spanned<String>>,
+    /// A host whose processes' clocks step by `by_ms`.
+    pub clock_step: Option<Spanned<String>>,
+    pub by_ms: Option<f64>,
 }

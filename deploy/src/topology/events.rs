@@ -1,0 +1,170 @@
+//! The event schedule of a topology: partitions, degraded links, killed and restarted
+//! processes and stepped clocks, their names resolved against the checked hosts and links.
+
+use super::check::{Endpoint, Host, Link, TopologyError};
+use super::model::EventDef;
+use std::collections::HashMap;
+use std::ops::Range;
+use std::time::Duration;
+use toml::Spanned;
+
+/// A scheduled event.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Event {
+    pub at: Duration,
+    /// How long a partition or a degradation lasts (`None`: to the end of the run).
+    pub lasts: Option<Duration>,
+    pub action: Action,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum Action {
+    /// Cut these links (indices into [`Topology::links`]).
+    Partition(Vec<usize>),
+    Degrade {
+        link: usize,
+        latency_ms: Option<f64>,
+        bandwidth_mbps: Option<f64>,
+    },
+    /// Kill process `process` of host `host` (its restart policy brings it back).
+    Kill {
+        host: usize,
+        process: usize,
+    },
+    Restart {
+        host: usize,
+        process: usize,
+    },
+    /// Step the clocks of a host's processes.
+    ClockStep {
+        host: usize,
+        by_ms: f64,
+    },
+}
+
+/// One event, its names resolved.
+pub(super) fn check_event(
+    e: &EventDef,
+    names: &HashMap<String, (Endpoint, usize)>,
+    hosts: &[Host],
+    links: &[Link],
+    at: &impl Fn(Range<usize>, String) -> TopologyError,
+) -> Result<Event, TopologyError> {
+    let seconds = |v: &Spanned<f64>, what: &str| {
+        let s = *v.get_ref();
+        if s.is_finite() && s >= 0.0 {
+            Ok(Duration::from_secs_f64(s))
+        } else {
+            Err(at(v.span(), format!("{what} {s} must be finite and ≥ 0")))
+        }
+    };
+    let start = seconds(&e.at_s, "at_s")?;
+    let lasts = e.for_s.as_ref().map(|v| seconds(v, "for_s")).transpose()?;
+    let actions = [&e.partition, &e.degrade, &e.kill, &e.restart, &e.clock_step];
+    let given: Vec<&Spanned<String>> = actions.iter().filter_map(|a| a.as_ref()).collect();
+    let [target] = given.as_slice() else {
+        let message = "an event does one of partition, degrade, kill, restart, clock_step".to_owned();
+        return Err(at(e.at_s.span(), format!("{message} (this one {})", given.len())));
+    };
+    let name = target.get_ref();
+    let link_named = |name: &str| links.iter().position(|l| l.name == name);
+    let process = |spec: &Spanned<String>| {
+        let (host, role) = spec
+            .get_ref()
+            .split_once('/')
+            .ok_or_else(|| at(spec.span(), format!("{:?}: write host/role", spec.get_ref())))?;
+        let h = hosts
+            .iter()
+            .position(|x| x.name == host)
+            .ok_or_else(|| at(spec.span(), format!("unknown host {host:?}")))?;
+        let matching: Vec<usize> =
+            hosts[h].run.iter().enumerate().filter(|(_, p)| p.role == role).map(|(k, _)| k).collect();
+        match matching.as_slice() {
+            [k] => Ok((h, *k)),
+            [] => Err(at(spec.span(), format!("host {host:?} runs no {role:?}"))),
+            _ => Err(at(spec.span(), format!("host {host:?} runs {role:?} more than once"))),
+        }
+    };
+    let action = if e.partition.is_some() {
+        let cut: Vec<usize> = match (names.get(name), link_named(name)) {
+            (Some((end, _)), _) => {
+                links.iter().enumerate().filter(|(_, l)| l.ends.contains(end)).map(|(k, _)| k).collect()
+            }
+            (None, Some(k)) => vec![k],
+            (None, None) => {
+                return Err(at(target.span(), format!("partition of {name:?}: no site, host or link of that name")));
+            }
+        };
+        if cut.is_empty() {
+            return Err(at(target.span(), format!("partition of {name:?}: it has no link to cut")));
+        }
+        Action::Partition(cut)
+    } else if e.degrade.is_some() {
+        let link = link_named(name).ok_or_else(|| at(target.span(), format!("degrade: no link named {name:?}")))?;
+        let bad = |v: Option<f64>| v.is_some_and(|v| !(v.is_finite() && v >= 0.0));
+        if e.latency_ms.is_none() && e.bandwidth_mbps.is_none() || bad(e.latency_ms) || bad(e.bandwidth_mbps) {
+            return Err(at(target.span(), "degrade needs latency_ms and/or bandwidth_mbps, finite and ≥ 0".to_owned()));
+        }
+        Action::Degrade { link, latency_ms: e.latency_ms, bandwidth_mbps: e.bandwidth_mbps }
+    } else if let Some(spec) = &e.kill {
+        let (host, process) = process(spec)?;
+        Action::Kill { host, process }
+    } else if let Some(spec) = &e.restart {
+        let (host, process) = process(spec)?;
+        Action::Restart { host, process }
+    } else {
+        let host = hosts
+            .iter()
+            .position(|h| h.name == *name)
+            .ok_or_else(|| at(target.span(), format!("clock_step: unknown host {name:?}")))?;
+        let by_ms = e
+            .by_ms
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| at(target.span(), "clock_step needs a finite by_ms".to_owned()))?;
+        Action::ClockStep { host, by_ms }
+    };
+    let lasting = matches!(action, Action::Partition(_) | Action::Degrade { .. });
+    if lasts.is_some() && !lasting {
+        return Err(at(e.at_s.span(), "for_s belongs to a partition or a degradation".to_owned()));
+    }
+    Ok(Event { at: start, lasts, action })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::check::parse;
+    use super::super::check::tests::TWO_SITES;
+    use super::*;
+
+    #[test]
+    fn events_are_resolved_and_ordered_and_their_mistakes_named() {
+        let events = r#"
+[[event]]
+at_s = 12
+restart = "cloud-0/cloud"
+
+[[event]]
+at_s = 5
+partition = "north"
+for_s = 3
+"#;
+        let t = parse(&format!("{TWO_SITES}{events}")).expect("valid events");
+        assert_eq!(t.links[0].name, "north-cloud");
+        let got: Vec<(f64, &Action)> = t.events.iter().map(|e| (e.at.as_secs_f64(), &e.action)).collect();
+        assert_eq!(got, [(5.0, &Action::Partition(vec![0])), (12.0, &Action::Restart { host: 0, process: 0 })]);
+        assert_eq!(t.events[0].lasts, Some(Duration::from_secs(3)));
+        for (bad, says) in [
+            ("partition = \"south\"", "no site, host or link"),
+            ("restart = \"car-1/cloud\"", "runs no \"cloud\""),
+            ("kill = \"car-1\"", "write host/role"),
+            ("degrade = \"north-cloud\"", "degrade needs"),
+            ("clock_step = \"car-1\"", "finite by_ms"),
+            ("kill = \"car-1/vehicle\"\nrestart = \"car-1/vehicle\"", "one of"),
+        ] {
+            let text = format!("{TWO_SITES}\n[[event]]\nat_s = 1\n{bad}\n");
+            let e = parse(&text).expect_err(bad);
+            assert!(e.message.contains(says), "{bad}: {e}");
+            assert!(e.line >= 24, "{bad}: the event's line, {e}");
+        }
+    }
+}

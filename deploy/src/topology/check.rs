@@ -286,6 +286,19 @@ bandwidth_mbps = 100
     }
 
     #[test]
+    fn the_example_topologies_are_valid() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("topologies");
+        let mut read = 0;
+        for entry in std::fs::read_dir(&dir).expect("deploy/topologies") {
+            let path = entry.expect("an entry").path();
+            let text = std::fs::read_to_string(&path).expect("readable");
+            parse(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            read += 1;
+        }
+        assert!(read >= 3, "the examples the docs name");
+    }
+
+    #[test]
     fn a_host_that_reaches_no_router_is_refused() {
         let routerless = TWO_SITES.replacen("name = \"north\"", "name = \"north\"\nrouter = false", 1);
         assert!(parse(&routerless).is_ok(), "through the link, north reaches the cloud's router");

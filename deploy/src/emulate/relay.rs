@@ -5,7 +5,9 @@
 //! chunk's release and its own read time plus a delay drawn for it, so bytes never reorder; a
 //! token bucket spends the bandwidth; a full queue stops the reading (TCP's own backpressure, no
 //! loss: message loss belongs to radio channels, not to these IP links). Partitioned, the relay
-//! forwards nothing and refuses new connections; what is queued flows on after the heal.
+//! forwards nothing and closes new connections at once; what is queued flows on after the heal.
+//! The pace is per connection and direction (a link that carries several connections gives
+//! each the bandwidth).
 
 use crate::topology::Jitter;
 use risktwin_common::rng::Rng;
@@ -53,7 +55,8 @@ pub struct RelayCounts {
     pub chunks: AtomicU64,
 }
 
-/// A running relay: its address, its state and its counts. Dropping it stops it.
+/// A running relay: its address, its state and its counts. Dropping it stops it and every
+/// connection it carries.
 pub struct Relay {
     pub addr: SocketAddr,
     pub state: watch::Sender<LinkState>,
@@ -78,6 +81,8 @@ pub async fn start(listen: SocketAddr, upstream: SocketAddr, state: LinkState, s
     Ok(Relay { addr, state: tx, counts, task })
 }
 
+/// Accepts connections until the relay is dropped (which aborts this task, and with its set
+/// every connection's tasks).
 async fn accept(
     listener: TcpListener,
     upstream: SocketAddr,
@@ -86,8 +91,15 @@ async fn accept(
     seed: u64,
 ) {
     let mut connection = 0u64;
+    let mut directions = tokio::task::JoinSet::new();
     loop {
-        let Ok((inbound, _)) = listener.accept().await else { continue };
+        // Reap the directions that ended, so the set does not grow with the connections.
+        while directions.try_join_next().is_some() {}
+        let Ok((inbound, _)) = listener.accept().await else {
+            // Out of file descriptors, say: wait rather than spin.
+            tokio::time::sleep(Duration::from_millis(10)).await;
+            continue;
+        };
         if *state.borrow() == LinkState::Partitioned {
             counts.refused.fetch_add(1, Ordering::Relaxed);
             continue;
@@ -102,7 +114,7 @@ async fn accept(
         let (out_read, out_write) = outbound.into_split();
         for (k, (from, to)) in [(in_read, out_write), (out_read, in_write)].into_iter().enumerate() {
             let rng = Rng::derive(seed, 2 * connection + k as u64);
-            tokio::spawn(direction(from, to, state.clone(), Arc::clone(&counts), rng));
+            directions.spawn(direction(from, to, state.clone(), Arc::clone(&counts), rng));
         }
         connection += 1;
     }
@@ -151,6 +163,8 @@ async fn direction(
         }
     };
     let writer = async move {
+        // However the writer ends, a reader waiting for room must end too.
+        let _close = CloseOnDrop(Arc::clone(&room));
         let mut state = state;
         let mut sent_until = Instant::now();
         while let Some((release, chunk)) = rx.recv().await {
@@ -182,6 +196,15 @@ async fn direction(
         let _ = to.shutdown().await;
     };
     tokio::join!(reader, writer);
+}
+
+/// Closes a queue's room when dropped: its reader's next wait returns at once.
+struct CloseOnDrop(Arc<Semaphore>);
+
+impl Drop for CloseOnDrop {
+    fn drop(&mut self) {
+        self.0.close();
+    }
 }
 
 /// A delay drawn for one chunk: the latency plus jitter (normal cut at ± 3 sd, or uniform),
@@ -238,9 +261,9 @@ mod tests {
             rtts.push(t.elapsed().as_secs_f64() * 1e3);
         }
         rtts.sort_by(f64::total_cmp);
-        let p50 = rtts[rtts.len() / 2];
-        // 2 × 20 ms; the upper bound leaves room for a loaded 2-core machine.
-        assert!((39.0..80.0).contains(&p50), "p50 {p50} ms of {rtts:?}");
+        // 2 × 20 ms at least (the timer rounds up); the fastest of ten well below a doubled
+        // latency, which holds on a loaded 2-core machine.
+        assert!((39.0..70.0).contains(&rtts[0]), "fastest {} ms of {rtts:?}", rtts[0]);
     }
 
     #[tokio::test]
@@ -276,49 +299,5 @@ mod tests {
         let s = t.elapsed().as_secs_f64();
         assert!((0.45..2.0).contains(&s), "{s} s for 0.5 s of bytes");
         assert!(got.iter().all(|&b| b == 7));
-    }
-
-    /// Side by side: a relay at 0 ms against the direct path (run by hand with `--ignored
-    /// --nocapture`; the benchmark proper comes with `risktwin bench`).
-    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-    #[ignore]
-    async fn side_by_side_with_the_direct_path() {
-        let target = echo().await;
-        let relay = start("127.0.0.1:0".parse().expect("an address"), target, LinkState::Up(shape(0, None)), 1)
-            .await
-            .expect("starts");
-        for (name, addr) in [("direct", target), ("relay", relay.addr), ("direct", target), ("relay", relay.addr)] {
-            let mut c = TcpStream::connect(addr).await.expect("connects");
-            c.set_nodelay(true).expect("nodelay");
-            let mut rtts = Vec::new();
-            let mut b = [0u8; 1024];
-            for _ in 0..2000 {
-                let t = std::time::Instant::now();
-                c.write_all(&b).await.expect("writes");
-                c.read_exact(&mut b).await.expect("reads");
-                rtts.push(t.elapsed().as_secs_f64() * 1e6);
-            }
-            rtts.sort_by(f64::total_cmp);
-            let (mut r, mut w) = c.into_split();
-            let n = 100_000usize;
-            let t = std::time::Instant::now();
-            let writer = tokio::spawn(async move {
-                let m = [1u8; 1024];
-                for _ in 0..n {
-                    w.write_all(&m).await.expect("writes");
-                }
-                w
-            });
-            let mut got = vec![0u8; 1024];
-            for _ in 0..n {
-                r.read_exact(&mut got).await.expect("reads");
-            }
-            let _w = writer.await.expect("joins");
-            let rate = n as f64 / t.elapsed().as_secs_f64();
-            println!(
-                "{name}: 1 KiB round trip p50 {:.1} µs p99 {:.1} µs; {:.0} msgs/s echoed",
-                rtts[1000], rtts[1980], rate
-            );
-        }
     }
 }

@@ -9,6 +9,13 @@ use toml::Spanned;
 
 /// Queue of a link without `queue_kib`, KiB.
 const DEFAULT_QUEUE_KIB: u64 = 256;
+/// The largest queue, KiB (1 GiB).
+const MAX_QUEUE_KIB: u64 = 1 << 20;
+/// The longest latency and jitter a link may have, ms (a minute).
+pub(super) const MAX_LATENCY_MS: f64 = 60_000.0;
+/// The bandwidths a link may have, Mbit/s (1 kbit/s to 1 Tbit/s).
+pub(super) const MIN_BANDWIDTH_MBPS: f64 = 0.001;
+pub(super) const MAX_BANDWIDTH_MBPS: f64 = 1e6;
 
 /// A checked topology.
 #[derive(Debug, Clone, PartialEq)]
@@ -127,31 +134,39 @@ pub fn parse(text: &str) -> Result<Topology, TopologyError> {
         let ends = [end(a)?, end(b)?];
         let latency_ms = l.latency_ms.as_ref().map_or(0.0, |v| *v.get_ref());
         if let Some(v) = &l.latency_ms
-            && !(latency_ms.is_finite() && latency_ms >= 0.0)
+            && !(0.0..=MAX_LATENCY_MS).contains(&latency_ms)
         {
-            return Err(at(v.span(), format!("latency_ms {latency_ms} must be finite and ≥ 0")));
+            return Err(at(v.span(), format!("latency_ms {latency_ms} must lie in [0, {MAX_LATENCY_MS}]")));
         }
         let jitter = l.jitter.as_ref().map(|j| (j.span(), *j.get_ref()));
         if let Some((span, j)) = &jitter {
             let (Jitter::Normal { sd_ms: v } | Jitter::Uniform { max_ms: v }) = *j;
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(at(span.clone(), format!("jitter {v} ms must be finite and ≥ 0")));
+            if !(0.0..=MAX_LATENCY_MS).contains(&v) {
+                return Err(at(span.clone(), format!("jitter {v} ms must lie in [0, {MAX_LATENCY_MS}]")));
             }
         }
         let bandwidth_mbps = l.bandwidth_mbps.as_ref().map(|b| (b.span(), *b.get_ref()));
         if let Some((span, b)) = &bandwidth_mbps
-            && !(b.is_finite() && *b > 0.0)
+            && !(MIN_BANDWIDTH_MBPS..=MAX_BANDWIDTH_MBPS).contains(b)
         {
-            return Err(at(span.clone(), format!("bandwidth_mbps {b} must be finite and > 0")));
+            let range = format!("[{MIN_BANDWIDTH_MBPS}, {MAX_BANDWIDTH_MBPS}]");
+            return Err(at(span.clone(), format!("bandwidth_mbps {b} must lie in {range}")));
         }
         let queue_kib = match &l.queue_kib {
-            Some(q) if *q.get_ref() == 0 => return Err(at(q.span(), "queue_kib must be > 0".to_owned())),
+            Some(q) if !(1..=MAX_QUEUE_KIB).contains(q.get_ref()) => {
+                return Err(at(q.span(), format!("queue_kib must lie in [1, {MAX_QUEUE_KIB}]")));
+            }
             Some(q) => *q.get_ref(),
             None => DEFAULT_QUEUE_KIB,
         };
         let name = l.name.as_ref().map_or_else(|| format!("{a}-{b}"), |n| n.get_ref().clone());
-        if links.iter().any(|k: &Link| k.name == name) {
-            return Err(at(l.between.span(), format!("duplicate link name {name:?}")));
+        let name_span = l.name.as_ref().map_or_else(|| l.between.span(), |n| n.span());
+        if l.name.is_some() {
+            check_name(&name).map_err(|m| at(name_span.clone(), m))?;
+        }
+        if links.iter().any(|k: &Link| k.name == name) || names.contains_key(&name) {
+            let message = format!("duplicate name {name:?} (a link's name differs from every site, host and link)");
+            return Err(at(name_span, message));
         }
         links.push(Link {
             name,
@@ -267,7 +282,9 @@ bandwidth_mbps = 100
 
     #[test]
     fn each_mistake_is_refused_with_its_line() {
-        let cases: [(&str, &str, usize, &str); 8] = [
+        let cases: [(&str, &str, usize, &str); 10] = [
+            ("huge latency", "latency_ms = 20", 20, "latency_ms = 1e300"),
+            ("tiny bandwidth", "bandwidth_mbps = 100", 22, "bandwidth_mbps = 1e-300"),
             ("unknown host", r#"between = ["north", "cloud"]"#, 19, r#"between = ["north", "nowhere"]"#),
             ("negative latency", "latency_ms = 20", 20, "latency_ms = -1"),
             ("duplicate", r#"name = "car-1""#, 14, r#"name = "cloud-0""#),

@@ -1,12 +1,15 @@
 //! The event schedule of a topology: partitions, degraded links, killed and restarted
 //! processes and stepped clocks, their names resolved against the checked hosts and links.
 
-use super::check::{Endpoint, Host, Link, TopologyError};
+use super::check::{Endpoint, Host, Link, MAX_BANDWIDTH_MBPS, MAX_LATENCY_MS, MIN_BANDWIDTH_MBPS, TopologyError};
 use super::model::EventDef;
 use std::collections::HashMap;
 use std::ops::Range;
 use std::time::Duration;
 use toml::Spanned;
+
+/// The latest an event may be scheduled, s (a day).
+const MAX_EVENT_S: f64 = 86_400.0;
 
 /// A scheduled event.
 #[derive(Debug, Clone, PartialEq)]
@@ -52,10 +55,9 @@ pub(super) fn check_event(
 ) -> Result<Event, TopologyError> {
     let seconds = |v: &Spanned<f64>, what: &str| {
         let s = *v.get_ref();
-        if s.is_finite() && s >= 0.0 {
-            Ok(Duration::from_secs_f64(s))
-        } else {
-            Err(at(v.span(), format!("{what} {s} must be finite and ≥ 0")))
+        match Duration::try_from_secs_f64(s) {
+            Ok(d) if s <= MAX_EVENT_S => Ok(d),
+            _ => Err(at(v.span(), format!("{what} {s} must lie in [0, {MAX_EVENT_S}] s"))),
         }
     };
     let start = seconds(&e.at_s, "at_s")?;
@@ -88,7 +90,12 @@ pub(super) fn check_event(
     let action = if e.partition.is_some() {
         let cut: Vec<usize> = match (names.get(name), link_named(name)) {
             (Some((end, _)), _) => {
-                links.iter().enumerate().filter(|(_, l)| l.ends.contains(end)).map(|(k, _)| k).collect()
+                // A site's partition cuts its hosts' own links too.
+                let touches = |e: &Endpoint| match (e, end) {
+                    (Endpoint::Host(h), Endpoint::Site(s)) => hosts[*h].site == *s,
+                    _ => e == end,
+                };
+                links.iter().enumerate().filter(|(_, l)| l.ends.iter().any(touches)).map(|(k, _)| k).collect()
             }
             (None, Some(k)) => vec![k],
             (None, None) => {
@@ -101,9 +108,14 @@ pub(super) fn check_event(
         Action::Partition(cut)
     } else if e.degrade.is_some() {
         let link = link_named(name).ok_or_else(|| at(target.span(), format!("degrade: no link named {name:?}")))?;
-        let bad = |v: Option<f64>| v.is_some_and(|v| !(v.is_finite() && v >= 0.0));
-        if e.latency_ms.is_none() && e.bandwidth_mbps.is_none() || bad(e.latency_ms) || bad(e.bandwidth_mbps) {
-            return Err(at(target.span(), "degrade needs latency_ms and/or bandwidth_mbps, finite and ≥ 0".to_owned()));
+        let bad_latency = e.latency_ms.is_some_and(|v| !(0.0..=MAX_LATENCY_MS).contains(&v));
+        let bad_bandwidth = e.bandwidth_mbps.is_some_and(|v| !(MIN_BANDWIDTH_MBPS..=MAX_BANDWIDTH_MBPS).contains(&v));
+        if e.latency_ms.is_none() && e.bandwidth_mbps.is_none() || bad_latency || bad_bandwidth {
+            let message = format!(
+                "degrade needs latency_ms in [0, {MAX_LATENCY_MS}] and/or bandwidth_mbps in \
+                 [{MIN_BANDWIDTH_MBPS}, {MAX_BANDWIDTH_MBPS}]"
+            );
+            return Err(at(target.span(), message));
         }
         Action::Degrade { link, latency_ms: e.latency_ms, bandwidth_mbps: e.bandwidth_mbps }
     } else if let Some(spec) = &e.kill {
@@ -164,7 +176,9 @@ for_s = 3
             let text = format!("{TWO_SITES}\n[[event]]\nat_s = 1\n{bad}\n");
             let e = parse(&text).expect_err(bad);
             assert!(e.message.contains(says), "{bad}: {e}");
-            assert!(e.line >= 24, "{bad}: the event's line, {e}");
+            assert!((25..=26).contains(&e.line), "{bad}: the event's line, {e}");
         }
+        let far = format!("{TWO_SITES}\n[[event]]\nat_s = 1e20\npartition = \"north\"\n");
+        assert!(parse(&far).expect_err("beyond a day").message.contains("at_s 100000000000000000000"));
     }
 }

@@ -3,14 +3,11 @@
 
 mod cli;
 mod commands;
+mod emulate;
 mod error;
 mod logging;
 mod output;
 mod process_tuning;
-// Not used by a command yet (issue 15 in progress): the deploy commands come next.
-#[allow(dead_code, unused_imports)]
-mod emulate;
-#[allow(dead_code, unused_imports)]
 mod topology;
 
 use clap::Parser;

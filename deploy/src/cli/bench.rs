@@ -20,6 +20,9 @@ pub enum BenchCommand {
     Latency(BenchLatencyArgs),
     /// The raw Zenoh floor of a lockstep step: one put out to N echo processes, N answers back.
     Fanout(BenchFanoutArgs),
+    /// A deployment's emulated link at 0 ms against the direct TCP path: round trip and
+    /// throughput of 1 KiB messages to an echo process.
+    Link(BenchLinkArgs),
 }
 
 #[derive(Debug, Args)]
@@ -151,4 +154,23 @@ pub struct BenchFanoutArgs {
     /// Internal: this echo's index.
     #[arg(long, hide = true, default_value_t = 0)]
     pub echo_id: usize,
+}
+
+/// `risktwin bench link`.
+#[derive(Debug, clap::Args)]
+pub struct BenchLinkArgs {
+    /// Timed round trips on each path.
+    #[arg(long, default_value_t = 5000)]
+    pub round_trips: u64,
+    /// Bytes per message.
+    #[arg(long, default_value_t = 1024)]
+    pub message_bytes: usize,
+    /// Seconds of streaming on each path.
+    #[arg(long, default_value_t = 2.0)]
+    pub stream_s: f64,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+    /// Run as the echo process on this port of 127.0.0.1 (internal).
+    #[arg(long, hide = true)]
+    pub echo_port: Option<u16>,
 }

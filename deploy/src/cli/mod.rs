@@ -2,12 +2,14 @@
 //! else. Command modules import the grammar; the grammar imports no command.
 
 mod bench;
+mod deploy;
 mod push;
 mod roles;
 mod scene;
 mod source;
 
 pub use bench::*;
+pub use deploy::*;
 pub use push::*;
 pub use roles::*;
 pub use scene::*;
@@ -58,6 +60,9 @@ pub enum Command {
     /// One scene shared by processes: a physics authority, connected vehicles and RSUs.
     #[command(subcommand)]
     Scene(SceneCommand),
+    /// Emulated multi-machine deployments: hosts, links, routers and roles from a topology file.
+    #[command(subcommand)]
+    Deploy(DeployCommand),
 }
 
 #[derive(Debug, Args)]

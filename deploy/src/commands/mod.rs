@@ -3,9 +3,11 @@
 mod bench;
 mod bench_fanout;
 pub(crate) mod bench_ingest;
+mod bench_link;
 pub(crate) mod bench_replay;
 pub mod cloud;
 mod criticality;
+mod deploy;
 mod edge;
 mod floor;
 mod import;
@@ -23,7 +25,9 @@ mod simulate_commonroad;
 mod source;
 mod train;
 
-use crate::cli::{BenchCommand, Cli, Command, EdgeCommand, ImportCommand, ScenariosCommand, SceneCommand};
+use crate::cli::{
+    BenchCommand, Cli, Command, DeployCommand, EdgeCommand, ImportCommand, ScenariosCommand, SceneCommand,
+};
 use crate::error::CliResult;
 
 pub fn dispatch(cli: Cli) -> CliResult {
@@ -58,5 +62,10 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Scene(SceneCommand::Rsu(a)) => scene::participant(a, "rsu"),
         Command::Bench(BenchCommand::Latency(a)) => cloud::bench_latency(a),
         Command::Bench(BenchCommand::Fanout(a)) => bench_fanout::fanout(a),
+        Command::Bench(BenchCommand::Link(a)) => bench_link::link(a),
+        Command::Deploy(DeployCommand::Up(a)) => deploy::up(a),
+        Command::Deploy(DeployCommand::Status(a)) => deploy::status(a),
+        Command::Deploy(DeployCommand::Down(a)) => deploy::down(a),
+        Command::Deploy(DeployCommand::Run(a)) => deploy::run(a),
     }
 }

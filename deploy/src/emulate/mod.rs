@@ -1,3 +1,10 @@
-//! Emulated deployments (issue 15, in progress): links emulated in user space ([`relay`]).
+//! Emulated deployments (issue 15): a checked topology becomes machines (network namespaces, or
+//! loopback where none can be made), relays that emulate its links, and supervised processes.
 
+pub mod deployment;
+pub mod histogram;
+pub mod net;
+pub mod plan;
 pub mod relay;
+pub mod report;
+pub mod supervise;

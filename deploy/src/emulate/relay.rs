@@ -9,6 +9,7 @@
 //! The pace is per connection and direction (a link that carries several connections gives
 //! each the bandwidth).
 
+use super::histogram::Histogram;
 use crate::topology::Jitter;
 use risktwin_common::rng::Rng;
 use std::io;
@@ -37,6 +38,13 @@ pub struct LinkShape {
     pub queue_bytes: usize,
 }
 
+impl LinkShape {
+    /// A site's own network: no delay, no limit.
+    pub fn lan(queue_bytes: usize) -> LinkShape {
+        LinkShape { latency: Duration::ZERO, jitter: None, bandwidth_bps: None, queue_bytes }
+    }
+}
+
 /// The link's state, changed while it runs (the deployment's event schedule).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum LinkState {
@@ -44,23 +52,20 @@ pub enum LinkState {
     Partitioned,
 }
 
-/// What crossed the link, both directions summed.
+/// What crossed a link (every relay of it adds to the same counts).
 #[derive(Debug, Default)]
 pub struct RelayCounts {
     pub connections: AtomicU64,
     pub refused: AtomicU64,
-    pub bytes: AtomicU64,
-    /// Sum of the delays drawn for the chunks, µs (with `chunks`, their mean).
-    pub delay_us: AtomicU64,
-    pub chunks: AtomicU64,
+    /// Bytes written, [toward the upstream, back].
+    pub bytes: [AtomicU64; 2],
+    /// Each chunk's time in the link, read to written, µs: the delay it measurably got.
+    pub delay_us: Histogram,
 }
 
-/// A running relay: its address, its state and its counts. Dropping it stops it and every
-/// connection it carries.
+/// A running relay. Dropping it stops it and every connection it carries.
 pub struct Relay {
     pub addr: SocketAddr,
-    pub state: watch::Sender<LinkState>,
-    pub counts: Arc<RelayCounts>,
     task: JoinHandle<()>,
 }
 
@@ -71,14 +76,18 @@ impl Drop for Relay {
 }
 
 /// Starts a relay listening on `listen` (port 0: a free one) that forwards each connection to
-/// `upstream` through a link of `state`; `seed` seeds its jitter.
-pub async fn start(listen: SocketAddr, upstream: SocketAddr, state: LinkState, seed: u64) -> io::Result<Relay> {
+/// `upstream` through a link whose state `state` follows; `seed` seeds its jitter.
+pub async fn start(
+    listen: SocketAddr,
+    upstream: SocketAddr,
+    state: watch::Receiver<LinkState>,
+    counts: Arc<RelayCounts>,
+    seed: u64,
+) -> io::Result<Relay> {
     let listener = TcpListener::bind(listen).await?;
     let addr = listener.local_addr()?;
-    let (tx, rx) = watch::channel(state);
-    let counts = Arc::new(RelayCounts::default());
-    let task = tokio::spawn(accept(listener, upstream, rx, Arc::clone(&counts), seed));
-    Ok(Relay { addr, state: tx, counts, task })
+    let task = tokio::spawn(accept(listener, upstream, state, counts, seed));
+    Ok(Relay { addr, task })
 }
 
 /// Accepts connections until the relay is dropped (which aborts this task, and with its set
@@ -114,7 +123,7 @@ async fn accept(
         let (out_read, out_write) = outbound.into_split();
         for (k, (from, to)) in [(in_read, out_write), (out_read, in_write)].into_iter().enumerate() {
             let rng = Rng::derive(seed, 2 * connection + k as u64);
-            directions.spawn(direction(from, to, state.clone(), Arc::clone(&counts), rng));
+            directions.spawn(direction(from, to, k, state.clone(), Arc::clone(&counts), rng));
         }
         connection += 1;
     }
@@ -125,6 +134,7 @@ async fn accept(
 async fn direction(
     mut from: OwnedReadHalf,
     mut to: OwnedWriteHalf,
+    way: usize,
     state: watch::Receiver<LinkState>,
     counts: Arc<RelayCounts>,
     mut rng: Rng,
@@ -134,9 +144,9 @@ async fn direction(
         LinkState::Partitioned => CHUNK_BYTES,
     };
     let room = Arc::new(Semaphore::new(queue_bytes));
-    let (tx, mut rx) = mpsc::unbounded_channel::<(Instant, Vec<u8>)>();
+    let (tx, mut rx) = mpsc::unbounded_channel::<(Instant, Instant, Vec<u8>)>();
     let reader = {
-        let (room, state, counts) = (Arc::clone(&room), state.clone(), Arc::clone(&counts));
+        let (room, state) = (Arc::clone(&room), state.clone());
         async move {
             let mut last_release = Instant::now();
             loop {
@@ -146,6 +156,7 @@ async fn direction(
                     Ok(0) | Err(_) => return,
                     Ok(n) => n,
                 };
+                let read_at = Instant::now();
                 chunk.truncate(n);
                 // Only the bytes read stay reserved.
                 permit.forget();
@@ -154,9 +165,8 @@ async fn direction(
                     LinkState::Up(shape) => delay_of(&shape, &mut rng),
                     LinkState::Partitioned => Duration::ZERO,
                 };
-                counts.delay_us.fetch_add(delay.as_micros() as u64, Ordering::Relaxed);
-                last_release = last_release.max(Instant::now() + delay);
-                if tx.send((last_release, chunk)).is_err() {
+                last_release = last_release.max(read_at + delay);
+                if tx.send((read_at, last_release, chunk)).is_err() {
                     return;
                 }
             }
@@ -167,7 +177,7 @@ async fn direction(
         let _close = CloseOnDrop(Arc::clone(&room));
         let mut state = state;
         let mut sent_until = Instant::now();
-        while let Some((release, chunk)) = rx.recv().await {
+        while let Some((read_at, release, chunk)) = rx.recv().await {
             // Tokio's timer counts whole milliseconds: a chunk already due must not wait for it.
             if release > Instant::now() {
                 tokio::time::sleep_until(release).await;
@@ -189,8 +199,8 @@ async fn direction(
             if to.write_all(&chunk).await.is_err() {
                 return;
             }
-            counts.bytes.fetch_add(chunk.len() as u64, Ordering::Relaxed);
-            counts.chunks.fetch_add(1, Ordering::Relaxed);
+            counts.bytes[way].fetch_add(chunk.len() as u64, Ordering::Relaxed);
+            counts.delay_us.record(read_at.elapsed().as_micros() as u64);
             room.add_permits(chunk.len());
         }
         let _ = to.shutdown().await;
@@ -241,16 +251,26 @@ mod tests {
         LinkShape { latency: Duration::from_millis(latency_ms), jitter: None, bandwidth_bps, queue_bytes: 1 << 20 }
     }
 
-    async fn relay_to_echo(state: LinkState) -> (Relay, TcpStream) {
-        let relay = start("127.0.0.1:0".parse().expect("an address"), echo().await, state, 1).await.expect("starts");
+    /// A relay to an echo server, the sender of its state and its counts.
+    struct Echoed {
+        relay: Relay,
+        state: watch::Sender<LinkState>,
+        counts: Arc<RelayCounts>,
+    }
+
+    async fn relay_to_echo(state: LinkState) -> (Echoed, TcpStream) {
+        let (tx, rx) = watch::channel(state);
+        let counts = Arc::new(RelayCounts::default());
+        let listen = "127.0.0.1:0".parse().expect("an address");
+        let relay = start(listen, echo().await, rx, Arc::clone(&counts), 1).await.expect("starts");
         let client = TcpStream::connect(relay.addr).await.expect("connects");
         client.set_nodelay(true).expect("nodelay");
-        (relay, client)
+        (Echoed { relay, state: tx, counts }, client)
     }
 
     #[tokio::test]
     async fn a_round_trip_takes_the_latency_both_ways() {
-        let (_relay, mut client) = relay_to_echo(LinkState::Up(shape(20, None))).await;
+        let (echoed, mut client) = relay_to_echo(LinkState::Up(shape(20, None))).await;
         let mut rtts = Vec::new();
         for k in 0..10u8 {
             let t = std::time::Instant::now();
@@ -264,25 +284,29 @@ mod tests {
         // 2 × 20 ms at least (the timer rounds up); the fastest of ten well below a doubled
         // latency, which holds on a loaded 2-core machine.
         assert!((39.0..70.0).contains(&rtts[0]), "fastest {} ms of {rtts:?}", rtts[0]);
+        // Each way's chunks measured in the link: 20 ms and a little.
+        let p50_ms = echoed.counts.delay_us.quantile(0.5).expect("chunks crossed") / 1e3;
+        assert!((19.5..35.0).contains(&p50_ms), "measured p50 {p50_ms} ms");
+        assert_eq!(echoed.counts.bytes.each_ref().map(|b| b.load(Ordering::Relaxed)), [10, 10]);
     }
 
     #[tokio::test]
     async fn a_partition_holds_the_bytes_and_refuses_new_connections_until_the_heal() {
-        let (relay, mut client) = relay_to_echo(LinkState::Up(shape(0, None))).await;
+        let (echoed, mut client) = relay_to_echo(LinkState::Up(shape(0, None))).await;
         let mut b = [0u8; 1];
         client.write_all(b"a").await.expect("writes");
         client.read_exact(&mut b).await.expect("reads");
-        relay.state.send(LinkState::Partitioned).expect("the relay runs");
+        echoed.state.send(LinkState::Partitioned).expect("the relay runs");
         client.write_all(b"b").await.expect("writes into the queue");
         let held = tokio::time::timeout(Duration::from_millis(300), client.read_exact(&mut b)).await;
         assert!(held.is_err(), "nothing crosses a partition");
-        let mut other = TcpStream::connect(relay.addr).await.expect("the listener accepts");
+        let mut other = TcpStream::connect(echoed.relay.addr).await.expect("the listener accepts");
         let refused = tokio::time::timeout(Duration::from_secs(5), other.read(&mut b)).await.expect("closed at once");
         assert!(matches!(refused, Ok(0) | Err(_)), "a new connection is refused: {refused:?}");
-        relay.state.send(LinkState::Up(shape(0, None))).expect("the relay runs");
+        echoed.state.send(LinkState::Up(shape(0, None))).expect("the relay runs");
         tokio::time::timeout(Duration::from_secs(5), client.read_exact(&mut b)).await.expect("healed").expect("reads");
         assert_eq!(&b, b"b", "what was queued flows on after the heal");
-        assert_eq!(relay.counts.refused.load(Ordering::Relaxed), 1);
+        assert_eq!(echoed.counts.refused.load(Ordering::Relaxed), 1);
     }
 
     #[tokio::test]

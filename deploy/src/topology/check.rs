@@ -2,7 +2,7 @@
 //! host able to reach a router. The first mistake is reported with its line.
 
 use super::events::{Event, check_event};
-use super::model::{File, Jitter, ROLES};
+use super::model::{File, Jitter, ROLES, Restart};
 use std::collections::HashMap;
 use std::ops::Range;
 use toml::Spanned;
@@ -47,7 +47,13 @@ pub struct Process {
     /// One of [`ROLES`].
     pub role: &'static str,
     pub args: Vec<String>,
+    pub restart: Restart,
 }
+
+/// Arguments the deployment gives: addresses are assigned, never written.
+const GIVEN_ARGS: [&str; 5] = ["--connect", "--listen", "--router", "--mode", "--multicast-scouting"];
+/// Also given to edges and scenes: their site is their host's, an edge's id its host's name.
+const GIVEN_EDGE_ARGS: [&str; 2] = ["--id", "--site"];
 
 /// One end of a link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -112,9 +118,35 @@ pub fn parse(text: &str) -> Result<Topology, TopologyError> {
             let role = ROLES.iter().find(|r| **r == p.role.get_ref()).ok_or_else(|| {
                 at(p.role.span(), format!("unknown role {:?} (roles: {})", p.role.get_ref(), ROLES.join(", ")))
             })?;
-            run.push(Process { role, args: p.args.clone() });
+            let edge = matches!(*role, "vehicle" | "rsu" | "scene");
+            let given = p.args.iter().find(|a| {
+                let flag = a.split('=').next();
+                GIVEN_ARGS
+                    .iter()
+                    .chain(edge.then_some(&GIVEN_EDGE_ARGS).into_iter().flatten())
+                    .any(|g| flag == Some(*g))
+            });
+            if let Some(arg) = given {
+                let message = format!("{arg}: the deployment gives this argument (addresses are assigned)");
+                return Err(at(p.role.span(), message));
+            }
+            let restart = p.restart.as_ref().map_or(Restart::default(), |r| *r.get_ref());
+            run.push(Process { role, args: p.args.clone(), restart });
         }
         hosts.push(Host { name: h.name.get_ref().clone(), site, run });
+    }
+    for (k, h) in hosts.iter().enumerate() {
+        let first = hosts[..k].iter().find(|o| o.site == h.site && o.run.iter().any(|p| p.role == "router"));
+        let routers = h.run.iter().filter(|p| p.role == "router").count();
+        let other = match (first, routers) {
+            (Some(f), 1..) => Some(format!("and so does {:?}", f.name)),
+            (None, 2..) => Some("twice".to_owned()),
+            _ => None,
+        };
+        if let Some(other) = other {
+            let message = format!("host {:?} runs its site's router {other}: one router per site", h.name);
+            return Err(at(file.host[k].name.span(), message));
+        }
     }
     let mut links = Vec::new();
     for l in &file.link {
@@ -204,6 +236,9 @@ impl Topology {
     /// The first host whose site is joined to no site with a router, through links.
     fn unreachable_host(&self) -> Option<usize> {
         let mut reach: Vec<bool> = self.sites.iter().map(|s| s.router).collect();
+        for h in self.hosts.iter().filter(|h| h.run.iter().any(|p| p.role == "router")) {
+            reach[h.site] = true;
+        }
         // Links join sites both ways; spread until nothing changes.
         let mut changed = true;
         while changed {
@@ -270,7 +305,9 @@ bandwidth_mbps = 100
             [("cloud", true), ("north", true)]
         );
         assert_eq!(t.hosts[1].site, 1);
-        assert_eq!(t.hosts[0].run[0], Process { role: "cloud", args: vec!["--roles".into(), "ingest,twin".into()] });
+        let cloud =
+            Process { role: "cloud", args: vec!["--roles".into(), "ingest,twin".into()], restart: Restart::OnFailure };
+        assert_eq!(t.hosts[0].run[0], cloud);
         let link = &t.links[0];
         assert_eq!(link.ends, [Endpoint::Site(1), Endpoint::Site(0)]);
         assert_eq!(
@@ -282,7 +319,13 @@ bandwidth_mbps = 100
 
     #[test]
     fn each_mistake_is_refused_with_its_line() {
-        let cases: [(&str, &str, usize, &str); 10] = [
+        let cases: [(&str, &str, usize, &str); 11] = [
+            (
+                "an address",
+                r#"{ role = "vehicle" }"#,
+                16,
+                r#"{ role = "vehicle", args = ["--connect", "tcp/1.2.3.4:7447"] }"#,
+            ),
             ("huge latency", "latency_ms = 20", 20, "latency_ms = 1e300"),
             ("tiny bandwidth", "bandwidth_mbps = 100", 22, "bandwidth_mbps = 1e-300"),
             ("unknown host", r#"between = ["north", "cloud"]"#, 19, r#"between = ["north", "nowhere"]"#),

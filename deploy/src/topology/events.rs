@@ -22,8 +22,12 @@ pub struct Event {
 
 #[derive(Debug, Clone, PartialEq)]
 pub enum Action {
-    /// Cut these links (indices into [`Topology::links`]).
-    Partition(Vec<usize>),
+    /// Cut these links (indices into [`Topology::links`]) and these hosts off their site's
+    /// network (indices into [`Topology::hosts`]).
+    Partition {
+        links: Vec<usize>,
+        hosts: Vec<usize>,
+    },
     Degrade {
         link: usize,
         latency_ms: Option<f64>,
@@ -88,24 +92,30 @@ pub(super) fn check_event(
         }
     };
     let action = if e.partition.is_some() {
-        let cut: Vec<usize> = match (names.get(name), link_named(name)) {
+        let (cut, off): (Vec<usize>, Vec<usize>) = match (names.get(name), link_named(name)) {
             (Some((end, _)), _) => {
-                // A site's partition cuts its hosts' own links too.
+                // A site's partition cuts its hosts' own links too; a host's also its way into
+                // its site's network.
                 let touches = |e: &Endpoint| match (e, end) {
                     (Endpoint::Host(h), Endpoint::Site(s)) => hosts[*h].site == *s,
                     _ => e == end,
                 };
-                links.iter().enumerate().filter(|(_, l)| l.ends.iter().any(touches)).map(|(k, _)| k).collect()
+                let cut = links.iter().enumerate().filter(|(_, l)| l.ends.iter().any(touches)).map(|(k, _)| k);
+                let off = match end {
+                    Endpoint::Host(h) => vec![*h],
+                    Endpoint::Site(_) => Vec::new(),
+                };
+                (cut.collect(), off)
             }
-            (None, Some(k)) => vec![k],
+            (None, Some(k)) => (vec![k], Vec::new()),
             (None, None) => {
                 return Err(at(target.span(), format!("partition of {name:?}: no site, host or link of that name")));
             }
         };
-        if cut.is_empty() {
+        if cut.is_empty() && off.is_empty() {
             return Err(at(target.span(), format!("partition of {name:?}: it has no link to cut")));
         }
-        Action::Partition(cut)
+        Action::Partition { links: cut, hosts: off }
     } else if e.degrade.is_some() {
         let link = link_named(name).ok_or_else(|| at(target.span(), format!("degrade: no link named {name:?}")))?;
         let bad_latency = e.latency_ms.is_some_and(|v| !(0.0..=MAX_LATENCY_MS).contains(&v));
@@ -135,7 +145,7 @@ pub(super) fn check_event(
             .ok_or_else(|| at(target.span(), "clock_step needs a finite by_ms".to_owned()))?;
         Action::ClockStep { host, by_ms }
     };
-    let lasting = matches!(action, Action::Partition(_) | Action::Degrade { .. });
+    let lasting = matches!(action, Action::Partition { .. } | Action::Degrade { .. });
     if lasts.is_some() && !lasting {
         return Err(at(e.at_s.span(), "for_s belongs to a partition or a degradation".to_owned()));
     }
@@ -163,7 +173,8 @@ for_s = 3
         let t = parse(&format!("{TWO_SITES}{events}")).expect("valid events");
         assert_eq!(t.links[0].name, "north-cloud");
         let got: Vec<(f64, &Action)> = t.events.iter().map(|e| (e.at.as_secs_f64(), &e.action)).collect();
-        assert_eq!(got, [(5.0, &Action::Partition(vec![0])), (12.0, &Action::Restart { host: 0, process: 0 })]);
+        let north = Action::Partition { links: vec![0], hosts: vec![] };
+        assert_eq!(got, [(5.0, &north), (12.0, &Action::Restart { host: 0, process: 0 })]);
         assert_eq!(t.events[0].lasts, Some(Duration::from_secs(3)));
         for (bad, says) in [
             ("partition = \"south\"", "no site, host or link"),

@@ -1,7 +1,7 @@
 //! The topology file as written: sites, hosts with the processes they run, and links. Names
 //! carry their place in the file so that a check can name the line.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
 /// The roles a host can run (the `risktwin` commands it starts).
@@ -51,6 +51,20 @@ pub(super) struct ProcessDef {
     pub role: Spanned<String>,
     #[serde(default)]
     pub args: Vec<String>,
+    /// When the supervisor starts the process again: `on-failure` (default), `always`, `never`.
+    pub restart: Option<Spanned<Restart>>,
+}
+
+/// When a process that ended is started again (after a back-off of 0.5 s, doubling to 8 s).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Restart {
+    /// When it exits with a failure or is killed by a signal the supervisor did not send.
+    #[default]
+    OnFailure,
+    /// Whenever it ends, until the deployment stops.
+    Always,
+    Never,
 }
 
 /// A link between two sites or hosts, as emulated in user space.
@@ -68,7 +82,7 @@ pub(super) struct LinkDef {
 }
 
 /// How a link's delay varies around its latency.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "dist", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Jitter {
     /// Normal, standard deviation `sd_ms`, cut at ± 3 standard deviations.

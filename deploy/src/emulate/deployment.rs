@@ -1,0 +1,438 @@
+//! One deployment from start to teardown: machines, relays on every hop, routers, clouds and
+//! edges started in that order and supervised, the event schedule carried out, then everything
+//! stopped in reverse (edges first, so that the clouds count all they sent) and removed.
+//!
+//! Whatever ends it — its time, every edge done, a signal, an error — the teardown runs
+//! ([`Teardown`]), and a later `deploy down` finds anything a crash left by its tag.
+
+use super::net::{Net, sweep};
+use super::plan::{Hop, Planned, argv, is_edge, plan};
+use super::relay::{self, LinkShape, LinkState, Relay, RelayCounts};
+use super::report::{self, Report, TimelineEntry};
+use super::supervise::Supervised;
+use crate::topology::{Action, Link, Topology};
+use risktwin_common::digest::fnv1a64;
+use std::net::{Ipv4Addr, SocketAddr, TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+use tokio::sync::watch;
+
+/// The queue of a host's way into its site's network, bytes.
+const LAN_QUEUE_BYTES: usize = 256 * 1024;
+/// How long a router has to listen, and a cloud to say `ready`.
+const START_TIMEOUT: Duration = Duration::from_secs(30);
+/// How long each kind of process has to stop on SIGTERM before it is killed.
+const EDGE_GRACE: Duration = Duration::from_secs(10);
+const CLOUD_GRACE: Duration = Duration::from_secs(30);
+const ROUTER_GRACE: Duration = Duration::from_secs(5);
+/// How long a cloud may take to see the ended edges leave (their last data is behind that).
+const EDGES_LEFT_TIMEOUT: Duration = Duration::from_secs(15);
+/// How often the supervisor looks at its processes and the schedule.
+const TICK: Duration = Duration::from_millis(20);
+/// How often `status.json` is rewritten.
+const STATUS_EVERY: Duration = Duration::from_millis(500);
+
+/// How a deployment is run.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// The topology file, as given (for the report and the tag).
+    pub file: PathBuf,
+    /// Its text.
+    pub text: String,
+    /// Where hosts' logs, the status and the report go.
+    pub out: PathBuf,
+    /// Until a signal when `None`.
+    pub duration: Option<Duration>,
+    /// Seeds the links' jitter.
+    pub seed: u64,
+    /// The `risktwin` binary the processes run.
+    pub exe: PathBuf,
+    /// Loopback even where namespaces could be made.
+    pub loopback: bool,
+    /// Keep running after every edge process has ended.
+    pub until_down: bool,
+}
+
+/// Why a deployment failed.
+#[derive(Debug, thiserror::Error)]
+pub enum DeployError {
+    #[error("{0}")]
+    Input(String),
+    #[error("{0}")]
+    Runtime(String),
+}
+
+fn runtime(what: impl std::fmt::Display) -> DeployError {
+    DeployError::Runtime(what.to_string())
+}
+
+/// The tag of a topology file: its canonical path's digest, 6 hex digits (names of namespaces
+/// and veths carry it; `deploy down FILE` finds them by it).
+pub fn tag_of(file: &Path) -> String {
+    let path = std::fs::canonicalize(file).unwrap_or_else(|_| file.to_path_buf());
+    format!("{:06x}", fnv1a64(path.as_os_str().as_encoded_bytes().iter().copied()) & 0xff_ffff)
+}
+
+/// Where a deployment of `tag` keeps its supervisor's pid and status.
+pub fn state_dir(tag: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("risktwin-deploy-{tag}"))
+}
+
+/// Removes what a deployment leaves, however it ends.
+struct Teardown {
+    tag: String,
+    namespaces: bool,
+}
+
+impl Drop for Teardown {
+    fn drop(&mut self) {
+        if self.namespaces {
+            sweep(&self.tag);
+        }
+        let _ = std::fs::remove_file(state_dir(&self.tag).join("supervisor.pid"));
+    }
+}
+
+/// A hop's emulation: its configured shape, the state its relays follow, their counts.
+struct HopRun {
+    name: String,
+    base: LinkShape,
+    shape: LinkShape,
+    /// Partitions in force (they may overlap).
+    cut: u32,
+    state: watch::Sender<LinkState>,
+    counts: Arc<RelayCounts>,
+}
+
+impl HopRun {
+    fn apply(&self) {
+        let state = if self.cut > 0 { LinkState::Partitioned } else { LinkState::Up(self.shape) };
+        self.state.send_replace(state);
+    }
+}
+
+/// The shape of a link of the file.
+pub fn shape_of(link: &Link) -> LinkShape {
+    LinkShape {
+        latency: Duration::from_secs_f64(link.latency_ms / 1e3),
+        jitter: link.jitter,
+        bandwidth_bps: link.bandwidth_mbps.map(|m| m * 1e6),
+        queue_bytes: (link.queue_kib * 1024) as usize,
+    }
+}
+
+/// Something to undo when a lasting event ends.
+enum Undo {
+    Heal(Vec<usize>),
+    Restore(usize),
+}
+
+/// Runs the deployment until its time is up, every edge has ended, or `stop` is set.
+pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, DeployError> {
+    if t.events.iter().any(|e| matches!(e.action, Action::ClockStep { .. })) {
+        return Err(DeployError::Input("clock_step events are not carried out yet (issue 15)".into()));
+    }
+    let plan = plan(t);
+    let tag = tag_of(&o.file);
+    // What a crashed run of the same file left goes first.
+    sweep(&tag);
+    let state = state_dir(&tag);
+    std::fs::create_dir_all(&state).map_err(runtime)?;
+    std::fs::write(state.join("supervisor.pid"), std::process::id().to_string()).map_err(runtime)?;
+    let begun = Instant::now();
+    let mut timeline: Vec<TimelineEntry> = Vec::new();
+    let mut note = |what: String| {
+        eprintln!("{:7.2} s  {what}", begun.elapsed().as_secs_f64());
+        timeline.push(TimelineEntry { at_s: begun.elapsed().as_secs_f64(), what });
+    };
+    let names: Vec<String> = plan.machines.iter().map(|m| m.name.clone()).collect();
+    let net = if o.loopback {
+        Net::Loopback
+    } else {
+        match Net::namespaces(&tag, &names, &std::env::temp_dir()) {
+            Ok(net) => net,
+            Err(e) => {
+                eprintln!("note: no network namespaces ({e}): the deployment runs on loopback, links emulated alike");
+                Net::Loopback
+            }
+        }
+    };
+    let _teardown = Teardown { tag: tag.clone(), namespaces: matches!(net, Net::Namespaces { .. }) };
+    note(format!("machines: {}", net.describe()));
+    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().map_err(runtime)?;
+    let mut hops: Vec<HopRun> = plan
+        .hops
+        .iter()
+        .map(|hop| {
+            let (name, base) = match *hop {
+                Hop::Link(k) => (t.links[k].name.clone(), shape_of(&t.links[k])),
+                Hop::Lan(h) => (format!("lan:{}", t.hosts[h].name), LinkShape::lan(LAN_QUEUE_BYTES)),
+            };
+            let (state, _) = watch::channel(LinkState::Up(base));
+            HopRun { name, base, shape: base, cut: 0, state, counts: Arc::default() }
+        })
+        .collect();
+    let hop_index = |hop: Hop| plan.hops.iter().position(|h| *h == hop).expect("every hop is planned");
+    // Routers listen on their machine's own address.
+    let mut router_addr: Vec<Option<SocketAddr>> = vec![None; plan.machines.len()];
+    for p in plan.processes.iter().filter(|p| p.role == "router") {
+        let port = match net {
+            Net::Loopback => free_port().map_err(runtime)?,
+            Net::Namespaces { .. } => 7447,
+        };
+        router_addr[p.machine] = Some(SocketAddr::new(net.own(p.machine).into(), port));
+    }
+    // Every route becomes a chain of relays, the last one forwarding to the router.
+    let mut relays: Vec<Relay> = Vec::new();
+    let mut route_addr: Vec<SocketAddr> = Vec::new();
+    for (r, route) in plan.routes.iter().enumerate() {
+        let mut upstream = router_addr[route.to].expect("a route leads to a router");
+        for (k, hop) in route.hops.iter().enumerate().rev() {
+            let listen = SocketAddr::new(if k == 0 { net.gateway(route.from) } else { Ipv4Addr::LOCALHOST }.into(), 0);
+            let h = &hops[hop_index(*hop)];
+            let seed = risktwin_common::rng::Rng::derive(o.seed, (r as u64) << 16 | k as u64).next_u64();
+            let relay = rt
+                .block_on(relay::start(listen, upstream, h.state.subscribe(), Arc::clone(&h.counts), seed))
+                .map_err(|e| runtime(format!("relay of {} on {listen}: {e}", h.name)))?;
+            upstream = relay.addr;
+            relays.push(relay);
+        }
+        route_addr.push(upstream);
+    }
+    let mut processes: Vec<(Planned, Supervised)> = Vec::new();
+    for p in &plan.processes {
+        let machine = &plan.machines[p.machine];
+        let dir = o.out.join("hosts").join(&machine.name);
+        std::fs::create_dir_all(&dir).map_err(runtime)?;
+        let connect: Vec<String> = p.routes.iter().map(|&r| format!("tcp/{}", route_addr[r])).collect();
+        let listen = router_addr[p.machine].filter(|_| p.role == "router").map(|a| format!("tcp/{a}"));
+        let mut command = net.exec_prefix(p.machine);
+        command.push(o.exe.display().to_string());
+        command.extend(argv(p, &connect, listen.as_deref()));
+        let stem = dir.join(p.name.rsplit('/').next().unwrap_or(p.role).replace('#', "-"));
+        processes.push((p.clone(), Supervised::new(p.name.clone(), command, dir, stem, p.restart)));
+    }
+    // Routers, then clouds, then the rest.
+    for stage in ["router", "cloud", "edge"] {
+        let in_stage = |p: &Planned| match stage {
+            "router" | "cloud" => p.role == stage,
+            _ => !matches!(p.role, "router" | "cloud"),
+        };
+        for (_, s) in processes.iter_mut().filter(|(p, _)| in_stage(p)) {
+            std::fs::write(s.log_stem.with_extension("cmd"), s.command.join(" ") + "\n").map_err(runtime)?;
+            s.start().map_err(runtime)?;
+        }
+        for (p, s) in processes.iter_mut().filter(|(p, _)| in_stage(p)) {
+            match stage {
+                "router" => wait_listening(router_addr[p.machine].expect("a router's address"), s)?,
+                "cloud" => wait_ready(s)?,
+                _ => {}
+            }
+        }
+    }
+    note(format!("up: {} processes, {} relays", processes.len(), relays.len()));
+    let status_file = o.out.join("status.json");
+    let mut events = t.events.iter().peekable();
+    let mut undo: Vec<(Duration, Undo)> = Vec::new();
+    let mut last_status = Instant::now() - STATUS_EVERY;
+    let mut ended_by = "a signal";
+    let edges = processes.iter().filter(|(p, _)| is_edge(p.role)).count();
+    let started = Instant::now();
+    loop {
+        let now = Instant::now();
+        let at = now - started;
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+        if o.duration.is_some_and(|d| at >= d) {
+            ended_by = "its time";
+            break;
+        }
+        if !o.until_down && edges > 0 && processes.iter().filter(|(p, _)| is_edge(p.role)).all(|(_, s)| s.done()) {
+            ended_by = "every edge process ending";
+            break;
+        }
+        while let Some(e) = events.next_if(|e| e.at <= at) {
+            match &e.action {
+                Action::Partition { links, hosts } => {
+                    let cut: Vec<usize> = links
+                        .iter()
+                        .map(|&k| Hop::Link(k))
+                        .chain(hosts.iter().map(|&h| Hop::Lan(h)))
+                        .map(hop_index)
+                        .collect();
+                    for &k in &cut {
+                        hops[k].cut += 1;
+                        hops[k].apply();
+                    }
+                    let names: Vec<&str> = cut.iter().map(|&k| hops[k].name.as_str()).collect();
+                    note(format!("partition: {}", names.join(", ")));
+                    if let Some(d) = e.lasts {
+                        undo.push((e.at + d, Undo::Heal(cut)));
+                    }
+                }
+                Action::Degrade { link, latency_ms, bandwidth_mbps } => {
+                    let k = hop_index(Hop::Link(*link));
+                    let h = &mut hops[k];
+                    if let Some(ms) = latency_ms {
+                        h.shape.latency = Duration::from_secs_f64(ms / 1e3);
+                    }
+                    if let Some(m) = bandwidth_mbps {
+                        h.shape.bandwidth_bps = Some(m * 1e6);
+                    }
+                    h.apply();
+                    note(format!(
+                        "degrade {}: latency {:?} ms, bandwidth {:?} Mbit/s",
+                        h.name, latency_ms, bandwidth_mbps
+                    ));
+                    if let Some(d) = e.lasts {
+                        undo.push((e.at + d, Undo::Restore(k)));
+                    }
+                }
+                Action::Kill { host, process } | Action::Restart { host, process } => {
+                    let k = processes
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, (p, _))| p.machine == *host)
+                        .nth(*process)
+                        .map(|(k, _)| k)
+                        .expect("the event names a process of the host");
+                    let s = &mut processes[k].1;
+                    if matches!(e.action, Action::Kill { .. }) {
+                        s.kill();
+                        note(format!("kill {}", s.name));
+                    } else {
+                        s.stop(ROUTER_GRACE);
+                        s.restarts += 1;
+                        s.start().map_err(runtime)?;
+                        note(format!("restart {}", s.name));
+                    }
+                }
+                Action::ClockStep { .. } => unreachable!("refused above"),
+            }
+        }
+        undo.sort_by_key(|(t, _)| *t);
+        while undo.first().is_some_and(|(t, _)| *t <= at) {
+            match undo.remove(0).1 {
+                Undo::Heal(cut) => {
+                    for &k in &cut {
+                        hops[k].cut -= 1;
+                        hops[k].apply();
+                    }
+                    let names: Vec<&str> = cut.iter().map(|&k| hops[k].name.as_str()).collect();
+                    note(format!("heal: {}", names.join(", ")));
+                }
+                Undo::Restore(k) => {
+                    hops[k].shape = hops[k].base;
+                    hops[k].apply();
+                    note(format!("{} restored", hops[k].name));
+                }
+            }
+        }
+        for (_, s) in &mut processes {
+            if let Some(what) = s.poll(now) {
+                note(what);
+            }
+        }
+        if now - last_status >= STATUS_EVERY {
+            last_status = now;
+            let status = report::status(&tag, &net, at, &processes, &hop_views(&hops));
+            report::write_atomically(&status_file, &status).map_err(runtime)?;
+        }
+        std::thread::sleep(TICK);
+    }
+    let ran = started.elapsed();
+    note(format!("stopping: ended by {ended_by}"));
+    for stage in ["edge", "cloud", "router"] {
+        if stage == "cloud" {
+            for (_, s) in processes.iter().filter(|(p, _)| p.role == "cloud") {
+                wait_edges_left(s);
+            }
+        }
+        for (p, s) in &mut processes {
+            let (is, grace) = match stage {
+                "edge" => (!matches!(p.role, "router" | "cloud"), EDGE_GRACE),
+                "cloud" => (p.role == "cloud", CLOUD_GRACE),
+                _ => (p.role == "router", ROUTER_GRACE),
+            };
+            if is {
+                s.stop(grace);
+            }
+        }
+    }
+    note("stopped".into());
+    let views = hop_views(&hops);
+    drop(relays);
+    let report = Report::build(o, &net, ran, &processes, &views, timeline);
+    Ok(report)
+}
+
+/// What the report and the status show of a hop.
+pub struct HopView {
+    pub name: String,
+    pub base: LinkShape,
+    pub counts: Arc<RelayCounts>,
+    pub partitioned: bool,
+}
+
+fn hop_views(hops: &[HopRun]) -> Vec<HopView> {
+    hops.iter()
+        .map(|h| HopView { name: h.name.clone(), base: h.base, counts: Arc::clone(&h.counts), partitioned: h.cut > 0 })
+        .collect()
+}
+
+/// A port free on loopback now (a router of a loopback deployment listens on it).
+fn free_port() -> std::io::Result<u16> {
+    Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
+}
+
+/// Waits until the router of `s` accepts connections on `addr`.
+fn wait_listening(addr: SocketAddr, s: &mut Supervised) -> Result<(), DeployError> {
+    let deadline = Instant::now() + START_TIMEOUT;
+    while TcpStream::connect_timeout(&addr, Duration::from_millis(200)).is_err() {
+        if s.poll(Instant::now()).is_some() || Instant::now() > deadline {
+            return Err(runtime(format!("{} did not listen on {addr}: {}", s.name, log_tail(s))));
+        }
+        std::thread::sleep(TICK);
+    }
+    Ok(())
+}
+
+/// Waits until the cloud of `s` says `ready` on stderr.
+fn wait_ready(s: &mut Supervised) -> Result<(), DeployError> {
+    let deadline = Instant::now() + START_TIMEOUT;
+    let log = s.log_stem.with_extension("log");
+    while !std::fs::read_to_string(&log).is_ok_and(|l| l.lines().any(|l| l == "ready")) {
+        if s.poll(Instant::now()).is_some() || Instant::now() > deadline {
+            return Err(runtime(format!("{} did not become ready: {}", s.name, log_tail(s))));
+        }
+        std::thread::sleep(TICK);
+    }
+    Ok(())
+}
+
+/// Waits until the cloud of `s` has seen every edge that joined it leave (liveliness): what an
+/// edge sent before it left has then arrived, and stopping the cloud loses none of it.
+fn wait_edges_left(s: &Supervised) {
+    let deadline = Instant::now() + EDGES_LEFT_TIMEOUT;
+    let log = s.log_stem.with_extension("log");
+    loop {
+        let text = std::fs::read_to_string(&log).unwrap_or_default();
+        let seen = |what: &str| -> std::collections::BTreeSet<&str> {
+            text.lines().filter_map(|l| l.strip_prefix(what)).collect()
+        };
+        if seen("edge joined: ").is_subset(&seen("edge left: ")) || Instant::now() > deadline {
+            return;
+        }
+        std::thread::sleep(TICK);
+    }
+}
+
+/// The last lines of a process's stderr, for an error.
+fn log_tail(s: &Supervised) -> String {
+    let text = std::fs::read_to_string(s.log_stem.with_extension("log")).unwrap_or_default();
+    let lines: Vec<&str> = text.lines().collect();
+    lines[lines.len().saturating_sub(3)..].join(" / ")
+}

@@ -224,6 +224,9 @@ impl CloudConfig {
     }
 }
 
+/// How long the cloud waits at shutdown for the last Zenoh callback to let go of the ingest.
+const LAST_OWNER_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
+
 /// The JSON the cloud prints on exit.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CloudSummary {
@@ -371,13 +374,24 @@ pub async fn run(
     ingest.lock().unwrap_or_else(PoisonError::into_inner).close_publisher();
     publisher.await.map_err(|e| join_error("publisher", e))??;
     close(session).await?;
-    // The subscriber is undeclared, so its callback (the other owner) is gone by now; should a
-    // straggler still hold it, the summary waits for nothing and the error says so.
-    let (ingest, twin) = Arc::try_unwrap(ingest)
-        .map_err(|_| CloudError::Transport(TransportError::Close { reason: "ingest still in use".to_owned() }))?
-        .into_inner()
-        .unwrap_or_else(PoisonError::into_inner)
-        .finish()?;
+    // The subscribers are undeclared, so their callbacks (the other owners) go; Zenoh drops a
+    // callback that was running at the undeclaration a moment later, so wait for that, briefly.
+    let mut ingest = ingest;
+    let waited = tokio::time::Instant::now();
+    let ingest = loop {
+        match Arc::try_unwrap(ingest) {
+            Ok(alone) => break alone,
+            Err(shared) if waited.elapsed() < LAST_OWNER_WAIT => {
+                ingest = shared;
+                tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+            }
+            Err(_) => {
+                let reason = "ingest still in use".to_owned();
+                return Err(CloudError::Transport(TransportError::Close { reason }));
+            }
+        }
+    };
+    let (ingest, twin) = ingest.into_inner().unwrap_or_else(PoisonError::into_inner).finish()?;
     let liveliness = liveness.lock().unwrap_or_else(PoisonError::into_inner).summary();
     // Computed last, once every other role has flushed: a scenario that cannot be rebuilt fails
     // the run without losing the recording or the database.

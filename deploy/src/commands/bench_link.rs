@@ -114,8 +114,13 @@ pub fn link(args: BenchLinkArgs) -> CliResult {
     if let Some(port) = args.echo_port {
         return echo(port);
     }
-    if args.round_trips == 0 || args.message_bytes == 0 || !(args.stream_s > 0.0 && args.stream_s <= 600.0) {
-        return Err(CliError::input("--round-trips and --message-bytes must be positive, --stream-s in (0, 600]"));
+    let fits = (1..=10_000_000).contains(&args.round_trips)
+        && (1..=16 << 20).contains(&args.message_bytes)
+        && args.stream_s > 0.0
+        && args.stream_s <= 600.0;
+    if !fits {
+        let what = "--round-trips must lie in [1, 10^7], --message-bytes in [1, 16 MiB], --stream-s in (0, 600]";
+        return Err(CliError::input(what));
     }
     let port = TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map_err(CliError::runtime)?.port();
     let exe = std::env::current_exe().map_err(CliError::runtime)?;

@@ -1,14 +1,19 @@
 //! `risktwin deploy up|status|down|run FILE`: a topology file run as an emulated deployment
 //! (`crate::emulate`). `run` is the deployment in the foreground; `up` starts `run` in the
 //! background (its own session, so the terminal's signals do not reach it) and returns once
-//! it is up; `down` signals it, waits for its report, and sweeps whatever is left by the tag.
+//! it is up; `down` signals it, waits until it has written its report and let go of its lock,
+//! and sweeps whatever a crash left, by the file's tag.
+//!
+//! The supervisor holds the deployment's lock (`<state>/lock`) for its whole life: that, not a
+//! pid file, says whether a deployment of FILE is up; the pid file only says whom to signal.
 
 use crate::cli::{DeployFileArgs, DeployHow, DeployRunArgs, DeployUpArgs};
-use crate::emulate::deployment::{self, DeployError, Options, state_dir, tag_of};
+use crate::emulate::deployment::{self, Options, prepare_state_dir, state_dir, tag_of};
+use crate::emulate::lock::Lock;
 use crate::emulate::net;
 use crate::error::{CliError, CliResult};
 use crate::output::print_json;
-use crate::topology::{Topology, parse};
+use crate::topology::{Action, Topology, parse};
 use serde_json::{Value, json};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
@@ -16,11 +21,11 @@ use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-/// How long `up` waits for the deployment to come up, and `down` for it to stop.
-const UP_TIMEOUT: Duration = Duration::from_secs(90);
-const DOWN_TIMEOUT: Duration = Duration::from_secs(90);
+/// How long `up` waits for the deployment to come up, and `down` for it to stop and report.
+const UP_TIMEOUT: Duration = Duration::from_secs(120);
+const DOWN_TIMEOUT: Duration = Duration::from_secs(180);
 
-/// Set by SIGINT or SIGTERM: the deployment stops.
+/// Set by SIGINT, SIGTERM or SIGHUP: the deployment stops.
 static STOP: AtomicBool = AtomicBool::new(false);
 
 extern "C" fn on_signal(_: libc::c_int) {
@@ -31,6 +36,10 @@ extern "C" fn on_signal(_: libc::c_int) {
 fn topology(file: &Path) -> CliResult<(String, Topology)> {
     let text = std::fs::read_to_string(file).map_err(|e| CliError::input(format!("{}: {e}", file.display())))?;
     let t = parse(&text).map_err(|e| CliError::input(format!("{}: {e}", file.display())))?;
+    if t.events.iter().any(|e| matches!(e.action, Action::ClockStep { .. })) {
+        let what = "clock_step events are not carried out yet: stepping a running edge's clock needs a control channel";
+        return Err(CliError::input(format!("{}: {what}", file.display())));
+    }
     Ok((text, t))
 }
 
@@ -53,48 +62,70 @@ fn exe() -> CliResult<PathBuf> {
     std::env::current_exe().map_err(|e| CliError::runtime(format!("finding the risktwin binary: {e}")))
 }
 
+fn state(tag: &str) -> CliResult<PathBuf> {
+    prepare_state_dir(tag).map_err(|e| CliError::runtime(format!("the deployment's state folder: {e}")))
+}
+
+/// The folder `--out` names, made and absolute (so that `status` and `down` find it from
+/// anywhere).
+fn out_dir(out: &Path) -> CliResult<PathBuf> {
+    std::fs::create_dir_all(out)
+        .and_then(|()| std::fs::canonicalize(out))
+        .map_err(|e| CliError::input(format!("--out {}: {e}", out.display())))
+}
+
 pub fn run(args: DeployRunArgs) -> CliResult {
     let (text, t) = topology(&args.file)?;
     let duration = args.duration.as_deref().map(duration).transpose()?;
-    std::fs::create_dir_all(&args.out).map_err(|e| CliError::input(format!("--out {}: {e}", args.out.display())))?;
+    let out = out_dir(&args.out)?;
+    let tag = tag_of(&args.file);
+    let state = state(&tag)?;
+    let Some(_lock) = Lock::try_take(&state.join("lock")).map_err(CliError::runtime)? else {
+        return Err(CliError::input(format!(
+            "{} is up already (`risktwin deploy down` it first)",
+            args.file.display()
+        )));
+    };
+    let write = |name: &str, bytes: &[u8]| std::fs::write(state.join(name), bytes).map_err(CliError::runtime);
+    write("supervisor.pid", std::process::id().to_string().as_bytes())?;
+    write("out", out.as_os_str().as_encoded_bytes())?;
     let options = Options {
         file: args.file,
         text,
-        out: args.out.clone(),
+        out: out.clone(),
         duration,
         seed: args.how.seed,
         exe: exe()?,
         loopback: args.how.loopback,
         until_down: args.until_down,
     };
-    // SAFETY: the handler only stores to an atomic.
+    // SAFETY: the handler only stores to an atomic; a closed stdout or stderr must not kill the
+    // supervisor before its teardown.
     unsafe {
-        libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
-        libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
+        let handler = on_signal as *const () as libc::sighandler_t;
+        libc::signal(libc::SIGINT, handler);
+        libc::signal(libc::SIGTERM, handler);
+        libc::signal(libc::SIGHUP, handler);
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
     }
-    let report = deployment::run(&t, &options, &STOP).map_err(|e| match e {
-        DeployError::Input(m) => CliError::input(m),
-        DeployError::Runtime(m) => CliError::runtime(m),
-    })?;
-    report.write(&args.out).map_err(|e| CliError::runtime(format!("writing the report: {e}")))?;
+    let report = deployment::run(&t, &options, &STOP).map_err(CliError::runtime)?;
+    report.write(&out).map_err(|e| CliError::runtime(format!("writing the report: {e}")))?;
+    // The lock goes with this process, after the report is written: `down` waits for that.
     print_json(&report)
 }
 
 pub fn up(args: DeployUpArgs) -> CliResult {
     topology(&args.file)?;
     let tag = tag_of(&args.file);
-    if supervisor(&tag).is_some() {
+    let state = state(&tag)?;
+    if supervisor(&tag)?.is_some() {
         return Err(CliError::input(format!(
             "{} is up already (`risktwin deploy down` it first)",
             args.file.display()
         )));
     }
-    let state = state_dir(&tag);
-    let out = args.out.unwrap_or_else(|| state.join("out"));
-    std::fs::create_dir_all(&out).map_err(|e| CliError::input(format!("--out {}: {e}", out.display())))?;
+    let out = out_dir(&args.out.unwrap_or_else(|| state.join("out")))?;
     let _ = std::fs::remove_file(out.join("status.json"));
-    std::fs::create_dir_all(&state).map_err(CliError::runtime)?;
-    std::fs::write(state.join("out"), out.as_os_str().as_encoded_bytes()).map_err(CliError::runtime)?;
     let log = |name: &str| std::fs::File::create(out.join(name)).map_err(CliError::runtime);
     let DeployHow { seed, loopback } = args.how;
     let mut command = Command::new(exe()?);
@@ -121,31 +152,36 @@ pub fn up(args: DeployUpArgs) -> CliResult {
         let ended = child.try_wait().map_err(CliError::runtime)?;
         if ended.is_some() || Instant::now() > deadline {
             if ended.is_none() {
-                let _ = child.kill();
+                // SIGTERM first: the supervisor tears down what it made.
+                // SAFETY: a signal to the child this call started.
+                unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
                 let _ = child.wait();
             }
-            net::sweep(&tag);
             let log = std::fs::read_to_string(out.join("supervisor.log")).unwrap_or_default();
             let why = log.lines().rev().find(|l| l.starts_with("error: ")).unwrap_or("it did not come up in time");
-            return Err(CliError::runtime(format!(
-                "the deployment did not come up: {}",
-                why.trim_start_matches("error: ")
-            )));
+            let why = format!("the deployment did not come up: {}", why.trim_start_matches("error: "));
+            return Err(if ended.and_then(|s| s.code()) == Some(2) {
+                CliError::input(why)
+            } else {
+                CliError::runtime(why)
+            });
         }
         std::thread::sleep(Duration::from_millis(50));
     }
 }
 
-/// The pid of the running supervisor of `tag`, if one runs.
-fn supervisor(tag: &str) -> Option<i32> {
-    let pid: i32 = std::fs::read_to_string(state_dir(tag).join("supervisor.pid")).ok()?.trim().parse().ok()?;
-    // SAFETY: signal 0 only asks whether the process exists.
-    let alive = unsafe { libc::kill(pid, 0) } == 0;
-    let zombie = std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|s| s.contains(") Z "));
-    (alive && !zombie).then_some(pid)
+/// The pid of the running supervisor of `tag`: `None` when nobody holds its lock.
+fn supervisor(tag: &str) -> CliResult<Option<i32>> {
+    let dir = state(tag)?;
+    if Lock::try_take(&dir.join("lock")).map_err(CliError::runtime)?.is_some() {
+        return Ok(None);
+    }
+    let pid = std::fs::read_to_string(dir.join("supervisor.pid")).ok().and_then(|p| p.trim().parse::<i32>().ok());
+    // Held but not yet named (the supervisor is starting): 0 stands for "up, pid unknown".
+    Ok(Some(pid.filter(|&p| p > 1).unwrap_or(0)))
 }
 
-/// Where `up` put the deployment's output.
+/// Where the deployment's output is.
 fn out_of(tag: &str) -> Option<PathBuf> {
     std::fs::read(state_dir(tag).join("out")).ok().map(|b| PathBuf::from(String::from_utf8_lossy(&b).into_owned()))
 }
@@ -153,9 +189,9 @@ fn out_of(tag: &str) -> Option<PathBuf> {
 pub fn status(args: DeployFileArgs) -> CliResult {
     topology(&args.file)?;
     let tag = tag_of(&args.file);
-    let Some(_) = supervisor(&tag) else {
+    if supervisor(&tag)?.is_none() {
         return Err(CliError::runtime(format!("no deployment of {} is up", args.file.display())));
-    };
+    }
     let status = out_of(&tag)
         .and_then(|out| std::fs::read_to_string(out.join("status.json")).ok())
         .and_then(|t| serde_json::from_str::<Value>(&t).ok())
@@ -166,35 +202,24 @@ pub fn status(args: DeployFileArgs) -> CliResult {
 pub fn down(args: DeployFileArgs) -> CliResult {
     // A file that no longer parses can still be taken down: only its path matters here.
     let tag = tag_of(&args.file);
-    let out = out_of(&tag);
-    let mut stopped = false;
-    if let Some(pid) = supervisor(&tag) {
-        // SAFETY: a signal to the supervisor this deployment's state names.
+    let was_up = supervisor(&tag)?;
+    if let Some(pid) = was_up.filter(|&p| p > 1) {
+        // SAFETY: a signal to the process that holds this deployment's lock and named itself.
         unsafe { libc::kill(pid, libc::SIGTERM) };
         let deadline = Instant::now() + DOWN_TIMEOUT;
-        while supervisor(&tag).is_some() && Instant::now() < deadline {
+        while supervisor(&tag)?.is_some() && Instant::now() < deadline {
             std::thread::sleep(Duration::from_millis(50));
         }
-        if supervisor(&tag).is_some() {
-            // SAFETY: as above.
+        if supervisor(&tag)?.is_some() {
+            // SAFETY: as above; its processes die with it (parent-death signal).
             unsafe { libc::kill(pid, libc::SIGKILL) };
         }
-        stopped = true;
-    }
-    // Processes a killed supervisor left (their process groups, by the last status).
-    let status = out.as_ref().and_then(|o| std::fs::read_to_string(o.join("status.json")).ok());
-    let pids = status
-        .and_then(|t| serde_json::from_str::<Value>(&t).ok())
-        .map(|v| v["processes"].as_array().into_iter().flatten().filter_map(|p| p["pid"].as_i64()).collect::<Vec<_>>());
-    for pid in pids.unwrap_or_default() {
-        // SAFETY: a signal to a process group the supervisor made; gone groups just fail.
-        unsafe { libc::kill(-(pid as i32), libc::SIGKILL) };
     }
     net::sweep(&tag);
     let left = net::leftovers(&tag);
-    let _ = std::fs::remove_file(state_dir(&tag).join("supervisor.pid"));
     if !left.is_empty() {
         return Err(CliError::runtime(format!("could not remove: {}", left.join(", "))));
     }
-    print_json(&json!({ "down": true, "was_up": stopped, "report": out.map(|o| o.join("report.md")) }))
+    let report = out_of(&tag).map(|o| o.join("report.md")).filter(|r| r.exists());
+    print_json(&json!({ "down": true, "was_up": was_up.is_some(), "report": report }))
 }

@@ -12,6 +12,7 @@ use super::report::{self, Report, TimelineEntry};
 use super::supervise::Supervised;
 use crate::topology::{Action, Link, Topology};
 use risktwin_common::digest::fnv1a64;
+use std::io::Write as _;
 use std::net::{Ipv4Addr, SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -29,6 +30,8 @@ const CLOUD_GRACE: Duration = Duration::from_secs(30);
 const ROUTER_GRACE: Duration = Duration::from_secs(5);
 /// How long a cloud may take to see the ended edges leave (their last data is behind that).
 const EDGES_LEFT_TIMEOUT: Duration = Duration::from_secs(15);
+/// How long routers that just connected are given to agree on their routes.
+const MESH_SETTLE: Duration = Duration::from_millis(500);
 /// How often the supervisor looks at its processes and the schedule.
 const TICK: Duration = Duration::from_millis(20);
 /// How often `status.json` is rewritten.
@@ -55,17 +58,14 @@ pub struct Options {
     pub until_down: bool,
 }
 
-/// Why a deployment failed.
+/// Why a deployment failed (after a complete teardown): a process did not come up, a relay
+/// could not listen, a file could not be written.
 #[derive(Debug, thiserror::Error)]
-pub enum DeployError {
-    #[error("{0}")]
-    Input(String),
-    #[error("{0}")]
-    Runtime(String),
-}
+#[error("{0}")]
+pub struct DeployError(String);
 
 fn runtime(what: impl std::fmt::Display) -> DeployError {
-    DeployError::Runtime(what.to_string())
+    DeployError(what.to_string())
 }
 
 /// The tag of a topology file: its canonical path's digest, 6 hex digits (names of namespaces
@@ -75,12 +75,32 @@ pub fn tag_of(file: &Path) -> String {
     format!("{:06x}", fnv1a64(path.as_os_str().as_encoded_bytes().iter().copied()) & 0xff_ffff)
 }
 
-/// Where a deployment of `tag` keeps its supervisor's pid and status.
+/// Where a deployment of `tag` keeps its lock, its supervisor's pid and where its output is.
 pub fn state_dir(tag: &str) -> PathBuf {
     std::env::temp_dir().join(format!("risktwin-deploy-{tag}"))
 }
 
-/// Removes what a deployment leaves, however it ends.
+/// Makes the state folder of `tag` (owner only), or checks that the one there is a folder of
+/// this user's and not a link: its name is predictable, and root writes into it.
+pub fn prepare_state_dir(tag: &str) -> std::io::Result<PathBuf> {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt};
+    let dir = state_dir(tag);
+    match std::fs::DirBuilder::new().mode(0o700).create(&dir) {
+        Ok(()) => return Ok(dir),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+        Err(e) => return Err(e),
+    }
+    let meta = std::fs::symlink_metadata(&dir)?;
+    // SAFETY: geteuid has no preconditions.
+    if !meta.is_dir() || meta.uid() != unsafe { libc::geteuid() } || meta.mode() & 0o022 != 0 {
+        let what = format!("{} is not a private folder of this user's: remove it", dir.display());
+        return Err(std::io::Error::other(what));
+    }
+    Ok(dir)
+}
+
+/// Removes the namespaces of a deployment, however it ends (its processes go with their
+/// supervisor: they are its children with a parent-death signal, and in their namespaces).
 struct Teardown {
     tag: String,
     namespaces: bool,
@@ -91,7 +111,6 @@ impl Drop for Teardown {
         if self.namespaces {
             sweep(&self.tag);
         }
-        let _ = std::fs::remove_file(state_dir(&self.tag).join("supervisor.pid"));
     }
 }
 
@@ -126,25 +145,40 @@ pub fn shape_of(link: &Link) -> LinkShape {
 /// Something to undo when a lasting event ends.
 enum Undo {
     Heal(Vec<usize>),
-    Restore(usize),
+    /// A degradation's end: back to the configured values of what it changed.
+    Restore(usize, Restore),
+}
+
+struct Restore {
+    latency: bool,
+    bandwidth: bool,
+}
+
+/// How long a process of `role` has to stop on SIGTERM.
+fn grace_of(role: &str) -> Duration {
+    match role {
+        "cloud" => CLOUD_GRACE,
+        "router" => ROUTER_GRACE,
+        _ => EDGE_GRACE,
+    }
 }
 
 /// Runs the deployment until its time is up, every edge has ended, or `stop` is set.
 pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, DeployError> {
-    if t.events.iter().any(|e| matches!(e.action, Action::ClockStep { .. })) {
-        return Err(DeployError::Input("clock_step events are not carried out yet (issue 15)".into()));
-    }
     let plan = plan(t);
     let tag = tag_of(&o.file);
-    // What a crashed run of the same file left goes first.
+    // What a crashed run of the same file left goes first (the caller holds its lock: no
+    // supervisor of it runs), and so does an earlier run's output.
     sweep(&tag);
-    let state = state_dir(&tag);
-    std::fs::create_dir_all(&state).map_err(runtime)?;
-    std::fs::write(state.join("supervisor.pid"), std::process::id().to_string()).map_err(runtime)?;
+    for old in ["hosts", "status.json", "report.json", "report.md", "topology.toml"] {
+        let path = o.out.join(old);
+        let _ = if path.is_dir() { std::fs::remove_dir_all(path) } else { std::fs::remove_file(path) };
+    }
     let begun = Instant::now();
     let mut timeline: Vec<TimelineEntry> = Vec::new();
     let mut note = |what: String| {
-        eprintln!("{:7.2} s  {what}", begun.elapsed().as_secs_f64());
+        // stderr may be gone (a closed pipe): the deployment goes on and tears down all the same.
+        let _ = writeln!(std::io::stderr(), "{:7.2} s  {what}", begun.elapsed().as_secs_f64());
         timeline.push(TimelineEntry { at_s: begun.elapsed().as_secs_f64(), what });
     };
     let names: Vec<String> = plan.machines.iter().map(|m| m.name.clone()).collect();
@@ -179,7 +213,7 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
     let mut router_addr: Vec<Option<SocketAddr>> = vec![None; plan.machines.len()];
     for p in plan.processes.iter().filter(|p| p.role == "router") {
         let port = match net {
-            Net::Loopback => free_port().map_err(runtime)?,
+            Net::Loopback => free_port(&router_addr).map_err(runtime)?,
             Net::Namespaces { .. } => 7447,
         };
         router_addr[p.machine] = Some(SocketAddr::new(net.own(p.machine).into(), port));
@@ -230,6 +264,14 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
                 "cloud" => wait_ready(s)?,
                 _ => {}
             }
+        }
+        if stage == "router" {
+            let peerings: Vec<usize> = processes
+                .iter()
+                .filter(|(p, _)| p.role == "router")
+                .flat_map(|(p, _)| p.routes.iter().flat_map(|&r| plan.routes[r].hops.iter().map(|&h| hop_index(h))))
+                .collect();
+            wait_mesh(&peerings, &hops)?;
         }
     }
     note(format!("up: {} processes, {} relays", processes.len(), relays.len()));
@@ -288,7 +330,8 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
                         h.name, latency_ms, bandwidth_mbps
                     ));
                     if let Some(d) = e.lasts {
-                        undo.push((e.at + d, Undo::Restore(k)));
+                        let what = Restore { latency: latency_ms.is_some(), bandwidth: bandwidth_mbps.is_some() };
+                        undo.push((e.at + d, Undo::Restore(k, what)));
                     }
                 }
                 Action::Kill { host, process } | Action::Restart { host, process } => {
@@ -304,13 +347,17 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
                         s.kill();
                         note(format!("kill {}", s.name));
                     } else {
-                        s.stop(ROUTER_GRACE);
+                        let (p, s) = &mut processes[k];
+                        s.stop(grace_of(p.role));
                         s.restarts += 1;
-                        s.start().map_err(runtime)?;
-                        note(format!("restart {}", s.name));
+                        match s.start() {
+                            Ok(()) => note(format!("restart {}", s.name)),
+                            Err(e) => note(format!("restart {}: {e}", s.name)),
+                        }
                     }
                 }
-                Action::ClockStep { .. } => unreachable!("refused above"),
+                // Refused before the start (`risktwin deploy` exits 2).
+                Action::ClockStep { .. } => note("clock_step is not carried out".into()),
             }
         }
         undo.sort_by_key(|(t, _)| *t);
@@ -324,10 +371,16 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
                     let names: Vec<&str> = cut.iter().map(|&k| hops[k].name.as_str()).collect();
                     note(format!("heal: {}", names.join(", ")));
                 }
-                Undo::Restore(k) => {
-                    hops[k].shape = hops[k].base;
-                    hops[k].apply();
-                    note(format!("{} restored", hops[k].name));
+                Undo::Restore(k, what) => {
+                    let h = &mut hops[k];
+                    if what.latency {
+                        h.shape.latency = h.base.latency;
+                    }
+                    if what.bandwidth {
+                        h.shape.bandwidth_bps = h.base.bandwidth_bps;
+                    }
+                    h.apply();
+                    note(format!("{} restored", h.name));
                 }
             }
         }
@@ -346,21 +399,21 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
     let ran = started.elapsed();
     note(format!("stopping: ended by {ended_by}"));
     for stage in ["edge", "cloud", "router"] {
+        let in_stage = |p: &Planned| match stage {
+            "router" | "cloud" => p.role == stage,
+            _ => !matches!(p.role, "router" | "cloud"),
+        };
         if stage == "cloud" {
+            let deadline = Instant::now() + EDGES_LEFT_TIMEOUT;
             for (_, s) in processes.iter().filter(|(p, _)| p.role == "cloud") {
-                wait_edges_left(s);
+                wait_edges_left(s, deadline);
             }
         }
-        for (p, s) in &mut processes {
-            let (is, grace) = match stage {
-                "edge" => (!matches!(p.role, "router" | "cloud"), EDGE_GRACE),
-                "cloud" => (p.role == "cloud", CLOUD_GRACE),
-                _ => (p.role == "router", ROUTER_GRACE),
-            };
-            if is {
-                s.stop(grace);
-            }
-        }
+        // Every process of the stage at once: SIGTERM to all, then the wait.
+        let grace = grace_of(if stage == "edge" { "vehicle" } else { stage });
+        let mut stopping: Vec<&mut Supervised> =
+            processes.iter_mut().filter(|(p, _)| in_stage(p)).map(|(_, s)| s).collect();
+        super::supervise::stop_all(&mut stopping, grace);
     }
     note("stopped".into());
     let views = hop_views(&hops);
@@ -383,9 +436,17 @@ fn hop_views(hops: &[HopRun]) -> Vec<HopView> {
         .collect()
 }
 
-/// A port free on loopback now (a router of a loopback deployment listens on it).
-fn free_port() -> std::io::Result<u16> {
-    Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
+/// Where a loopback deployment's routers listen: below Linux's ephemeral range (32768 up), from
+/// which the relays' and every client's port-0 binds come, so none of them can take it.
+const ROUTER_PORTS: std::ops::Range<u16> = 20_000..32_000;
+
+/// A port free on loopback now and not given to another router.
+fn free_port(taken: &[Option<SocketAddr>]) -> std::io::Result<u16> {
+    let start = ROUTER_PORTS.start + (std::process::id() % 997) as u16 * 12;
+    (start..ROUTER_PORTS.end)
+        .chain(ROUTER_PORTS.start..start)
+        .find(|&p| !taken.iter().flatten().any(|a| a.port() == p) && TcpListener::bind(("127.0.0.1", p)).is_ok())
+        .ok_or_else(|| std::io::Error::other("no free port for a router in 20000–31999"))
 }
 
 /// Waits until the router of `s` accepts connections on `addr`.
@@ -396,6 +457,24 @@ fn wait_listening(addr: SocketAddr, s: &mut Supervised) -> Result<(), DeployErro
             return Err(runtime(format!("{} did not listen on {addr}: {}", s.name, log_tail(s))));
         }
         std::thread::sleep(TICK);
+    }
+    Ok(())
+}
+
+/// Waits until every hop between routers carries a connection, then lets the routers exchange
+/// their routing state. An edge that sees the cloud's subscriber declared through a router that
+/// has not finished computing its routes loses its first messages (seen: the first 80 ms of
+/// every stream, on a second run of the same deployment, when everything starts fast).
+fn wait_mesh(peerings: &[usize], hops: &[HopRun]) -> Result<(), DeployError> {
+    let deadline = Instant::now() + START_TIMEOUT;
+    while peerings.iter().any(|&k| hops[k].counts.connections.load(std::sync::atomic::Ordering::Relaxed) == 0) {
+        if Instant::now() > deadline {
+            return Err(runtime("the site routers did not connect to each other"));
+        }
+        std::thread::sleep(TICK);
+    }
+    if !peerings.is_empty() {
+        std::thread::sleep(MESH_SETTLE);
     }
     Ok(())
 }
@@ -415,15 +494,20 @@ fn wait_ready(s: &mut Supervised) -> Result<(), DeployError> {
 
 /// Waits until the cloud of `s` has seen every edge that joined it leave (liveliness): what an
 /// edge sent before it left has then arrived, and stopping the cloud loses none of it.
-fn wait_edges_left(s: &Supervised) {
-    let deadline = Instant::now() + EDGES_LEFT_TIMEOUT;
+fn wait_edges_left(s: &Supervised, deadline: Instant) {
     let log = s.log_stem.with_extension("log");
     loop {
         let text = std::fs::read_to_string(&log).unwrap_or_default();
-        let seen = |what: &str| -> std::collections::BTreeSet<&str> {
-            text.lines().filter_map(|l| l.strip_prefix(what)).collect()
-        };
-        if seen("edge joined: ").is_subset(&seen("edge left: ")) || Instant::now() > deadline {
+        // An edge may join and leave many times (restarts, long partitions): count them.
+        let mut inside: std::collections::BTreeMap<&str, i64> = std::collections::BTreeMap::new();
+        for line in text.lines() {
+            if let Some(edge) = line.strip_prefix("edge joined: ") {
+                *inside.entry(edge).or_default() += 1;
+            } else if let Some(edge) = line.strip_prefix("edge left: ") {
+                *inside.entry(edge).or_default() -= 1;
+            }
+        }
+        if inside.values().all(|&n| n <= 0) || Instant::now() > deadline {
             return;
         }
         std::thread::sleep(TICK);

@@ -5,7 +5,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Sub-buckets per power of two.
 const SUB: u32 = 64;
-/// Powers of two covered: up to 2^40 µs (twelve days).
+/// Rows of buckets: values up to 2^46 µs (two years) land in their own bucket; larger ones in
+/// the last row.
 const POWERS: u32 = 40;
 
 /// Counts of values in µs.

@@ -3,6 +3,7 @@
 
 pub mod deployment;
 pub mod histogram;
+pub mod lock;
 pub mod net;
 pub mod plan;
 pub mod relay;

@@ -8,6 +8,7 @@
 //! come from a free /16 of 10.100.0.0–10.227.0.0, chosen under a lock: machine k gets the /30
 //! 10.B.(4k / 256).(4k mod 256), `.1` the root side, `.2` its own.
 
+use super::lock::Lock;
 use std::io;
 use std::net::Ipv4Addr;
 use std::path::Path;
@@ -179,29 +180,6 @@ pub fn leftovers(tag: &str) -> Vec<String> {
         .collect();
     left.extend(veths(tag));
     left
-}
-
-/// An exclusive lock on a file, released when dropped.
-struct Lock(std::fs::File);
-
-impl Lock {
-    fn take(path: &Path) -> io::Result<Lock> {
-        use std::os::fd::AsRawFd;
-        let file = std::fs::OpenOptions::new().create(true).truncate(false).write(true).open(path)?;
-        // SAFETY: flock on a descriptor this value owns.
-        if unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX) } != 0 {
-            return Err(io::Error::last_os_error());
-        }
-        Ok(Lock(file))
-    }
-}
-
-impl Drop for Lock {
-    fn drop(&mut self) {
-        use std::os::fd::AsRawFd;
-        // SAFETY: as in `take`.
-        unsafe { libc::flock(self.0.as_raw_fd(), libc::LOCK_UN) };
-    }
 }
 
 #[cfg(test)]

@@ -37,7 +37,8 @@ pub struct Planned {
     pub restart: Restart,
     /// The site whose Zenoh keys an edge or scene uses.
     pub site: String,
-    /// An edge's id: its host's name (`host-k` for the k-th edge of a host with several).
+    /// An edge's id: its host's name (`host.k` for the k-th edge of a host with several: no
+    /// name of a topology has a dot, so no id can be another host's).
     pub edge_id: Option<String>,
     /// Routes to the routers it connects to (a client's one router, a router's peers).
     pub routes: Vec<usize>,
@@ -132,7 +133,7 @@ pub fn plan(t: &Topology) -> Plan {
             };
             let edge_id = matches!(p.role, "vehicle" | "rsu").then(|| {
                 edge_k += 1;
-                if edges > 1 { format!("{}-{}", host.name, edge_k - 1) } else { host.name.clone() }
+                if edges > 1 { format!("{}.{}", host.name, edge_k - 1) } else { host.name.clone() }
             });
             processes.push(Planned {
                 machine: h,
@@ -158,7 +159,8 @@ pub fn plan(t: &Topology) -> Plan {
     for p in &mut processes {
         let start = if p.machine < t.hosts.len() { sites + p.machine } else { machines[p.machine].site };
         if p.role == "router" {
-            // Peers: every router reached without crossing another, the later one connecting.
+            // Peers: every router reached without crossing another; of two, the one whose
+            // vertex comes first (sites before hosts, in file order) connects.
             for (v, hops) in reach(&adjacent, start, &is_router, true) {
                 if v > start {
                     p.routes.push(route_to(p.machine, machine_of[v].expect("a router vertex has a machine"), hops));
@@ -233,9 +235,12 @@ pub fn argv(p: &Planned, connect: &[String], listen: Option<&str>) -> Vec<String
             argv.extend(connect.iter().flat_map(|c| [s("--connect"), c.clone()]));
         }
         "scene" => {
-            // Deployments run scenes in real time.
+            // Deployments run scenes in real time, unless told otherwise.
             if !p.args.iter().any(|a| a.starts_with("--clock")) {
-                argv.extend([s("--clock"), s("realtime"), s("--speed"), s("1")]);
+                argv.extend([s("--clock"), s("realtime")]);
+            }
+            if !p.args.iter().any(|a| a.starts_with("--speed")) {
+                argv.extend([s("--speed"), s("1")]);
             }
             argv.extend(connect.first().map(|c| [s("--router"), c.clone()]).into_iter().flatten());
         }
@@ -283,14 +288,14 @@ latency_ms = 20
         assert_eq!(names, ["cloud-0", "car", "cloud"], "hosts, then the cloud site's gateway");
         let car: Vec<&Planned> = plan.processes.iter().filter(|p| p.machine == 1).collect();
         assert_eq!(car.iter().map(|p| p.name.as_str()).collect::<Vec<_>>(), ["car/vehicle#0", "car/vehicle#1"]);
-        assert_eq!(car[1].edge_id.as_deref(), Some("car-1"));
+        assert_eq!(car[1].edge_id.as_deref(), Some("car.1"));
         let route = &plan.routes[car[0].routes[0]];
         assert_eq!((route.from, route.to), (1, 2));
         assert_eq!(route.hops, [Hop::Lan(1), Hop::Link(0)], "into the road's network, then the link");
         let cloud = plan.processes.iter().find(|p| p.role == "cloud").expect("the cloud");
         assert_eq!(plan.routes[cloud.routes[0]].hops, [Hop::Lan(0)]);
         let argv = argv(car[1], &["tcp/10.0.0.1:4000".into()], None);
-        assert_eq!(argv.join(" "), "edge vehicle --id car-1 --site road --mode client --connect tcp/10.0.0.1:4000");
+        assert_eq!(argv.join(" "), "edge vehicle --id car.1 --site road --mode client --connect tcp/10.0.0.1:4000");
     }
 
     #[test]

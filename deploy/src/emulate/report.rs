@@ -34,7 +34,8 @@ pub struct LinkReport {
     pub measured_p50_ms: Option<f64>,
     pub measured_p99_ms: Option<f64>,
     pub chunks: u64,
-    /// Bytes toward the routers, and back.
+    /// Bytes from the side that connects (a client; of two routers, the one first in the file)
+    /// toward the router it connects to, and back.
     pub bytes_up: u64,
     pub bytes_down: u64,
     /// Both directions over the run, Mbit/s.
@@ -59,8 +60,11 @@ pub struct StreamReport {
     pub received: u64,
     /// sent − received (negative: received more, e.g. a restarted edge's earlier incarnation).
     pub missing: i64,
-    /// False when an incarnation of the edge was killed: what it sent is not known.
+    /// False when an incarnation of the edge ended without its summary (killed, crashed):
+    /// what it sent is not known.
     pub sent_complete: bool,
+    /// False when a run of the cloud ended without its summary: what it received is not known.
+    pub received_complete: bool,
 }
 
 #[derive(Debug, Serialize)]
@@ -126,24 +130,27 @@ impl Report {
         let mut sent: BTreeMap<(String, String), (u64, bool)> = BTreeMap::new();
         let mut received: BTreeMap<(String, String), u64> = BTreeMap::new();
         let mut cloud_dropped = BTreeMap::new();
+        let mut received_complete = true;
         for (p, s) in processes {
-            let killed = s.ends.iter().any(|e| e.starts_with("signal"));
+            // Every run prints its summary on a clean end; one missing is a run not counted.
+            let complete = printed(s).len() == s.ends.len();
             if matches!(p.role, "vehicle" | "rsu")
                 && let Some(id) = &p.edge_id
             {
-                let mut any = false;
-                for doc in printed(s) {
+                let docs = printed(s);
+                for doc in &docs {
                     for (stream, n) in doc["sent"].as_object().into_iter().flatten() {
-                        let e = sent.entry((id.clone(), stream.clone())).or_insert((0, !killed));
+                        let e = sent.entry((id.clone(), stream.clone())).or_insert((0, complete));
                         e.0 += n.as_u64().unwrap_or(0);
-                        any = true;
                     }
                 }
-                if !any {
-                    sent.insert((id.clone(), "(none)".into()), (0, false));
+                if docs.is_empty() {
+                    // Never silent: an edge that printed nothing still has its row.
+                    sent.insert((id.clone(), "(no summary)".into()), (0, false));
                 }
             }
             if p.role == "cloud" {
+                received_complete &= complete;
                 for doc in printed(s) {
                     for (source, streams) in doc["received"].as_object().into_iter().flatten() {
                         for (stream, n) in streams.as_object().into_iter().flatten() {
@@ -156,8 +163,7 @@ impl Report {
                 }
             }
         }
-        let keys: std::collections::BTreeSet<(String, String)> =
-            sent.keys().chain(received.keys()).filter(|(_, s)| s != "(none)").cloned().collect();
+        let keys: std::collections::BTreeSet<(String, String)> = sent.keys().chain(received.keys()).cloned().collect();
         let streams = keys
             .into_iter()
             .map(|key| {
@@ -170,6 +176,7 @@ impl Report {
                     received: n_received,
                     missing: n_sent as i64 - n_received as i64,
                     sent_complete: complete,
+                    received_complete,
                 }
             })
             .collect();

@@ -72,15 +72,21 @@ impl Supervised {
     /// Starts the process.
     pub fn start(&mut self) -> io::Result<()> {
         let (program, args) = self.command.split_first().ok_or_else(|| io::Error::other("an empty command"))?;
-        let child = Command::new(program)
-            .args(args)
-            .current_dir(&self.cwd)
-            .stdin(Stdio::null())
-            .stdout(self.log("out")?)
-            .stderr(self.log("log")?)
-            .process_group(0)
-            .spawn()
-            .map_err(|e| io::Error::other(format!("starting {}: {e}", self.name)))?;
+        let mut command = Command::new(program);
+        command.args(args).current_dir(&self.cwd).stdin(Stdio::null()).stdout(self.log("out")?);
+        command.stderr(self.log("log")?).process_group(0);
+        // SAFETY: prctl between fork and exec touches no memory of this process. The signal
+        // takes the child with the supervisor however it dies (kept across exec, also through
+        // `ip netns exec`).
+        unsafe {
+            command.pre_exec(|| {
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) != 0 {
+                    return Err(io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+        let child = command.spawn().map_err(|e| io::Error::other(format!("starting {}: {e}", self.name)))?;
         self.child = Some(child);
         self.started = Instant::now();
         self.again_at = None;
@@ -155,25 +161,43 @@ impl Supervised {
 
     /// Stops it for good: SIGTERM, then SIGKILL after `grace`. Waits for it.
     pub fn stop(&mut self, grace: Duration) {
-        self.stopped = true;
-        self.again_at = None;
-        let Some(mut child) = self.child.take() else { return };
-        let pid = child.id();
-        signal_group(pid, libc::SIGTERM);
-        let deadline = Instant::now() + grace;
-        let status = loop {
-            match child.try_wait() {
-                Ok(Some(status)) => break Some(status),
-                Ok(None) if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(20)),
+        stop_all(&mut [self], grace);
+    }
+}
+
+/// Stops every process of `all` for good, at once: SIGTERM to each, then SIGKILL to those still
+/// running after `grace`, then to whatever else their groups hold.
+pub fn stop_all(all: &mut [&mut Supervised], grace: Duration) {
+    let mut running: Vec<(usize, Child)> = Vec::new();
+    for (k, s) in all.iter_mut().enumerate() {
+        s.stopped = true;
+        s.again_at = None;
+        if let Some(child) = s.child.take() {
+            signal_group(child.id(), libc::SIGTERM);
+            running.push((k, child));
+        }
+    }
+    let deadline = Instant::now() + grace;
+    while !running.is_empty() {
+        let past = Instant::now() >= deadline;
+        running.retain_mut(|(k, child)| {
+            let status = match child.try_wait() {
+                Ok(Some(status)) => Some(status),
+                Ok(None) if !past => return true,
                 _ => {
-                    signal_group(pid, libc::SIGKILL);
-                    break child.wait().ok();
+                    signal_group(child.id(), libc::SIGKILL);
+                    child.wait().ok()
                 }
-            }
-        };
-        // Whatever else the group holds goes too.
-        signal_group(pid, libc::SIGKILL);
-        self.ends.push(status.map_or_else(|| "lost".to_owned(), ended));
+            };
+            // Whatever else the group holds goes too (the exited leader's group stays
+            // reserved while members live).
+            signal_group(child.id(), libc::SIGKILL);
+            all[*k].ends.push(status.map_or_else(|| "lost".to_owned(), ended));
+            false
+        });
+        if !running.is_empty() {
+            std::thread::sleep(Duration::from_millis(20));
+        }
     }
 }
 
@@ -216,7 +240,7 @@ mod tests {
         let dir = tempfile::tempdir().expect("a temp dir");
         let mut p = sh("echo run; exit 3", Restart::OnFailure, dir.path());
         p.start().expect("starts");
-        poll_until(&mut p, |p| p.restarts == 1);
+        poll_until(&mut p, |p| p.restarts == 1 && p.ends.len() == 2);
         p.stop(Duration::from_secs(1));
         assert!(p.ends.first().is_some_and(|e| e == "exit 3"), "{:?}", p.ends);
         let out = std::fs::read_to_string(dir.path().join("sh.out")).expect("stdout kept");

@@ -52,9 +52,6 @@ pub struct Process {
 
 /// Arguments the deployment gives: addresses are assigned, never written.
 const GIVEN_ARGS: [&str; 5] = ["--connect", "--listen", "--router", "--mode", "--multicast-scouting"];
-/// Also given to edges and scenes: their site is their host's, an edge's id its host's name.
-const GIVEN_EDGE_ARGS: [&str; 2] = ["--id", "--site"];
-
 /// One end of a link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Endpoint {
@@ -118,13 +115,15 @@ pub fn parse(text: &str) -> Result<Topology, TopologyError> {
             let role = ROLES.iter().find(|r| **r == p.role.get_ref()).ok_or_else(|| {
                 at(p.role.span(), format!("unknown role {:?} (roles: {})", p.role.get_ref(), ROLES.join(", ")))
             })?;
-            let edge = matches!(*role, "vehicle" | "rsu" | "scene");
+            // Also given: an edge's site is its host's, its id its host's name; a scene's site.
+            let also: &[&str] = match *role {
+                "vehicle" | "rsu" => &["--id", "--site"],
+                "scene" => &["--site"],
+                _ => &[],
+            };
             let given = p.args.iter().find(|a| {
                 let flag = a.split('=').next();
-                GIVEN_ARGS
-                    .iter()
-                    .chain(edge.then_some(&GIVEN_EDGE_ARGS).into_iter().flatten())
-                    .any(|g| flag == Some(*g))
+                GIVEN_ARGS.iter().chain(also).any(|g| flag == Some(*g))
             });
             if let Some(arg) = given {
                 let message = format!("{arg}: the deployment gives this argument (addresses are assigned)");

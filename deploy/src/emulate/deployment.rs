@@ -154,9 +154,18 @@ struct Restore {
     bandwidth: bool,
 }
 
-/// How long a process of `role` has to stop on SIGTERM.
-fn grace_of(role: &str) -> Duration {
+/// The stage a role starts and stops in: routers, clouds, and every other role as an edge.
+fn stage_of(role: &str) -> &'static str {
     match role {
+        "router" => "router",
+        "cloud" => "cloud",
+        _ => "edge",
+    }
+}
+
+/// How long a process of a stage (or role) has to stop on SIGTERM.
+fn grace_of(role: &str) -> Duration {
+    match stage_of(role) {
         "cloud" => CLOUD_GRACE,
         "router" => ROUTER_GRACE,
         _ => EDGE_GRACE,
@@ -250,10 +259,7 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
     }
     // Routers, then clouds, then the rest.
     for stage in ["router", "cloud", "edge"] {
-        let in_stage = |p: &Planned| match stage {
-            "router" | "cloud" => p.role == stage,
-            _ => !matches!(p.role, "router" | "cloud"),
-        };
+        let in_stage = |p: &Planned| stage_of(p.role) == stage;
         for (_, s) in processes.iter_mut().filter(|(p, _)| in_stage(p)) {
             std::fs::write(s.log_stem.with_extension("cmd"), s.command.join(" ") + "\n").map_err(runtime)?;
             s.start().map_err(runtime)?;
@@ -399,10 +405,7 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
     let ran = started.elapsed();
     note(format!("stopping: ended by {ended_by}"));
     for stage in ["edge", "cloud", "router"] {
-        let in_stage = |p: &Planned| match stage {
-            "router" | "cloud" => p.role == stage,
-            _ => !matches!(p.role, "router" | "cloud"),
-        };
+        let in_stage = |p: &Planned| stage_of(p.role) == stage;
         if stage == "cloud" {
             let deadline = Instant::now() + EDGES_LEFT_TIMEOUT;
             for (_, s) in processes.iter().filter(|(p, _)| p.role == "cloud") {
@@ -410,7 +413,7 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
             }
         }
         // Every process of the stage at once: SIGTERM to all, then the wait.
-        let grace = grace_of(if stage == "edge" { "vehicle" } else { stage });
+        let grace = grace_of(stage);
         let mut stopping: Vec<&mut Supervised> =
             processes.iter_mut().filter(|(p, _)| in_stage(p)).map(|(_, s)| s).collect();
         super::supervise::stop_all(&mut stopping, grace);

@@ -130,16 +130,14 @@ impl Net {
 /// Removes everything of deployment `tag`: the processes in its namespaces, the namespaces and
 /// veths. Idempotent; what it cannot remove it says on stderr.
 pub fn sweep(tag: &str) {
-    let prefix = format!("rt-{tag}-");
-    let Ok(list) = ip(&["netns", "list"]) else { return };
-    for ns in list.lines().filter_map(|l| l.split_whitespace().next()).filter(|n| n.starts_with(&prefix)) {
-        for pid in ip(&["netns", "pids", ns]).unwrap_or_default().split_whitespace() {
+    for ns in namespaces(tag) {
+        for pid in ip(&["netns", "pids", &ns]).unwrap_or_default().split_whitespace() {
             if let Ok(pid) = pid.parse::<i32>() {
                 // SAFETY: a plain signal to a process of the deployment's namespace.
                 unsafe { libc::kill(pid, libc::SIGKILL) };
             }
         }
-        if let Err(e) = ip(&["netns", "del", ns]) {
+        if let Err(e) = ip(&["netns", "del", &ns]) {
             eprintln!("warning: {e}");
         }
     }
@@ -171,15 +169,21 @@ fn veths(tag: &str) -> Vec<String> {
 
 /// Whether anything of deployment `tag` is left (namespaces or veths).
 pub fn leftovers(tag: &str) -> Vec<String> {
-    let mut left: Vec<String> = ip(&["netns", "list"])
+    let mut left = namespaces(tag);
+    left.extend(veths(tag));
+    left
+}
+
+/// The namespaces of deployment `tag`.
+fn namespaces(tag: &str) -> Vec<String> {
+    let prefix = format!("rt-{tag}-");
+    ip(&["netns", "list"])
         .unwrap_or_default()
         .lines()
         .filter_map(|l| l.split_whitespace().next())
-        .filter(|n| n.starts_with(&format!("rt-{tag}-")))
+        .filter(|n| n.starts_with(&prefix))
         .map(str::to_owned)
-        .collect();
-    left.extend(veths(tag));
-    left
+        .collect()
 }
 
 #[cfg(test)]

@@ -87,11 +87,12 @@ pub fn plan(t: &Topology) -> Plan {
         adjacent[a].push((b, Hop::Link(k)));
         adjacent[b].push((a, Hop::Link(k)));
     }
-    let mut machines: Vec<Machine> =
-        t.hosts.iter().map(|h| Machine { name: h.name.clone(), site: h.site, host: None }).collect();
-    for (k, m) in machines.iter_mut().enumerate() {
-        m.host = Some(k);
-    }
+    let mut machines: Vec<Machine> = t
+        .hosts
+        .iter()
+        .enumerate()
+        .map(|(k, h)| Machine { name: h.name.clone(), site: h.site, host: Some(k) })
+        .collect();
     // Each site's router: on the host that runs one, else on the site's gateway.
     let mut router_at: Vec<Option<Vertex>> = vec![None; sites + t.hosts.len()];
     let mut machine_of: Vec<Option<usize>> = vec![None; sites + t.hosts.len()];

@@ -133,11 +133,11 @@ impl Report {
         let mut received_complete = true;
         for (p, s) in processes {
             // Every run prints its summary on a clean end; one missing is a run not counted.
-            let complete = printed(s).len() == s.ends.len();
+            let docs = printed(s);
+            let complete = docs.len() == s.ends.len();
             if matches!(p.role, "vehicle" | "rsu")
                 && let Some(id) = &p.edge_id
             {
-                let docs = printed(s);
                 for doc in &docs {
                     for (stream, n) in doc["sent"].as_object().into_iter().flatten() {
                         let e = sent.entry((id.clone(), stream.clone())).or_insert((0, complete));
@@ -151,7 +151,7 @@ impl Report {
             }
             if p.role == "cloud" {
                 received_complete &= complete;
-                for doc in printed(s) {
+                for doc in &docs {
                     for (source, streams) in doc["received"].as_object().into_iter().flatten() {
                         for (stream, n) in streams.as_object().into_iter().flatten() {
                             *received.entry((source.clone(), stream.clone())).or_default() += n.as_u64().unwrap_or(0);

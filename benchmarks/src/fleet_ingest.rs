@@ -14,11 +14,17 @@
 use crate::BenchError;
 use crate::synth::{FLEET_TICK_NS, FleetConfig, SyntheticFleet};
 use risktwin_cloud::network::{CloudConfig, run};
-use risktwin_transport::{EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect};
+use risktwin_transport::{
+    Delivery, EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect,
+};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// Samples each emulated vehicle keeps for recovery: 1 s at 50 Hz. A real edge keeps 30 s
+/// (one vehicle per process); thousands of vehicles in one process would hold gigabytes.
+const FLEET_CACHE_SAMPLES: usize = 50;
 
 /// The fleet to emulate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -185,9 +191,9 @@ pub async fn publish_share(
     let mut publishers = Vec::with_capacity(share.vehicles);
     for i in 0..share.vehicles {
         let source = SourceId::new(format!("veh-{:05}", share.first_vehicle + i)).map_err(BenchError::input)?;
-        publishers.push(
-            StreamPublisher::declare(&session, &site, &source, EdgeStream::State).await.map_err(BenchError::runtime)?,
-        );
+        let delivery = Delivery::paced_by_transport(FLEET_CACHE_SAMPLES);
+        let publisher = StreamPublisher::declare(&session, &site, &source, EdgeStream::State, delivery);
+        publishers.push(publisher.await.map_err(BenchError::runtime)?);
     }
     if let Some(first) = publishers.first()
         && !first.wait_for_subscriber(Duration::from_secs(30), shutdown.clone()).await.map_err(BenchError::runtime)?

@@ -23,9 +23,13 @@ use risktwin_common::align::IngestConfig;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
 use risktwin_protos::encode;
+use risktwin_transport::recovery::DEFAULT_OUTAGE;
 use risktwin_transport::zenoh::Wait;
 use risktwin_transport::zenoh::qos::CongestionControl;
-use risktwin_transport::{EdgeStream, SiteId, SourceId, StreamPublisher, TransportError, subscribe_edge_streams};
+use risktwin_transport::zenoh::sample::Sample;
+use risktwin_transport::{
+    Delivery, EdgeStream, SiteId, SourceId, StreamLoss, StreamPublisher, TransportError, subscribe_edge_streams,
+};
 use serde::Serialize;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -143,7 +147,7 @@ async fn raw_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
             .map_err(|e| TransportError::Put { key: key.into(), reason: e.to_string() })?;
     }
     settle(&latencies, n.saturating_sub(WARMUP)).await;
-    let _ = subscriber.undeclare().wait();
+    let _ = subscriber.undeclare().await;
     let _ = publisher.undeclare().wait();
     let _ = sub_side.close().wait();
     let _ = pub_side.close().wait();
@@ -220,7 +224,9 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     let (sent_cb, lat_cb, ingest_cb) = (Arc::clone(&sent), Arc::clone(&latencies), Arc::clone(&ingest));
     // The next sample not yet seen in a snapshot.
     let covered = Arc::new(Mutex::new(0usize));
-    let subscriber = subscribe_edge_streams(&sub_side, Some(&site), move |_, sample| {
+    let loss_ingest = Arc::clone(&ingest);
+    let on_loss = move |loss: StreamLoss| loss_ingest.lock().unwrap_or_else(PoisonError::into_inner).record_loss(&loss);
+    let on_sample = move |_, sample: &Sample| {
         let payload = sample.payload().to_bytes();
         let mut ingest = ingest_cb.lock().unwrap_or_else(PoisonError::into_inner);
         if ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, None).is_err() {
@@ -241,9 +247,11 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
             }
             *next += 1;
         }
-    })
-    .await?;
-    let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State).await?;
+    };
+    let subscriber = subscribe_edge_streams(&sub_side, Some(&site), on_sample, on_loss).await?;
+    // As a live edge's state stream: congestion drops, what the link dropped is recovered.
+    let delivery = Delivery::live(config.rate_hz, DEFAULT_OUTAGE);
+    let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State, delivery).await?;
     let (_trigger, shutdown) = risktwin_transport::shutdown::channel();
     publisher.wait_for_subscriber(Duration::from_secs(5), shutdown).await?;
     let start = Instant::now();
@@ -255,7 +263,7 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     }
     // The last samples are only covered by snapshots after them: none come; count what came.
     settle(&latencies, n.saturating_sub(WARMUP + 20)).await;
-    let _ = subscriber.undeclare().wait();
+    let _ = subscriber.undeclare().await;
     publisher.undeclare().await?;
     let _ = sub_side.close().wait();
     let _ = pub_side.close().wait();

@@ -8,9 +8,11 @@
 //! - raw, wildcard: the same with the subscriber on `risktwin/bench/*`, the shape a cloud that
 //!   listens to every source needs (Zenoh then matches every sample against the subscription
 //!   again: its route cache does not help here, as profiling showed);
-//! - ours: the edge's [`StreamPublisher`] puts a freshly encoded [`StandIn`] record, the
-//!   stand-in ingest ([`StandInCounters`]) decodes, validates and counts it per source and
-//!   stream.
+//! - ours: the edge's [`StreamPublisher`] (a zenoh-ext `AdvancedPublisher`: numbered samples, a
+//!   vehicle state stream's 1 500-sample recovery cache, heartbeat; `Block` here, as any unpaced
+//!   producer) puts a freshly encoded [`StandIn`] record; the cloud's edge-stream subscriber (an
+//!   `AdvancedSubscriber` with history, recovery and a miss listener) hands it to the stand-in
+//!   ingest ([`StandInCounters`]), which decodes, validates and counts it per source and stream.
 //!
 //! Throughput is messages delivered per second, from the first put until the subscriber has
 //! seen the last message.
@@ -21,11 +23,13 @@ use risktwin_cloud::network::CloudError;
 use risktwin_cloud::network::LiveIngest;
 use risktwin_cloud::network::edges::watch_edges;
 use risktwin_cloud::network::liveliness::LivenessLog;
+use risktwin_transport::recovery::{DEFAULT_OUTAGE, cache_samples};
 use risktwin_transport::zenoh::qos::CongestionControl;
+use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
 use risktwin_transport::{
-    EdgeStream, Mode, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, TransportError, connect,
-    declare_alive, listening_locators, subscribe_edge_streams,
+    Delivery, EdgeStream, Mode, Shutdown, SiteId, SourceId, StreamLoss, StreamPublisher, TransportConfig,
+    TransportError, connect, declare_alive, listening_locators, subscribe_edge_streams,
 };
 use serde::Serialize;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -192,7 +196,7 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     // The bench measures the transport with the stand-in counters (no decoding or alignment),
     // so that its figure stays comparable with raw Zenoh.
     let sink_counters = Arc::clone(&counters);
-    let sink = move |_: risktwin_transport::EdgeStream, sample: &risktwin_transport::zenoh::sample::Sample| {
+    let sink = move |_: EdgeStream, sample: &Sample| {
         let payload = sample.payload().to_bytes();
         let mut counters = sink_counters.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         let _ = counters.accept(sample.key_expr().as_str(), &payload, std::time::Instant::now());
@@ -200,17 +204,24 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     let finish = Arc::new(Finish::default());
     let hit = Arc::clone(&finish);
     let n = config.messages;
-    let subscriber = subscribe_edge_streams(&sub_side, Some(&site), move |stream, sample| {
+    let lost = Arc::new(AtomicU64::new(0));
+    let lost_cb = Arc::clone(&lost);
+    let on_loss = move |loss: StreamLoss| {
+        lost_cb.fetch_add(u64::from(loss.samples), Ordering::Relaxed);
+    };
+    let on_sample = move |stream, sample: &Sample| {
         sink(stream, sample);
         hit.hit(n);
-    })
-    .await?;
+    };
+    let subscriber = subscribe_edge_streams(&sub_side, Some(&site), on_sample, on_loss).await?;
     // As in the cloud: the edge's liveliness token makes the cloud declare its stream keys.
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
     let ingest = Arc::new(Mutex::new(LiveIngest::new(None, None).map_err(|e| bench_error(e.to_string()))?));
     let mut edges = watch_edges(&sub_side, Some(&site), liveness, ingest).await?;
     let token = declare_alive(&pub_side, &site, &source).await?;
-    let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State).await?;
+    // A vehicle state stream's cache; unpaced, so paced by the transport (`Block`).
+    let delivery = Delivery::paced_by_transport(cache_samples(50.0, DEFAULT_OUTAGE));
+    let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State, delivery).await?;
     tokio::time::timeout(Duration::from_secs(10), edges.declared.wait_for(|n| *n >= 1))
         .await
         .map_err(|_| bench_error("the edge's keys were not declared in 10 s".into()))?
@@ -228,10 +239,12 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     finish.wait(n).await?;
     let rate = n as f64 / start.elapsed().as_secs_f64();
     let summary = counters.lock().map(|c| c.summary()).unwrap_or_default();
-    if summary.total_received != n {
+    if summary.total_received != n || lost.load(Ordering::Relaxed) != 0 {
         return Err(bench_error(format!(
-            "ingest accepted {} of {n} ({:?} dropped)",
-            summary.total_received, summary.dropped
+            "ingest accepted {} of {n} ({:?} dropped, {} lost)",
+            summary.total_received,
+            summary.dropped,
+            lost.load(Ordering::Relaxed)
         )));
     }
     drop((subscriber, publisher, token, edges.subscriber));

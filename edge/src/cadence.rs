@@ -21,6 +21,7 @@ use risktwin_common::geometry::wrap_angle;
 use risktwin_common::telemetry::{CAN_ID_DRIVER, CAN_ID_MOTION, CanSignals};
 use risktwin_common::vehicle::{Controls, Vehicle, VehicleState};
 use risktwin_common::world::STEP_S;
+use risktwin_transport::EdgeStream;
 
 /// Ticks per physics step.
 pub const TICKS_PER_STEP: u32 = 5;
@@ -33,6 +34,19 @@ pub const TICKS_PER_STATE: u32 = 2;
 
 /// Ticks per perception message (10 Hz: every 2nd physics step).
 pub const TICKS_PER_PERCEPTION: u64 = 2 * TICKS_PER_STEP as u64;
+
+/// CAN frames per tick (the motion and the driver frame).
+pub const CAN_FRAMES_PER_TICK: u32 = 2;
+
+/// Messages a vehicle publishes on `stream` per state message (none on a stream it lacks).
+pub fn messages_per_state(stream: EdgeStream) -> f64 {
+    match stream {
+        EdgeStream::State => 1.0,
+        EdgeStream::Can => f64::from(CAN_FRAMES_PER_TICK * TICKS_PER_STATE),
+        EdgeStream::Perception => f64::from(TICKS_PER_STATE) / TICKS_PER_PERCEPTION as f64,
+        EdgeStream::Rsu | EdgeStream::Signal => 0.0,
+    }
+}
 
 /// The ego over one physics step, as the streams sample it.
 #[derive(Debug, Clone)]
@@ -184,6 +198,12 @@ mod tests {
         let count = |prefix: &str| log.published.iter().filter(|p| p.starts_with(prefix)).count();
         // 200 ms: 4 physics steps, 10 states, 2 object lists, 2 × 20 CAN frames.
         assert_eq!((log.steps, count("state"), count("perception"), count("can")), (4, 10, 2, 40));
+        // What sizes each stream's recovery cache agrees with what goes out.
+        for (stream, prefix) in
+            [(EdgeStream::State, "state"), (EdgeStream::Can, "can"), (EdgeStream::Perception, "perc")]
+        {
+            assert_eq!(messages_per_state(stream) * 10.0, count(prefix) as f64, "{stream:?}");
+        }
         // Tick k of a step samples (k + 1)/5 of it: 10, 30, 50, 70 ms … of 1 m per 50 ms.
         let states: Vec<&str> = log.published.iter().filter(|p| p.starts_with("state")).map(String::as_str).collect();
         assert_eq!(

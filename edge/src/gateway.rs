@@ -12,6 +12,7 @@
 //! stops the producer too, which then ends its stream), then forwards what is queued and stops;
 //! a producer still running learns that its gateway left.
 
+use crate::cadence::messages_per_state;
 use crate::clock::EdgeClock;
 use crate::error::EdgeError;
 use crate::publish::EdgeConfig;
@@ -24,7 +25,9 @@ use risktwin_common::sensor::PerceivedObject;
 use risktwin_common::telemetry::{CanFrame, Frame, Header, ObjectList, VehicleStateSample};
 use risktwin_common::vehicle::Vehicle;
 use risktwin_protos::encode;
-use risktwin_transport::{EdgeStream, Shutdown, StreamPublisher, TransportError, close, connect, declare_alive};
+use risktwin_transport::{
+    Delivery, EdgeStream, Shutdown, StreamPublisher, TransportError, close, connect, declare_alive,
+};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -299,7 +302,9 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
     let token = declare_alive(&session, &config.site, &config.id).await?;
     let mut publishers = Vec::with_capacity(STREAMS.len());
     for stream in STREAMS {
-        publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, stream).await?);
+        // The sensor's cadence, at the gateway's rate (the sensor's, unless told otherwise).
+        let delivery = Delivery::live(config.rate_hz * messages_per_state(stream), config.cache_span);
+        publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, stream, delivery).await?);
     }
     for publisher in &publishers {
         if !publisher.wait_for_subscriber(config.wait_for_cloud, shutdown.clone()).await? && !shutdown.is_fired() {

@@ -9,10 +9,11 @@ use crate::error::EdgeError;
 use crate::summary::SentSummary;
 use risktwin_common::telemetry::{Frame, Header};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report};
+use risktwin_transport::recovery::DEFAULT_OUTAGE;
 use risktwin_transport::zenoh::pubsub::Publisher;
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::{
-    EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, TransportError, close, connect,
+    Delivery, EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, TransportError, close, connect,
     declare_alive, protobuf,
 };
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -39,6 +40,9 @@ pub struct EdgeConfig {
     pub clock: ClockModel,
     /// How long to wait for a subscriber (the cloud) before publishing anyway.
     pub wait_for_cloud: Duration,
+    /// The longest outage (router restart, partition) the streams survive: each keeps its last
+    /// rate × this many samples for the cloud to fetch (`risktwin_transport::recovery`).
+    pub cache_span: Duration,
     /// The scenario the edge's world is sampled from.
     pub kind: risktwin_common::scenario::ScenarioKind,
     /// Run seed of the scenario sample.
@@ -57,6 +61,7 @@ impl EdgeConfig {
             duration: None,
             clock: ClockModel::default(),
             wait_for_cloud: Duration::from_secs(10),
+            cache_span: DEFAULT_OUTAGE,
             kind: risktwin_common::scenario::ScenarioKind::CutIn,
             scenario_seed: 0,
         }
@@ -109,6 +114,9 @@ pub trait Producer {
     fn streams(&self) -> &[EdgeStream];
     /// Ticks per base-stream message (a vehicle ticks at 100 Hz for CAN, twice per state).
     fn ticks_per_base(&self) -> u32;
+    /// Messages on `stream` per base-stream message (a vehicle: 4 CAN frames per state), which
+    /// sizes the stream's recovery cache.
+    fn messages_per_base(&self, stream: EdgeStream) -> f64;
     /// Tick number `tick`: append the encoded messages due, in publishing order.
     fn tick(&mut self, tick: u64, stamper: &mut Stamper<'_>, out: &mut Vec<(EdgeStream, Vec<u8>)>);
     /// The cloud pushes it accepts (each subscribed on the edge's own key).
@@ -154,7 +162,8 @@ pub async fn run_producer(
     };
     let mut publishers = Vec::with_capacity(streams.len());
     for stream in &streams {
-        publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, *stream).await?);
+        let delivery = Delivery::live(config.rate_hz * producer.messages_per_base(*stream), config.cache_span);
+        publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, *stream, delivery).await?);
     }
     let mut push_subscribers = Vec::new();
     for push in producer.pushes().to_vec() {

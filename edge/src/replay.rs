@@ -7,7 +7,7 @@ use crate::error::EdgeError;
 use risktwin_protos::recording::{MessageCursor, RecordingError, encode_replay_time};
 use risktwin_transport::keyexpr::{EDGE_MAP_MESSAGE, parse_edge_key, parse_edge_map_key};
 use risktwin_transport::zenoh::Session;
-use risktwin_transport::{Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect};
+use risktwin_transport::{Delivery, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -112,7 +112,7 @@ async fn declare(session: &Session, topic: &str, schema: &str) -> Result<Option<
     if let Some((site, source)) = parse_edge_map_key(topic) {
         check(EDGE_MAP_MESSAGE)?;
         let (site, source) = (SiteId::new(site).map_err(bad)?, SourceId::new(source).map_err(bad)?);
-        return Ok(Some(StreamPublisher::declare_map(session, &site, &source).await?));
+        return Ok(Some(StreamPublisher::declare_map(session, &site, &source, replay_delivery()).await?));
     }
     let Some(key) = parse_edge_key(topic) else {
         return Ok(None);
@@ -120,5 +120,13 @@ async fn declare(session: &Session, topic: &str, schema: &str) -> Result<Option<
     check(key.stream.message())?;
     let site = SiteId::new(key.site).map_err(bad)?;
     let source = SourceId::new(key.source).map_err(bad)?;
-    Ok(Some(StreamPublisher::declare(session, &site, &source, key.stream).await?))
+    Ok(Some(StreamPublisher::declare(session, &site, &source, key.stream, replay_delivery()).await?))
+}
+
+/// Samples each replayed key keeps for recovery: 30 s of a 50 Hz state stream at speed 1.
+const REPLAY_CACHE_SAMPLES: usize = 1500;
+
+/// A replay is unpaced at `--speed 0`: the transport paces it (`Block`) rather than outrun the cache.
+fn replay_delivery() -> Delivery {
+    Delivery::paced_by_transport(REPLAY_CACHE_SAMPLES)
 }

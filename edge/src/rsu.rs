@@ -64,6 +64,11 @@ impl Producer for Rsu {
         1
     }
 
+    fn messages_per_base(&self, _stream: EdgeStream) -> f64 {
+        // One observation and one signal phase per tick.
+        1.0
+    }
+
     fn tick(&mut self, _tick: u64, stamper: &mut Stamper<'_>, out: &mut Vec<(EdgeStream, Vec<u8>)>) {
         for _ in 0..STEPS_PER_TICK {
             self.scene.step();

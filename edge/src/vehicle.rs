@@ -14,7 +14,7 @@
 
 pub mod push;
 
-use crate::cadence::{Segment, TICKS_PER_STATE, VehicleOutlet, vehicle_tick};
+use crate::cadence::{Segment, TICKS_PER_STATE, VehicleOutlet, messages_per_state, vehicle_tick};
 use crate::error::EdgeError;
 use crate::publish::{EdgeConfig, Producer, Stamper, run_producer};
 use crate::scene::{ActivePolicy, Scene, Tape, detected, feasible_spec};
@@ -149,6 +149,10 @@ impl Producer for Vehicle {
 
     fn ticks_per_base(&self) -> u32 {
         TICKS_PER_STATE
+    }
+
+    fn messages_per_base(&self, stream: EdgeStream) -> f64 {
+        messages_per_state(stream)
     }
 
     fn tick(&mut self, tick: u64, stamper: &mut Stamper<'_>, out: &mut Vec<(EdgeStream, Vec<u8>)>) {

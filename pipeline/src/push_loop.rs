@@ -136,6 +136,10 @@ impl Producer for Watched {
         self.vehicle.ticks_per_base()
     }
 
+    fn messages_per_base(&self, stream: EdgeStream) -> f64 {
+        self.vehicle.messages_per_base(stream)
+    }
+
     fn tick(&mut self, tick: u64, stamper: &mut Stamper<'_>, out: &mut Vec<(EdgeStream, Vec<u8>)>) {
         self.vehicle.tick(tick, stamper, out);
     }

@@ -157,6 +157,7 @@ fn bad_ids_and_endpoints_are_refused_with_exit_2() {
         &["edge", "vehicle", "--id", "cloud"],
         &["edge", "rsu", "--id", "r", "--site", "*"],
         &["edge", "vehicle", "--id", "v", "--connect", "not-a-locator"],
+        &["edge", "vehicle", "--id", "v", "--cache-s", "nan"],
         &["cloud", "--roles", "ingest,nonsense"],
         &["cloud", "--roles", "ingest", "--fidelity-report", "rep"],
     ] {

@@ -8,6 +8,7 @@
 
 mod cloudloop;
 mod criticality;
+mod faults;
 mod fleet;
 mod fleetloop;
 #[path = "../interop/peer_python.rs"]

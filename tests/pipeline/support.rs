@@ -71,6 +71,28 @@ impl Proc {
         }
     }
 
+    /// Waits until `n` stderr lines (seen before or arriving within `timeout`) have matched.
+    pub fn wait_count(&mut self, timeout: Duration, n: usize, matches: impl Fn(&str) -> bool) {
+        let deadline = Instant::now() + timeout;
+        while self.stderr_seen.iter().filter(|l| matches(l)).count() < n {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.stderr_lines.recv_timeout(left) {
+                Ok(line) => self.stderr_seen.push(line),
+                Err(e) => {
+                    panic!("{}: {n} matching lines not seen ({e:?}):\n{}", self.name, self.stderr_seen.join("\n"))
+                }
+            }
+        }
+    }
+
+    /// How many stderr lines seen so far (and already arrived) match.
+    pub fn count_lines(&mut self, matches: impl Fn(&str) -> bool) -> usize {
+        while let Ok(line) = self.stderr_lines.try_recv() {
+            self.stderr_seen.push(line);
+        }
+        self.stderr_seen.iter().filter(|l| matches(l)).count()
+    }
+
     /// Sends SIGTERM (through the `kill` command, which keeps the tests free of a libc binding).
     pub fn terminate(&self) {
         let status = Command::new("kill").args(["-TERM", &self.child.id().to_string()]).status().expect("kill runs");
@@ -139,7 +161,13 @@ impl Drop for Proc {
 
 /// Starts a router on a free port and returns it with the locator it listens on.
 pub fn start_router() -> (Proc, String) {
-    let mut router = Proc::spawn("router", &["router", "--listen", "tcp/127.0.0.1:0"]);
+    start_router_at("tcp/127.0.0.1:0")
+}
+
+/// Starts a router listening on `listen` (`:0`: a free port) and returns it with the locator
+/// it listens on, once it does.
+pub fn start_router_at(listen: &str) -> (Proc, String) {
+    let mut router = Proc::spawn("router", &["router", "--listen", listen]);
     let line = router.wait_line(Duration::from_secs(30), |l| l.starts_with("listening on tcp/127.0.0.1:"));
     let locator = line.trim_start_matches("listening on ").to_owned();
     assert!(!locator.ends_with(":0"), "the router reported port 0: {line}");

@@ -7,17 +7,19 @@
 //! twin is; message encoding belongs to `risktwin-protos`. The edge and cloud
 //! crates depend on it; `common` never does (it stays free of async and network code).
 
+pub mod edge_subscriber;
 pub mod keyexpr;
+pub mod recovery;
 pub mod router;
 pub mod session;
 pub mod shutdown;
 pub mod stream;
 
+pub use edge_subscriber::{EdgeStreamSubscriber, StreamLoss, subscribe_edge_streams};
 pub use keyexpr::{EdgeStream, KeyError, SiteId, SourceId};
+pub use recovery::Delivery;
 pub use session::{Mode, TransportConfig, TransportError, close, connect, listening_locators};
 pub use shutdown::{Shutdown, ShutdownTrigger};
-pub use stream::{
-    Liveness, StreamPublisher, declare_alive, declare_edge_keys, protobuf, subscribe_edge_streams, watch_liveliness,
-};
+pub use stream::{Liveness, StreamPublisher, declare_alive, declare_edge_keys, protobuf, watch_liveliness};
 /// Re-exported so that roles name zenoh types without their own dependency line.
 pub use zenoh;

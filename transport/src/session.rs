@@ -10,6 +10,10 @@ use std::time::Duration;
 use thiserror::Error;
 use zenoh::{Config, Session};
 
+/// How often a role retries its `connect` endpoints once it has lost them (a router restart):
+/// flow resumes at most this long after the router is back.
+pub const RECONNECT_PERIOD: Duration = Duration::from_millis(500);
+
 /// The Zenoh role of a session.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Mode {
@@ -95,6 +99,18 @@ impl TransportConfig {
             set(&mut config, "connect/timeout_ms", timeout_ms.to_string())?;
             // A role that cannot reach its router should say so and stop, not wait forever.
             set(&mut config, "connect/exit_on_failure", "true".to_owned())?;
+            // Once connected, a lost router is retried every RECONNECT_PERIOD, forever (Zenoh's
+            // 1 s doubling to 4 s finds a router that is back up to 4 s later).
+            let period_ms = RECONNECT_PERIOD.as_millis();
+            let retry =
+                format!(r#"{{"period_init_ms":{period_ms},"period_max_ms":{period_ms},"period_increase_factor":1.0}}"#);
+            set(&mut config, "connect/retry", retry)?;
+        }
+        if self.mode == Mode::Router {
+            // A router's timestamps would order every plain publisher it forwards under one clock
+            // id, and an advanced subscriber silently drops a sample stamped before the last
+            // (two publishers' samples can leave the router out of stamp order).
+            set(&mut config, "timestamping/enabled", "false".to_owned())?;
         }
         if !self.listen.is_empty() {
             set(&mut config, "listen/endpoints", json_list(&self.listen))?;
@@ -175,6 +191,13 @@ mod tests {
         assert_eq!(z.get_json("scouting/multicast/enabled").unwrap(), "false");
         assert_eq!(z.get_json("connect/endpoints").unwrap(), "[\"tcp/127.0.0.1:7447\"]");
         assert_eq!(z.get_json("listen/endpoints").unwrap(), "[\"tcp/127.0.0.1:0\"]");
+        let retry: serde_json::Value = serde_json::from_str(&z.get_json("connect/retry").unwrap()).unwrap();
+        assert_eq!(
+            retry,
+            serde_json::json!({"period_init_ms": 500, "period_max_ms": 500, "period_increase_factor": 1.0})
+        );
+        let router = TransportConfig { mode: Mode::Router, ..TransportConfig::default() }.to_zenoh().unwrap();
+        assert_eq!(router.get_json("timestamping/enabled").unwrap(), "false");
     }
 
     #[test]

@@ -10,6 +10,7 @@
 //! does not say what it sends, is refused by name and never misread.
 
 use crate::keyexpr::{self, EdgeStream, SiteId, SourceId};
+use crate::recovery::{Delivery, HEARTBEAT_PERIOD, MAX_CACHE_SAMPLES};
 use crate::session::TransportError;
 use crate::shutdown::Shutdown;
 use std::time::Duration;
@@ -17,9 +18,9 @@ use tokio::sync::watch;
 use zenoh::Session;
 use zenoh::bytes::{Encoding, ZBytes};
 use zenoh::liveliness::LivelinessToken;
-use zenoh::pubsub::{Publisher, Subscriber};
-use zenoh::qos::CongestionControl;
-use zenoh::sample::{Locality, Sample, SampleKind};
+use zenoh::pubsub::Subscriber;
+use zenoh::sample::SampleKind;
+use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, MissDetectionConfig};
 
 /// The encoding that tags a protobuf payload of message `name` (its full name).
 pub fn protobuf(name: &str) -> Encoding {
@@ -28,12 +29,14 @@ pub fn protobuf(name: &str) -> Encoding {
 
 /// A publisher bound to one edge→cloud stream of one source, or to its road map.
 ///
-/// Reliable and blocking under congestion: a slow subscriber slows the edge down instead of
-/// losing messages, so that every message sent can be accounted for downstream.
+/// A zenoh-ext `AdvancedPublisher` (see [`crate::recovery`]): reliable, every sample numbered,
+/// the last [`Delivery::cache_samples`] kept for the cloud to fetch after an outage, its last
+/// number announced every [`HEARTBEAT_PERIOD`], and a liveliness token so that a cloud that
+/// (re)joins late finds it. What a put does under congestion is the [`Delivery`]'s choice.
 pub struct StreamPublisher {
     /// `None` for the road map.
     stream: Option<EdgeStream>,
-    publisher: Publisher<'static>,
+    publisher: AdvancedPublisher<'static>,
 }
 
 impl StreamPublisher {
@@ -43,14 +46,21 @@ impl StreamPublisher {
         site: &SiteId,
         source: &SourceId,
         stream: EdgeStream,
+        delivery: Delivery,
     ) -> Result<Self, TransportError> {
-        Self::declare_key(session, keyexpr::edge_stream(site, source, stream), Some(stream), stream.message()).await
+        let key = keyexpr::edge_stream(site, source, stream);
+        Self::declare_key(session, key, Some(stream), stream.message(), delivery).await
     }
 
     /// Declares the publisher of the road map of `source` at `site` (`…/<source>/map`), with the
     /// same delivery guarantees as the streams.
-    pub async fn declare_map(session: &Session, site: &SiteId, source: &SourceId) -> Result<Self, TransportError> {
-        Self::declare_key(session, keyexpr::edge_map(site, source), None, keyexpr::EDGE_MAP_MESSAGE).await
+    pub async fn declare_map(
+        session: &Session,
+        site: &SiteId,
+        source: &SourceId,
+        delivery: Delivery,
+    ) -> Result<Self, TransportError> {
+        Self::declare_key(session, keyexpr::edge_map(site, source), None, keyexpr::EDGE_MAP_MESSAGE, delivery).await
     }
 
     async fn declare_key(
@@ -58,6 +68,7 @@ impl StreamPublisher {
         key: String,
         stream: Option<EdgeStream>,
         message: &'static str,
+        delivery: Delivery,
     ) -> Result<Self, TransportError> {
         // A declared key expression travels as a small numeric id, and both ends keep its
         // routes cached; otherwise every sample is matched against the (wildcard) subscriptions
@@ -67,10 +78,14 @@ impl StreamPublisher {
             key: key.clone(),
             reason: e.to_string(),
         })?;
+        let cache = CacheConfig::default().max_samples(delivery.cache_samples.clamp(1, MAX_CACHE_SAMPLES));
         let publisher = session
             .declare_publisher(declared)
             .encoding(protobuf(message))
-            .congestion_control(CongestionControl::Block)
+            .congestion_control(delivery.congestion)
+            .cache(cache)
+            .sample_miss_detection(MissDetectionConfig::default().heartbeat(HEARTBEAT_PERIOD))
+            .publisher_detection()
             .await
             .map_err(|e| TransportError::Declare { what: "publisher", key, reason: e.to_string() })?;
         Ok(StreamPublisher { stream, publisher })
@@ -157,35 +172,6 @@ pub async fn declare_alive(
         key,
         reason: e.to_string(),
     })
-}
-
-/// Subscribes to every edge→cloud stream of every source at `site` (every site if `None`);
-/// `on_sample(stream, sample)` runs on Zenoh's receive path, so it must be quick.
-///
-/// One subscriber on `risktwin/v1/<site>/*/*` rather than one per stream: Zenoh matches every
-/// sample against every wildcard subscription of the session, and five of them measured at
-/// about 0.3 M msg/s where one reached 0.46 M (1 KiB, TCP loopback). The price is that keys of
-/// the same shape that are not edge streams (another cloud's outputs, pushes to edges) also
-/// arrive; they are recognised by the key parser and skipped. Samples published by this same session are not received at all.
-pub async fn subscribe_edge_streams<F>(
-    session: &Session,
-    site: Option<&SiteId>,
-    on_sample: F,
-) -> Result<Subscriber<()>, TransportError>
-where
-    F: Fn(EdgeStream, &Sample) + Send + Sync + 'static,
-{
-    let key = keyexpr::edge_streams_all(site);
-    session
-        .declare_subscriber(key.clone())
-        .allowed_origin(Locality::Remote)
-        .callback(move |sample| {
-            if let Some(parsed) = keyexpr::parse_edge_key(sample.key_expr().as_str()) {
-                on_sample(parsed.stream, &sample);
-            }
-        })
-        .await
-        .map_err(|e| TransportError::Declare { what: "subscriber", key, reason: e.to_string() })
 }
 
 /// An edge appearing or disappearing, as told by its liveliness token.

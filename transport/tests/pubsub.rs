@@ -2,15 +2,21 @@
 //! typed publishers reach the typed subscribers on the right stream, and liveliness reports an
 //! edge joining and leaving.
 
+use risktwin_transport::recovery::DEFAULT_OUTAGE;
 use risktwin_transport::{
-    EdgeStream, Liveness, Mode, SiteId, SourceId, StreamPublisher, TransportConfig, connect, declare_alive,
-    listening_locators, shutdown, subscribe_edge_streams, watch_liveliness,
+    Delivery, EdgeStream, Liveness, Mode, SiteId, SourceId, StreamLoss, StreamPublisher, TransportConfig, connect,
+    declare_alive, listening_locators, shutdown, subscribe_edge_streams, watch_liveliness,
 };
 use std::time::Duration;
 use tokio::sync::mpsc;
 use tokio::time::timeout;
 
 const STEP: Duration = Duration::from_secs(30);
+
+/// A live 50 Hz stream's delivery.
+fn live() -> Delivery {
+    Delivery::live(50.0, DEFAULT_OUTAGE)
+}
 
 async fn peer_pair() -> (risktwin_transport::zenoh::Session, risktwin_transport::zenoh::Session) {
     let listen = TransportConfig { mode: Mode::Peer, listen: vec!["tcp/127.0.0.1:0".into()], ..Default::default() };
@@ -28,12 +34,12 @@ async fn streams_arrive_on_their_subscriber_and_liveliness_tracks_the_edge() {
     let source = SourceId::new("veh-7").unwrap();
 
     let (sample_tx, mut samples) = mpsc::unbounded_channel();
-    let _subs = subscribe_edge_streams(&cloud, Some(&site), move |stream, sample| {
+    let on_sample = move |stream, sample: &risktwin_transport::zenoh::sample::Sample| {
         let tagged = (sample.key_expr().to_string(), sample.encoding().to_string());
         let _ = sample_tx.send((stream, tagged, sample.payload().to_bytes().into_owned()));
-    })
-    .await
-    .unwrap();
+    };
+    let on_loss = |loss: StreamLoss| panic!("nothing is lost on a healthy link: {loss:?}");
+    let _subs = subscribe_edge_streams(&cloud, Some(&site), on_sample, on_loss).await.unwrap();
     let (live_tx, mut lives) = mpsc::unbounded_channel();
     let _watch = watch_liveliness(&cloud, Some(&site), move |change| drop(live_tx.send(change))).await.unwrap();
 
@@ -43,7 +49,7 @@ async fn streams_arrive_on_their_subscriber_and_liveliness_tracks_the_edge() {
 
     let (_trigger, shutdown) = shutdown::channel();
     for (i, stream) in [EdgeStream::Can, EdgeStream::Signal].into_iter().enumerate() {
-        let publisher = StreamPublisher::declare(&edge, &site, &source, stream).await.unwrap();
+        let publisher = StreamPublisher::declare(&edge, &site, &source, stream, live()).await.unwrap();
         assert!(publisher.wait_for_subscriber(STEP, shutdown.clone()).await.unwrap());
         publisher.put(vec![i as u8; 3]).await.unwrap();
         let (got_stream, (key, encoding), payload) = timeout(STEP, samples.recv()).await.unwrap().unwrap();
@@ -56,7 +62,7 @@ async fn streams_arrive_on_their_subscriber_and_liveliness_tracks_the_edge() {
 
     // A stream of another site is not ours.
     let other = SiteId::new("s2").unwrap();
-    let stranger = StreamPublisher::declare(&edge, &other, &source, EdgeStream::State).await.unwrap();
+    let stranger = StreamPublisher::declare(&edge, &other, &source, EdgeStream::State, live()).await.unwrap();
     let (_t, quick) = shutdown::channel();
     assert!(!stranger.wait_for_subscriber(Duration::from_millis(300), quick).await.unwrap());
 
@@ -70,7 +76,7 @@ async fn waiting_for_a_subscriber_ends_on_shutdown() {
     let (_a, edge) = peer_pair().await;
     let site = SiteId::new("s1").unwrap();
     let source = SourceId::new("lonely").unwrap();
-    let publisher = StreamPublisher::declare(&edge, &site, &source, EdgeStream::State).await.unwrap();
+    let publisher = StreamPublisher::declare(&edge, &site, &source, EdgeStream::State, live()).await.unwrap();
     let (trigger, shutdown) = shutdown::channel();
     let wait = tokio::spawn(async move { publisher.wait_for_subscriber(Duration::from_secs(3600), shutdown).await });
     trigger.fire();

@@ -9,7 +9,10 @@
 
 use super::sample::{ObservedKinematics, TwinSample};
 use super::stream::{aligner_index, aligner_specs, proto_name};
-use risktwin_common::align::{DropReason, Incoming, IngestConfig, IngestCore, PushOutcome, Snapshot, SourceTable};
+use risktwin_common::align::{
+    DropReason, Incoming, IngestConfig, IngestCore, PushOutcome, SequenceScope, Snapshot, SourceIndex, SourceTable,
+    StreamIndex,
+};
 use risktwin_common::telemetry::{CanFrame, Header, ObjectList, RsuObservation, SignalPhase, VehicleStateSample};
 use risktwin_protos::recording::{Recorder, RecordingError};
 use risktwin_protos::{DecodeError, WireMessage, decode};
@@ -171,6 +174,32 @@ impl<W: Write + Seek> IngestWorker<W> {
 
     pub fn stats(&self) -> &IngestStats {
         &self.stats
+    }
+
+    /// Sequence numbers skipped and not (yet) seen, per source, per stream (streams with none
+    /// left out): the deduplicator's `presumed_lost` ([`risktwin_common::align::dedupe`]). With
+    /// one sequence per source (`SequenceScope::PerSource`) it is reported under `(all)`.
+    pub fn presumed_lost(&self) -> BTreeMap<String, BTreeMap<String, u64>> {
+        let mut lost = BTreeMap::new();
+        let per_source = self.core.sequence_scope() == SequenceScope::PerSource;
+        for index in 0..self.sources.len() {
+            let source = SourceIndex(index as u32);
+            let Some(name) = self.sources.name(source) else { continue };
+            let streams: Vec<(&str, u64)> = if per_source {
+                vec![("(all)", self.core.seq_counts(source, StreamIndex(0)).presumed_lost)]
+            } else {
+                EdgeStream::ALL
+                    .iter()
+                    .map(|s| (s.as_str(), self.core.seq_counts(source, aligner_index(*s)).presumed_lost))
+                    .collect()
+            };
+            let streams: BTreeMap<String, u64> =
+                streams.into_iter().filter(|(_, n)| *n > 0).map(|(s, n)| (s.to_owned(), n)).collect();
+            if !streams.is_empty() {
+                lost.insert(name.to_owned(), streams);
+            }
+        }
+        lost
     }
 
     /// Closes the recording (summary and footer written) and returns the final counts and the

@@ -35,6 +35,7 @@ pub mod edges;
 pub mod fleet_loop;
 pub mod library;
 pub mod liveliness;
+pub mod loss;
 mod publisher;
 pub mod push;
 mod receive;
@@ -55,7 +56,7 @@ pub use receive::{IngestSummary, LiveIngest, OUTPUT_SCHEMAS, RecordError, Record
 use risktwin_common::road::Road;
 use risktwin_protos::recording::decode_replay_time;
 use risktwin_transport::zenoh::sample::Sample;
-use risktwin_transport::{Shutdown, SiteId, TransportConfig, TransportError, close, connect};
+use risktwin_transport::{Shutdown, SiteId, StreamLoss, TransportConfig, TransportError, close, connect};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -302,6 +303,7 @@ pub async fn run(
                 &session,
                 config.site.as_ref(),
                 ingest_sink(Arc::clone(&ingest)),
+                loss_sink(Arc::clone(&ingest)),
             )
             .await?,
         )
@@ -424,6 +426,11 @@ fn ingest_sink(
             tracing::error!("cloud: {e}");
         }
     }
+}
+
+/// The edge-stream subscriber's loss reports: counted in the ingest's summary.
+fn loss_sink(ingest: Arc<Mutex<LiveIngest>>) -> impl Fn(StreamLoss) + Send + Sync + 'static {
+    move |loss| ingest.lock().unwrap_or_else(PoisonError::into_inner).record_loss(&loss)
 }
 
 /// Lets samples already on their way arrive: waits until none came for `quiet` (as `last_sample`

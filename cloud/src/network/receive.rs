@@ -9,6 +9,7 @@
 //! Publishing from inside a Zenoh callback could block it: outputs go to the publisher task
 //! through a channel.
 
+use super::loss::LossCounts;
 use crate::ingest::{IngestStats, IngestWorker, ObservedKinematics, SnapshotDigest};
 use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
@@ -21,7 +22,7 @@ use risktwin_protos::recording::{Recorder, RecordingError};
 use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{CloudOutput, SceneTopic, cloud_output, parse_edge_key, scene_topic};
 use risktwin_transport::zenoh::bytes::Encoding;
-use risktwin_transport::{EdgeStream, SiteId, protobuf};
+use risktwin_transport::{EdgeStream, SiteId, StreamLoss, protobuf};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fs::File;
@@ -70,6 +71,18 @@ pub struct IngestSummary {
     pub late_dropped: u64,
     /// FNV-1a digest of every emitted snapshot (tick, statuses, pose bits), 16 hex digits.
     pub snapshot_digest: String,
+    /// Samples lost for good on the way, per source, per stream: neither received nor
+    /// recoverable from the edge's cache (an outage longer than it). Per stream,
+    /// `received + lost = sent` (see docs/keyexpr.md, "Surviving faults").
+    pub lost: BTreeMap<String, BTreeMap<String, u64>>,
+    /// All lost samples.
+    pub total_lost: u64,
+    /// Sequence numbers each source skipped on a stream and never sent again, per source, per
+    /// stream: the deduplicator's own count of what never arrived (it sees an edge's numbers,
+    /// where `lost` sees the transport's; both count the same gaps).
+    pub presumed_lost: BTreeMap<String, BTreeMap<String, u64>>,
+    /// All presumed-lost sequence numbers.
+    pub total_presumed_lost: u64,
 }
 
 /// Why the recording failed.
@@ -130,6 +143,8 @@ pub struct LiveIngest {
     encodings: [Encoding; STREAMS],
     /// Sources whose wrong-schema samples were already logged (once each).
     wrong_schema_logged: HashSet<String>,
+    /// Samples the edge-stream subscriber reported lost for good.
+    losses: LossCounts,
 }
 
 impl LiveIngest {
@@ -168,6 +183,7 @@ impl LiveIngest {
             replay_time: false,
             encodings: EdgeStream::ALL.map(|s| protobuf(s.message())),
             wrong_schema_logged: HashSet::new(),
+            losses: LossCounts::default(),
         })
     }
 
@@ -175,6 +191,11 @@ impl LiveIngest {
     pub fn with_replay_time(mut self, on: bool) -> Self {
         self.replay_time = on;
         self
+    }
+
+    /// Counts samples the edge-stream subscriber could neither receive nor recover.
+    pub fn record_loss(&mut self, loss: &StreamLoss) {
+        self.losses.record(loss);
     }
 
     /// Counts a message of the cloud's own subscriptions (a scene map) dropped for `reason`.
@@ -425,11 +446,16 @@ impl LiveIngest {
     /// Closes the recording (so the file is a valid MCAP) and returns the summary, with the
     /// twin's when it ran.
     pub fn finish(self) -> Result<(IngestSummary, Option<TwinSummary>), RecordError> {
+        let presumed_lost = self.worker.presumed_lost();
         let (stats, recording) = self.worker.finish()?;
         if let Some(mut file) = recording {
             file.flush().map_err(RecordError::Flush)?;
         }
-        let summary = summarize(&stats, &self.received, &self.digest);
+        let mut summary = summarize(&stats, &self.received, &self.digest);
+        summary.lost = self.losses.by_source().clone();
+        summary.total_lost = self.losses.total();
+        summary.total_presumed_lost = presumed_lost.values().flat_map(BTreeMap::values).sum();
+        summary.presumed_lost = presumed_lost;
         Ok((summary, self.outputs.as_ref().map(TwinOutputs::summary)))
     }
 }

@@ -52,6 +52,9 @@ pub struct SeqCounts {
     pub presumed_lost: u64,
     /// Numbers that arrived after a higher one, inside the window (reordered, not lost).
     pub recovered: u64,
+    /// New incarnations: after [`Deduper::restart`], the times a number at or below the highest
+    /// showed that the source started over.
+    pub restarts: u64,
 }
 
 impl SeqCounts {
@@ -61,6 +64,7 @@ impl SeqCounts {
         self.too_old += o.too_old;
         self.presumed_lost = self.presumed_lost.saturating_add(o.presumed_lost);
         self.recovered += o.recovered;
+        self.restarts += o.restarts;
     }
 }
 
@@ -137,6 +141,7 @@ impl Deduper {
             if seq <= st.highest {
                 st.may_restart = 0;
                 st.started = false;
+                st.counts.restarts += 1;
                 bits.fill(0);
             }
         }
@@ -375,6 +380,7 @@ mod tests {
         assert_eq!(d.accept(A, 0), Verdict::Fresh, "the new incarnation's first");
         assert_eq!(d.accept(A, 0), Verdict::Duplicate);
         assert_eq!(d.counts(A).presumed_lost, 0, "nothing counted twice");
+        assert_eq!(d.counts(A).restarts, 2, "two new incarnations");
         // A source that left and came back without restarting goes on counting past the grace.
         d.restart(A);
         for seq in 1..=u64::from(RESTART_GRACE) {
@@ -382,5 +388,6 @@ mod tests {
         }
         assert_eq!(d.accept(A, 3), Verdict::Duplicate, "the same incarnation after the grace");
         assert_eq!(d.counts(A).presumed_lost, 0);
+        assert_eq!(d.counts(A).restarts, 2, "coming back is not starting over");
     }
 }

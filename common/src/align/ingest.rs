@@ -21,7 +21,7 @@
 
 use super::aligner::{AlignConfig, Aligner, PushOutcome, StreamSpec};
 use super::clock::{ClockConfig, ClockEstimator};
-use super::dedupe::{DedupConfig, Deduper};
+use super::dedupe::{DedupConfig, Deduper, SeqCounts};
 use super::interp::Interpolate;
 use super::reason::{DropCounts, DropReason};
 use super::snapshot::{Snapshot, StreamIndex};
@@ -146,6 +146,7 @@ impl<T: Clone> IngestCore<T> {
                 SourceIndex(u32::try_from(key).map_err(|_| DropReason::TooManySources)?)
             }
         };
+        let restarts = self.dedup.counts(key).restarts;
         if let Some(reason) = self.dedup.accept(key, msg.seq).drop_reason() {
             return Err(reason);
         }
@@ -154,6 +155,11 @@ impl<T: Clone> IngestCore<T> {
             self.future_streak.resize(s + 1, 0);
         }
         let clock = &mut self.clocks[s];
+        if self.dedup.counts(key).restarts != restarts {
+            // A new process under the source's name: its clock is not the last one's.
+            clock.reset();
+            self.future_streak[s] = 0;
+        }
         clock.roll_to(msg.receive_ns);
         let mut mapped = clock.to_cloud_ns(msg.capture_ns);
         if mapped.is_some_and(|m| m > msg.receive_ns.saturating_add(self.cfg.future_tolerance_ns)) {
@@ -173,8 +179,12 @@ impl<T: Clone> IngestCore<T> {
         Ok(Accepted { cloud_ns, push })
     }
 
-    /// `source` started over (its process left and a new one may come under the same name):
-    /// its sequence numbers count from the start again and its clock estimate is dropped.
+    /// `source` may have started over (its process left, and a new one may come under the same
+    /// name): the deduplicator decides on its next numbers ([`Deduper::restart`]), and the
+    /// source's clock estimate is dropped once it does see a new incarnation. A source that only
+    /// lost its link (a router restart) keeps its estimate: the samples it sends again from its
+    /// cache arrive late, and an estimate anchored on them would map its live samples into the
+    /// future.
     pub fn restart_source(&mut self, source: SourceIndex) {
         match self.cfg.sequence_scope {
             SequenceScope::PerSource => self.dedup.restart(source),
@@ -187,10 +197,6 @@ impl<T: Clone> IngestCore<T> {
                     }
                 }
             }
-        }
-        if let Some(clock) = self.clocks.get_mut(source.as_usize()) {
-            clock.reset();
-            self.future_streak[source.as_usize()] = 0;
         }
     }
 
@@ -217,6 +223,23 @@ impl<T: Clone> IngestCore<T> {
     /// The deduplicator (per-key sequence counters, presumed losses).
     pub fn dedup(&self) -> &Deduper {
         &self.dedup
+    }
+
+    /// The sequence counters of `stream` of `source`: that pair's own with
+    /// [`SequenceScope::PerStream`], the source's (shared by its streams) with `PerSource`.
+    pub fn seq_counts(&self, source: SourceIndex, stream: StreamIndex) -> SeqCounts {
+        match self.cfg.sequence_scope {
+            SequenceScope::PerSource => self.dedup.counts(source),
+            SequenceScope::PerStream => {
+                let key = source.as_usize().saturating_mul(self.aligner.streams()).saturating_add(stream.as_usize());
+                u32::try_from(key).map(|k| self.dedup.counts(SourceIndex(k))).unwrap_or_default()
+            }
+        }
+    }
+
+    /// How sequence numbers are counted.
+    pub fn sequence_scope(&self) -> SequenceScope {
+        self.cfg.sequence_scope
     }
 
     /// The clock estimate of `source`, once it has sent an accepted message.

@@ -63,6 +63,13 @@ fn every_message_is_accounted_for() {
     assert_eq!(drops.get(DropReason::FutureTimestamp), 0, "honest clocks never look future");
     assert!(d.presumed_lost > 100 && d.recovered > 10, "{d:?}");
     assert!(c.aligner().counts().late > 10, "delay spikes make late samples");
+    // Per (source, stream), the counters sum to the totals.
+    let streams = fleet_streams().len();
+    let per_pair: u64 = (0..20u32)
+        .flat_map(|src| (0..streams).map(move |st| (SourceIndex(src), StreamIndex(st as u16))))
+        .map(|(src, st)| c.seq_counts(src, st).presumed_lost)
+        .sum();
+    assert_eq!(per_pair, d.presumed_lost);
 }
 
 #[test]
@@ -106,6 +113,37 @@ fn a_clock_stepped_forward_is_re_anchored_after_a_run_of_future_timestamps() {
     let a = c.ingest(msg(55, t + step, t + MS), |_| {}).expect("follows the new clock");
     assert_eq!(a.cloud_ns, t + MS);
     assert_eq!(c.drops().get(DropReason::FutureTimestamp), 4);
+}
+
+#[test]
+fn a_source_back_from_an_outage_keeps_its_clock_and_a_restarted_one_gets_a_new_estimate() {
+    let mut c = core();
+    let mut t = T0_NS;
+    let mut seq = 0;
+    for _ in 0..100 {
+        c.ingest(msg(seq, t, t + MS), |_| {}).expect("steady source");
+        (seq, t) = (seq + 1, t + 20 * MS);
+    }
+    // The link goes for 2 s (the source's token with it): its cached samples come back late,
+    // in one burst, then it goes on live. Nothing is mapped into the future.
+    c.restart_source(SourceIndex(0));
+    let back = t + 2_000 * MS;
+    for k in 0..100 {
+        c.ingest(msg(seq, t + k * 20 * MS, back + MS), |_| {}).expect("a late sample of the same process");
+        seq += 1;
+    }
+    t = back + 20 * MS;
+    for _ in 0..10 {
+        let a = c.ingest(msg(seq, t, t + MS), |_| {}).expect("live again");
+        assert!((a.cloud_ns - (t + MS)).abs() <= MS, "mapped {} for {}", a.cloud_ns, t + MS);
+        (seq, t) = (seq + 1, t + 20 * MS);
+    }
+    // A new process under the name: numbers from 0, its clock 5 s ahead; re-anchored at once.
+    c.restart_source(SourceIndex(0));
+    let a = c.ingest(msg(0, t + 5_000 * MS, t + MS), |_| {}).expect("the new incarnation's first");
+    assert_eq!(a.cloud_ns, t + MS, "anchored at its receive time");
+    assert_eq!(c.drops().total(), 0, "{:?}", c.drops());
+    assert_eq!(c.dedup().counts(SourceIndex(0)).restarts, 1);
 }
 
 #[test]

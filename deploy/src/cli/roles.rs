@@ -97,6 +97,10 @@ pub struct EdgeArgs {
     /// Seconds to wait for a subscriber before publishing anyway.
     #[arg(long, default_value_t = 10.0)]
     pub wait_for_cloud_s: f64,
+    /// Seconds of each stream kept for the cloud to recover after an outage (router restart,
+    /// partition): a longer outage loses its oldest samples, counted by the cloud as `lost`.
+    #[arg(long, default_value_t = 30.0)]
+    pub cache_s: f64,
 }
 
 #[derive(Debug, Args)]

@@ -11,7 +11,7 @@
 //! - ours: the edge's [`StreamPublisher`] (a zenoh-ext `AdvancedPublisher`: numbered samples, a
 //!   vehicle state stream's 1 500-sample recovery cache, heartbeat; `Block` here, as any unpaced
 //!   producer) puts a freshly encoded [`StandIn`] record; the cloud's edge-stream subscriber (an
-//!   `AdvancedSubscriber` with history, recovery and a miss listener) hands it to the stand-in
+//!   `AdvancedSubscriber` with recovery and a miss listener) hands it to the stand-in
 //!   ingest ([`StandInCounters`]), which decodes, validates and counts it per source and stream.
 //!
 //! Throughput is messages delivered per second, from the first put until the subscriber has
@@ -32,7 +32,7 @@ use risktwin_transport::{
     TransportError, connect, declare_alive, listening_locators, subscribe_edge_streams,
 };
 use serde::Serialize;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::Notify;
@@ -209,13 +209,7 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     let on_loss = move |loss: StreamLoss| {
         lost_cb.fetch_add(u64::from(loss.samples), Ordering::Relaxed);
     };
-    let warmed = Arc::new(AtomicBool::new(false));
-    let warmed_cb = Arc::clone(&warmed);
     let on_sample = move |stream, sample: &Sample| {
-        if stream != EdgeStream::State {
-            warmed_cb.store(true, Ordering::Relaxed);
-            return;
-        }
         sink(stream, sample);
         hit.hit(n);
     };
@@ -236,7 +230,6 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     if !publisher.wait_for_subscriber(Duration::from_secs(10), shutdown).await? {
         return Err(bench_error("no subscriber matched in 10 s".into()));
     }
-    warm_up(&pub_side, &site, &source, &warmed).await?;
     let start = Instant::now();
     for seq in 0..n {
         let record = StandIn { source: source.as_str(), seq, capture_time_ns: seq as i64, publish_time_ns: seq as i64 };
@@ -258,25 +251,6 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     let _ = edges.declarer.await;
     let _ = tokio::join!(pub_side.close(), sub_side.close());
     Ok(rate)
-}
-
-/// Puts samples on another stream of `source` until one is delivered (`warmed`). zenoh-ext
-/// 1.10.2's subscriber can drop a new publisher's first samples if they arrive while its initial
-/// history query is still out (docs/keyexpr.md, "Surviving faults"); once any sample got
-/// through, that query is over. Bench setup only, never measured.
-async fn warm_up(session: &Session, site: &SiteId, source: &SourceId, warmed: &AtomicBool) -> Result<(), CloudError> {
-    let delivery = Delivery::paced_by_transport(1);
-    let publisher = StreamPublisher::declare(session, site, source, EdgeStream::Signal, delivery).await?;
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while !warmed.load(Ordering::Relaxed) {
-        if Instant::now() > deadline {
-            return Err(bench_error("no warm-up sample delivered in 10 s".into()));
-        }
-        publisher.put(vec![0u8; 8]).await?;
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
-    publisher.undeclare().await?;
-    Ok(())
 }
 
 /// Polls `matching` until true, waking on a short timer (bench setup only, never measured).

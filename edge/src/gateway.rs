@@ -26,7 +26,7 @@ use risktwin_common::telemetry::{CanFrame, Frame, Header, ObjectList, VehicleSta
 use risktwin_common::vehicle::Vehicle;
 use risktwin_protos::encode;
 use risktwin_transport::{
-    Delivery, EdgeStream, Shutdown, StreamPublisher, TransportError, close, connect, declare_alive,
+    Delivery, EdgeStream, Shutdown, StreamPublisher, TransportError, close, connect, declare_alive, retire,
 };
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -360,9 +360,7 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
         .map_err(|_| ShmRoleError::ReaderPanicked)?
         .map_err(|_| ShmRoleError::ReaderPanicked)?;
 
-    for publisher in publishers {
-        publisher.undeclare().await?;
-    }
+    retire(publishers).await?;
     token.undeclare().await.map_err(|e| EdgeError::Shutdown { reason: e.to_string() })?;
     close(session).await?;
     result?;

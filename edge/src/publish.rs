@@ -14,7 +14,7 @@ use risktwin_transport::zenoh::pubsub::Publisher;
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::{
     Delivery, EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, TransportError, close, connect,
-    declare_alive, protobuf,
+    declare_alive, protobuf, retire,
 };
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -269,9 +269,7 @@ pub async fn run_producer(
     }
 
     let summary = SentSummary::new(config, streams.iter().map(|s| (*s, sent[s.index()])));
-    for publisher in publishers {
-        publisher.undeclare().await?;
-    }
+    retire(publishers).await?;
     for (_, subscriber) in push_subscribers {
         subscriber.undeclare().await.map_err(|e| EdgeError::Shutdown { reason: e.to_string() })?;
     }

@@ -7,7 +7,9 @@ use crate::error::EdgeError;
 use risktwin_protos::recording::{MessageCursor, RecordingError, encode_replay_time};
 use risktwin_transport::keyexpr::{EDGE_MAP_MESSAGE, parse_edge_key, parse_edge_map_key};
 use risktwin_transport::zenoh::Session;
-use risktwin_transport::{Delivery, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect};
+use risktwin_transport::{
+    Delivery, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect, retire,
+};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -93,9 +95,7 @@ pub async fn run<R: Read>(
     }
     summary.elapsed_s = start.elapsed().as_secs_f64();
     summary.msgs_per_s = summary.published as f64 / summary.elapsed_s.max(1e-9);
-    for p in publishers.into_iter().flatten().flatten() {
-        p.undeclare().await?;
-    }
+    retire(publishers.into_iter().flatten().flatten()).await?;
     close(session).await?;
     Ok(summary)
 }

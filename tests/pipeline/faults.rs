@@ -13,9 +13,11 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 const STEP: Duration = Duration::from_secs(60);
 const EDGES: [(&str, &str); 2] = [("vehicle", "veh-f"), ("rsu", "rsu-f")];
-/// Edge run time; the router goes down [`BEFORE_FAULT`] after both publish.
-const RUN_S: &str = "6";
+/// The router goes down this long after both edges publish.
 const BEFORE_FAULT: Duration = Duration::from_millis(1500);
+/// The edges run on this long after both are back (seen joining the cloud again), then are
+/// stopped: three heartbeats, each a chance for the cloud to ask for what it missed.
+const AFTER_HEAL: Duration = Duration::from_millis(1500);
 /// Flow must resume this soon after the new router starts: the 2 s target plus slack for a
 /// loaded 2-core machine (measured 0.21–0.31 s: the clients' next 500 ms retry).
 const RESUME_LIMIT_S: f64 = 3.0;
@@ -50,7 +52,8 @@ fn run_with_router_restart(cache_s: &str, outage: Duration) -> Outcome {
     let mut edges: Vec<Proc> = EDGES
         .iter()
         .map(|(kind, id)| {
-            let mut args = vec!["edge", kind, "--id", id, "--site", "track", "--duration", RUN_S, "--cache-s", cache_s];
+            // No --duration: stopped once back (a fixed run could end before the router is up).
+            let mut args = vec!["edge", kind, "--id", id, "--site", "track", "--cache-s", cache_s];
             args.extend(client);
             Proc::spawn(id, &args)
         })
@@ -68,6 +71,14 @@ fn run_with_router_restart(cache_s: &str, outage: Duration) -> Outcome {
     let up_ns = unix_ns();
     let (router, back_at) = start_router_at(&locator);
     assert_eq!(back_at, locator, "the router is back on the same port");
+    for (_, id) in EDGES {
+        let joined = format!("edge joined: track/{id}");
+        cloud.wait_count(STEP, 2, |l| l == joined);
+    }
+    std::thread::sleep(AFTER_HEAL);
+    for edge in &edges {
+        edge.terminate();
+    }
 
     let sent: Vec<Value> = edges.iter_mut().map(|e| e.exit_json(STEP)).collect();
     for (_, id) in EDGES {

@@ -1,13 +1,19 @@
 //! The cloud's one subscription to every edge→cloud stream: a zenoh-ext `AdvancedSubscriber`
 //! that recovers what an outage lost from the publishers' caches ([`crate::recovery`]) and
-//! reports every sample it could not recover, so that no loss goes unseen.
+//! reports every sample it could not recover.
 //!
-//! - `history(detect_late_publishers)`: a publisher that appears (an edge that starts, or that
-//!   comes back after the router restarted) is asked for its whole cache;
 //! - `recovery(heartbeat)`: a gap in a publisher's numbers, or a heartbeat announcing numbers
 //!   never received, makes the subscriber query the publisher's cache for the missing range;
 //!   samples of that publisher are held back until the answer is in, then delivered in order;
 //! - the miss listener: what the cache no longer held is reported as a [`StreamLoss`].
+//!
+//! No `history`: a publisher is never asked for its whole cache. With
+//! `history(detect_late_publishers)`, zenoh-ext 1.10.2 re-sends every reappearing publisher's
+//! whole cache after each reconnection (no `_sn` range), and while its cache answers, the
+//! publisher's puts wait on the cache lock (the edge's tick loop with them); a cloud that starts
+//! late would also take 30 s of history for live data. An edge waits for the cloud's subscriber
+//! before it publishes, so nothing is missed at the start, and a publisher's state (its last
+//! delivered number) outlives a router restart, so the heartbeat asks for just the missing range.
 //!
 //! A miss names the publisher entity, not its key: the key is the one the entity's samples
 //! came on (a miss always follows a sample delivered from the same publisher).
@@ -19,9 +25,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use zenoh::Session;
 use zenoh::sample::{Locality, Sample};
 use zenoh::session::EntityGlobalId;
-use zenoh_ext::{
-    AdvancedSubscriber, AdvancedSubscriberBuilderExt, HistoryConfig, Miss, RecoveryConfig, SampleMissListener,
-};
+use zenoh_ext::{AdvancedSubscriber, AdvancedSubscriberBuilderExt, Miss, RecoveryConfig, SampleMissListener};
 
 /// Publishers whose key is remembered; beyond, the table starts over (a later miss of a
 /// forgotten publisher is still reported, without its key).
@@ -30,7 +34,7 @@ const MAX_PUBLISHERS: usize = 100_000;
 /// Samples of one publisher that are lost for good: neither received nor recoverable.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct StreamLoss {
-    /// The key the publisher's samples came on; `None` if none of them was seen.
+    /// The key the publisher's samples came on; `None` if it was forgotten ([`MAX_PUBLISHERS`]).
     pub key: Option<String>,
     /// How many consecutive samples were lost.
     pub samples: u32,
@@ -86,8 +90,6 @@ where
                 on_sample(parsed.stream, &sample);
             }
         })
-        // No `max_samples`: a bounded history query would report as lost what the cache still holds.
-        .history(HistoryConfig::default().detect_late_publishers())
         .recovery(RecoveryConfig::default().heartbeat())
         .await
         .map_err(|e| declare_err("advanced subscriber", e))?;

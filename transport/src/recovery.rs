@@ -11,6 +11,10 @@ use zenoh::qos::CongestionControl;
 /// samples lost at the end of a burst (nothing published after them) within about this long.
 pub const HEARTBEAT_PERIOD: Duration = Duration::from_millis(500);
 
+/// How long an ending edge keeps its stream caches after its last put: one heartbeat for the cloud
+/// to notice a gap at the end, and as long again for its query and the answer.
+pub const EXIT_LINGER: Duration = Duration::from_millis(2 * HEARTBEAT_PERIOD.as_millis() as u64);
+
 /// The longest outage a live edge stream survives by default: a router restart or a partition
 /// up to this long loses nothing.
 pub const DEFAULT_OUTAGE: Duration = Duration::from_secs(30);
@@ -23,8 +27,9 @@ pub const MAX_CACHE_SAMPLES: usize = 1_000_000;
 pub struct Delivery {
     /// Samples kept for retransmission (at least 1, at most [`MAX_CACHE_SAMPLES`]).
     pub cache_samples: usize,
-    /// `Drop` for a live producer: a put never waits for a stalled link (the tick loop keeps its
-    /// rate) and what the link dropped is fetched from the cache. `Block` for an unpaced producer
+    /// `Drop` for a live producer: a put does not wait for a stalled link (the tick loop keeps its
+    /// rate) and what the link dropped is fetched from the cache. (A put still waits while its
+    /// stream's cache answers a recovery query: zenoh-ext holds the cache's lock while it sends.) `Block` for an unpaced producer
     /// (a replay, a benchmark), which the transport should slow down rather than outrun its cache.
     pub congestion: CongestionControl,
 }

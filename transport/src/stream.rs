@@ -10,7 +10,7 @@
 //! does not say what it sends, is refused by name and never misread.
 
 use crate::keyexpr::{self, EdgeStream, SiteId, SourceId};
-use crate::recovery::{Delivery, HEARTBEAT_PERIOD, MAX_CACHE_SAMPLES};
+use crate::recovery::{Delivery, EXIT_LINGER, HEARTBEAT_PERIOD, MAX_CACHE_SAMPLES};
 use crate::session::TransportError;
 use crate::shutdown::Shutdown;
 use std::time::Duration;
@@ -31,8 +31,7 @@ pub fn protobuf(name: &str) -> Encoding {
 ///
 /// A zenoh-ext `AdvancedPublisher` (see [`crate::recovery`]): reliable, every sample numbered,
 /// the last [`Delivery::cache_samples`] kept for the cloud to fetch after an outage, its last
-/// number announced every [`HEARTBEAT_PERIOD`], and a liveliness token so that a cloud that
-/// (re)joins late finds it. What a put does under congestion is the [`Delivery`]'s choice.
+/// number announced every [`HEARTBEAT_PERIOD`]. What a put does under congestion is the [`Delivery`]'s choice.
 pub struct StreamPublisher {
     /// `None` for the road map.
     stream: Option<EdgeStream>,
@@ -85,7 +84,6 @@ impl StreamPublisher {
             .congestion_control(delivery.congestion)
             .cache(cache)
             .sample_miss_detection(MissDetectionConfig::default().heartbeat(HEARTBEAT_PERIOD))
-            .publisher_detection()
             .await
             .map_err(|e| TransportError::Declare { what: "publisher", key, reason: e.to_string() })?;
         Ok(StreamPublisher { stream, publisher })
@@ -149,7 +147,12 @@ impl StreamPublisher {
         }
     }
 
-    /// Undeclares the publisher.
+    /// Whether some subscriber matches this stream now.
+    async fn matched(&self) -> bool {
+        self.publisher.matching_status().await.is_ok_and(|s| s.matching())
+    }
+
+    /// Undeclares the publisher (its cache goes with it: see [`retire`]).
     pub async fn undeclare(self) -> Result<(), TransportError> {
         let key = self.key().to_owned();
         self.publisher.undeclare().await.map_err(|e| TransportError::Declare {
@@ -158,6 +161,24 @@ impl StreamPublisher {
             reason: e.to_string(),
         })
     }
+}
+
+/// Undeclares an edge's stream publishers once their caches have had [`EXIT_LINGER`] to answer
+/// the cloud (skipped when no subscriber matches any of them): a sample lost just before the
+/// edge stopped (a full link queue) is noticed by the cloud at the next heartbeat and fetched.
+pub async fn retire(publishers: impl IntoIterator<Item = StreamPublisher>) -> Result<(), TransportError> {
+    let publishers: Vec<StreamPublisher> = publishers.into_iter().collect();
+    let mut matched = false;
+    for publisher in &publishers {
+        matched = matched || publisher.matched().await;
+    }
+    if matched {
+        tokio::time::sleep(EXIT_LINGER).await;
+    }
+    for publisher in publishers {
+        publisher.undeclare().await?;
+    }
+    Ok(())
 }
 
 /// Declares the liveliness token of `source`: the cloud sees the edge as alive while it exists.

@@ -3,12 +3,15 @@
 //! counted per source and stream so that no loss is silent.
 
 use risktwin_transport::StreamLoss;
-use risktwin_transport::keyexpr::parse_edge_key;
+use risktwin_transport::keyexpr::{parse_edge_key, parse_edge_map_key};
 use std::collections::BTreeMap;
 
 /// The source (and stream) a loss is counted under when its key is not an edge stream, or
 /// unknown; not a valid source id, so it never mixes with an edge's count.
 pub const UNKNOWN: &str = "(unknown)";
+
+/// The stream name a road map's losses are counted under.
+const MAP: &str = "map";
 
 /// Lost samples per source, per stream.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -18,13 +21,15 @@ pub struct LossCounts {
 }
 
 impl LossCounts {
-    /// Counts `loss` under its edge stream's source and stream; a publisher of another key (a
-    /// road map) under `(unknown)` and its key; one whose key was never seen under `(unknown)` twice.
+    /// Counts `loss` under its edge stream's source and stream (a road map under its source and
+    /// `map`); a publisher of another key under `(unknown)` and its key; one whose key was
+    /// forgotten under `(unknown)` twice.
     pub fn record(&mut self, loss: &StreamLoss) {
         let (source, stream) = match loss.key.as_deref() {
-            Some(key) => match parse_edge_key(key) {
-                Some(parsed) => (parsed.source, parsed.stream.as_str()),
-                None => (UNKNOWN, key),
+            Some(key) => match (parse_edge_key(key), parse_edge_map_key(key)) {
+                (Some(parsed), _) => (parsed.source, parsed.stream.as_str()),
+                (None, Some((_, source))) => (source, MAP),
+                (None, None) => (UNKNOWN, key),
             },
             None => (UNKNOWN, UNKNOWN),
         };
@@ -57,12 +62,14 @@ mod tests {
         counts.record(&loss(Some("risktwin/v1/track/veh-1/can"), 2));
         counts.record(&loss(Some("risktwin/v1/track/veh-1/state"), 1));
         counts.record(&loss(Some("risktwin/v1/track/veh-1/map"), 4));
+        counts.record(&loss(Some("risktwin/v1/track/veh-1/other"), 6));
         counts.record(&loss(None, u32::MAX));
         let by = counts.by_source();
         assert_eq!(by["veh-1"]["can"], 5);
         assert_eq!(by["veh-1"]["state"], 1);
-        assert_eq!(by[UNKNOWN]["risktwin/v1/track/veh-1/map"], 4);
+        assert_eq!(by["veh-1"]["map"], 4);
+        assert_eq!(by[UNKNOWN]["risktwin/v1/track/veh-1/other"], 6);
         assert_eq!(by[UNKNOWN][UNKNOWN], u64::from(u32::MAX));
-        assert_eq!(counts.total(), 10 + u64::from(u32::MAX));
+        assert_eq!(counts.total(), 16 + u64::from(u32::MAX));
     }
 }

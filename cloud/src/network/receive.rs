@@ -73,13 +73,15 @@ pub struct IngestSummary {
     pub snapshot_digest: String,
     /// Samples lost for good on the way, per source, per stream: neither received nor
     /// recoverable from the edge's cache (an outage longer than it). Per stream,
-    /// `received + lost = sent` (see docs/keyexpr.md, "Surviving faults").
+    /// `received + lost = sent` while the edge and the cloud outlive the recovery (the exceptions:
+    /// docs/keyexpr.md, "Surviving faults").
     pub lost: BTreeMap<String, BTreeMap<String, u64>>,
     /// All lost samples.
     pub total_lost: u64,
     /// Sequence numbers each source skipped on a stream and never sent again, per source, per
     /// stream: the deduplicator's own count of what never arrived (it sees an edge's numbers,
-    /// where `lost` sees the transport's; both count the same gaps).
+    /// where `lost` sees the transport's: the same gaps for a live edge, plus what was numbered
+    /// before the first sample the cloud got; for a replay, the recording's own gaps too).
     pub presumed_lost: BTreeMap<String, BTreeMap<String, u64>>,
     /// All presumed-lost sequence numbers.
     pub total_presumed_lost: u64,

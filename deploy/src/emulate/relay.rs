@@ -11,6 +11,7 @@
 
 use super::histogram::Histogram;
 use crate::topology::Jitter;
+use bytes::{BufMut, Bytes, BytesMut};
 use risktwin_common::rng::Rng;
 use std::io;
 use std::net::SocketAddr;
@@ -25,7 +26,12 @@ use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
 /// Bytes read at most per chunk.
-const CHUNK_BYTES: usize = 16 * 1024;
+const CHUNK_BYTES: usize = 64 * 1024;
+
+/// A direction's read buffer: chunks are split off it without a copy and share its memory, so
+/// a chunk of a few bytes holds a few bytes, not a chunk's worth; it is reused once every chunk
+/// cut from it was written.
+const BUFFER_BYTES: usize = 4 * CHUNK_BYTES;
 
 /// What a link does to the bytes crossing it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -144,20 +150,22 @@ async fn direction(
         LinkState::Partitioned => CHUNK_BYTES,
     };
     let room = Arc::new(Semaphore::new(queue_bytes));
-    let (tx, mut rx) = mpsc::unbounded_channel::<(Instant, Instant, Vec<u8>)>();
+    let (tx, mut rx) = mpsc::unbounded_channel::<(Instant, Instant, Bytes)>();
     let reader = {
         let (room, state) = (Arc::clone(&room), state.clone());
         async move {
             let mut last_release = Instant::now();
+            let mut buffer = BytesMut::with_capacity(BUFFER_BYTES);
             loop {
                 let Ok(permit) = Arc::clone(&room).acquire_many_owned(CHUNK_BYTES as u32).await else { return };
-                let mut chunk = vec![0; CHUNK_BYTES];
-                let n = match from.read(&mut chunk).await {
+                buffer.reserve(CHUNK_BYTES);
+                // Into the buffer's spare room (never zeroed), at most the bytes reserved.
+                let n = match from.read_buf(&mut (&mut buffer).limit(CHUNK_BYTES)).await {
                     Ok(0) | Err(_) => return,
                     Ok(n) => n,
                 };
                 let read_at = Instant::now();
-                chunk.truncate(n);
+                let chunk = buffer.split().freeze();
                 // Only the bytes read stay reserved.
                 permit.forget();
                 room.add_permits(CHUNK_BYTES - n);

@@ -1,6 +1,6 @@
 //! What a deployment shows: `status.json` while it runs, and on its end a report (`report.json`
 //! and `report.md`) that also records how the run was made — per link the delay measured in
-//! its relays against the configured one, per edge and stream sent / received / missing, each
+//! its relays against the configured one, per edge and stream sent / received / lost / missing, each
 //! process's restarts, the event timeline.
 
 use super::deployment::{HopView, Options};
@@ -58,7 +58,11 @@ pub struct StreamReport {
     pub stream: String,
     pub sent: u64,
     pub received: u64,
-    /// sent − received (negative: received more, e.g. a restarted edge's earlier incarnation).
+    /// Counted lost by the cloud: neither received nor recoverable from the edge's cache.
+    pub lost: u64,
+    /// sent − received − lost: not accounted for (an edge that ended during an outage, a cloud
+    /// that stopped mid-recovery); negative: received more, e.g. a restarted edge's earlier
+    /// incarnation.
     pub missing: i64,
     /// False when an incarnation of the edge ended without its summary (killed, crashed):
     /// what it sent is not known.
@@ -129,6 +133,7 @@ impl Report {
             .collect();
         let mut sent: BTreeMap<(String, String), (u64, bool)> = BTreeMap::new();
         let mut received: BTreeMap<(String, String), u64> = BTreeMap::new();
+        let mut lost: BTreeMap<(String, String), u64> = BTreeMap::new();
         let mut cloud_dropped = BTreeMap::new();
         let mut received_complete = true;
         for (p, s) in processes {
@@ -152,9 +157,11 @@ impl Report {
             if p.role == "cloud" {
                 received_complete &= complete;
                 for doc in &docs {
-                    for (source, streams) in doc["received"].as_object().into_iter().flatten() {
-                        for (stream, n) in streams.as_object().into_iter().flatten() {
-                            *received.entry((source.clone(), stream.clone())).or_default() += n.as_u64().unwrap_or(0);
+                    for (field, into) in [("received", &mut received), ("lost", &mut lost)] {
+                        for (source, streams) in doc[field].as_object().into_iter().flatten() {
+                            for (stream, n) in streams.as_object().into_iter().flatten() {
+                                *into.entry((source.clone(), stream.clone())).or_default() += n.as_u64().unwrap_or(0);
+                            }
                         }
                     }
                     for (reason, n) in doc["dropped"].as_object().into_iter().flatten() {
@@ -163,18 +170,21 @@ impl Report {
                 }
             }
         }
-        let keys: std::collections::BTreeSet<(String, String)> = sent.keys().chain(received.keys()).cloned().collect();
+        let keys: std::collections::BTreeSet<(String, String)> =
+            sent.keys().chain(received.keys()).chain(lost.keys()).cloned().collect();
         let streams = keys
             .into_iter()
             .map(|key| {
                 let (n_sent, complete) = sent.get(&key).copied().unwrap_or((0, false));
                 let n_received = received.get(&key).copied().unwrap_or(0);
+                let n_lost = lost.get(&key).copied().unwrap_or(0);
                 StreamReport {
                     source: key.0,
                     stream: key.1,
                     sent: n_sent,
                     received: n_received,
-                    missing: n_sent as i64 - n_received as i64,
+                    lost: n_lost,
+                    missing: n_sent as i64 - n_received as i64 - n_lost as i64,
                     sent_complete: complete,
                     received_complete,
                 }
@@ -247,16 +257,17 @@ impl Report {
             );
         }
         let _ = writeln!(md, "\n## Edge streams\n");
-        let _ = writeln!(md, "| source | stream | sent | received | missing | sent known |");
-        let _ = writeln!(md, "|---|---|---|---|---|---|");
+        let _ = writeln!(md, "| source | stream | sent | received | lost | missing | sent known |");
+        let _ = writeln!(md, "|---|---|---|---|---|---|---|");
         for s in &self.streams {
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} |",
                 s.source,
                 s.stream,
                 s.sent,
                 s.received,
+                s.lost,
                 s.missing,
                 if s.sent_complete { "yes" } else { "no" }
             );

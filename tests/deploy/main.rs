@@ -170,13 +170,14 @@ fn link<'a>(report: &'a Value, name: &str) -> &'a Value {
     report["links"].as_array().expect("links").iter().find(|l| l["name"] == name).expect("the link is reported")
 }
 
-/// Every stream of every edge: sent > 0 and received = sent.
+/// Every stream of every edge: sent > 0 and received = sent (nothing lost, nothing missing).
 fn assert_nothing_missing(report: &Value, streams: usize) {
     let all = report["streams"].as_array().expect("streams");
     assert_eq!(all.len(), streams, "{all:#?}");
     for s in all {
         assert!(s["sent"].as_u64().expect("sent") > 0, "{s}");
         assert_eq!(s["received"], s["sent"], "{s}");
+        assert_eq!((&s["lost"], &s["missing"]), (&Value::from(0), &Value::from(0)), "{s}");
         assert_eq!((&s["sent_complete"], &s["received_complete"]), (&Value::Bool(true), &Value::Bool(true)), "{s}");
     }
 }
@@ -190,6 +191,9 @@ fn three_hosts_over_a_20_ms_link_lose_nothing_and_see_its_delay() {
         "three hosts and two site routers, each in its namespace (CI runs as root): {}",
         report["machines"]
     );
+    // How the run was made: the commit the binary was built from (a git checkout, as in CI).
+    let commit = report["commit"].as_str().expect("commit");
+    assert!(commit.len() == 40 && commit.chars().all(|c| c.is_ascii_hexdigit()), "commit {commit}");
     let wan = link(&report, "edge-cloud");
     let p50 = wan["measured_p50_ms"].as_f64().expect("bytes crossed the link");
     // 20 ms plus the timer's rounding up; the tight figure is the benchmark's.
@@ -231,6 +235,68 @@ fn a_partition_of_the_edge_site_holds_its_data_until_the_heal() {
     // Bytes read at the start of the partition waited through it.
     let p99 = wan["measured_p99_ms"].as_f64().expect("bytes crossed");
     assert!(p99 > 1_000.0, "the link held data through the partition: p99 {p99} ms, {wan}");
+    assert_nothing_missing(&report, 5);
+    assert_eq!(d.leftovers(), Vec::<String>::new());
+}
+
+/// The edge site's router runs on a host of its own, which the schedule restarts mid-run.
+const ROUTER_RESTART: &str = r#"
+[[site]]
+name = "cloud"
+
+[[site]]
+name = "edge"
+
+[[host]]
+name = "cloud-0"
+site = "cloud"
+run = [{ role = "cloud", args = ["--roles", "ingest"] }]
+
+[[host]]
+name = "edge-gw"
+site = "edge"
+run = [{ role = "router" }]
+
+[[host]]
+name = "car-1"
+site = "edge"
+run = [{ role = "vehicle", args = ["--count", "400", "--rate-hz", "50"] }]
+
+[[host]]
+name = "rsu-1"
+site = "edge"
+run = [{ role = "rsu", args = ["--count", "80"] }]
+
+[[link]]
+between = ["edge", "cloud"]
+latency_ms = 5
+
+[[event]]
+at_s = 2
+restart = "edge-gw/router"
+"#;
+
+#[test]
+fn a_router_restart_mid_run_loses_nothing_and_its_clients_are_back_within_2_s() {
+    let d = Deployment::new(ROUTER_RESTART);
+    let report = d.run("60s");
+    let restarted = report["timeline"]
+        .as_array()
+        .expect("timeline")
+        .iter()
+        .find(|e| e["what"] == "restart edge-gw/router")
+        .and_then(|e| e["at_s"].as_f64())
+        .unwrap_or_else(|| panic!("the router was restarted: {}", report["timeline"]));
+    for host in ["car-1", "rsu-1"] {
+        let hop = link(&report, &format!("lan:{host}"));
+        let times: Vec<f64> =
+            hop["connected_at_s"].as_array().expect("times").iter().filter_map(Value::as_f64).collect();
+        let back = times.iter().find(|t| **t > restarted).unwrap_or_else(|| panic!("{host} reconnected: {hop}"));
+        // The 2 s target plus slack for a loaded 2-core machine (measured: see docs/results.md).
+        assert!(back - restarted < 3.0, "{host} back {:.2} s after the router's restart: {hop}", back - restarted);
+        eprintln!("{host}: reconnected {:.2} s after the router's restart", back - restarted);
+    }
+    // What the edges published while their router was down came out of their caches.
     assert_nothing_missing(&report, 5);
     assert_eq!(d.leftovers(), Vec::<String>::new());
 }

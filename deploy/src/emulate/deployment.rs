@@ -421,7 +421,7 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
     note("stopped".into());
     let views = hop_views(&hops);
     drop(relays);
-    let report = Report::build(o, &net, ran, &processes, &views, timeline);
+    let report = Report::build(o, &net, begun, ran, &processes, &views, timeline);
     Ok(report)
 }
 

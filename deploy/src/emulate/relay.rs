@@ -15,8 +15,8 @@ use bytes::{BufMut, Bytes, BytesMut};
 use risktwin_common::rng::Rng;
 use std::io;
 use std::net::SocketAddr;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
@@ -67,6 +67,22 @@ pub struct RelayCounts {
     pub bytes: [AtomicU64; 2],
     /// Each chunk's time in the link, read to written, µs: the delay it measurably got.
     pub delay_us: Histogram,
+    /// When each connection was made (the first [`MAX_CONNECTION_TIMES`]): a reconnection after
+    /// a router restart or a partition shows when the flow could resume.
+    pub connected_at: Mutex<Vec<std::time::Instant>>,
+}
+
+/// Connection times kept per link (reconnections are rare; this bounds a flapping link).
+pub const MAX_CONNECTION_TIMES: usize = 1000;
+
+impl RelayCounts {
+    fn connected(&self) {
+        self.connections.fetch_add(1, Ordering::Relaxed);
+        let mut times = self.connected_at.lock().unwrap_or_else(PoisonError::into_inner);
+        if times.len() < MAX_CONNECTION_TIMES {
+            times.push(std::time::Instant::now());
+        }
+    }
 }
 
 /// A running relay. Dropping it stops it and every connection it carries.
@@ -123,7 +139,7 @@ async fn accept(
             counts.refused.fetch_add(1, Ordering::Relaxed);
             continue;
         };
-        counts.connections.fetch_add(1, Ordering::Relaxed);
+        counts.connected();
         let _ = (inbound.set_nodelay(true), outbound.set_nodelay(true));
         let (in_read, in_write) = inbound.into_split();
         let (out_read, out_write) = outbound.into_split();

@@ -14,8 +14,9 @@ use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
+use std::sync::PoisonError;
 use std::sync::atomic::Ordering;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 #[derive(Debug, Clone, Serialize)]
 pub struct TimelineEntry {
@@ -41,6 +42,8 @@ pub struct LinkReport {
     /// Both directions over the run, Mbit/s.
     pub mean_mbps: f64,
     pub connections: u64,
+    /// When each connection was made, seconds into the run (the first 1000).
+    pub connected_at_s: Vec<f64>,
     pub refused: u64,
 }
 
@@ -105,6 +108,7 @@ impl Report {
     pub(super) fn build(
         o: &Options,
         net: &Net,
+        begun: Instant,
         ran: Duration,
         processes: &[(Planned, Supervised)],
         hops: &[HopView],
@@ -127,6 +131,14 @@ impl Report {
                     bytes_down: bytes[1],
                     mean_mbps: (bytes[0] + bytes[1]) as f64 * 8.0 / ran.as_secs_f64().max(1e-9) / 1e6,
                     connections: h.counts.connections.load(Ordering::Relaxed),
+                    connected_at_s: h
+                        .counts
+                        .connected_at
+                        .lock()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .iter()
+                        .map(|t| t.saturating_duration_since(begun).as_secs_f64())
+                        .collect(),
                     refused: h.counts.refused.load(Ordering::Relaxed),
                 }
             })
@@ -192,7 +204,7 @@ impl Report {
             .collect();
         Report {
             version: env!("CARGO_PKG_VERSION"),
-            commit: option_env!("RISKTWIN_COMMIT").unwrap_or("unknown"),
+            commit: env!("RISKTWIN_COMMIT"),
             topology_file: o.file.display().to_string(),
             topology_digest: format!("{:016x}", fnv1a64(o.text.bytes())),
             seed: o.seed,

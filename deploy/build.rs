@@ -1,5 +1,6 @@
 //! Stamps the binary with the commit it was built from (`RISKTWIN_COMMIT`, recorded in every
-//! deployment report); "unknown" outside a git checkout. Rebuilt when the checkout's HEAD moves.
+//! deployment report): `RISKTWIN_COMMIT` if the build is given one, else the checkout's HEAD,
+//! else "unknown". Rebuilt when the checkout's HEAD moves.
 
 use std::process::Command;
 
@@ -10,10 +11,14 @@ fn git(args: &[&str]) -> Option<String> {
 }
 
 fn main() {
-    let commit = git(&["rev-parse", "HEAD"]).unwrap_or_else(|| "unknown".to_owned());
+    // A build without the checkout (a container, a source archive) may say it.
+    println!("cargo:rerun-if-env-changed=RISKTWIN_COMMIT");
+    let given = std::env::var("RISKTWIN_COMMIT").ok().filter(|c| !c.is_empty());
+    let commit = given.or_else(|| git(&["rev-parse", "HEAD"])).unwrap_or_else(|| "unknown".to_owned());
     println!("cargo:rustc-env=RISKTWIN_COMMIT={commit}");
-    // HEAD, the branch it names and the packed refs: any commit or checkout changes one of them.
-    let mut watched = vec!["HEAD".to_owned(), "packed-refs".to_owned()];
+    // HEAD's log is written by every commit, checkout and reset (also when the branch's ref is
+    // packed); HEAD, the branch it names and the packed refs in case the log is off.
+    let mut watched = vec!["logs/HEAD".to_owned(), "HEAD".to_owned(), "packed-refs".to_owned()];
     watched.extend(git(&["symbolic-ref", "-q", "HEAD"]));
     for path in watched {
         // A path that does not exist would make cargo run this on every build.

@@ -2,6 +2,7 @@
 //! capture jitter, so that the cloud has real clock differences to estimate and align.
 
 use risktwin_common::rng::Rng;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// How an edge's clock differs from true time.
@@ -38,6 +39,11 @@ impl EdgeClock {
         EdgeClock { model, epoch_ns, rng: Rng::new(model.seed) }
     }
 
+    /// Steps the clock by `by_ns` (a host's clock set by hand or by a time server).
+    pub fn step(&mut self, by_ns: i64) {
+        self.model.offset_ns = self.model.offset_ns.saturating_add(by_ns);
+    }
+
     /// The edge's reading at `elapsed` true time, without jitter (publish stamps).
     pub fn now_ns(&self, elapsed: Duration) -> i64 {
         let elapsed_ns = elapsed.as_nanos() as f64;
@@ -54,6 +60,48 @@ impl EdgeClock {
             0
         };
         self.now_ns(elapsed).saturating_add(jitter_ns)
+    }
+}
+
+/// How often an edge looks for new clock steps.
+pub const CLOCK_STEPS_EVERY: Duration = Duration::from_millis(100);
+
+/// The clock steps of a file that grows by lines (one signed number of ms each): a deployment
+/// appends one per `clock_step` event of the host, and every edge process of the host follows
+/// them all, one started after a step too. A line that is not a number within ± a day is logged
+/// and skipped; a file that cannot be read yet has no steps.
+#[derive(Debug)]
+pub struct ClockSteps {
+    path: PathBuf,
+    /// Bytes of whole lines read so far.
+    read: usize,
+}
+
+/// The largest step taken, ms (a day).
+const MAX_STEP_MS: f64 = 86_400_000.0;
+
+impl ClockSteps {
+    pub fn new(path: &Path) -> Self {
+        ClockSteps { path: path.to_owned(), read: 0 }
+    }
+
+    /// The sum of the steps appended since the last call, ns.
+    pub fn read_new(&mut self) -> i64 {
+        let Ok(text) = std::fs::read_to_string(&self.path) else { return 0 };
+        let Some(fresh) = text.get(self.read..) else { return 0 };
+        // Only whole lines: the writer may be half-way through one.
+        let Some(end) = fresh.rfind('\n') else { return 0 };
+        self.read += end + 1;
+        let mut by_ns = 0i64;
+        for line in fresh[..end].lines().map(str::trim).filter(|l| !l.is_empty()) {
+            match line.parse::<f64>() {
+                Ok(ms) if ms.is_finite() && ms.abs() <= MAX_STEP_MS => {
+                    by_ns = by_ns.saturating_add((ms * 1e6).round() as i64);
+                }
+                _ => tracing::warn!("{}: {line:?} is not a clock step in ms (± a day), skipped", self.path.display()),
+            }
+        }
+        by_ns
     }
 }
 
@@ -84,5 +132,23 @@ mod tests {
             moved |= sa != base;
         }
         assert!(moved, "jitter never moved a stamp");
+    }
+
+    #[test]
+    fn steps_are_read_as_whole_lines_as_they_are_appended() {
+        let dir = tempfile::tempdir().expect("a temp dir");
+        let path = dir.path().join("clock-steps");
+        let mut steps = ClockSteps::new(&path);
+        assert_eq!(steps.read_new(), 0, "no file yet: no step");
+        std::fs::write(&path, "500\n-20.5\n").expect("writes");
+        assert_eq!(steps.read_new(), 479_500_000);
+        assert_eq!(steps.read_new(), 0, "each step once");
+        std::fs::write(&path, "500\n-20.5\nnonsense\n1e12\n7").expect("writes");
+        assert_eq!(steps.read_new(), 0, "bad lines skipped, a half line waits");
+        std::fs::write(&path, "500\n-20.5\nnonsense\n1e12\n7\n").expect("writes");
+        assert_eq!(steps.read_new(), 7_000_000);
+        let mut clock = EdgeClock::new(ClockModel::default(), 0);
+        clock.step(2_000_000);
+        assert_eq!(clock.now_ns(Duration::from_secs(1)), 1_002_000_000);
     }
 }

@@ -4,7 +4,7 @@
 //! shutdown ends it. Between ticks the producer is handed the cloud's pushes on its own keys
 //! (`risktwin/v1/<site>/<id>/{scenario,policy,…}`) and its reports about them are published.
 
-use crate::clock::{ClockModel, EdgeClock};
+use crate::clock::{CLOCK_STEPS_EVERY, ClockModel, ClockSteps, EdgeClock};
 use crate::error::EdgeError;
 use crate::summary::SentSummary;
 use risktwin_common::telemetry::{Frame, Header};
@@ -43,6 +43,8 @@ pub struct EdgeConfig {
     /// The longest outage (router restart, partition) the streams survive: each keeps its last
     /// rate × this many samples for the cloud to fetch (`risktwin_transport::recovery`).
     pub cache_span: Duration,
+    /// A file of clock steps the edge clock follows ([`ClockSteps`]).
+    pub clock_steps: Option<std::path::PathBuf>,
     /// The scenario the edge's world is sampled from.
     pub kind: risktwin_common::scenario::ScenarioKind,
     /// Run seed of the scenario sample.
@@ -62,6 +64,7 @@ impl EdgeConfig {
             clock: ClockModel::default(),
             wait_for_cloud: Duration::from_secs(10),
             cache_span: DEFAULT_OUTAGE,
+            clock_steps: None,
             kind: risktwin_common::scenario::ScenarioKind::CutIn,
             scenario_seed: 0,
         }
@@ -198,6 +201,8 @@ pub async fn run_producer(
     let deadline = config.duration.map(|d| start + d);
     let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
     let mut clock = EdgeClock::new(config.clock, epoch_ns);
+    let mut steps = config.clock_steps.as_deref().map(ClockSteps::new);
+    let mut steps_read = start;
     let mut seq = [0u64; EdgeStream::ALL.len()];
     let mut sent = [0u64; EdgeStream::ALL.len()];
     let base = streams[0].index();
@@ -220,7 +225,18 @@ pub async fn run_producer(
                 _ = stop.wait() => break,
             }
         }
-        let elapsed = Instant::now().duration_since(start);
+        let now = Instant::now();
+        if let Some(steps) = steps.as_mut()
+            && (tick == 0 || now.duration_since(steps_read) >= CLOCK_STEPS_EVERY)
+        {
+            steps_read = now;
+            let by_ns = steps.read_new();
+            if by_ns != 0 {
+                clock.step(by_ns);
+                tracing::info!("edge {}: clock stepped by {} ms", config.id, by_ns as f64 / 1e6);
+            }
+        }
+        let elapsed = now.duration_since(start);
         let mut stamper = Stamper {
             source: config.id.as_str(),
             seq: &mut seq,

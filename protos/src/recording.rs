@@ -7,7 +7,9 @@
 //! [`Recorder::record`] encodes a domain message first.
 
 use crate::WireMessage;
-use crate::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE, risk_grid, vehicle_boxes};
+use crate::convert::foxglove::{
+    FOXGLOVE_GRID, FOXGLOVE_LOG, FOXGLOVE_SCENE_UPDATE, risk_grid, timestamp, vehicle_boxes,
+};
 use risktwin_common::telemetry::{RiskField, VehicleStateSample};
 use std::collections::BTreeMap;
 use std::collections::HashMap;
@@ -109,6 +111,30 @@ impl<W: Write + Seek> Recorder<W> {
     pub fn record_risk_grid(&mut self, topic: &str, time_ns: u64, field: &RiskField) -> Result<(), RecordingError> {
         let channel = self.channel(topic, FOXGLOVE_GRID)?;
         self.write(channel, time_ns, time_ns, &prost::Message::encode_to_vec(&risk_grid(field)))
+    }
+
+    /// Appends a generated message (`schema_name`: its full name in this crate's protos).
+    pub fn record_proto<M: prost::Message>(
+        &mut self,
+        topic: &str,
+        schema_name: &'static str,
+        time_ns: u64,
+        message: &M,
+    ) -> Result<(), RecordingError> {
+        let channel = self.channel(topic, schema_name)?;
+        self.write(channel, time_ns, time_ns, &message.encode_to_vec())
+    }
+
+    /// Appends a `foxglove.Log` line from `name` (Foxglove's Log panel lists them).
+    pub fn record_log(&mut self, topic: &str, time_ns: u64, name: &str, message: &str) -> Result<(), RecordingError> {
+        let log = crate::foxglove::Log {
+            timestamp: Some(timestamp(time_ns as i64)),
+            level: crate::foxglove::log::Level::Info as i32,
+            message: message.to_owned(),
+            name: name.to_owned(),
+            ..Default::default()
+        };
+        self.record_proto(topic, FOXGLOVE_LOG, time_ns, &log)
     }
 
     /// Writes the summary and footer: after this the file is complete and indexed.

@@ -7,7 +7,9 @@
 //!   samples of that publisher are held back until the answer is in, then delivered in order;
 //! - the miss listener: what the cache no longer held is reported as a [`StreamLoss`].
 //!
-//! No `history`: a publisher is never asked for its whole cache. With
+//! No `history`: a publisher that appears is not asked for its cache (one exception: zenoh-ext
+//! asks for everything up to a heartbeat that reaches a new subscriber before any sample of
+//! its publisher; docs/keyexpr.md, "Surviving faults"). With
 //! `history(detect_late_publishers)`, zenoh-ext 1.10.2 re-sends every reappearing publisher's
 //! whole cache after each reconnection (no `_sn` range), and while its cache answers, the
 //! publisher's puts wait on the cache lock (the edge's tick loop with them); a cloud that starts

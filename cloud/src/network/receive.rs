@@ -11,6 +11,7 @@
 
 use super::loss::LossCounts;
 use crate::ingest::{IngestStats, IngestWorker, ObservedKinematics, SnapshotDigest};
+use crate::twin::fidelity::distribution::Distribution;
 use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
 use crate::twin::watch::{WatchCounts, WatchedEpisode};
@@ -36,6 +37,9 @@ const STREAMS: usize = EdgeStream::ALL.len();
 
 /// Sources whose wrong-schema samples are logged; beyond, they are only counted.
 const MAX_LOGGED: usize = 100;
+
+/// The twin lag's histogram bin, s.
+const LAG_BIN_S: f64 = 1e-3;
 
 /// One message of a scene's ground truth.
 #[derive(Debug, Clone, PartialEq)]
@@ -71,6 +75,10 @@ pub struct IngestSummary {
     pub late_dropped: u64,
     /// FNV-1a digest of every emitted snapshot (tick, statuses, pose bits), 16 hex digits.
     pub snapshot_digest: String,
+    /// How far each snapshot's tick (what the twin shows) lay behind the cloud's clock when it
+    /// was emitted: the alignment's wait for late samples and the streams' delay beyond their
+    /// least (the clock mapping absorbs a source's constant delay: edge clocks are not trusted).
+    pub twin_lag: LagSummary,
     /// Samples lost for good on the way, per source, per stream: neither received nor
     /// recoverable from the edge's cache (an outage longer than it). Per stream,
     /// `received + lost = sent` while the edge and the cloud outlive the recovery (the exceptions:
@@ -85,6 +93,23 @@ pub struct IngestSummary {
     pub presumed_lost: BTreeMap<String, BTreeMap<String, u64>>,
     /// All presumed-lost sequence numbers.
     pub total_presumed_lost: u64,
+}
+
+/// A lag's distribution, µs (the 95th percentile to 1 ms, exact up to 2 s).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
+pub struct LagSummary {
+    pub n: u64,
+    pub mean_us: u64,
+    pub p95_us: u64,
+    pub max_us: u64,
+}
+
+impl LagSummary {
+    fn of(d: &Distribution) -> LagSummary {
+        let s = d.stats();
+        let us = |x: f64| (x * 1e6).round() as u64;
+        LagSummary { n: s.n, mean_us: us(s.mean), p95_us: us(s.p95), max_us: us(s.max) }
+    }
 }
 
 /// Why the recording failed.
@@ -137,6 +162,8 @@ pub struct LiveIngest {
     /// Where finished episodes go (the loop role), when it runs.
     episodes: Option<UnboundedSender<WatchedEpisode>>,
     digest: SnapshotDigest,
+    /// Each emitted snapshot's lag behind the cloud's clock, s.
+    lag: Distribution,
     last_receive_ns: i64,
     last_sample: Option<Instant>,
     /// Replay-ingest mode: receive times come from the messages' replay-time attachments.
@@ -180,6 +207,7 @@ impl LiveIngest {
             publish: None,
             episodes: None,
             digest: SnapshotDigest::default(),
+            lag: Distribution::new(LAG_BIN_S),
             last_receive_ns: i64::MIN,
             last_sample: None,
             replay_time: false,
@@ -282,10 +310,12 @@ impl LiveIngest {
             return Ok(());
         }
         let digest = &mut self.digest;
+        let lag = &mut self.lag;
         let mut outputs = self.outputs.as_mut();
         let mut ticked = false;
         let accepted = self.worker.handle(parsed.source, parsed.stream, key, payload, receive_ns, |s| {
             digest.add(s);
+            lag.add(receive_ns.saturating_sub(s.tick_ns).max(0) as f64 * 1e-9);
             if let Some(outputs) = outputs.as_mut() {
                 outputs.apply(s);
                 ticked = true;
@@ -454,6 +484,7 @@ impl LiveIngest {
             file.flush().map_err(RecordError::Flush)?;
         }
         let mut summary = summarize(&stats, &self.received, &self.digest);
+        summary.twin_lag = LagSummary::of(&self.lag);
         summary.lost = self.losses.by_source().clone();
         summary.total_lost = self.losses.total();
         summary.total_presumed_lost = presumed_lost.values().flat_map(BTreeMap::values).sum();

@@ -89,6 +89,9 @@ pub struct IngestCore<T> {
     cfg: IngestConfig,
     dedup: Deduper,
     clocks: Vec<ClockEstimator>,
+    /// Per source: it left ([`IngestCore::restart_source`]) and its clock estimate goes at the
+    /// first sign of a new incarnation (on any of its streams: once, not once per stream).
+    clock_stale: Vec<bool>,
     future_streak: Vec<u32>,
     aligner: Aligner<T>,
     drops: DropCounts,
@@ -111,6 +114,7 @@ impl<T: Clone> IngestCore<T> {
             cfg,
             dedup: Deduper::new(cfg.dedup),
             clocks: Vec::new(),
+            clock_stale: Vec::new(),
             future_streak: Vec::new(),
             aligner,
             drops: DropCounts::default(),
@@ -155,10 +159,11 @@ impl<T: Clone> IngestCore<T> {
             self.future_streak.resize(s + 1, 0);
         }
         let clock = &mut self.clocks[s];
-        if self.dedup.counts(key).restarts != restarts {
+        if self.dedup.counts(key).restarts != restarts && self.clock_stale.get(s).copied().unwrap_or(false) {
             // A new process under the source's name: its clock is not the last one's.
             clock.reset();
             self.future_streak[s] = 0;
+            self.clock_stale[s] = false;
         }
         clock.roll_to(msg.receive_ns);
         let mut mapped = clock.to_cloud_ns(msg.capture_ns);
@@ -186,6 +191,13 @@ impl<T: Clone> IngestCore<T> {
     /// cache arrive late, and an estimate anchored on them would map its live samples into the
     /// future.
     pub fn restart_source(&mut self, source: SourceIndex) {
+        let s = source.as_usize();
+        if s < self.cfg.align.max_sources {
+            if s >= self.clock_stale.len() {
+                self.clock_stale.resize(s + 1, false);
+            }
+            self.clock_stale[s] = true;
+        }
         match self.cfg.sequence_scope {
             SequenceScope::PerSource => self.dedup.restart(source),
             SequenceScope::PerStream => {

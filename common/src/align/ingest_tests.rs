@@ -147,6 +147,26 @@ fn a_source_back_from_an_outage_keeps_its_clock_and_a_restarted_one_gets_a_new_e
 }
 
 #[test]
+fn a_new_incarnation_drops_the_clock_estimate_once_not_once_per_stream() {
+    let mut c = core();
+    let mut t = T0_NS;
+    for seq in 0..20 {
+        c.ingest(msg(seq, t, t + MS), |_| {}).expect("steady source");
+        t += 20 * MS;
+    }
+    c.restart_source(SourceIndex(0));
+    // The new process numbers from 0 on every stream, its clock 5 s ahead.
+    let ahead = 5_000 * MS;
+    let first = c.ingest(msg(0, t + ahead, t + MS), |_| {}).expect("the new incarnation's first");
+    assert_eq!(first.cloud_ns, t + MS, "anchored at its receive time");
+    // Its second stream's first sample, 20 ms later on its clock, 30 ms slower on the way:
+    // mapped through the new estimate, not anchored again at its own receive time.
+    let other = Incoming { stream: StreamIndex(1), ..msg(0, t + ahead + 20 * MS, t + 51 * MS) };
+    let second = c.ingest(other, |_| {}).expect("the second stream's first");
+    assert_eq!(second.cloud_ns, t + 21 * MS, "one estimate for the whole source");
+}
+
+#[test]
 fn unknown_streams_are_refused_before_sequence_accounting() {
     let mut c = core();
     let bad = Incoming { stream: StreamIndex(7), ..msg(0, T0_NS, T0_NS) };

@@ -101,6 +101,11 @@ pub struct EdgeArgs {
     /// partition): a longer outage loses its oldest samples, counted by the cloud as `lost`.
     #[arg(long, default_value_t = 30.0)]
     pub cache_s: f64,
+    /// A file of clock steps, one signed number of ms per line: those in it at the start and
+    /// each one appended later (read every 100 ms) step the edge clock (a deployment's
+    /// `clock_step` events write it).
+    #[arg(long)]
+    pub clock_steps: Option<std::path::PathBuf>,
 }
 
 #[derive(Debug, Args)]

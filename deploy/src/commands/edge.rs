@@ -86,5 +86,6 @@ fn edge_config(args: EdgeArgs, default_rate_hz: f64) -> CliResult<EdgeConfig> {
     config.scenario_seed = args.seed;
     config.wait_for_cloud = seconds("--wait-for-cloud-s", args.wait_for_cloud_s)?;
     config.cache_span = seconds("--cache-s", args.cache_s)?;
+    config.clock_steps = args.clock_steps;
     Ok(config)
 }

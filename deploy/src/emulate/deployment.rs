@@ -6,12 +6,14 @@
 //! ([`Teardown`]), and a later `deploy down` finds anything a crash left by its tag.
 
 use super::net::{Net, sweep};
-use super::plan::{Hop, Planned, argv, is_edge, plan};
+use super::network_log::NetworkLog;
+use super::plan::{CLOCK_STEPS_FILE, Hop, Planned, argv, is_edge, plan};
 use super::relay::{self, LinkShape, LinkState, Relay, RelayCounts};
 use super::report::{self, Report, TimelineEntry};
 use super::supervise::Supervised;
 use crate::topology::{Action, Link, Topology};
 use risktwin_common::digest::fnv1a64;
+use std::cell::RefCell;
 use std::io::Write as _;
 use std::net::{Ipv4Addr, SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
@@ -179,15 +181,17 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
     // What a crashed run of the same file left goes first (the caller holds its lock: no
     // supervisor of it runs), and so does an earlier run's output.
     sweep(&tag);
-    for old in ["hosts", "status.json", "report.json", "report.md", "topology.toml"] {
+    for old in ["hosts", "status.json", "report.json", "report.md", "topology.toml", "network.mcap"] {
         let path = o.out.join(old);
         let _ = if path.is_dir() { std::fs::remove_dir_all(path) } else { std::fs::remove_file(path) };
     }
     let begun = Instant::now();
+    let network = RefCell::new(NetworkLog::create(&o.out.join("network.mcap")).map_err(runtime)?);
     let mut timeline: Vec<TimelineEntry> = Vec::new();
     let mut note = |what: String| {
         // stderr may be gone (a closed pipe): the deployment goes on and tears down all the same.
         let _ = writeln!(std::io::stderr(), "{:7.2} s  {what}", begun.elapsed().as_secs_f64());
+        network.borrow_mut().note(&what);
         timeline.push(TimelineEntry { at_s: begun.elapsed().as_secs_f64(), what });
     };
     let names: Vec<String> = plan.machines.iter().map(|m| m.name.clone()).collect();
@@ -302,7 +306,9 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
             ended_by = "every edge process ending";
             break;
         }
+        let mut changed = now - last_status >= STATUS_EVERY;
         while let Some(e) = events.next_if(|e| e.at <= at) {
+            changed = true;
             match &e.action {
                 Action::Partition { links, hosts } => {
                     let cut: Vec<usize> = links
@@ -362,12 +368,19 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
                         }
                     }
                 }
-                // Refused before the start (`risktwin deploy` exits 2).
-                Action::ClockStep { .. } => note("clock_step is not carried out".into()),
+                Action::ClockStep { host, by_ms } => {
+                    let name = &t.hosts[*host].name;
+                    let file = o.out.join("hosts").join(name).join(CLOCK_STEPS_FILE);
+                    match append_line(&file, &format!("{by_ms}")) {
+                        Ok(()) => note(format!("clock_step {name}: {by_ms:+} ms")),
+                        Err(e) => note(format!("clock_step {name}: {e}")),
+                    }
+                }
             }
         }
         undo.sort_by_key(|(t, _)| *t);
         while undo.first().is_some_and(|(t, _)| *t <= at) {
+            changed = true;
             match undo.remove(0).1 {
                 Undo::Heal(cut) => {
                     for &k in &cut {
@@ -395,6 +408,9 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
                 note(what);
             }
         }
+        if changed {
+            network.borrow_mut().links(&hop_views(&hops));
+        }
         if now - last_status >= STATUS_EVERY {
             last_status = now;
             let status = report::status(&tag, &net, at, &processes, &hop_views(&hops));
@@ -420,22 +436,39 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
     }
     note("stopped".into());
     let views = hop_views(&hops);
+    network.borrow_mut().links(&views);
+    network.into_inner().finish();
     drop(relays);
     let report = Report::build(o, &net, begun, ran, &processes, &views, timeline);
     Ok(report)
+}
+
+/// Appends `line` to `file`: each of the host's edges reads what was appended (a host's clock
+/// steps; `risktwin edge … --clock-steps`).
+fn append_line(file: &Path, line: &str) -> std::io::Result<()> {
+    let mut f = std::fs::OpenOptions::new().create(true).append(true).open(file)?;
+    f.write_all(format!("{line}\n").as_bytes())
 }
 
 /// What the report and the status show of a hop.
 pub struct HopView {
     pub name: String,
     pub base: LinkShape,
+    /// What it applies now (a degradation changes it).
+    pub shape: LinkShape,
     pub counts: Arc<RelayCounts>,
     pub partitioned: bool,
 }
 
 fn hop_views(hops: &[HopRun]) -> Vec<HopView> {
     hops.iter()
-        .map(|h| HopView { name: h.name.clone(), base: h.base, counts: Arc::clone(&h.counts), partitioned: h.cut > 0 })
+        .map(|h| HopView {
+            name: h.name.clone(),
+            base: h.base,
+            shape: h.shape,
+            counts: Arc::clone(&h.counts),
+            partitioned: h.cut > 0,
+        })
         .collect()
 }
 

@@ -214,6 +214,9 @@ fn reach(
 
 /// The `risktwin` arguments of process `p`: `connect` are the addresses of its routes (in
 /// order), `listen` a router's own address.
+/// A host's clock steps (one signed number of ms per line), in the host's folder.
+pub const CLOCK_STEPS_FILE: &str = "clock-steps";
+
 pub fn argv(p: &Planned, connect: &[String], listen: Option<&str>) -> Vec<String> {
     let s = |v: &str| v.to_owned();
     let mut argv: Vec<String> = match p.role {
@@ -246,6 +249,11 @@ pub fn argv(p: &Planned, connect: &[String], listen: Option<&str>) -> Vec<String
             argv.extend(connect.first().map(|c| [s("--router"), c.clone()]).into_iter().flatten());
         }
         _ => {
+            if matches!(p.role, "vehicle" | "rsu") {
+                // Relative to the host's folder, the process's working directory: one file per
+                // host, so that a clock_step steps every edge of the host, restarted ones too.
+                argv.extend([s("--clock-steps"), s(CLOCK_STEPS_FILE)]);
+            }
             argv.extend([s("--mode"), s("client")]);
             argv.extend(connect.iter().flat_map(|c| [s("--connect"), c.clone()]));
         }
@@ -296,7 +304,10 @@ latency_ms = 20
         let cloud = plan.processes.iter().find(|p| p.role == "cloud").expect("the cloud");
         assert_eq!(plan.routes[cloud.routes[0]].hops, [Hop::Lan(0)]);
         let argv = argv(car[1], &["tcp/10.0.0.1:4000".into()], None);
-        assert_eq!(argv.join(" "), "edge vehicle --id car.1 --site road --mode client --connect tcp/10.0.0.1:4000");
+        assert_eq!(
+            argv.join(" "),
+            "edge vehicle --id car.1 --site road --clock-steps clock-steps --mode client --connect tcp/10.0.0.1:4000"
+        );
     }
 
     #[test]

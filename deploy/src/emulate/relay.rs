@@ -11,7 +11,6 @@
 
 use super::histogram::Histogram;
 use crate::topology::Jitter;
-use bytes::{BufMut, Bytes, BytesMut};
 use risktwin_common::rng::Rng;
 use std::io;
 use std::net::SocketAddr;
@@ -28,10 +27,9 @@ use tokio::time::Instant;
 /// Bytes read at most per chunk.
 const CHUNK_BYTES: usize = 64 * 1024;
 
-/// A direction's read buffer: chunks are split off it without a copy and share its memory, so
-/// a chunk of a few bytes holds a few bytes, not a chunk's worth; it is reused once every chunk
-/// cut from it was written.
-const BUFFER_BYTES: usize = 4 * CHUNK_BYTES;
+/// Room a read waits for (or the whole queue, if smaller), so that a nearly full queue is not
+/// refilled a byte at a time.
+const LEAST_READ_BYTES: usize = 4 * 1024;
 
 /// What a link does to the bytes crossing it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -162,29 +160,32 @@ async fn direction(
     mut rng: Rng,
 ) {
     let queue_bytes = match *state.borrow() {
-        LinkState::Up(shape) => shape.queue_bytes.max(CHUNK_BYTES),
+        LinkState::Up(shape) => shape.queue_bytes.max(1),
         LinkState::Partitioned => CHUNK_BYTES,
     };
     let room = Arc::new(Semaphore::new(queue_bytes));
-    let (tx, mut rx) = mpsc::unbounded_channel::<(Instant, Instant, Bytes)>();
+    let (tx, mut rx) = mpsc::unbounded_channel::<(Instant, Instant, Vec<u8>)>();
     let reader = {
         let (room, state) = (Arc::clone(&room), state.clone());
         async move {
             let mut last_release = Instant::now();
-            let mut buffer = BytesMut::with_capacity(BUFFER_BYTES);
+            let mut scratch = vec![0u8; CHUNK_BYTES];
             loop {
-                let Ok(permit) = Arc::clone(&room).acquire_many_owned(CHUNK_BYTES as u32).await else { return };
-                buffer.reserve(CHUNK_BYTES);
-                // Into the buffer's spare room (never zeroed), at most the bytes reserved.
-                let n = match from.read_buf(&mut (&mut buffer).limit(CHUNK_BYTES)).await {
+                // Room for what the queue has left: the queue holds at most its size, and a read
+                // never waits for a whole chunk's room to come free.
+                let want = room.available_permits().clamp(LEAST_READ_BYTES.min(queue_bytes), CHUNK_BYTES);
+                let Ok(permit) = Arc::clone(&room).acquire_many_owned(want as u32).await else { return };
+                let n = match from.read(&mut scratch[..want]).await {
                     Ok(0) | Err(_) => return,
                     Ok(n) => n,
                 };
                 let read_at = Instant::now();
-                let chunk = buffer.split().freeze();
+                // A chunk holds what was read, no more: a queue of small reads (a partition
+                // holding Zenoh's keep-alives) costs its bytes, not a buffer each.
+                let chunk = scratch[..n].to_vec();
                 // Only the bytes read stay reserved.
                 permit.forget();
-                room.add_permits(CHUNK_BYTES - n);
+                room.add_permits(want - n);
                 let delay = match *state.borrow() {
                     LinkState::Up(shape) => delay_of(&shape, &mut rng),
                     LinkState::Partitioned => Duration::ZERO,

@@ -51,7 +51,7 @@ pub struct Process {
 }
 
 /// Arguments the deployment gives: addresses are assigned, never written.
-const GIVEN_ARGS: [&str; 5] = ["--connect", "--listen", "--router", "--mode", "--multicast-scouting"];
+const GIVEN_ARGS: [&str; 6] = ["--connect", "--listen", "--router", "--mode", "--multicast-scouting", "--clock-steps"];
 /// One end of a link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Endpoint {

@@ -49,6 +49,9 @@ pub enum Action {
     },
 }
 
+/// The largest clock step, ms (a day).
+pub const MAX_CLOCK_STEP_MS: f64 = 86_400_000.0;
+
 /// One event, its names resolved.
 pub(super) fn check_event(
     e: &EventDef,
@@ -139,10 +142,16 @@ pub(super) fn check_event(
             .iter()
             .position(|h| h.name == *name)
             .ok_or_else(|| at(target.span(), format!("clock_step: unknown host {name:?}")))?;
-        let by_ms = e
-            .by_ms
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| at(target.span(), "clock_step needs a finite by_ms".to_owned()))?;
+        let by_ms = e.by_ms.filter(|v| v.is_finite() && v.abs() <= MAX_CLOCK_STEP_MS).ok_or_else(|| {
+            at(target.span(), format!("clock_step needs a finite by_ms within ± {MAX_CLOCK_STEP_MS}"))
+        })?;
+        // The clocks stepped are our edges' own (a Linux time namespace cannot shift the wall clock).
+        if !hosts[host].run.iter().any(|p| matches!(p.role, "vehicle" | "rsu")) {
+            return Err(at(
+                target.span(),
+                format!("clock_step: host {name:?} runs no vehicle or rsu, whose clocks it steps"),
+            ));
+        }
         Action::ClockStep { host, by_ms }
     };
     let lasting = matches!(action, Action::Partition { .. } | Action::Degrade { .. });
@@ -182,6 +191,7 @@ for_s = 3
             ("kill = \"car-1\"", "write host/role"),
             ("degrade = \"north-cloud\"", "degrade needs"),
             ("clock_step = \"car-1\"", "finite by_ms"),
+            ("clock_step = \"car-1\"\nby_ms = 1e9", "within ± 86400000"),
             ("kill = \"car-1/vehicle\"\nrestart = \"car-1/vehicle\"", "one of"),
         ] {
             let text = format!("{TWO_SITES}\n[[event]]\nat_s = 1\n{bad}\n");

@@ -8,6 +8,8 @@ use risktwin_common::telemetry::{Frame, Header, RiskField, VehicleStateSample};
 pub const FOXGLOVE_GRID: &str = "foxglove.Grid";
 /// Full protobuf name of the scene-update message.
 pub const FOXGLOVE_SCENE_UPDATE: &str = "foxglove.SceneUpdate";
+/// Full protobuf name of the log-line message.
+pub const FOXGLOVE_LOG: &str = "foxglove.Log";
 /// Foxglove frame id of [`Frame::World`].
 pub const WORLD_FRAME_ID: &str = "world";
 

@@ -17,7 +17,7 @@ pub struct ErrorStats {
 }
 
 #[derive(Debug, Clone)]
-pub(super) struct Distribution {
+pub(crate) struct Distribution {
     bin: f64,
     n: u64,
     sum: f64,
@@ -28,18 +28,18 @@ pub(super) struct Distribution {
 impl Distribution {
     /// An empty distribution with bins of width `bin` (so the p95 resolves to `bin` up to
     /// 2000 × `bin`).
-    pub(super) fn new(bin: f64) -> Self {
+    pub(crate) fn new(bin: f64) -> Self {
         Distribution { bin, n: 0, sum: 0.0, max: 0.0, histogram: vec![0; BINS] }
     }
 
-    pub(super) fn add(&mut self, x: f64) {
+    pub(crate) fn add(&mut self, x: f64) {
         self.n += 1;
         self.sum += x;
         self.max = self.max.max(x);
         self.histogram[((x / self.bin) as usize).min(BINS - 1)] += 1;
     }
 
-    pub(super) fn stats(&self) -> ErrorStats {
+    pub(crate) fn stats(&self) -> ErrorStats {
         let rank = (0.95 * self.n as f64).ceil() as u64;
         let mut seen = 0u64;
         let bin = self.histogram.iter().position(|&k| {

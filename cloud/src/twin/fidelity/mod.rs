@@ -16,7 +16,7 @@
 //! What the errors contain is everything a user of the twin sees: transport, alignment
 //! lateness, interpolation, the sensors' noise, occlusion and missing accelerations.
 
-mod distribution;
+pub(crate) mod distribution;
 mod truth;
 
 pub use distribution::ErrorStats;

@@ -205,10 +205,12 @@ fn three_hosts_over_a_20_ms_link_lose_nothing_and_see_its_delay() {
     assert!(wan["bytes_down"].as_u64().expect("bytes") > 10_000, "the edges' data crossed it toward the cloud");
     // car-1: state, can, perception; rsu-1: rsu, signal.
     assert_nothing_missing(&report, 5);
-    // The twin's lag behind the cloud's clock was measured on every snapshot.
+    // The twin's lag behind the cloud's clock, measured on every snapshot: at least the
+    // aligner's wait for late samples, and no outage here.
     let lag = &report["twin_lag"]["cloud-0/cloud"];
-    assert!(lag["n"].as_u64().expect("snapshots") > 100, "{lag}");
-    assert!(lag["max_us"].as_u64().expect("a lag") > 0, "{lag}");
+    assert!(lag["n"].as_u64().expect("snapshots") > 50, "{lag}");
+    let p95_us = lag["p95_us"].as_u64().expect("a lag");
+    assert!((10_000..1_000_000).contains(&p95_us), "{lag}");
     let ended = report["timeline"]
         .as_array()
         .expect("timeline")
@@ -349,14 +351,18 @@ fn a_router_restart_mid_run_loses_nothing_and_its_clients_are_back_within_2_s() 
 
 #[test]
 fn a_clock_step_moves_a_hosts_edge_clock_and_the_cloud_counts_what_it_refused() {
-    let stepped = THREE_HOSTS.to_owned() + "\n[[event]]\nat_s = 2\nclock_step = \"car-1\"\nby_ms = 2000\n";
+    // At 4 s of a 10 s run: well after the vehicle started publishing, on a loaded machine too.
+    let stepped = THREE_HOSTS.replace("\"--count\", \"300\"", "\"--count\", \"500\"")
+        + "\n[[event]]\nat_s = 4\nclock_step = \"car-1\"\nby_ms = 2000\n";
     let d = Deployment::new(&stepped);
     let report = d.run("60s");
     let timeline: Vec<&str> =
         report["timeline"].as_array().expect("timeline").iter().filter_map(|e| e["what"].as_str()).collect();
     assert!(timeline.contains(&"clock_step car-1: +2000 ms"), "{timeline:?}");
     let log = std::fs::read_to_string(d.out().join("hosts/car-1/vehicle.log")).expect("the vehicle's log");
-    assert!(log.contains("edge car-1: clock stepped by 2000 ms"), "{log}");
+    let stepped_at = log.find("edge car-1: clock stepped by 2000 ms").unwrap_or_else(|| panic!("{log}"));
+    let publishing_at = log.find("edge car-1: publishing").unwrap_or_else(|| panic!("{log}"));
+    assert!(publishing_at < stepped_at, "stepped while it published, not before it began: {log}");
     // The cloud sees the vehicle's stamps jump 2 s ahead: it refuses them as future ones until
     // it has re-anchored the clock, and what it refused is exactly what went missing.
     let refused = report["cloud_dropped"]["future-timestamp"].as_u64().unwrap_or(0);

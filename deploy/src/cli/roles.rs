@@ -102,8 +102,8 @@ pub struct EdgeArgs {
     #[arg(long, default_value_t = 30.0)]
     pub cache_s: f64,
     /// A file of clock steps, one signed number of ms per line: those in it at the start and
-    /// each one appended later (read every 100 ms) step the edge clock (a deployment's
-    /// `clock_step` events write it).
+    /// each one appended later (looked for on a tick, at most every 100 ms) step the edge
+    /// clock (a deployment's `clock_step` events write it).
     #[arg(long)]
     pub clock_steps: Option<std::path::PathBuf>,
 }

@@ -2,6 +2,9 @@
 
 use std::fmt;
 
+/// The exit status of a refused input (a bad flag, file or value): `error: …` on stderr.
+pub const BAD_INPUT_EXIT: u8 = 2;
+
 /// What went wrong, and whose fault it was.
 #[derive(Debug)]
 pub enum CliError {
@@ -20,7 +23,7 @@ impl CliError {
     }
     pub fn exit_code(&self) -> u8 {
         match self {
-            CliError::Input(_) => 2,
+            CliError::Input(_) => BAD_INPUT_EXIT,
             CliError::Runtime(_) => 1,
         }
     }

@@ -35,7 +35,7 @@ fn main() -> ExitCode {
                 }
                 _ => eprintln!("error: {}", one_line(&e.to_string())),
             }
-            return ExitCode::from(2);
+            return ExitCode::from(error::BAD_INPUT_EXIT);
         }
     };
     match commands::dispatch(args) {

@@ -376,6 +376,62 @@ fn a_clock_step_moves_a_hosts_edge_clock_and_the_cloud_counts_what_it_refused() 
     assert_eq!(d.leftovers(), Vec::<String>::new());
 }
 
+/// A scene on a road-side host that runs its site's router: its authority and participants meet
+/// on that router, on the host; only its edge data crosses the link to the cloud.
+const SCENE_ON_ITS_HOST: &str = r#"
+[[site]]
+name = "cloud"
+
+[[site]]
+name = "road"
+
+[[host]]
+name = "cloud-0"
+site = "cloud"
+run = [{ role = "cloud", args = ["--roles", "ingest"] }]
+
+[[host]]
+name = "road-0"
+site = "road"
+run = [
+  { role = "router" },
+  { role = "scene", args = ["--kind", "cut-in", "--seed", "1", "--connected", "2", "--rsus", "1"] },
+]
+
+[[link]]
+between = ["road", "cloud"]
+latency_ms = 20
+
+[[event]]
+at_s = 2
+partition = "road-cloud"
+for_s = 3
+"#;
+
+#[test]
+fn a_partition_cuts_a_scenes_data_not_its_physics() {
+    let d = Deployment::new(SCENE_ON_ITS_HOST);
+    let report = d.run("60s");
+    let out = std::fs::read_to_string(d.out().join("hosts/road-0/scene.out")).expect("the scene's outcome");
+    let scene: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"));
+    // Real time, every answer on time through the partition: physics never crossed the link.
+    let deadlines = &scene["deadlines"];
+    assert!(deadlines["due"].as_u64().expect("due") > 500, "{scene}");
+    assert_eq!(deadlines["missed"], 0, "{scene}");
+    let ended = &report["processes"].as_array().expect("processes").iter().find(|p| p["name"] == "road-0/scene");
+    assert_eq!(ended.map(|p| &p["ends"]), Some(&serde_json::json!(["exit 0"])), "{report}");
+    // Its data waited out the partition: the ego's state from every step reached the cloud.
+    let steps = scene["steps"].as_u64().expect("steps");
+    let ego_states = report["streams"]
+        .as_array()
+        .expect("streams")
+        .iter()
+        .find(|s| s["source"] == "v0" && s["stream"] == "state")
+        .and_then(|s| s["received"].as_u64());
+    assert_eq!(ego_states, Some(steps + 1), "a state per step and the start: {}", report["streams"]);
+    assert_eq!(d.leftovers(), Vec::<String>::new());
+}
+
 #[test]
 fn down_removes_everything_after_a_crash_and_again_after_that() {
     // Edges without a count run until the deployment is taken down.

@@ -239,12 +239,10 @@ pub fn argv(p: &Planned, connect: &[String], listen: Option<&str>) -> Vec<String
             argv.extend(connect.iter().flat_map(|c| [s("--connect"), c.clone()]));
         }
         "scene" => {
-            // Deployments run scenes in real time, unless told otherwise.
-            if !p.args.iter().any(|a| a.starts_with("--clock")) {
+            // Deployments run scenes in real time, unless told otherwise (a clock, or a lockstep
+            // scene's pace: `scene run` refuses `--speed` with the real-time clock).
+            if !p.args.iter().any(|a| a.starts_with("--clock") || a.starts_with("--speed")) {
                 argv.extend([s("--clock"), s("realtime")]);
-            }
-            if !p.args.iter().any(|a| a.starts_with("--speed")) {
-                argv.extend([s("--speed"), s("1")]);
             }
             argv.extend(connect.first().map(|c| [s("--router"), c.clone()]).into_iter().flatten());
         }

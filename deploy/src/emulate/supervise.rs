@@ -2,6 +2,7 @@
 //! with it), its stdout and stderr appended to its own files, and is started again by its
 //! restart policy after a back-off (0.5 s, doubling to 8 s; back to 0.5 s after 10 s up).
 
+use crate::error::BAD_INPUT_EXIT;
 use crate::topology::Restart;
 use std::fs::{File, OpenOptions};
 use std::io;
@@ -117,10 +118,12 @@ impl Supervised {
             let how = ended(status);
             self.ends.push(how.clone());
             let failed = !status.success();
+            // Exit 2 is a refused input (the CLI's contract): the same command would be refused again.
+            let refused = status.code() == Some(i32::from(BAD_INPUT_EXIT));
             let again = !self.stopped
                 && match self.restart {
                     Restart::Always => true,
-                    Restart::OnFailure => failed,
+                    Restart::OnFailure => failed && !refused,
                     Restart::Never => false,
                 };
             if again {
@@ -131,6 +134,9 @@ impl Supervised {
                 let note = format!("{} ended ({how}); restart in {:.1} s", self.name, self.backoff.as_secs_f64());
                 self.backoff = (self.backoff * 2).min(MAX_BACKOFF);
                 return Some(note);
+            }
+            if refused && failed && self.restart == Restart::OnFailure && !self.stopped {
+                return Some(format!("{} ended ({how}: its input was refused, see its log; not restarted)", self.name));
             }
             return Some(format!("{} ended ({how})", self.name));
         }
@@ -233,6 +239,15 @@ mod tests {
             p.poll(Instant::now());
             std::thread::sleep(Duration::from_millis(10));
         }
+    }
+
+    #[test]
+    fn a_refused_input_is_not_restarted_on_failure() {
+        let dir = tempfile::tempdir().expect("a temp dir");
+        let mut p = sh("exit 2", Restart::OnFailure, dir.path());
+        p.start().expect("starts");
+        poll_until(&mut p, Supervised::done);
+        assert_eq!((p.restarts, p.ends.as_slice()), (0, ["exit 2".to_owned()].as_slice()));
     }
 
     #[test]

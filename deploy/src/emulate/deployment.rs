@@ -306,7 +306,9 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
             ended_by = "every edge process ending";
             break;
         }
-        let mut changed = now - last_status >= STATUS_EVERY;
+        // The links are recorded when the status is due and whenever an event changes them.
+        let status_due = now - last_status >= STATUS_EVERY;
+        let mut changed = status_due;
         while let Some(e) = events.next_if(|e| e.at <= at) {
             changed = true;
             match &e.action {
@@ -409,12 +411,13 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
             }
         }
         if changed {
-            network.borrow_mut().links(&hop_views(&hops));
-        }
-        if now - last_status >= STATUS_EVERY {
-            last_status = now;
-            let status = report::status(&tag, &net, at, &processes, &hop_views(&hops));
-            report::write_atomically(&status_file, &status).map_err(runtime)?;
+            let views = hop_views(&hops);
+            network.borrow_mut().links(&views);
+            if status_due {
+                last_status = now;
+                let status = report::status(&tag, &net, at, &processes, &views);
+                report::write_atomically(&status_file, &status).map_err(runtime)?;
+            }
         }
         std::thread::sleep(TICK);
     }

@@ -20,16 +20,14 @@
 use crate::standin::StandIn;
 use crate::standin_ingest::StandInCounters;
 use risktwin_cloud::network::CloudError;
-use risktwin_cloud::network::LiveIngest;
-use risktwin_cloud::network::edges::watch_edges;
-use risktwin_cloud::network::liveliness::LivenessLog;
+use risktwin_cloud::network::routes::declare_route_keys;
 use risktwin_transport::recovery::{DEFAULT_OUTAGE, cache_samples};
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
 use risktwin_transport::{
     Delivery, EdgeStream, Mode, Shutdown, SiteId, SourceId, StreamLoss, StreamPublisher, TransportConfig,
-    TransportError, connect, declare_alive, listening_locators, subscribe_edge_streams,
+    TransportError, connect, listening_locators, subscribe_edge_streams,
 };
 use serde::Serialize;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -214,17 +212,16 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
         hit.hit(n);
     };
     let subscriber = subscribe_edge_streams(&sub_side, Some(&site), on_sample, on_loss).await?;
-    // As in the cloud: the edge's liveliness token makes the cloud declare its stream keys.
-    let liveness = Arc::new(Mutex::new(LivenessLog::default()));
-    let ingest = Arc::new(Mutex::new(LiveIngest::new(None, None).map_err(|e| bench_error(e.to_string()))?));
-    let mut edges = watch_edges(&sub_side, Some(&site), liveness, ingest).await?;
-    let token = declare_alive(&pub_side, &site, &source).await?;
+    // As in the cloud: the stream's key is declared on the cloud's session (there, on its first
+    // accepted sample; see risktwin_cloud::network::routes).
+    let (mut route_keys, keys) = declare_route_keys(&sub_side);
     // A vehicle state stream's cache; unpaced, so paced by the transport (`Block`).
     let delivery = Delivery::paced_by_transport(cache_samples(50.0, DEFAULT_OUTAGE));
     let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State, delivery).await?;
-    tokio::time::timeout(Duration::from_secs(10), edges.declared.wait_for(|n| *n >= 1))
+    let _ = keys.send(publisher.key().to_owned());
+    tokio::time::timeout(Duration::from_secs(10), route_keys.declared.wait_for(|n| *n >= 1))
         .await
-        .map_err(|_| bench_error("the edge's keys were not declared in 10 s".into()))?
+        .map_err(|_| bench_error("the stream's key was not declared in 10 s".into()))?
         .map_err(|e| bench_error(e.to_string()))?;
     let (_never_fired, shutdown): (_, Shutdown) = risktwin_transport::shutdown::channel();
     if !publisher.wait_for_subscriber(Duration::from_secs(10), shutdown).await? {
@@ -247,8 +244,8 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
             lost.load(Ordering::Relaxed)
         )));
     }
-    drop((subscriber, publisher, token, edges.subscriber));
-    let _ = edges.declarer.await;
+    drop((subscriber, publisher, keys));
+    let _ = route_keys.task.await;
     let _ = tokio::join!(pub_side.close(), sub_side.close());
     Ok(rate)
 }

@@ -185,8 +185,7 @@ pub async fn run_producer(
     // and forward a face's declarations in arrival order; a link that comes up later (a peer met
     // through gossip) is sent the existing subscribers before the tokens (hat/peer/mod.rs,
     // `new_transport_unicast_face`). So wherever the token is seen, the subscribers reached the
-    // same node first. The cloud's edge watcher (cloud/src/network/edges.rs) only declares
-    // this edge's stream keys on a token, an optimisation that works whenever it comes.
+    // same node first.
     let token = declare_alive(&session, &config.site, &config.id).await?;
     let mut report_publishers: Vec<(EdgeReport, Publisher<'static>)> = Vec::new();
     let mut reports = Vec::new();

@@ -39,6 +39,7 @@ pub mod loss;
 mod publisher;
 pub mod push;
 mod receive;
+pub mod routes;
 mod scene;
 #[cfg(test)]
 mod wire_tests;
@@ -292,8 +293,11 @@ pub async fn run(
         None => None,
     };
     let (episodes_tx, episodes_rx) = tokio::sync::mpsc::unbounded_channel();
+    let route_keys = config.has(Role::Ingest).then(|| routes::declare_route_keys(&session));
+    let (route_keys, keys_tx) = route_keys.unzip();
     let ingest = LiveIngest::new(config.record.as_deref(), outputs)?
         .with_replay_time(config.replay_time)
+        .with_route_keys(keys_tx)
         .with_publisher(config.has(Role::Twin).then_some(publish_tx))
         .with_episodes(fleet.is_some().then_some(episodes_tx));
     let ingest = Arc::new(Mutex::new(ingest));
@@ -360,9 +364,10 @@ pub async fn run(
     if let Some(subscriber) = crit_subscriber {
         subscriber.undeclare().await.map_err(|e| undeclare_error("criticality subscriber", e))?;
     }
-    edges.subscriber.undeclare().await.map_err(|e| undeclare_error("liveliness subscriber", e))?;
-    // With the subscriber gone its callback (and channel) is dropped, so the task ends.
-    let _ = edges.declarer.await;
+    edges.undeclare().await.map_err(|e| undeclare_error("liveliness subscriber", e))?;
+    if let Some(keys) = route_keys {
+        keys.task.abort();
+    }
     let library_summary = match library_task {
         Some(task) => Some(task.await.map_err(|e| join_error("library", e))??),
         None => None,

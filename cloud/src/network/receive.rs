@@ -174,6 +174,9 @@ pub struct LiveIngest {
     wrong_schema_logged: HashSet<String>,
     /// Samples the edge-stream subscriber reported lost for good.
     losses: LossCounts,
+    /// Where the key of each stream's first accepted sample goes, to be declared (see
+    /// [`super::routes`]).
+    route_keys: Option<UnboundedSender<String>>,
 }
 
 impl LiveIngest {
@@ -214,12 +217,19 @@ impl LiveIngest {
             encodings: EdgeStream::ALL.map(|s| protobuf(s.message())),
             wrong_schema_logged: HashSet::new(),
             losses: LossCounts::default(),
+            route_keys: None,
         })
     }
 
     /// Switches replay-ingest mode on or off (see `CloudConfig::replay_time`).
     pub fn with_replay_time(mut self, on: bool) -> Self {
         self.replay_time = on;
+        self
+    }
+
+    /// Sends the key of each stream's first accepted sample to `keys` (see [`super::routes`]).
+    pub fn with_route_keys(mut self, keys: Option<UnboundedSender<String>>) -> Self {
+        self.route_keys = keys;
         self
     }
 
@@ -333,7 +343,14 @@ impl LiveIngest {
                 Some(c) => c,
                 None => self.received.entry(parsed.source.to_owned()).or_default(),
             };
-            counts[parsed.stream.index()] += 1;
+            let count = &mut counts[parsed.stream.index()];
+            if *count == 0
+                && let Some(keys) = &self.route_keys
+            {
+                // A closed receiver means shutdown: nothing left to speed up.
+                let _ = keys.send(key.to_owned());
+            }
+            *count += 1;
         }
         if let Some(outputs) = self.outputs.as_mut() {
             // Sources the worker numbered since the last message get their names in the twin.

@@ -23,7 +23,7 @@ use risktwin_common::align::IngestConfig;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
 use risktwin_protos::encode;
-use risktwin_transport::recovery::DEFAULT_OUTAGE;
+use risktwin_transport::recovery::{DEFAULT_OUTAGE, is_recovered};
 use risktwin_transport::zenoh::Wait;
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::zenoh::sample::Sample;
@@ -229,7 +229,7 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     let on_sample = move |_, sample: &Sample| {
         let payload = sample.payload().to_bytes();
         let mut ingest = ingest_cb.lock().unwrap_or_else(PoisonError::into_inner);
-        if ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, None).is_err() {
+        if ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, None, is_recovered(sample)).is_err() {
             return;
         }
         let now = Instant::now();

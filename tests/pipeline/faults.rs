@@ -111,7 +111,7 @@ fn run_with_router_restart(cache_s: &str, outage: Duration) -> Outcome {
     let outcome = Outcome { sent, cloud: summary, resume_s, longest_pause_s };
     eprintln!(
         "router restart, --cache-s {cache_s}, down {outage:?}: resume {:?} s, pauses {:?} s, \
-         (stream, sent, received, lost, presumed lost) {:?}",
+         streams {:?}",
         outcome.resume_s,
         outcome.longest_pause_s,
         per_stream(&outcome)
@@ -119,24 +119,40 @@ fn run_with_router_restart(cache_s: &str, outage: Duration) -> Outcome {
     outcome
 }
 
-/// Per edge and stream: (sent, received, lost, presumed lost).
-fn per_stream(outcome: &Outcome) -> Vec<(String, u64, u64, u64, u64)> {
+/// One edge stream's counts: what the edge sent, and what the cloud received (of it, recovered
+/// from the edge's cache), lost and presumed lost.
+#[derive(Debug)]
+struct Row {
+    name: String,
+    sent: u64,
+    received: u64,
+    recovered: u64,
+    lost: u64,
+    presumed: u64,
+}
+
+fn per_stream(outcome: &Outcome) -> Vec<Row> {
     let cloud = &outcome.cloud;
     let mut rows = Vec::new();
     for edge in &outcome.sent {
         let source = edge["source"].as_str().expect("source in the edge summary");
         for (stream, n) in edge["sent"].as_object().expect("sent per stream") {
             let count = |field: &str| cloud[field][source][stream].as_u64().unwrap_or(0);
-            let name = format!("{source}/{stream}");
-            let sent = n.as_u64().expect("a count");
-            rows.push((name, sent, count("received"), count("lost"), count("presumed_lost")));
+            rows.push(Row {
+                name: format!("{source}/{stream}"),
+                sent: n.as_u64().expect("a count"),
+                received: count("received"),
+                recovered: count("recovered"),
+                lost: count("lost"),
+                presumed: count("presumed_lost"),
+            });
         }
     }
     rows
 }
 
 /// The common checks: the outage was real, flow resumed in time, received + lost = sent per
-/// stream, and the two loss counts agree.
+/// stream, the two loss counts agree, and the totals are the sums.
 fn assert_accounted(outcome: &Outcome, outage: Duration) {
     let cloud = &outcome.cloud;
     assert_eq!(cloud["total_dropped"], 0, "drops: {cloud}");
@@ -148,14 +164,21 @@ fn assert_accounted(outcome: &Outcome, outage: Duration) {
     }
     let rows = per_stream(outcome);
     assert_eq!(rows.len(), 5, "3 vehicle streams + 2 RSU streams: {rows:?}");
-    for (name, sent, received, lost, presumed) in &rows {
+    for Row { name, sent, received, recovered, lost, presumed } in &rows {
         assert!(*sent > 0, "{name} sent nothing");
         assert_eq!(received + lost, *sent, "{name}: received {received} + lost {lost} != sent {sent}; {cloud}");
         assert_eq!(lost, presumed, "{name}: the transport's and the sequence numbers' loss counts agree");
+        assert!(recovered <= received, "{name}: recovered {recovered} of {received} received");
     }
-    let lost: u64 = rows.iter().map(|r| r.3).sum();
-    assert_eq!(cloud["total_lost"].as_u64(), Some(lost), "{cloud}");
-    assert_eq!(cloud["total_presumed_lost"].as_u64(), Some(lost), "{cloud}");
+    let total = |count: fn(&Row) -> u64| Some(rows.iter().map(count).sum::<u64>());
+    assert_eq!(cloud["total_lost"].as_u64(), total(|r| r.lost), "{cloud}");
+    assert_eq!(cloud["total_presumed_lost"].as_u64(), total(|r| r.lost), "{cloud}");
+    assert_eq!(cloud["total_recovered"].as_u64(), total(|r| r.recovered), "{cloud}");
+    // The vehicle's state (50 Hz) published through the outage: all of that came from its
+    // cache, or was lost with it.
+    let state = rows.iter().find(|r| r.name.ends_with("/state")).expect("a vehicle state stream");
+    let during = (50.0 * outage.as_secs_f64() * 0.5) as u64;
+    assert!(state.recovered + state.lost >= during, "{state:?}: at least {during} samples held back");
 }
 
 #[test]
@@ -166,7 +189,7 @@ fn a_router_restart_within_the_cache_loses_nothing_and_flow_resumes() {
     let outcome = run_with_router_restart("30", outage);
     assert_accounted(&outcome, outage);
     let rows = per_stream(&outcome);
-    assert!(rows.iter().all(|r| r.3 == 0), "a 1.3 s outage within a 30 s cache loses nothing: {rows:?}");
+    assert!(rows.iter().all(|r| r.lost == 0), "a 1.3 s outage within a 30 s cache loses nothing: {rows:?}");
 }
 
 #[test]
@@ -176,5 +199,5 @@ fn an_outage_longer_than_the_cache_counts_every_lost_sample_by_source_and_stream
     let outcome = run_with_router_restart("0.5", outage);
     assert_accounted(&outcome, outage);
     let rows = per_stream(&outcome);
-    assert!(rows.iter().all(|r| r.3 > 0), "every stream lost its oldest samples: {rows:?}");
+    assert!(rows.iter().all(|r| r.lost > 0), "every stream lost its oldest samples: {rows:?}");
 }

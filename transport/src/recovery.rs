@@ -5,7 +5,8 @@
 //! rest as lost. See docs/keyexpr.md ("Surviving faults").
 
 use std::time::Duration;
-use zenoh::qos::CongestionControl;
+use zenoh::qos::{CongestionControl, Priority};
+use zenoh::sample::Sample;
 
 /// How often a stream publisher announces its last sequence number, so that a cloud notices
 /// samples lost at the end of a burst (nothing published after them) within about this long.
@@ -14,6 +15,21 @@ pub const HEARTBEAT_PERIOD: Duration = Duration::from_millis(500);
 /// How long an ending edge keeps its stream caches after its last put: one heartbeat for the cloud
 /// to notice a gap at the end, and as long again for its query and the answer.
 pub const EXIT_LINGER: Duration = Duration::from_millis(2 * HEARTBEAT_PERIOD.as_millis() as u64);
+
+/// The priority live edge-stream samples travel at: below Zenoh's default `Data`, at which
+/// answers to recovery queries arrive (a stream cache answers at [`RECOVERY_PRIORITY`], and a
+/// router forwards an answer at its query's priority, which zenoh-ext's subscriber leaves at
+/// `Data`). So the cloud tells a recovered sample from a live one ([`is_recovered`]), and on a
+/// congested link a scene's physics and the cloud's pushes (`Data`) go before telemetry.
+pub const LIVE_PRIORITY: Priority = Priority::DataLow;
+
+/// The priority answers to recovery queries arrive at (see [`LIVE_PRIORITY`]).
+pub const RECOVERY_PRIORITY: Priority = Priority::Data;
+
+/// Whether `sample` came from a publisher's cache (a recovery query's answer) rather than live.
+pub fn is_recovered(sample: &Sample) -> bool {
+    sample.priority() == RECOVERY_PRIORITY
+}
 
 /// The longest outage a live edge stream survives by default: a router restart or a partition
 /// up to this long loses nothing.

@@ -56,6 +56,7 @@ use liveliness::LivenessLog;
 pub use receive::{IngestSummary, LiveIngest, OUTPUT_SCHEMAS, RecordError, RecordingFile};
 use risktwin_common::road::Road;
 use risktwin_protos::recording::decode_replay_time;
+use risktwin_transport::recovery::is_recovered;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Shutdown, SiteId, StreamLoss, TransportConfig, TransportError, close, connect};
 use serde::Serialize;
@@ -427,7 +428,8 @@ fn ingest_sink(
         let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
         // Drops are counted inside; only a failing recording comes back, and the receive path
         // cannot stop for it: say so and go on counting.
-        if let Err(e) = ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, replay_ns) {
+        let recovered = is_recovered(sample);
+        if let Err(e) = ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, replay_ns, recovered) {
             tracing::error!("cloud: {e}");
         }
     }

@@ -86,6 +86,12 @@ pub struct IngestSummary {
     pub lost: BTreeMap<String, BTreeMap<String, u64>>,
     /// All lost samples.
     pub total_lost: u64,
+    /// Accepted samples that came from an edge's cache (recovered after a gap: a partition, a
+    /// router restart, a sample the link dropped), per source, per stream; counted in `received`
+    /// too.
+    pub recovered: BTreeMap<String, BTreeMap<String, u64>>,
+    /// All recovered samples.
+    pub total_recovered: u64,
     /// Sequence numbers each source skipped on a stream and never sent again, per source, per
     /// stream: the deduplicator's own count of what never arrived (it sees an edge's numbers,
     /// where `lost` sees the transport's: the same gaps for a live edge, plus what was numbered
@@ -152,6 +158,8 @@ const SCENE_GONE: std::time::Duration = std::time::Duration::from_secs(3);
 pub struct LiveIngest {
     worker: IngestWorker<RecordingFile>,
     received: HashMap<String, [u64; STREAMS]>,
+    /// Of `received`, those recovered from an edge's cache.
+    recovered: HashMap<String, [u64; STREAMS]>,
     /// Each source's site (from the key of its first accepted message).
     sites: HashMap<String, String>,
     /// Sites a scene's road map came from, and when the last one came.
@@ -203,6 +211,7 @@ impl LiveIngest {
         Ok(LiveIngest {
             worker: IngestWorker::new(config, recorder),
             received: HashMap::new(),
+            recovered: HashMap::new(),
             sites: HashMap::new(),
             scene_sites: HashMap::new(),
             named: 0,
@@ -284,13 +293,15 @@ impl LiveIngest {
     /// Handles one sample received on `key`; the receive time is read here, once, from the
     /// system clock and never goes backwards (the aligner needs non-decreasing receive times).
     /// `replay_ns` is the message's replay-time attachment, used instead of the clock in
-    /// replay-time mode (and required there).
+    /// replay-time mode (and required there). `recovered`: the sample came from the edge's
+    /// cache (`risktwin_transport::recovery::is_recovered`).
     pub fn handle(
         &mut self,
         key: &str,
         encoding: &Encoding,
         payload: &[u8],
         replay_ns: Option<i64>,
+        recovered: bool,
     ) -> Result<(), RecordingError> {
         let now = Instant::now();
         self.last_sample = Some(now);
@@ -351,6 +362,9 @@ impl LiveIngest {
                 let _ = keys.send(key.to_owned());
             }
             *count += 1;
+            if recovered {
+                self.recovered.entry(parsed.source.to_owned()).or_default()[parsed.stream.index()] += 1;
+            }
         }
         if let Some(outputs) = self.outputs.as_mut() {
             // Sources the worker numbered since the last message get their names in the twin.
@@ -501,6 +515,8 @@ impl LiveIngest {
             file.flush().map_err(RecordError::Flush)?;
         }
         let mut summary = summarize(&stats, &self.received, &self.digest);
+        summary.recovered = per_stream_names(&self.recovered);
+        summary.total_recovered = summary.recovered.values().flat_map(BTreeMap::values).sum();
         summary.twin_lag = LagSummary::of(&self.lag);
         summary.lost = self.losses.by_source().clone();
         summary.total_lost = self.losses.total();
@@ -573,14 +589,15 @@ fn summarize(
         snapshot_digest: digest.hex(),
         ..IngestSummary::default()
     };
-    for (source, counts) in received {
-        let per_stream = EdgeStream::ALL
-            .iter()
-            .zip(counts)
-            .filter(|(_, n)| **n > 0)
-            .map(|(s, n)| (s.as_str().to_owned(), *n))
-            .collect();
-        summary.received.insert(source.clone(), per_stream);
-    }
+    summary.received = per_stream_names(received);
     summary
+}
+
+/// Counts per source and stream index as counts per source and stream name (streams with none
+/// left out).
+fn per_stream_names(counts: &HashMap<String, [u64; STREAMS]>) -> BTreeMap<String, BTreeMap<String, u64>> {
+    let named = |counts: &[u64; STREAMS]| {
+        EdgeStream::ALL.iter().zip(counts).filter(|(_, n)| **n > 0).map(|(s, n)| (s.as_str().to_owned(), *n)).collect()
+    };
+    counts.iter().map(|(source, counts)| (source.clone(), named(counts))).collect()
 }

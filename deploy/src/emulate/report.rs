@@ -1,6 +1,6 @@
 //! What a deployment shows: `status.json` while it runs, and on its end a report (`report.json`
 //! and `report.md`) that also records how the run was made — per link the delay measured in
-//! its relays against the configured one, per edge and stream sent / received / lost / missing, each
+//! its relays against the configured one, per edge and stream sent / received / recovered / lost / missing, each
 //! process's restarts, the event timeline.
 
 use super::deployment::{HopView, Options};
@@ -61,6 +61,9 @@ pub struct StreamReport {
     pub stream: String,
     pub sent: u64,
     pub received: u64,
+    /// Of `received`, what came from the edge's cache after a gap (a partition, a router restart,
+    /// a sample the link dropped).
+    pub recovered: u64,
     /// Counted lost by the cloud: neither received nor recoverable from the edge's cache.
     pub lost: u64,
     /// sent − received − lost: not accounted for (an edge that ended during an outage, a cloud
@@ -149,6 +152,7 @@ impl Report {
         let mut sent: BTreeMap<(String, String), (u64, bool)> = BTreeMap::new();
         let mut received: BTreeMap<(String, String), u64> = BTreeMap::new();
         let mut lost: BTreeMap<(String, String), u64> = BTreeMap::new();
+        let mut recovered: BTreeMap<(String, String), u64> = BTreeMap::new();
         let mut cloud_dropped = BTreeMap::new();
         let mut received_complete = true;
         let mut twin_lag = BTreeMap::new();
@@ -173,7 +177,9 @@ impl Report {
             if p.role == "cloud" {
                 received_complete &= complete;
                 for doc in &docs {
-                    for (field, into) in [("received", &mut received), ("lost", &mut lost)] {
+                    for (field, into) in
+                        [("received", &mut received), ("lost", &mut lost), ("recovered", &mut recovered)]
+                    {
                         for (source, streams) in doc[field].as_object().into_iter().flatten() {
                             for (stream, n) in streams.as_object().into_iter().flatten() {
                                 *into.entry((source.clone(), stream.clone())).or_default() += n.as_u64().unwrap_or(0);
@@ -198,11 +204,13 @@ impl Report {
                 let (n_sent, complete) = sent.get(&key).copied().unwrap_or((0, false));
                 let n_received = received.get(&key).copied().unwrap_or(0);
                 let n_lost = lost.get(&key).copied().unwrap_or(0);
+                let n_recovered = recovered.get(&key).copied().unwrap_or(0);
                 StreamReport {
                     source: key.0,
                     stream: key.1,
                     sent: n_sent,
                     received: n_received,
+                    recovered: n_recovered,
                     lost: n_lost,
                     // A loss counted where nothing was said sent (a road map, a forgotten key) is
                     // shown, not taken from a count it does not belong to.
@@ -284,16 +292,17 @@ impl Report {
             );
         }
         let _ = writeln!(md, "\n## Edge streams\n");
-        let _ = writeln!(md, "| source | stream | sent | received | lost | missing | sent known |");
-        let _ = writeln!(md, "|---|---|---|---|---|---|---|");
+        let _ = writeln!(md, "| source | stream | sent | received | recovered | lost | missing | sent known |");
+        let _ = writeln!(md, "|---|---|---|---|---|---|---|---|");
         for s in &self.streams {
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} |",
                 s.source,
                 s.stream,
                 s.sent,
                 s.received,
+                s.recovered,
                 s.lost,
                 s.missing,
                 if s.sent_complete { "yes" } else { "no" }

@@ -18,6 +18,7 @@ use risktwin_common::scenario::{ScenarioSpec, content_id};
 use risktwin_common::telemetry::{Frame, Header, ObjectList, RsuObservation, ScenarioResult, SceneRef};
 use risktwin_protos::encode;
 use risktwin_transport::keyexpr::{EdgeReport, edge_report, edge_stream, liveliness_token};
+use risktwin_transport::recovery::LIVE_PRIORITY;
 use risktwin_transport::zenoh::Wait;
 use risktwin_transport::zenoh::liveliness::LivelinessToken;
 use risktwin_transport::zenoh::pubsub::Publisher;
@@ -74,6 +75,7 @@ impl Streams {
                 .encoding(protobuf(message))
                 .congestion_control(CongestionControl::Block)
                 .reliability(Reliability::Reliable)
+                .priority(LIVE_PRIORITY)
                 .wait()
                 .map_err(|e| SceneError::Transport(format!("{key}: {e}")))
         };

@@ -290,13 +290,15 @@ fn a_connected_cutter_is_seen_by_the_ego_and_the_rsu_and_changes_the_egos_drive(
 
 #[test]
 fn bad_scene_input_is_refused_by_name_with_exit_2() {
-    let cases: [(&[&str], &str); 10] = [
+    let cases: [(&[&str], &str); 12] = [
         (&["scene", "vehicle", "--participant", "v7"], "participant \"v7\" is not in this scene"),
         (&["scene", "rsu", "--participant", "v0"], "participant v0 is a vehicle"),
         (&["scene", "run", "--clock", "sometimes"], "--clock \"sometimes\""),
         (&["scene", "run", "--speed", "-1"], "--speed -1"),
         (&["scene", "run", "--clock", "realtime", "--speed", "2"], "--speed paces a lockstep scene"),
         (&["scene", "run", "--clock", "realtime", "--embedded"], "--embedded runs in virtual time"),
+        (&["scene", "run", "--embedded", "--data-router", "tcp/127.0.0.1:7447"], "--data-router needs the processes"),
+        (&["scene", "run", "--data-router", "nonsense"], "nonsense"),
         (&["scene", "authority", "--participant", "v0"], "--participant"),
         (&["scene", "run", "--without", "v0"], "--without v0: only a connected traffic vehicle"),
         (&["scene", "run", "--id", "abc"], "--id names a scenario of a --db library"),

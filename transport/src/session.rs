@@ -51,6 +51,11 @@ pub struct TransportConfig {
     pub multicast_scouting: bool,
     /// How long opening the session may wait for the `connect` endpoints.
     pub connect_timeout: Duration,
+    /// A peer that opens at once and keeps trying its `connect` endpoints in the background,
+    /// and that neither tells nor learns of other peers (no gossip): a link to one router that
+    /// may not be reachable yet, for what must not wait for the network (a scene's data beside
+    /// its physics). A client cannot: it opens only once its router answers.
+    pub detached: bool,
 }
 
 impl Default for TransportConfig {
@@ -61,6 +66,7 @@ impl Default for TransportConfig {
             listen: Vec::new(),
             multicast_scouting: false,
             connect_timeout: Duration::from_secs(10),
+            detached: false,
         }
     }
 }
@@ -97,14 +103,23 @@ impl TransportConfig {
             set(&mut config, "connect/endpoints", json_list(&self.connect))?;
             let timeout_ms = i64::try_from(self.connect_timeout.as_millis()).unwrap_or(i64::MAX);
             set(&mut config, "connect/timeout_ms", timeout_ms.to_string())?;
-            // A role that cannot reach its router should say so and stop, not wait forever.
-            set(&mut config, "connect/exit_on_failure", "true".to_owned())?;
+            // A role that cannot reach its router should say so and stop, not wait forever
+            // (unless detached: then it keeps trying in the background).
+            set(&mut config, "connect/exit_on_failure", (!self.detached).to_string())?;
             // Once connected, a lost router is retried every RECONNECT_PERIOD, forever (Zenoh's
             // 1 s doubling to 4 s finds a router that is back up to 4 s later).
             let period_ms = RECONNECT_PERIOD.as_millis();
             let retry =
                 format!(r#"{{"period_init_ms":{period_ms},"period_max_ms":{period_ms},"period_increase_factor":1.0}}"#);
             set(&mut config, "connect/retry", retry)?;
+        }
+        if self.detached {
+            if self.mode != Mode::Peer {
+                let value = self.mode_str().to_owned();
+                let reason = "only a peer opens before its router answers".to_owned();
+                return Err(TransportError::Config { key: "mode", value, reason });
+            }
+            set(&mut config, "scouting/gossip/enabled", "false".to_owned())?;
         }
         if self.mode == Mode::Router {
             // A router's timestamps would order every plain publisher it forwards under one clock
@@ -198,6 +213,21 @@ mod tests {
         );
         let router = TransportConfig { mode: Mode::Router, ..TransportConfig::default() }.to_zenoh().unwrap();
         assert_eq!(router.get_json("timestamping/enabled").unwrap(), "false");
+        assert_eq!(z.get_json("connect/exit_on_failure").unwrap(), "true");
+    }
+
+    #[test]
+    fn a_detached_peer_opens_without_its_router_and_gossips_nothing() {
+        let detached = TransportConfig {
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            detached: true,
+            ..TransportConfig::default()
+        };
+        let z = detached.to_zenoh().unwrap();
+        assert_eq!(z.get_json("connect/exit_on_failure").unwrap(), "false");
+        assert_eq!(z.get_json("scouting/gossip/enabled").unwrap(), "false");
+        let client = TransportConfig { mode: Mode::Client, ..detached };
+        assert!(matches!(client.to_zenoh(), Err(TransportError::Config { key: "mode", .. })));
     }
 
     #[test]

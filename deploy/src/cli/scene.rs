@@ -56,6 +56,13 @@ pub struct SceneArgs {
     /// Zenoh site of the scene's keys.
     #[arg(long, default_value = "site0")]
     pub site: String,
+    /// A router the scene's data goes through (its edge streams, road map and ground truth:
+    /// what a cloud ingests), each role joining it with a session of its own that does not wait
+    /// for it, while its physics stays on the roles' own sessions (`scene run`: its own loopback router, unless --router). A
+    /// deployment gives a scene its site's router here, so that no emulated link carries
+    /// physics.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub data_router: Option<String>,
 }
 
 #[derive(Debug, Args)]

@@ -134,9 +134,43 @@ pub(super) fn open(transport: &TransportConfig) -> CliResult<(tokio::runtime::Ru
     Ok((runtime, session))
 }
 
+/// The transport of the scene's data session, when `--data-router` asks for one: a detached
+/// peer of that router, so that the scene's physics never waits for the network (a scene
+/// started while its host is cut off drives on time; what its streams publish before the
+/// router answers goes nowhere, as with any publisher without a route).
+fn data_transport(args: &SceneArgs) -> CliResult<Option<TransportConfig>> {
+    let Some(router) = &args.data_router else { return Ok(None) };
+    let config = TransportConfig {
+        connect: vec![router.clone()],
+        listen: vec![LOOPBACK.into()],
+        detached: true,
+        ..TransportConfig::default()
+    };
+    // A bad endpoint is the user's input: refused before anything starts.
+    config.to_zenoh().map_err(CliError::input)?;
+    Ok(Some(config))
+}
+
+/// The physics session on `physics`, and the data session: its own when `data` says so, else
+/// the physics session again (returned as `None`).
+fn open_planes(
+    physics: &TransportConfig,
+    data: Option<&TransportConfig>,
+) -> CliResult<(tokio::runtime::Runtime, Session, Option<Session>)> {
+    let (runtime, session) = open(physics)?;
+    let data = data.map(|d| runtime.block_on(connect(d)).map_err(CliError::runtime)).transpose()?;
+    Ok((runtime, session, data))
+}
+
 /// Steps `setup` as the authority on `session` until the episode ends.
-fn authority_on(session: &Session, site: &SiteId, setup: &SceneSetup, clock: Clock) -> CliResult<SceneReport> {
-    let plane = ZenohAuthority::open(session, site, setup, Timeouts::default()).map_err(scene_error)?;
+fn authority_on(
+    physics: &Session,
+    data: &Session,
+    site: &SiteId,
+    setup: &SceneSetup,
+    clock: Clock,
+) -> CliResult<SceneReport> {
+    let plane = ZenohAuthority::open(physics, data, site, setup, Timeouts::default()).map_err(scene_error)?;
     tracing::info!("scene {setup}: all {} participants joined, stepping", setup.participants().len());
     let started = Instant::now();
     let report = match clock {
@@ -200,8 +234,9 @@ pub fn authority(args: SceneRoleArgs) -> CliResult {
     let clock = clock_of(&args.clock, args.speed)?;
     let setup = setup_of(&args.scene)?;
     let site = site_of(&args.scene)?;
-    let (_runtime, session) = open(&transport_config(args.zenoh)?)?;
-    let report = authority_on(&session, &site, &setup, clock)?;
+    let data = data_transport(&args.scene)?;
+    let (_runtime, physics, data) = open_planes(&transport_config(args.zenoh)?, data.as_ref())?;
+    let report = authority_on(&physics, data.as_ref().unwrap_or(&physics), &site, &setup, clock)?;
     print_json(&report)
 }
 
@@ -217,9 +252,11 @@ pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
             args.participant
         )));
     }
-    let (_runtime, session) = open(&transport_config(args.zenoh)?)?;
+    let data = data_transport(&args.scene)?;
+    let (_runtime, physics, data) = open_planes(&transport_config(args.zenoh)?, data.as_ref())?;
+    let data = data.as_ref().unwrap_or(&physics);
     let summary =
-        run_participant(&session, &site, &setup, &args.participant, Timeouts::default()).map_err(scene_error)?;
+        run_participant(&physics, data, &site, &setup, &args.participant, Timeouts::default()).map_err(scene_error)?;
     print_json(&summary)
 }
 
@@ -230,6 +267,11 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         return Err(CliError::input("scene outcomes are JSON only (--format json)"));
     }
     if args.embedded {
+        if args.scene.data_router.is_some() {
+            return Err(CliError::input(
+                "--embedded runs in one process with no network; --data-router needs the processes",
+            ));
+        }
         if clock == Clock::Realtime {
             return Err(CliError::input("--embedded runs in virtual time; --clock realtime needs the processes"));
         }
@@ -240,6 +282,8 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         return print_json(&SceneReport { outcome, deadlines: None });
     }
     let site = site_of(&args.scene)?;
+    // Checked before anything starts: a bad endpoint is the user's input.
+    let data = data_transport(&args.scene)?;
     let mut children = Children::default();
     let locator = match args.router {
         Some(locator) => locator,
@@ -258,8 +302,8 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         mode: "peer".into(),
         multicast_scouting: false,
     };
-    let (_runtime, session) = open(&transport_config(zenoh)?)?;
-    let report = authority_on(&session, &site, &setup, clock);
+    let (_runtime, physics, data) = open_planes(&transport_config(zenoh)?, data.as_ref())?;
+    let report = authority_on(&physics, data.as_ref().unwrap_or(&physics), &site, &setup, clock);
     let finished = children.finish_participants(Duration::from_secs(10));
     let report = report?;
     finished?;
@@ -290,6 +334,9 @@ fn scene_argv(args: &SceneArgs) -> Vec<String> {
         argv.extend(["--without".to_owned(), id.clone()]);
     }
     argv.extend(["--site".to_owned(), args.site.clone()]);
+    if let Some(router) = &args.data_router {
+        argv.extend(["--data-router".to_owned(), router.clone()]);
+    }
     argv
 }
 

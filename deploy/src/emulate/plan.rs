@@ -244,7 +244,9 @@ pub fn argv(p: &Planned, connect: &[String], listen: Option<&str>) -> Vec<String
             if !p.args.iter().any(|a| a.starts_with("--clock") || a.starts_with("--speed")) {
                 argv.extend([s("--clock"), s("realtime")]);
             }
-            argv.extend(connect.first().map(|c| [s("--router"), c.clone()]).into_iter().flatten());
+            // Its data goes through the host's route; its physics stays on the host, on the
+            // scene's own loopback router: no emulated link or partition touches it.
+            argv.extend(connect.first().map(|c| [s("--data-router"), c.clone()]).into_iter().flatten());
         }
         _ => {
             if matches!(p.role, "vehicle" | "rsu") {

@@ -51,7 +51,8 @@ pub struct Process {
 }
 
 /// Arguments the deployment gives: addresses are assigned, never written.
-const GIVEN_ARGS: [&str; 6] = ["--connect", "--listen", "--router", "--mode", "--multicast-scouting", "--clock-steps"];
+const GIVEN_ARGS: [&str; 7] =
+    ["--connect", "--listen", "--router", "--data-router", "--mode", "--multicast-scouting", "--clock-steps"];
 /// One end of a link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Endpoint {

@@ -186,15 +186,22 @@ struct RealTime {
 }
 
 impl ZenohAuthority {
-    /// Declares the plane and waits until every participant of `setup` has joined with the
-    /// same scene; on a mismatch or a timeout every joined participant is told, and the error
-    /// names who.
-    pub fn open(session: &Session, site: &SiteId, setup: &SceneSetup, timeouts: Timeouts) -> Result<Self, SceneError> {
+    /// Declares the plane on `physics` (truth out, answers in) and the scene's data for the
+    /// cloud on `data` (road map, ground truth; the same session when the scene has one), and
+    /// waits until every participant of `setup` has joined with the same scene; on a mismatch
+    /// or a timeout every joined participant is told, and the error names who.
+    pub fn open(
+        physics: &Session,
+        data: &Session,
+        site: &SiteId,
+        setup: &SceneSetup,
+        timeouts: Timeouts,
+    ) -> Result<Self, SceneError> {
         let participants = setup.participants();
         let answers = Answers { answered: vec![false; participants.len()], joining: true, ..Answers::default() };
         let tally = Arc::new(Tally { state: Mutex::new(answers), ready: Condvar::new(), participants });
         let replies_key = scene_replies(site);
-        let replies = session
+        let replies = physics
             .declare_subscriber(replies_key.clone())
             .callback({
                 let tally = Arc::clone(&tally);
@@ -202,9 +209,9 @@ impl ZenohAuthority {
             })
             .wait()
             .map_err(transport(&replies_key))?;
-        let truth = reliable_publisher(session, scene_truth(site))?;
+        let truth = reliable_publisher(physics, scene_truth(site))?;
         let declare = |key: String, message: &str| {
-            session.declare_publisher(key.clone()).encoding(protobuf(message)).wait().map_err(transport(&key))
+            data.declare_publisher(key.clone()).encoding(protobuf(message)).wait().map_err(transport(&key))
         };
         let map_publisher = declare(scene_topic(Some(site), SceneTopic::Map), RoadMap::PROTO_NAME)?;
         let objects = declare(scene_topic(Some(site), SceneTopic::Objects), ObjectList::PROTO_NAME)?;
@@ -498,9 +505,11 @@ impl Answering {
     }
 }
 
-/// Runs participant `id` of `setup` until the authority ends the scene.
+/// Runs participant `id` of `setup` until the authority ends the scene: the plane on `physics`
+/// (truth in, answers out), its edge streams on `data` (the same session when the scene has one).
 pub fn run_participant(
-    session: &Session,
+    physics: &Session,
+    data: &Session,
     site: &SiteId,
     setup: &SceneSetup,
     id: &str,
@@ -509,7 +518,7 @@ pub fn run_participant(
     let stack = Onboard::new(setup, id)?;
     let participant =
         risktwin_transport::SourceId::new(id).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
-    let outbox = reliable_publisher(session, scene_reply(site, &participant))?;
+    let outbox = reliable_publisher(physics, scene_reply(site, &participant))?;
     let digest = setup.digest();
     let join = Reply::Join {
         schema: super::wire::SCHEMA_VERSION,
@@ -520,7 +529,7 @@ pub fn run_participant(
     .encode();
     let reported = setup.reported_spec().filter(|_| stack.role() == Role::Ego).cloned();
     let streams =
-        Streams::open(session, site, &participant, matches!(stack.role(), Role::Rsu { .. }), reported.is_some())?;
+        Streams::open(data, site, &participant, matches!(stack.role(), Role::Rsu { .. }), reported.is_some())?;
     let summary = ParticipantSummary {
         participant: id.to_owned(),
         scene: format!("{digest:016x}"),
@@ -544,7 +553,7 @@ pub fn run_participant(
     let answering = Arc::new(Mutex::new(answering));
     let (end_tx, end) = std::sync::mpsc::sync_channel(1);
     let truth_key = scene_truth(site);
-    let _truth = session
+    let _truth = physics
         .declare_subscriber(truth_key.clone())
         .callback({
             let answering = Arc::clone(&answering);

@@ -359,6 +359,19 @@ fn a_router_restart_mid_run_loses_nothing_and_its_clients_are_back_within_2_s() 
 }
 
 #[test]
+fn a_sites_own_router_is_restarted_by_name_and_nothing_is_lost() {
+    // The edge site has no host that runs a router: its router runs on the site's gateway.
+    let d = Deployment::new(&(THREE_HOSTS.to_owned() + "\n[[event]]\nat_s = 2\nrestart = \"edge/router\"\n"));
+    let report = d.run("60s");
+    let timeline = &report["timeline"];
+    assert!(timeline.as_array().expect("timeline").iter().any(|e| e["what"] == "restart edge/router"), "{timeline}");
+    let router = report["processes"].as_array().expect("processes").iter().find(|p| p["name"] == "edge/router");
+    assert_eq!(router.map(|p| &p["restarts"]), Some(&Value::from(1)), "{}", report["processes"]);
+    assert_nothing_missing(&report, 5);
+    assert_eq!(d.leftovers(), Vec::<String>::new());
+}
+
+#[test]
 fn a_clock_step_moves_a_hosts_edge_clock_and_the_cloud_counts_what_it_refused() {
     // At 4 s of a 10 s run: well after the vehicle started publishing, on a loaded machine too.
     let stepped = THREE_HOSTS.replace("\"--count\", \"300\"", "\"--count\", \"500\"")

@@ -11,7 +11,7 @@ use super::plan::{CLOCK_STEPS_FILE, Hop, Planned, argv, is_edge, plan};
 use super::relay::{self, LinkShape, LinkState, Relay, RelayCounts};
 use super::report::{self, Report, TimelineEntry};
 use super::supervise::Supervised;
-use crate::topology::{Action, Link, Topology};
+use crate::topology::{Action, Link, Target, Topology};
 use risktwin_common::digest::fnv1a64;
 use std::cell::RefCell;
 use std::io::Write as _;
@@ -348,16 +348,23 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
                         undo.push((e.at + d, Undo::Restore(k, what)));
                     }
                 }
-                Action::Kill { host, process } | Action::Restart { host, process } => {
-                    let k = processes
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, (p, _))| p.machine == *host)
-                        .nth(*process)
-                        .map(|(k, _)| k)
-                        .expect("the event names a process of the host");
+                Action::Kill(target) | Action::Restart(target) => {
+                    let k = match target {
+                        // Hosts are the first machines, their processes planned in their order.
+                        Target::Hosted { host, process } => processes
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, (p, _))| p.machine == *host)
+                            .nth(*process)
+                            .map(|(k, _)| k),
+                        Target::SiteRouter { site } => processes.iter().position(|(p, _)| {
+                            let machine = &plan.machines[p.machine];
+                            machine.host.is_none() && machine.site == *site && p.role == "router"
+                        }),
+                    }
+                    .expect("the event names a planned process");
                     let s = &mut processes[k].1;
-                    if matches!(e.action, Action::Kill { .. }) {
+                    if matches!(e.action, Action::Kill(_)) {
                         s.kill();
                         note(format!("kill {}", s.name));
                     } else {

@@ -211,7 +211,7 @@ pub fn parse(text: &str) -> Result<Topology, TopologyError> {
     }
     let mut events = Vec::new();
     for e in &file.event {
-        events.push(check_event(e, &names, &hosts, &links, &at)?);
+        events.push(check_event(e, &names, &sites, &hosts, &links, &at)?);
     }
     events.sort_by_key(|e: &Event| e.at);
     let topology = Topology { sites, hosts, links, events };

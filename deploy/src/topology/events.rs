@@ -1,7 +1,7 @@
 //! The event schedule of a topology: partitions, degraded links, killed and restarted
 //! processes and stepped clocks, their names resolved against the checked hosts and links.
 
-use super::check::{Endpoint, Host, Link, MAX_BANDWIDTH_MBPS, MAX_LATENCY_MS, MIN_BANDWIDTH_MBPS, TopologyError};
+use super::check::{Endpoint, Host, Link, MAX_BANDWIDTH_MBPS, MAX_LATENCY_MS, MIN_BANDWIDTH_MBPS, Site, TopologyError};
 use super::model::EventDef;
 use std::collections::HashMap;
 use std::ops::Range;
@@ -33,20 +33,25 @@ pub enum Action {
         latency_ms: Option<f64>,
         bandwidth_mbps: Option<f64>,
     },
-    /// Kill process `process` of host `host` (its restart policy brings it back).
-    Kill {
-        host: usize,
-        process: usize,
-    },
-    Restart {
-        host: usize,
-        process: usize,
-    },
+    /// Kill a process (its restart policy brings it back).
+    Kill(Target),
+    /// Stop a process and start it again.
+    Restart(Target),
     /// Step the clocks of a host's processes.
     ClockStep {
         host: usize,
         by_ms: f64,
     },
+}
+
+/// The process a `kill` or `restart` names.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Target {
+    /// Process `process` of host `host` (`host/role`).
+    Hosted { host: usize, process: usize },
+    /// The router of site `site` that runs on the site's gateway (`site/router`: no host of the
+    /// site runs one).
+    SiteRouter { site: usize },
 }
 
 /// The largest clock step, ms (a day).
@@ -56,6 +61,7 @@ pub const MAX_CLOCK_STEP_MS: f64 = 86_400_000.0;
 pub(super) fn check_event(
     e: &EventDef,
     names: &HashMap<String, (Endpoint, usize)>,
+    sites: &[Site],
     hosts: &[Host],
     links: &[Link],
     at: &impl Fn(Range<usize>, String) -> TopologyError,
@@ -81,15 +87,26 @@ pub(super) fn check_event(
         let (host, role) = spec
             .get_ref()
             .split_once('/')
-            .ok_or_else(|| at(spec.span(), format!("{:?}: write host/role", spec.get_ref())))?;
+            .ok_or_else(|| at(spec.span(), format!("{:?}: write host/role or site/router", spec.get_ref())))?;
+        if let Some(site) = sites.iter().position(|s| s.name == host) {
+            let hosted = hosts.iter().any(|h| h.site == site && h.run.iter().any(|p| p.role == "router"));
+            return match (role, sites[site].router && !hosted) {
+                ("router", true) => Ok(Target::SiteRouter { site }),
+                ("router", false) => Err(at(
+                    spec.span(),
+                    format!("site {host:?} has no router of its own (a host of it runs the router, or none is run)"),
+                )),
+                _ => Err(at(spec.span(), format!("a site runs only its router: write {host}/router or host/role"))),
+            };
+        }
         let h = hosts
             .iter()
             .position(|x| x.name == host)
-            .ok_or_else(|| at(spec.span(), format!("unknown host {host:?}")))?;
+            .ok_or_else(|| at(spec.span(), format!("unknown host or site {host:?}")))?;
         let matching: Vec<usize> =
             hosts[h].run.iter().enumerate().filter(|(_, p)| p.role == role).map(|(k, _)| k).collect();
         match matching.as_slice() {
-            [k] => Ok((h, *k)),
+            [k] => Ok(Target::Hosted { host: h, process: *k }),
             [] => Err(at(spec.span(), format!("host {host:?} runs no {role:?}"))),
             _ => Err(at(spec.span(), format!("host {host:?} runs {role:?} more than once"))),
         }
@@ -132,11 +149,9 @@ pub(super) fn check_event(
         }
         Action::Degrade { link, latency_ms: e.latency_ms, bandwidth_mbps: e.bandwidth_mbps }
     } else if let Some(spec) = &e.kill {
-        let (host, process) = process(spec)?;
-        Action::Kill { host, process }
+        Action::Kill(process(spec)?)
     } else if let Some(spec) = &e.restart {
-        let (host, process) = process(spec)?;
-        Action::Restart { host, process }
+        Action::Restart(process(spec)?)
     } else {
         let host = hosts
             .iter()
@@ -183,12 +198,18 @@ for_s = 3
         assert_eq!(t.links[0].name, "north-cloud");
         let got: Vec<(f64, &Action)> = t.events.iter().map(|e| (e.at.as_secs_f64(), &e.action)).collect();
         let north = Action::Partition { links: vec![0], hosts: vec![] };
-        assert_eq!(got, [(5.0, &north), (12.0, &Action::Restart { host: 0, process: 0 })]);
+        assert_eq!(got, [(5.0, &north), (12.0, &Action::Restart(Target::Hosted { host: 0, process: 0 }))]);
+        let gateway =
+            parse(&format!("{TWO_SITES}\n[[event]]\nat_s = 1\nkill = \"north/router\"\n")).expect("a site's router");
+        let north_site = gateway.sites.iter().position(|s| s.name == "north").expect("north");
+        assert_eq!(gateway.events[0].action, Action::Kill(Target::SiteRouter { site: north_site }));
         assert_eq!(t.events[0].lasts, Some(Duration::from_secs(3)));
         for (bad, says) in [
             ("partition = \"south\"", "no site, host or link"),
             ("restart = \"car-1/cloud\"", "runs no \"cloud\""),
             ("kill = \"car-1\"", "write host/role"),
+            ("kill = \"north/cloud\"", "a site runs only its router"),
+            ("restart = \"south/router\"", "unknown host or site"),
             ("degrade = \"north-cloud\"", "degrade needs"),
             ("clock_step = \"car-1\"", "finite by_ms"),
             ("clock_step = \"car-1\"\nby_ms = 1e9", "within ± 86400000"),

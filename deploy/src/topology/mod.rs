@@ -9,5 +9,5 @@ mod events;
 mod model;
 
 pub use check::{Endpoint, Link, Topology, parse};
-pub use events::Action;
+pub use events::{Action, Target};
 pub use model::{Jitter, Restart};

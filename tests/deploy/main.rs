@@ -205,6 +205,9 @@ fn three_hosts_over_a_20_ms_link_lose_nothing_and_see_its_delay() {
     assert!(wan["bytes_down"].as_u64().expect("bytes") > 10_000, "the edges' data crossed it toward the cloud");
     // car-1: state, can, perception; rsu-1: rsu, signal.
     assert_nothing_missing(&report, 5);
+    // No fault, nothing recovered: live samples are never taken for a cache's answers.
+    let streams = report["streams"].as_array().expect("streams");
+    assert!(streams.iter().all(|s| s["recovered"] == 0), "{streams:#?}");
     // The twin's lag behind the cloud's clock, measured on every snapshot: at least the
     // aligner's wait for late samples, and no outage here.
     let lag = &report["twin_lag"]["cloud-0/cloud"];

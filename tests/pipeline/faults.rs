@@ -164,11 +164,10 @@ fn assert_accounted(outcome: &Outcome, outage: Duration) {
     }
     let rows = per_stream(outcome);
     assert_eq!(rows.len(), 5, "3 vehicle streams + 2 RSU streams: {rows:?}");
-    for Row { name, sent, received, recovered, lost, presumed } in &rows {
+    for Row { name, sent, received, lost, presumed, .. } in &rows {
         assert!(*sent > 0, "{name} sent nothing");
         assert_eq!(received + lost, *sent, "{name}: received {received} + lost {lost} != sent {sent}; {cloud}");
         assert_eq!(lost, presumed, "{name}: the transport's and the sequence numbers' loss counts agree");
-        assert!(recovered <= received, "{name}: recovered {recovered} of {received} received");
     }
     let total = |count: fn(&Row) -> u64| Some(rows.iter().map(count).sum::<u64>());
     assert_eq!(cloud["total_lost"].as_u64(), total(|r| r.lost), "{cloud}");

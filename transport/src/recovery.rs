@@ -16,19 +16,23 @@ pub const HEARTBEAT_PERIOD: Duration = Duration::from_millis(500);
 /// to notice a gap at the end, and as long again for its query and the answer.
 pub const EXIT_LINGER: Duration = Duration::from_millis(2 * HEARTBEAT_PERIOD.as_millis() as u64);
 
-/// The priority live edge-stream samples travel at: below Zenoh's default `Data`, at which
-/// answers to recovery queries arrive (a stream cache answers at [`RECOVERY_PRIORITY`], and a
-/// router forwards an answer at its query's priority, which zenoh-ext's subscriber leaves at
-/// `Data`). So the cloud tells a recovered sample from a live one ([`is_recovered`]), and on a
-/// congested link a scene's physics and the cloud's pushes (`Data`) go before telemetry.
-pub const LIVE_PRIORITY: Priority = Priority::DataLow;
+/// The priority live edge-stream samples travel at: above Zenoh's default `Data`, at which
+/// answers to recovery queries arrive (every Zenoh runtime forwards an answer at its query's
+/// priority, and zenoh-ext's subscriber queries at `Data`). So the cloud tells a recovered
+/// sample from a live one ([`is_recovered`]); and zenoh-ext's heartbeats (`Data`, not
+/// configurable) trail the live samples they announce: were they ahead, a congested link would
+/// make the cloud ask for samples still queued behind them, and get them twice.
+pub const LIVE_PRIORITY: Priority = Priority::DataHigh;
 
 /// The priority answers to recovery queries arrive at (see [`LIVE_PRIORITY`]).
 pub const RECOVERY_PRIORITY: Priority = Priority::Data;
 
-/// Whether `sample` came from a publisher's cache (a recovery query's answer) rather than live.
+/// Whether `sample` came from an advanced publisher's cache (an answer to a recovery query)
+/// rather than live: numbered (source info) and at [`RECOVERY_PRIORITY`]. A plain publisher's
+/// samples (no source info) are never taken for recovered ones; an advanced publisher that does
+/// not publish at [`LIVE_PRIORITY`] (not one of ours) has all its samples counted recovered.
 pub fn is_recovered(sample: &Sample) -> bool {
-    sample.priority() == RECOVERY_PRIORITY
+    sample.priority() == RECOVERY_PRIORITY && sample.source_info().is_some()
 }
 
 /// The longest outage a live edge stream survives by default: a router restart or a partition

@@ -10,7 +10,7 @@
 //! does not say what it sends, is refused by name and never misread.
 
 use crate::keyexpr::{self, EdgeStream, SiteId, SourceId};
-use crate::recovery::{Delivery, EXIT_LINGER, HEARTBEAT_PERIOD, LIVE_PRIORITY, MAX_CACHE_SAMPLES, RECOVERY_PRIORITY};
+use crate::recovery::{Delivery, EXIT_LINGER, HEARTBEAT_PERIOD, LIVE_PRIORITY, MAX_CACHE_SAMPLES};
 use crate::session::TransportError;
 use crate::shutdown::Shutdown;
 use std::time::Duration;
@@ -20,7 +20,7 @@ use zenoh::bytes::{Encoding, ZBytes};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::SampleKind;
-use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, MissDetectionConfig, RepliesConfig};
+use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, MissDetectionConfig};
 
 /// The encoding that tags a protobuf payload of message `name` (its full name).
 pub fn protobuf(name: &str) -> Encoding {
@@ -79,9 +79,7 @@ impl StreamPublisher {
             key: key.clone(),
             reason: e.to_string(),
         })?;
-        let cache = CacheConfig::default()
-            .max_samples(delivery.cache_samples.clamp(1, MAX_CACHE_SAMPLES))
-            .replies_config(RepliesConfig::default().priority(RECOVERY_PRIORITY));
+        let cache = CacheConfig::default().max_samples(delivery.cache_samples.clamp(1, MAX_CACHE_SAMPLES));
         let publisher = session
             .declare_publisher(declared)
             .encoding(protobuf(message))

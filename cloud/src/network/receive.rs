@@ -363,7 +363,11 @@ impl LiveIngest {
             }
             *count += 1;
             if recovered {
-                self.recovered.entry(parsed.source.to_owned()).or_default()[parsed.stream.index()] += 1;
+                let counts = match self.recovered.get_mut(parsed.source) {
+                    Some(c) => c,
+                    None => self.recovered.entry(parsed.source.to_owned()).or_default(),
+                };
+                counts[parsed.stream.index()] += 1;
             }
         }
         if let Some(outputs) = self.outputs.as_mut() {

@@ -69,11 +69,13 @@ impl Streams {
         is_rsu: bool,
         reports: bool,
     ) -> Result<Streams, SceneError> {
+        // `Drop`: a put runs in the truth callback, and a stalled data link must never hold the
+        // physics step; what it drops, the cloud's `presumed_lost` counts.
         let declare_key = |key: String, message: &str| {
             session
                 .declare_publisher(key.clone())
                 .encoding(protobuf(message))
-                .congestion_control(CongestionControl::Block)
+                .congestion_control(CongestionControl::Drop)
                 .reliability(Reliability::Reliable)
                 .priority(LIVE_PRIORITY)
                 .wait()

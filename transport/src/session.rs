@@ -217,7 +217,7 @@ mod tests {
     }
 
     #[test]
-    fn a_detached_peer_opens_without_its_router_and_gossips_nothing() {
+    fn a_detached_peer_is_configured_not_to_wait_for_its_router_nor_to_gossip() {
         let detached = TransportConfig {
             connect: vec!["tcp/127.0.0.1:7447".into()],
             detached: true,

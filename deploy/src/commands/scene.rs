@@ -152,13 +152,16 @@ fn data_transport(args: &SceneArgs) -> CliResult<Option<TransportConfig>> {
 }
 
 /// The physics session on `physics`, and the data session: its own when `data` says so, else
-/// the physics session again (returned as `None`).
+/// the physics session again.
 fn open_planes(
     physics: &TransportConfig,
     data: Option<&TransportConfig>,
-) -> CliResult<(tokio::runtime::Runtime, Session, Option<Session>)> {
+) -> CliResult<(tokio::runtime::Runtime, Session, Session)> {
     let (runtime, session) = open(physics)?;
-    let data = data.map(|d| runtime.block_on(connect(d)).map_err(CliError::runtime)).transpose()?;
+    let data = match data {
+        Some(d) => runtime.block_on(connect(d)).map_err(CliError::runtime)?,
+        None => session.clone(),
+    };
     Ok((runtime, session, data))
 }
 
@@ -236,7 +239,7 @@ pub fn authority(args: SceneRoleArgs) -> CliResult {
     let site = site_of(&args.scene)?;
     let data = data_transport(&args.scene)?;
     let (_runtime, physics, data) = open_planes(&transport_config(args.zenoh)?, data.as_ref())?;
-    let report = authority_on(&physics, data.as_ref().unwrap_or(&physics), &site, &setup, clock)?;
+    let report = authority_on(&physics, &data, &site, &setup, clock)?;
     print_json(&report)
 }
 
@@ -254,9 +257,8 @@ pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
     }
     let data = data_transport(&args.scene)?;
     let (_runtime, physics, data) = open_planes(&transport_config(args.zenoh)?, data.as_ref())?;
-    let data = data.as_ref().unwrap_or(&physics);
     let summary =
-        run_participant(&physics, data, &site, &setup, &args.participant, Timeouts::default()).map_err(scene_error)?;
+        run_participant(&physics, &data, &site, &setup, &args.participant, Timeouts::default()).map_err(scene_error)?;
     print_json(&summary)
 }
 
@@ -303,7 +305,7 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         multicast_scouting: false,
     };
     let (_runtime, physics, data) = open_planes(&transport_config(zenoh)?, data.as_ref())?;
-    let report = authority_on(&physics, data.as_ref().unwrap_or(&physics), &site, &setup, clock);
+    let report = authority_on(&physics, &data, &site, &setup, clock);
     let finished = children.finish_participants(Duration::from_secs(10));
     let report = report?;
     finished?;

@@ -7,7 +7,7 @@
 //! process joins the nearest router (fewest hops, ties to the earlier hop); routers peer with
 //! every router they reach without crossing another one. Each hop becomes a relay.
 
-use crate::topology::{Endpoint, Restart, Topology};
+use crate::topology::{Endpoint, Restart, Topology, router_on_gateway};
 use std::collections::VecDeque;
 
 /// What a hop is: a link of the file, or a host's way into its site's network.
@@ -104,8 +104,7 @@ pub fn plan(t: &Topology) -> Plan {
     }
     let mut processes = Vec::new();
     for (s, site) in t.sites.iter().enumerate() {
-        let hosted = t.hosts.iter().any(|h| h.site == s && h.run.iter().any(|p| p.role == "router"));
-        if site.router && !hosted {
+        if router_on_gateway(&t.sites, &t.hosts, s) {
             machine_of[s] = Some(machines.len());
             router_at[s] = Some(s);
             processes.push(Planned {

@@ -82,6 +82,12 @@ pub struct TopologyError {
 }
 
 /// Parses and checks the topology file `text`.
+/// Whether site `site` runs its router on a gateway of its own: it has a router and no host of
+/// it runs one.
+pub fn router_on_gateway(sites: &[Site], hosts: &[Host], site: usize) -> bool {
+    sites[site].router && !hosts.iter().any(|h| h.site == site && h.run.iter().any(|p| p.role == "router"))
+}
+
 pub fn parse(text: &str) -> Result<Topology, TopologyError> {
     let at = |span: Range<usize>, message: String| TopologyError { line: line_of(text, span.start), message };
     let file: File = toml::from_str(text).map_err(|e| {

@@ -1,7 +1,10 @@
 //! The event schedule of a topology: partitions, degraded links, killed and restarted
 //! processes and stepped clocks, their names resolved against the checked hosts and links.
 
-use super::check::{Endpoint, Host, Link, MAX_BANDWIDTH_MBPS, MAX_LATENCY_MS, MIN_BANDWIDTH_MBPS, Site, TopologyError};
+use super::check::{
+    Endpoint, Host, Link, MAX_BANDWIDTH_MBPS, MAX_LATENCY_MS, MIN_BANDWIDTH_MBPS, Site, TopologyError,
+    router_on_gateway,
+};
 use super::model::EventDef;
 use std::collections::HashMap;
 use std::ops::Range;
@@ -89,8 +92,7 @@ pub(super) fn check_event(
             .split_once('/')
             .ok_or_else(|| at(spec.span(), format!("{:?}: write host/role or site/router", spec.get_ref())))?;
         if let Some(site) = sites.iter().position(|s| s.name == host) {
-            let hosted = hosts.iter().any(|h| h.site == site && h.run.iter().any(|p| p.role == "router"));
-            return match (role, sites[site].router && !hosted) {
+            return match (role, router_on_gateway(sites, hosts, site)) {
                 ("router", true) => Ok(Target::SiteRouter { site }),
                 ("router", false) => Err(at(
                     spec.span(),

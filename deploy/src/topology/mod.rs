@@ -8,6 +8,6 @@ mod check;
 mod events;
 mod model;
 
-pub use check::{Endpoint, Link, Topology, parse};
+pub use check::{Endpoint, Link, Topology, parse, router_on_gateway};
 pub use events::{Action, Target};
 pub use model::{Jitter, Restart};

@@ -193,7 +193,7 @@ pub async fn publish_share(
         let source = SourceId::new(format!("veh-{:05}", share.first_vehicle + i)).map_err(BenchError::input)?;
         let delivery = Delivery::paced_by_transport(FLEET_CACHE_SAMPLES);
         let publisher = StreamPublisher::declare(&session, &site, &source, EdgeStream::State, delivery);
-        publishers.push(publisher.await.map_err(BenchError::runtime)?);
+        publishers.push(publisher.map_err(BenchError::runtime)?);
     }
     if let Some(first) = publishers.first()
         && !first.wait_for_subscriber(Duration::from_secs(30), shutdown.clone()).await.map_err(BenchError::runtime)?
@@ -212,7 +212,7 @@ pub async fn publish_share(
         timer.tick().await;
         fleet.tick(tick, |m| batch.push((m.vehicle, m.payload.to_vec())));
         for (vehicle, payload) in batch.drain(..) {
-            publishers[vehicle].put(payload).await.map_err(BenchError::runtime)?;
+            publishers[vehicle].put(payload).map_err(BenchError::runtime)?;
             sent += 1;
         }
     }

@@ -251,7 +251,7 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     let subscriber = subscribe_edge_streams(&sub_side, Some(&site), on_sample, on_loss).await?;
     // As a live edge's state stream: congestion drops, what the link dropped is recovered.
     let delivery = Delivery::live(config.rate_hz, DEFAULT_OUTAGE);
-    let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State, delivery).await?;
+    let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State, delivery)?;
     let (_trigger, shutdown) = risktwin_transport::shutdown::channel();
     publisher.wait_for_subscriber(Duration::from_secs(5), shutdown).await?;
     let start = Instant::now();
@@ -259,12 +259,12 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
         tokio::time::sleep_until((start + period(config) * seq as u32).into()).await;
         let payload = encode(&state(seq as u64, spacing_m));
         sent.lock().unwrap_or_else(PoisonError::into_inner)[seq] = Some(Instant::now());
-        publisher.put(payload).await?;
+        publisher.put(payload)?;
     }
     // The last samples are only covered by snapshots after them: none come; count what came.
     settle(&latencies, n.saturating_sub(WARMUP + 20)).await;
     let _ = subscriber.undeclare().await;
-    publisher.undeclare().await?;
+    publisher.undeclare()?;
     let _ = sub_side.close().wait();
     let _ = pub_side.close().wait();
     let out = latencies.lock().unwrap_or_else(PoisonError::into_inner).clone();

@@ -217,7 +217,7 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     let (mut route_keys, keys) = declare_route_keys(&sub_side);
     // A vehicle state stream's cache; unpaced, so paced by the transport (`Block`).
     let delivery = Delivery::paced_by_transport(cache_samples(50.0, DEFAULT_OUTAGE));
-    let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State, delivery).await?;
+    let publisher = StreamPublisher::declare(&pub_side, &site, &source, EdgeStream::State, delivery)?;
     let _ = keys.send(publisher.key().to_owned());
     tokio::time::timeout(Duration::from_secs(10), route_keys.declared.wait_for(|n| *n >= 1))
         .await
@@ -231,7 +231,7 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     for seq in 0..n {
         let record = StandIn { source: source.as_str(), seq, capture_time_ns: seq as i64, publish_time_ns: seq as i64 };
         let payload = record.encode(config.payload_bytes).map_err(|e| bench_error(e.to_string()))?;
-        publisher.put(payload).await?;
+        publisher.put(payload)?;
     }
     finish.wait(n).await?;
     let rate = n as f64 / start.elapsed().as_secs_f64();

@@ -304,7 +304,7 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
     for stream in STREAMS {
         // The sensor's cadence, at the gateway's rate (the sensor's, unless told otherwise).
         let delivery = Delivery::live(config.rate_hz * messages_per_state(stream), config.cache_span);
-        publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, stream, delivery).await?);
+        publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, stream, delivery)?);
     }
     for publisher in &publishers {
         if !publisher.wait_for_subscriber(config.wait_for_cloud, shutdown.clone()).await? && !shutdown.is_fired() {
@@ -344,7 +344,7 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
             message = rx.recv() => {
                 let Some((stream, bytes)) = message else { break };
                 let slot = Reader::slot(stream);
-                if let Err(e) = publishers[slot].put(bytes).await {
+                if let Err(e) = publishers[slot].put(bytes) {
                     result = Err(e);
                     break;
                 }

@@ -166,7 +166,7 @@ pub async fn run_producer(
     let mut publishers = Vec::with_capacity(streams.len());
     for stream in &streams {
         let delivery = Delivery::live(config.rate_hz * producer.messages_per_base(*stream), config.cache_span);
-        publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, *stream, delivery).await?);
+        publishers.push(StreamPublisher::declare(&session, &config.site, &config.id, *stream, delivery)?);
     }
     let mut push_subscribers = Vec::new();
     for push in producer.pushes().to_vec() {
@@ -268,7 +268,7 @@ pub async fn run_producer(
         }
         for (stream, payload) in out.drain(..) {
             let Some(publisher) = publishers.iter().find(|p| p.stream() == Some(stream)) else { continue };
-            if let Err(e) = publisher.put(payload).await {
+            if let Err(e) = publisher.put(payload) {
                 result = Err(e.into());
                 break;
             }

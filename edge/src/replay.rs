@@ -89,7 +89,7 @@ pub async fn run<R: Read>(
             continue;
         };
         let topic = m.topic.to_owned();
-        publisher.put_with_attachment(m.data.to_vec(), encode_replay_time(log_time_ns).to_vec()).await?;
+        publisher.put_with_attachment(m.data.to_vec(), encode_replay_time(log_time_ns).to_vec())?;
         summary.published += 1;
         *summary.by_key.entry(topic).or_default() += 1;
     }
@@ -112,7 +112,7 @@ async fn declare(session: &Session, topic: &str, schema: &str) -> Result<Option<
     if let Some((site, source)) = parse_edge_map_key(topic) {
         check(EDGE_MAP_MESSAGE)?;
         let (site, source) = (SiteId::new(site).map_err(bad)?, SourceId::new(source).map_err(bad)?);
-        return Ok(Some(StreamPublisher::declare_map(session, &site, &source, replay_delivery()).await?));
+        return Ok(Some(StreamPublisher::declare_map(session, &site, &source, replay_delivery())?));
     }
     let Some(key) = parse_edge_key(topic) else {
         return Ok(None);
@@ -120,7 +120,7 @@ async fn declare(session: &Session, topic: &str, schema: &str) -> Result<Option<
     check(key.stream.message())?;
     let site = SiteId::new(key.site).map_err(bad)?;
     let source = SourceId::new(key.source).map_err(bad)?;
-    Ok(Some(StreamPublisher::declare(session, &site, &source, key.stream, replay_delivery()).await?))
+    Ok(Some(StreamPublisher::declare(session, &site, &source, key.stream, replay_delivery())?))
 }
 
 /// Samples each replayed key keeps for recovery: 30 s of a 50 Hz state stream at speed 1.

@@ -289,8 +289,44 @@ fn a_connected_cutter_is_seen_by_the_ego_and_the_rsu_and_changes_the_egos_drive(
 }
 
 #[test]
+fn a_scene_whose_data_router_never_answers_drives_on_says_so_and_counts_what_waited() {
+    // Nothing listens there: the scene's data router never answers.
+    let free = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
+    let router = format!("tcp/{}", free.local_addr().expect("its address"));
+    drop(free);
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let summaries = dir.path().join("participants.jsonl");
+    // Paced to outlast the 5 s a data router has to answer.
+    let extra =
+        ["--speed", "1.5", "--data-router", &router, "--participant-summaries", summaries.to_str().expect("utf-8")];
+    let argv = args(&args(&["scene", "run"], &SCENE), &extra);
+    let mut p = Proc::spawn("scene run", &argv);
+    let (status, stdout) = p.wait_exit(Duration::from_secs(120));
+    let stderr = p.drain_stderr();
+    assert!(status.success(), "{argv:?} failed:\n{stderr}");
+    assert!(stderr.contains(&format!("data router {router} has not answered in 5 s")), "{stderr}");
+    let embedded = Proc::spawn("embedded", &args(&args(&["scene", "run"], &SCENE), &["--embedded"]))
+        .wait_exit(Duration::from_secs(60))
+        .1;
+    assert_eq!(stdout, embedded, "the physics did not wait for the data");
+    let outcome: Value = serde_json::from_str(&stdout).expect("JSON");
+    let steps = outcome["steps"].as_u64().expect("steps");
+    // No cloud ever subscribed: everything each participant made is still waiting, and says so.
+    let text = std::fs::read_to_string(&summaries).expect("the participants' summaries");
+    let lines: Vec<Value> = text.lines().map(|l| serde_json::from_str(l).expect("one JSON object a line")).collect();
+    let ids: Vec<&str> = lines.iter().filter_map(|l| l["participant"].as_str()).collect();
+    assert_eq!(ids, ["v0", "v1", "v2", "rsu0"], "{text}");
+    for line in &lines {
+        assert_eq!(line["unsent"], line["sent"], "{line}");
+        let objects = if line["participant"] == "rsu0" { "rsu" } else { "perception" };
+        assert_eq!(line["sent"][objects], steps.div_ceil(2), "10 Hz: {line}");
+    }
+    assert_eq!(lines[0]["sent"]["state"], steps + 1, "every step's state and the final one: {}", lines[0]);
+}
+
+#[test]
 fn bad_scene_input_is_refused_by_name_with_exit_2() {
-    let cases: [(&[&str], &str); 12] = [
+    let cases: [(&[&str], &str); 14] = [
         (&["scene", "vehicle", "--participant", "v7"], "participant \"v7\" is not in this scene"),
         (&["scene", "rsu", "--participant", "v0"], "participant v0 is a vehicle"),
         (&["scene", "run", "--clock", "sometimes"], "--clock \"sometimes\""),
@@ -299,6 +335,8 @@ fn bad_scene_input_is_refused_by_name_with_exit_2() {
         (&["scene", "run", "--clock", "realtime", "--embedded"], "--embedded runs in virtual time"),
         (&["scene", "run", "--embedded", "--data-router", "tcp/127.0.0.1:7447"], "--data-router needs the processes"),
         (&["scene", "run", "--data-router", "nonsense"], "nonsense"),
+        (&["scene", "run", "--embedded", "--participant-summaries", "x.jsonl"], "--participant-summaries"),
+        (&["scene", "run", "--participant-summaries", "/nonexistent/x.jsonl"], "/nonexistent/x.jsonl"),
         (&["scene", "authority", "--participant", "v0"], "--participant"),
         (&["scene", "run", "--without", "v0"], "--without v0: only a connected traffic vehicle"),
         (&["scene", "run", "--id", "abc"], "--id names a scenario of a --db library"),

@@ -15,11 +15,11 @@ use crate::session::TransportError;
 use crate::shutdown::Shutdown;
 use std::time::Duration;
 use tokio::sync::watch;
-use zenoh::Session;
 use zenoh::bytes::{Encoding, ZBytes};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::SampleKind;
+use zenoh::{Session, Wait};
 use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, MissDetectionConfig};
 
 /// The encoding that tags a protobuf payload of message `name` (its full name).
@@ -32,6 +32,9 @@ pub fn protobuf(name: &str) -> Encoding {
 /// A zenoh-ext `AdvancedPublisher` (see [`crate::recovery`]): reliable, every sample numbered,
 /// the last [`Delivery::cache_samples`] kept for the cloud to fetch after an outage, its last
 /// number announced every [`HEARTBEAT_PERIOD`]. What a put does under congestion is the [`Delivery`]'s choice.
+///
+/// Declaring and putting are synchronous: Zenoh resolves them without waiting (its futures for
+/// them are ready ones), so async producers and a physics callback call the same code.
 pub struct StreamPublisher {
     /// `None` for the road map.
     stream: Option<EdgeStream>,
@@ -41,7 +44,7 @@ pub struct StreamPublisher {
 
 impl StreamPublisher {
     /// Declares the publisher of `stream` for `source` at `site`.
-    pub async fn declare(
+    pub fn declare(
         session: &Session,
         site: &SiteId,
         source: &SourceId,
@@ -49,21 +52,21 @@ impl StreamPublisher {
         delivery: Delivery,
     ) -> Result<Self, TransportError> {
         let key = keyexpr::edge_stream(site, source, stream);
-        Self::declare_key(session, key, Some(stream), stream.message(), delivery).await
+        Self::declare_key(session, key, Some(stream), stream.message(), delivery)
     }
 
     /// Declares the publisher of the road map of `source` at `site` (`…/<source>/map`), with the
     /// same delivery guarantees as the streams.
-    pub async fn declare_map(
+    pub fn declare_map(
         session: &Session,
         site: &SiteId,
         source: &SourceId,
         delivery: Delivery,
     ) -> Result<Self, TransportError> {
-        Self::declare_key(session, keyexpr::edge_map(site, source), None, keyexpr::EDGE_MAP_MESSAGE, delivery).await
+        Self::declare_key(session, keyexpr::edge_map(site, source), None, keyexpr::EDGE_MAP_MESSAGE, delivery)
     }
 
-    async fn declare_key(
+    fn declare_key(
         session: &Session,
         key: String,
         stream: Option<EdgeStream>,
@@ -74,7 +77,7 @@ impl StreamPublisher {
         // cached; otherwise every sample is matched against the (wildcard) subscriptions again,
         // which measured at a third of raw Zenoh's throughput. The receiving cloud declares the
         // key on its side too (risktwin_cloud::network::routes).
-        let declared = session.declare_keyexpr(key.clone()).await.map_err(|e| TransportError::Declare {
+        let declared = session.declare_keyexpr(key.clone()).wait().map_err(|e| TransportError::Declare {
             what: "key expression",
             key: key.clone(),
             reason: e.to_string(),
@@ -87,9 +90,9 @@ impl StreamPublisher {
             .congestion_control(delivery.congestion)
             .cache(cache)
             .sample_miss_detection(MissDetectionConfig::default().heartbeat(HEARTBEAT_PERIOD))
-            .await
+            .wait()
             .map_err(|e| TransportError::Declare { what: "publisher", key: key.clone(), reason: e.to_string() })?;
-        let route = session.liveliness().declare_token(&key).await.map_err(|e| TransportError::Declare {
+        let route = session.liveliness().declare_token(&key).wait().map_err(|e| TransportError::Declare {
             what: "stream token",
             key,
             reason: e.to_string(),
@@ -108,15 +111,15 @@ impl StreamPublisher {
     }
 
     /// Publishes one payload.
-    pub async fn put(&self, payload: impl Into<ZBytes>) -> Result<(), TransportError> {
+    pub fn put(&self, payload: impl Into<ZBytes>) -> Result<(), TransportError> {
         self.publisher
             .put(payload)
-            .await
+            .wait()
             .map_err(|e| TransportError::Put { key: self.key().to_owned(), reason: e.to_string() })
     }
 
     /// Publishes one payload with an attachment (e.g. a replay's recorded receive time).
-    pub async fn put_with_attachment(
+    pub fn put_with_attachment(
         &self,
         payload: impl Into<ZBytes>,
         attachment: impl Into<ZBytes>,
@@ -124,7 +127,7 @@ impl StreamPublisher {
         self.publisher
             .put(payload)
             .attachment(attachment)
-            .await
+            .wait()
             .map_err(|e| TransportError::Put { key: self.key().to_owned(), reason: e.to_string() })
     }
 
@@ -156,14 +159,14 @@ impl StreamPublisher {
     }
 
     /// Whether some subscriber matches this stream now.
-    async fn matched(&self) -> bool {
-        self.publisher.matching_status().await.is_ok_and(|s| s.matching())
+    pub fn matched(&self) -> bool {
+        self.publisher.matching_status().wait().is_ok_and(|s| s.matching())
     }
 
     /// Undeclares the publisher (its cache goes with it: see [`retire`]).
-    pub async fn undeclare(self) -> Result<(), TransportError> {
+    pub fn undeclare(self) -> Result<(), TransportError> {
         let key = self.key().to_owned();
-        self.publisher.undeclare().await.map_err(|e| TransportError::Declare {
+        self.publisher.undeclare().wait().map_err(|e| TransportError::Declare {
             what: "undeclare",
             key,
             reason: e.to_string(),
@@ -172,21 +175,22 @@ impl StreamPublisher {
 }
 
 /// Undeclares an edge's stream publishers once their caches have had [`EXIT_LINGER`] to answer
-/// the cloud (skipped when no subscriber matches any of them): a sample lost just before the
-/// edge stopped (a full link queue) is noticed by the cloud at the next heartbeat and fetched.
+/// the cloud (see [`linger`]).
 pub async fn retire(publishers: impl IntoIterator<Item = StreamPublisher>) -> Result<(), TransportError> {
     let publishers: Vec<StreamPublisher> = publishers.into_iter().collect();
-    let mut matched = false;
-    for publisher in &publishers {
-        matched = matched || publisher.matched().await;
-    }
-    if matched {
-        tokio::time::sleep(EXIT_LINGER).await;
-    }
+    tokio::time::sleep(linger(&publishers)).await;
     for publisher in publishers {
-        publisher.undeclare().await?;
+        publisher.undeclare()?;
     }
     Ok(())
+}
+
+/// How long an ending edge keeps `publishers` (and their caches) after its last put:
+/// [`EXIT_LINGER`] when some subscriber matches one of them, so that a sample lost just before
+/// the edge stopped (a full link queue) is noticed by the cloud at the next heartbeat and
+/// fetched; nothing when none does.
+pub fn linger<'a>(publishers: impl IntoIterator<Item = &'a StreamPublisher>) -> Duration {
+    if publishers.into_iter().any(StreamPublisher::matched) { EXIT_LINGER } else { Duration::ZERO }
 }
 
 /// Declares the liveliness token of `source`: the cloud sees the edge as alive while it exists.

@@ -51,9 +51,9 @@ async fn streams_arrive_on_their_subscriber_and_liveliness_tracks_the_edge() {
 
     let (_trigger, shutdown) = shutdown::channel();
     for (i, stream) in [EdgeStream::Can, EdgeStream::Signal].into_iter().enumerate() {
-        let publisher = StreamPublisher::declare(&edge, &site, &source, stream, live()).await.unwrap();
+        let publisher = StreamPublisher::declare(&edge, &site, &source, stream, live()).unwrap();
         assert!(publisher.wait_for_subscriber(STEP, shutdown.clone()).await.unwrap());
-        publisher.put(vec![i as u8; 3]).await.unwrap();
+        publisher.put(vec![i as u8; 3]).unwrap();
         let (got_stream, (key, encoding), payload) = timeout(STEP, samples.recv()).await.unwrap().unwrap();
         assert_eq!((got_stream, key.as_str(), payload), (stream, publisher.key(), vec![i as u8; 3]));
         assert_eq!(key, format!("risktwin/v1/s1/veh-7/{}", stream.as_str()));
@@ -64,7 +64,7 @@ async fn streams_arrive_on_their_subscriber_and_liveliness_tracks_the_edge() {
 
     // A stream of another site is not ours.
     let other = SiteId::new("s2").unwrap();
-    let stranger = StreamPublisher::declare(&edge, &other, &source, EdgeStream::State, live()).await.unwrap();
+    let stranger = StreamPublisher::declare(&edge, &other, &source, EdgeStream::State, live()).unwrap();
     let (_t, quick) = shutdown::channel();
     assert!(!stranger.wait_for_subscriber(Duration::from_millis(300), quick).await.unwrap());
 
@@ -79,7 +79,7 @@ async fn waiting_for_a_subscriber_ends_on_shutdown() {
     let (_a, edge) = peer_pair().await;
     let site = SiteId::new("s1").unwrap();
     let source = SourceId::new("lonely").unwrap();
-    let publisher = StreamPublisher::declare(&edge, &site, &source, EdgeStream::State, live()).await.unwrap();
+    let publisher = StreamPublisher::declare(&edge, &site, &source, EdgeStream::State, live()).unwrap();
     let (trigger, shutdown) = shutdown::channel();
     let wait = tokio::spawn(async move { publisher.wait_for_subscriber(Duration::from_secs(3600), shutdown).await });
     trigger.fire();

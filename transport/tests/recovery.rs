@@ -53,7 +53,7 @@ async fn wait_until(seen: &Mutex<Seen>, what: &str, done: impl Fn(&Seen) -> bool
 /// Sends `count` samples numbered from `first` (4-byte little-endian payloads).
 async fn put_range(publisher: &StreamPublisher, first: u32, count: u32) {
     for seq in first..first + count {
-        publisher.put(seq.to_le_bytes().to_vec()).await.expect("a put never fails while the session is open");
+        publisher.put(seq.to_le_bytes().to_vec()).expect("a put never fails while the session is open");
     }
 }
 
@@ -80,7 +80,7 @@ async fn restart_with_cache(cache_samples: usize, during: u32) -> (Seen, u32) {
     };
     let subscriber = subscribe_edge_streams(&cloud, Some(&site), on_sample, on_loss).await.unwrap();
     let delivery = Delivery { cache_samples, ..Delivery::live(1.0, Duration::ZERO) };
-    let publisher = StreamPublisher::declare(&edge, &site, &source, EdgeStream::Can, delivery).await.unwrap();
+    let publisher = StreamPublisher::declare(&edge, &site, &source, EdgeStream::Can, delivery).unwrap();
     let (_trigger, shutdown) = risktwin_transport::shutdown::channel();
     assert!(publisher.wait_for_subscriber(STEP, shutdown).await.unwrap());
 
@@ -100,7 +100,7 @@ async fn restart_with_cache(cache_samples: usize, during: u32) -> (Seen, u32) {
     }
     // Nothing more arrives: the heartbeat announces nothing new.
     tokio::time::sleep(Duration::from_millis(1200)).await;
-    publisher.undeclare().await.unwrap();
+    publisher.undeclare().unwrap();
     subscriber.undeclare().await.unwrap();
     for session in [edge, cloud, second] {
         close(session).await.unwrap();

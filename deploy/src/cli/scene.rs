@@ -86,6 +86,11 @@ pub struct SceneRunArgs {
     pub speed: f64,
     #[arg(long, value_enum, default_value_t = Format::Json)]
     pub format: Format,
+    /// Appends each participant process's summary (steps, objects perceived, messages sent per
+    /// edge stream) to FILE, one JSON object per line; stdout keeps only the scene's outcome,
+    /// which equals the embedded run's.
+    #[arg(long, value_name = "FILE", conflicts_with = "embedded")]
+    pub participant_summaries: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]

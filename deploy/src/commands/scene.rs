@@ -18,7 +18,7 @@ use risktwin_edge::scene::feasible_spec;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{SiteId, TransportConfig, connect};
 use serde::Serialize;
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufRead, BufReader, Read, Write as _};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -136,8 +136,8 @@ pub(super) fn open(transport: &TransportConfig) -> CliResult<(tokio::runtime::Ru
 
 /// The transport of the scene's data session, when `--data-router` asks for one: a detached
 /// peer of that router, so that the scene's physics never waits for the network (a scene
-/// started while its host is cut off drives on time; what its streams publish before the
-/// router answers goes nowhere, as with any publisher without a route).
+/// started while its host is cut off drives on time; what its participants make before a
+/// cloud subscribes waits in them, see `risktwin_edge::fleet::streams`).
 fn data_transport(args: &SceneArgs) -> CliResult<Option<TransportConfig>> {
     let Some(router) = &args.data_router else { return Ok(None) };
     let config = TransportConfig {
@@ -159,10 +159,41 @@ fn open_planes(
 ) -> CliResult<(tokio::runtime::Runtime, Session, Session)> {
     let (runtime, session) = open(physics)?;
     let data = match data {
-        Some(d) => runtime.block_on(connect(d)).map_err(CliError::runtime)?,
+        Some(d) => {
+            let data = runtime.block_on(connect(d)).map_err(CliError::runtime)?;
+            runtime.spawn(say_when_reached(data.clone(), d.connect.join(", ")));
+            data
+        }
         None => session.clone(),
     };
     Ok((runtime, session, data))
+}
+
+/// How long a scene's data router may take to answer before the scene says it has not.
+const DATA_ROUTER_PATIENCE: Duration = Duration::from_secs(5);
+
+/// Warns once the data session has had no router for [`DATA_ROUTER_PATIENCE`] (a wrong address
+/// or a host cut off: the scene drives on, its data waits), and says when one answers after that.
+async fn say_when_reached(data: Session, router: String) {
+    let started = Instant::now();
+    let mut warned = false;
+    loop {
+        let reached = data.info().routers_zid().await.next().is_some();
+        if reached {
+            if warned {
+                tracing::info!("data router {router} answered after {:.1} s", started.elapsed().as_secs_f64());
+            }
+            return;
+        }
+        if !warned && started.elapsed() >= DATA_ROUTER_PATIENCE {
+            tracing::warn!(
+                "data router {router} has not answered in {} s: the scene drives on, its data waits",
+                DATA_ROUTER_PATIENCE.as_secs()
+            );
+            warned = true;
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
 }
 
 /// Steps `setup` as the authority on `session` until the episode ends.
@@ -284,8 +315,18 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         return print_json(&SceneReport { outcome, deadlines: None });
     }
     let site = site_of(&args.scene)?;
-    // Checked before anything starts: a bad endpoint is the user's input.
+    // Checked before anything starts: a bad endpoint or file is the user's input.
     let data = data_transport(&args.scene)?;
+    let mut summaries = match &args.participant_summaries {
+        Some(path) => Some(
+            std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(path)
+                .map_err(|e| CliError::input(format!("--participant-summaries {}: {e}", path.display())))?,
+        ),
+        None => None,
+    };
     let mut children = Children::default();
     let locator = match args.router {
         Some(locator) => locator,
@@ -307,6 +348,11 @@ pub fn run(args: SceneRunArgs) -> CliResult {
     let (_runtime, physics, data) = open_planes(&transport_config(zenoh)?, data.as_ref())?;
     let report = authority_on(&physics, &data, &site, &setup, clock);
     let finished = children.finish_participants(Duration::from_secs(10));
+    if let Some(file) = &mut summaries {
+        for summary in &children.summaries {
+            writeln!(file, "{summary}").map_err(CliError::runtime)?;
+        }
+    }
     let report = report?;
     finished?;
     print_json(&report)
@@ -347,6 +393,8 @@ fn scene_argv(args: &SceneArgs) -> Vec<String> {
 struct Children {
     router: Option<Child>,
     participants: Vec<(String, Child)>,
+    /// The summaries the participants that ended well printed, one JSON object each.
+    summaries: Vec<String>,
 }
 
 impl Children {
@@ -406,7 +454,11 @@ impl Children {
                 let _ = stdout.read_to_string(&mut out);
             }
             match status {
-                Some(s) if s.success() => tracing::debug!("participant {id}: {}", out.trim()),
+                // Printed pretty by `print_json`; kept on one line.
+                Some(s) if s.success() => match serde_json::from_str::<serde_json::Value>(&out) {
+                    Ok(summary) => self.summaries.push(summary.to_string()),
+                    Err(e) => tracing::warn!("participant {id} printed no summary ({e})"),
+                },
                 Some(s) => failed.push(format!("{id} ({s})")),
                 None => failed.push(format!("{id} (did not exit within {} s)", limit.as_secs())),
             }

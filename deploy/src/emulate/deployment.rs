@@ -7,7 +7,7 @@
 
 use super::net::{Net, sweep};
 use super::network_log::NetworkLog;
-use super::plan::{CLOCK_STEPS_FILE, Hop, Planned, argv, is_edge, plan};
+use super::plan::{CLOCK_STEPS_FILE, Hop, Planned, argv, file_stem, is_edge, plan};
 use super::relay::{self, LinkShape, LinkState, Relay, RelayCounts};
 use super::report::{self, Report, TimelineEntry};
 use super::supervise::Supervised;
@@ -258,7 +258,7 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
         let mut command = net.exec_prefix(p.machine);
         command.push(o.exe.display().to_string());
         command.extend(argv(p, &connect, listen.as_deref()));
-        let stem = dir.join(p.name.rsplit('/').next().unwrap_or(p.role).replace('#', "-"));
+        let stem = dir.join(file_stem(p));
         processes.push((p.clone(), Supervised::new(p.name.clone(), command, dir, stem, p.restart)));
     }
     // Routers, then clouds, then the rest.

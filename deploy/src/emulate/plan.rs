@@ -216,6 +216,14 @@ fn reach(
 /// A host's clock steps (one signed number of ms per line), in the host's folder.
 pub const CLOCK_STEPS_FILE: &str = "clock-steps";
 
+/// The extension of the file, beside a scene's logs, its participants' summaries are appended to.
+pub const PARTICIPANTS_EXT: &str = "participants";
+
+/// The name a process's files in its host's folder start with (`vehicle-1.log`, …).
+pub fn file_stem(p: &Planned) -> String {
+    p.name.rsplit('/').next().unwrap_or(p.role).replace('#', "-")
+}
+
 pub fn argv(p: &Planned, connect: &[String], listen: Option<&str>) -> Vec<String> {
     let s = |v: &str| v.to_owned();
     let mut argv: Vec<String> = match p.role {
@@ -246,6 +254,9 @@ pub fn argv(p: &Planned, connect: &[String], listen: Option<&str>) -> Vec<String
             // Its data goes through the host's route; its physics stays on the host, on the
             // scene's own loopback router: no emulated link or partition touches it.
             argv.extend(connect.first().map(|c| [s("--data-router"), c.clone()]).into_iter().flatten());
+            // Relative to the host's folder, the process's working directory: what each
+            // participant sent, for the report.
+            argv.extend([s("--participant-summaries"), format!("{}.{PARTICIPANTS_EXT}", file_stem(p))]);
         }
         _ => {
             if matches!(p.role, "vehicle" | "rsu") {

@@ -5,7 +5,7 @@
 
 use super::deployment::{HopView, Options};
 use super::net::Net;
-use super::plan::Planned;
+use super::plan::{PARTICIPANTS_EXT, Planned};
 use super::supervise::Supervised;
 use crate::topology::Jitter;
 use risktwin_common::digest::fnv1a64;
@@ -60,13 +60,16 @@ pub struct StreamReport {
     pub source: String,
     pub stream: String,
     pub sent: u64,
+    /// Of `sent`, never put on the wire by the edge: a scene participant's messages made
+    /// before any cloud subscribed, beyond its stream's cache.
+    pub unsent: u64,
     pub received: u64,
     /// Of `received`, what came from the edge's cache after a gap (a partition, a router restart,
     /// a sample the link dropped).
     pub recovered: u64,
     /// Counted lost by the cloud: neither received nor recoverable from the edge's cache.
     pub lost: u64,
-    /// sent − received − lost: not accounted for (an edge that ended during an outage, a cloud
+    /// sent − unsent − received − lost: not accounted for (an edge that ended during an outage, a cloud
     /// that stopped mid-recovery); negative: received more, e.g. a restarted edge's earlier
     /// incarnation.
     pub missing: i64,
@@ -100,10 +103,30 @@ pub struct Report {
     topology_text: String,
 }
 
-/// Every JSON document a process printed on stdout (one per incarnation that ended cleanly).
-fn printed(s: &Supervised) -> Vec<Value> {
-    let text = std::fs::read_to_string(s.log_stem.with_extension("out")).unwrap_or_default();
+/// Every JSON document in the process's file with extension `ext`: its stdout (`out`: one per
+/// incarnation that ended cleanly), a scene's participants' summaries.
+fn printed(s: &Supervised, ext: &str) -> Vec<Value> {
+    let text = std::fs::read_to_string(s.log_stem.with_extension(ext)).unwrap_or_default();
     serde_json::Deserializer::from_str(&text).into_iter::<Value>().map_while(Result::ok).collect()
+}
+
+/// What an edge says it sent on one stream: messages made, of them never put, and whether
+/// every incarnation said.
+#[derive(Clone, Copy)]
+struct Said {
+    sent: u64,
+    unsent: u64,
+    complete: bool,
+}
+
+/// Adds what `summary` (an edge's, or a scene participant's) says `source` sent per stream.
+fn add_sent(said: &mut BTreeMap<(String, String), Said>, source: &str, summary: &Value, complete: bool) {
+    for (stream, n) in summary["sent"].as_object().into_iter().flatten() {
+        let e = said.entry((source.to_owned(), stream.clone())).or_insert(Said { sent: 0, unsent: 0, complete });
+        e.sent += n.as_u64().unwrap_or(0);
+        e.unsent += summary["unsent"][stream].as_u64().unwrap_or(0);
+        e.complete &= complete;
+    }
 }
 
 fn measured(view: &HopView, q: f64) -> Option<f64> {
@@ -149,7 +172,7 @@ impl Report {
                 }
             })
             .collect();
-        let mut sent: BTreeMap<(String, String), (u64, bool)> = BTreeMap::new();
+        let mut sent: BTreeMap<(String, String), Said> = BTreeMap::new();
         let mut received: BTreeMap<(String, String), u64> = BTreeMap::new();
         let mut lost: BTreeMap<(String, String), u64> = BTreeMap::new();
         let mut recovered: BTreeMap<(String, String), u64> = BTreeMap::new();
@@ -158,20 +181,29 @@ impl Report {
         let mut twin_lag = BTreeMap::new();
         for (p, s) in processes {
             // Every run prints its summary on a clean end; one missing is a run not counted.
-            let docs = printed(s);
+            let docs = printed(s, "out");
             let complete = docs.len() == s.ends.len();
             if matches!(p.role, "vehicle" | "rsu")
                 && let Some(id) = &p.edge_id
             {
                 for doc in &docs {
-                    for (stream, n) in doc["sent"].as_object().into_iter().flatten() {
-                        let e = sent.entry((id.clone(), stream.clone())).or_insert((0, complete));
-                        e.0 += n.as_u64().unwrap_or(0);
-                    }
+                    add_sent(&mut sent, id, doc, complete);
                 }
                 if docs.is_empty() {
                     // Never silent: an edge that printed nothing still has its row.
-                    sent.insert((id.clone(), "(no summary)".into()), (0, false));
+                    sent.insert((id.clone(), "(no summary)".into()), Said { sent: 0, unsent: 0, complete: false });
+                }
+            }
+            if p.role == "scene" {
+                // Each participant process of each run that ended well summed up what it sent.
+                let summaries = printed(s, PARTICIPANTS_EXT);
+                let expected: usize = docs.iter().map(|d| d["participants"].as_array().map_or(0, Vec::len)).sum();
+                let complete = complete && summaries.len() == expected;
+                for summary in &summaries {
+                    add_sent(&mut sent, summary["participant"].as_str().unwrap_or("(unnamed)"), summary, complete);
+                }
+                if summaries.is_empty() {
+                    sent.insert((p.name.clone(), "(no summary)".into()), Said { sent: 0, unsent: 0, complete: false });
                 }
             }
             if p.role == "cloud" {
@@ -200,8 +232,9 @@ impl Report {
         let streams = keys
             .into_iter()
             .map(|key| {
-                let said_sent = sent.contains_key(&key);
-                let (n_sent, complete) = sent.get(&key).copied().unwrap_or((0, false));
+                let said = sent.get(&key).copied();
+                let Said { sent: n_sent, unsent, complete } =
+                    said.unwrap_or(Said { sent: 0, unsent: 0, complete: false });
                 let n_received = received.get(&key).copied().unwrap_or(0);
                 let n_lost = lost.get(&key).copied().unwrap_or(0);
                 let n_recovered = recovered.get(&key).copied().unwrap_or(0);
@@ -209,13 +242,14 @@ impl Report {
                     source: key.0,
                     stream: key.1,
                     sent: n_sent,
+                    unsent,
                     received: n_received,
                     recovered: n_recovered,
                     lost: n_lost,
                     // A loss counted where nothing was said sent (a road map, a forgotten key) is
                     // shown, not taken from a count it does not belong to.
-                    missing: if said_sent {
-                        n_sent as i64 - n_received as i64 - n_lost as i64
+                    missing: if said.is_some() {
+                        n_sent as i64 - unsent as i64 - n_received as i64 - n_lost as i64
                     } else {
                         -(n_received as i64)
                     },
@@ -292,15 +326,17 @@ impl Report {
             );
         }
         let _ = writeln!(md, "\n## Edge streams\n");
-        let _ = writeln!(md, "| source | stream | sent | received | recovered | lost | missing | sent known |");
-        let _ = writeln!(md, "|---|---|---|---|---|---|---|---|");
+        let _ =
+            writeln!(md, "| source | stream | sent | unsent | received | recovered | lost | missing | sent known |");
+        let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|");
         for s in &self.streams {
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
                 s.source,
                 s.stream,
                 s.sent,
+                s.unsent,
                 s.received,
                 s.recovered,
                 s.lost,

@@ -125,7 +125,7 @@ pub fn parse(text: &str) -> Result<Topology, TopologyError> {
             // Also given: an edge's site is its host's, its id its host's name; a scene's site.
             let also: &[&str] = match *role {
                 "vehicle" | "rsu" => &["--id", "--site"],
-                "scene" => &["--site"],
+                "scene" => &["--site", "--participant-summaries"],
                 _ => &[],
             };
             let given = p.args.iter().find(|a| {

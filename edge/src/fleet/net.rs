@@ -11,8 +11,8 @@
 use super::authority::Plane;
 use super::onboard::{Onboard, vehicle_state};
 use super::physics::SceneWorld;
+use super::streams::Streams;
 use super::streams::unix_ns;
-use super::streams::{Streams, StreamsSent};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
 use risktwin_common::scenario::ScenarioSpec;
@@ -28,6 +28,7 @@ use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
 use risktwin_transport::{SiteId, SourceId, protobuf};
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::sync::mpsc::RecvTimeoutError;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
@@ -439,8 +440,11 @@ pub struct ParticipantSummary {
     pub perceived: u64,
     /// Truth messages that did not decode, counted and dropped.
     pub malformed: u64,
-    /// What went to the cloud on the participant's edge streams.
-    pub sent: StreamsSent,
+    /// Messages made for the cloud, per edge stream.
+    pub sent: BTreeMap<String, u64>,
+    /// Of `sent`, those never put on the wire: made while no cloud had yet subscribed, beyond
+    /// what the stream's cache holds, or still waiting for one when the scene ended.
+    pub unsent: BTreeMap<String, u64>,
 }
 
 /// A participant's stack, driven by the truth subscriber's callback: it answers each step as
@@ -491,7 +495,8 @@ impl Answering {
             if let Err(e) = reported {
                 return Some(Err(e));
             }
-            return Some(Ok(ParticipantSummary { sent: self.streams.sent.clone(), ..self.summary.clone() }));
+            let (sent, unsent) = (self.streams.sent(), self.streams.unsent());
+            return Some(Ok(ParticipantSummary { sent, unsent, ..self.summary.clone() }));
         }
         let controls = self.stack.respond(&truth);
         self.summary.steps += 1;
@@ -536,7 +541,8 @@ pub fn run_participant(
         steps: 0,
         perceived: 0,
         malformed: 0,
-        sent: StreamsSent::default(),
+        sent: BTreeMap::new(),
+        unsent: BTreeMap::new(),
     };
     let last = Arc::new(Mutex::new(None));
     let answering = Answering {
@@ -594,7 +600,14 @@ pub fn run_participant(
             Some((_, at)) => at + 2 * timeouts.step,
         };
         match end.recv_timeout(wake.saturating_duration_since(now)) {
-            Ok(ended) => return ended,
+            Ok(ended) => {
+                // The streams' caches stay a while for the cloud to fetch what the link lost last.
+                if ended.is_ok() {
+                    let linger = lock(&answering).streams.linger();
+                    std::thread::sleep(linger);
+                }
+                return ended;
+            }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => {
                 return Err(SceneError::Transport("the truth subscriber closed".into()));

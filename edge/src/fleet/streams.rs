@@ -3,7 +3,14 @@
 //! its `perception` every 2nd step (10 Hz); an RSU's `rsu` object list every 2nd step (10 Hz).
 //! Stamped by the participant's own clock: the wall time at which it received step 0 plus the
 //! scene's time, so in real time the stamps follow the wall clock, and in lockstep they advance
-//! at the scene's pace. Reliable with blocking congestion control: a scene loses nothing.
+//! at the scene's pace. The streams are the edges' own ([`StreamPublisher`]): numbered, cached
+//! for [`DEFAULT_OUTAGE`] at their rates, so what a partition keeps from the cloud is fetched
+//! after it, and never blocking the physics step (congestion `Drop`).
+//!
+//! Physics does not wait for the cloud as an `edge vehicle` does before its first message, so
+//! until a subscriber first matches a stream its messages wait in the participant (as many as
+//! the cache holds, the oldest dropped and counted `unsent` beyond) and go out in order when
+//! one does: a scene whose host starts cut off loses nothing of its first seconds.
 //! The ego of a generated scene reports its episode when the scene ends, as a `ScenarioResult`
 //! on its `scenario_result` key (as `edge vehicle` reports a pushed scenario's), naming the
 //! scene and its scenario, so that the cloud's loop keeps it.
@@ -16,41 +23,89 @@ use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::{ScenarioSpec, content_id};
 use risktwin_common::telemetry::{Frame, Header, ObjectList, RsuObservation, ScenarioResult, SceneRef};
+use risktwin_common::world::STEP_S;
 use risktwin_protos::encode;
-use risktwin_transport::keyexpr::{EdgeReport, edge_report, edge_stream, liveliness_token};
-use risktwin_transport::recovery::LIVE_PRIORITY;
+use risktwin_transport::keyexpr::{EdgeReport, edge_report, liveliness_token};
+use risktwin_transport::recovery::{DEFAULT_OUTAGE, LIVE_PRIORITY};
 use risktwin_transport::zenoh::Wait;
 use risktwin_transport::zenoh::liveliness::LivelinessToken;
 use risktwin_transport::zenoh::pubsub::Publisher;
 use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
 use risktwin_transport::zenoh::{Session, bytes::ZBytes};
-use risktwin_transport::{EdgeStream, SiteId, SourceId, protobuf};
-use serde::Serialize;
-use std::time::{SystemTime, UNIX_EPOCH};
+use risktwin_transport::{Delivery, EdgeStream, SiteId, SourceId, StreamPublisher, protobuf};
+use std::collections::{BTreeMap, VecDeque};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 /// Physics steps per perception or RSU message: 10 Hz from the 20 Hz simulation.
 const STEPS_PER_OBJECT_LIST: u64 = 2;
 
-/// Messages published per stream.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
-pub struct StreamsSent {
-    pub state: u64,
-    pub perception: u64,
-    pub rsu: u64,
+/// One edge stream and how many messages it made (the next one's sequence number).
+struct Counted {
+    publisher: StreamPublisher,
+    sent: u64,
+    /// Until a subscriber first matches: the messages made so far, oldest first, at most
+    /// `capacity`; `None` after.
+    waiting: Option<VecDeque<Vec<u8>>>,
+    capacity: usize,
+    /// Made but never put: dropped from `waiting` when full, or still there at the end.
+    unsent: u64,
+}
+
+impl Counted {
+    fn declare(
+        session: &Session,
+        site: &SiteId,
+        source: &SourceId,
+        stream: EdgeStream,
+        steps_per_message: u64,
+    ) -> Result<Self, SceneError> {
+        let rate_hz = 1.0 / (STEP_S * steps_per_message as f64);
+        let delivery = Delivery::live(rate_hz, DEFAULT_OUTAGE);
+        let publisher = StreamPublisher::declare(session, site, source, stream, delivery)
+            .map_err(|e| SceneError::Transport(e.to_string()))?;
+        let capacity = delivery.cache_samples;
+        Ok(Counted { publisher, sent: 0, waiting: Some(VecDeque::new()), capacity, unsent: 0 })
+    }
+
+    /// Publishes the next message (numbered [`Counted::sent`]), after those waiting for the
+    /// first subscriber; or adds it to them while none matches.
+    fn put(&mut self, message: Vec<u8>) -> Result<(), SceneError> {
+        self.sent += 1;
+        if let Some(waiting) = &mut self.waiting {
+            if !self.publisher.matched() {
+                if waiting.len() == self.capacity {
+                    waiting.pop_front();
+                    self.unsent += 1;
+                }
+                waiting.push_back(message);
+                return Ok(());
+            }
+            for earlier in waiting.drain(..) {
+                self.publisher.put(earlier).map_err(|e| SceneError::Transport(e.to_string()))?;
+            }
+            self.waiting = None;
+        }
+        self.publisher.put(message).map_err(|e| SceneError::Transport(e.to_string()))
+    }
+
+    /// Made but never put (see [`Counted::unsent`]), counting those still waiting.
+    fn unsent(&self) -> u64 {
+        self.unsent + self.waiting.as_ref().map_or(0, |w| w.len() as u64)
+    }
 }
 
 /// A participant's publishers, sequence numbers and clock.
 pub struct Streams {
     source: SourceId,
-    is_rsu: bool,
-    state: Publisher<'static>,
-    objects: Publisher<'static>,
+    /// A vehicle's `state`; `None` for an RSU.
+    state: Option<Counted>,
+    /// A vehicle's `perception` or an RSU's `rsu`.
+    objects: Counted,
     /// The ego's result publisher, when it reports its episode.
     result: Option<Publisher<'static>>,
     _alive: LivelinessToken,
     /// Wall time at the scene's t = 0 by this participant's clock, ns since the Unix epoch.
     epoch_ns: Option<i64>,
-    pub sent: StreamsSent,
 }
 
 /// The wall clock, ns since the Unix epoch.
@@ -69,26 +124,25 @@ impl Streams {
         is_rsu: bool,
         reports: bool,
     ) -> Result<Streams, SceneError> {
-        // `Drop`: a put runs in the truth callback, and a stalled data link must never hold the
-        // physics step; what it drops, the cloud's `presumed_lost` counts.
-        let declare_key = |key: String, message: &str| {
-            session
-                .declare_publisher(key.clone())
-                .encoding(protobuf(message))
-                .congestion_control(CongestionControl::Drop)
-                .reliability(Reliability::Reliable)
-                .priority(LIVE_PRIORITY)
-                .wait()
-                .map_err(|e| SceneError::Transport(format!("{key}: {e}")))
-        };
-        let declare = |stream: EdgeStream| declare_key(edge_stream(site, source, stream), stream.message());
         let report = EdgeReport::ScenarioResult;
-        let result = reports.then(|| declare_key(edge_report(site, source, report), report.message())).transpose()?;
-        // An RSU has one stream; its `state` publisher is the same key and never used.
+        let result = reports
+            .then(|| {
+                let key = edge_report(site, source, report);
+                session
+                    .declare_publisher(key.clone())
+                    .encoding(protobuf(report.message()))
+                    .congestion_control(CongestionControl::Drop)
+                    .reliability(Reliability::Reliable)
+                    .priority(LIVE_PRIORITY)
+                    .wait()
+                    .map_err(|e| SceneError::Transport(format!("{key}: {e}")))
+            })
+            .transpose()?;
+        let declare = |stream, steps| Counted::declare(session, site, source, stream, steps);
         let (state, objects) = if is_rsu {
-            (declare(EdgeStream::Rsu)?, declare(EdgeStream::Rsu)?)
+            (None, declare(EdgeStream::Rsu, STEPS_PER_OBJECT_LIST)?)
         } else {
-            (declare(EdgeStream::State)?, declare(EdgeStream::Perception)?)
+            (Some(declare(EdgeStream::State, 1)?), declare(EdgeStream::Perception, STEPS_PER_OBJECT_LIST)?)
         };
         let key = liveliness_token(site, source);
         let alive = session
@@ -96,8 +150,28 @@ impl Streams {
             .declare_token(key.clone())
             .wait()
             .map_err(|e| SceneError::Transport(format!("{key}: {e}")))?;
-        let sent = StreamsSent::default();
-        Ok(Streams { source: source.clone(), is_rsu, state, objects, result, _alive: alive, epoch_ns: None, sent })
+        Ok(Streams { source: source.clone(), state, objects, result, _alive: alive, epoch_ns: None })
+    }
+
+    /// Messages made per stream name.
+    pub fn sent(&self) -> BTreeMap<String, u64> {
+        self.per_stream(|c| c.sent)
+    }
+
+    /// Of [`Streams::sent`], those never put because no subscriber matched in time.
+    pub fn unsent(&self) -> BTreeMap<String, u64> {
+        self.per_stream(Counted::unsent)
+    }
+
+    fn per_stream(&self, count: impl Fn(&Counted) -> u64) -> BTreeMap<String, u64> {
+        let streams = self.state.iter().chain([&self.objects]);
+        streams.map(|c| (c.publisher.stream().map_or("map", EdgeStream::as_str).to_owned(), count(c))).collect()
+    }
+
+    /// How long the participant keeps its streams after its last put (see
+    /// [`risktwin_transport::linger`]).
+    pub fn linger(&self) -> Duration {
+        risktwin_transport::linger(self.state.iter().chain([&self.objects]).map(|c| &c.publisher))
     }
 
     fn header(&self, seq: u64, time_s: f64) -> Header {
@@ -118,30 +192,26 @@ impl Streams {
             return Ok(());
         }
         let objects = stack.perceived().iter().map(detected).collect();
-        if self.is_rsu {
+        let header = self.header(self.objects.sent, truth.time_s);
+        let message = if self.state.is_none() {
             let (rsu_pose, range_m) = stack.mast();
-            let header = self.header(self.sent.rsu, truth.time_s);
-            put(&self.objects, encode(&RsuObservation { header, rsu_pose, range_m, objects }))?;
-            self.sent.rsu += 1;
+            encode(&RsuObservation { header, rsu_pose, range_m, objects })
         } else {
-            let header = self.header(self.sent.perception, truth.time_s);
-            put(&self.objects, encode(&ObjectList { header, objects }))?;
-            self.sent.perception += 1;
-        }
-        Ok(())
+            encode(&ObjectList { header, objects })
+        };
+        self.objects.put(message)
     }
 
     /// Publishes a vehicle's state in `truth` (nothing for an RSU): every step's, and the final
     /// one the scene ended in (no step follows it, so nothing is perceived in it).
     pub fn publish_state(&mut self, stack: &Onboard, truth: &Truth) -> Result<(), SceneError> {
         self.epoch_ns.get_or_insert_with(|| unix_ns() - (truth.time_s * 1e9).round() as i64);
-        if !self.is_rsu
-            && let Some(state) = stack.own_state(truth, self.header(self.sent.state, truth.time_s))
-        {
-            put(&self.state, encode(&state))?;
-            self.sent.state += 1;
+        let Some(seq) = self.state.as_ref().map(|s| s.sent) else { return Ok(()) };
+        let header = self.header(seq, truth.time_s);
+        match (stack.own_state(truth, header), &mut self.state) {
+            (Some(state), Some(stream)) => stream.put(encode(&state)),
+            _ => Ok(()),
         }
-        Ok(())
     }
 
     /// Reports the ego's episode of `spec` in scene `digest` (the authority's outcome), on the
@@ -168,13 +238,9 @@ impl Streams {
             metrics,
             risk,
             policy: None,
-            state_seqs: self.sent.state.checked_sub(1).map(|last| (0, last)),
+            state_seqs: self.state.as_ref().and_then(|s| s.sent.checked_sub(1)).map(|last| (0, last)),
             scene: Some(SceneRef { digest: format!("{digest:016x}"), spec: spec.clone() }),
         };
         publisher.put(ZBytes::from(encode(&result))).wait().map_err(|e| SceneError::Transport(format!("result: {e}")))
     }
-}
-
-fn put(publisher: &Publisher<'static>, bytes: Vec<u8>) -> Result<(), SceneError> {
-    publisher.put(ZBytes::from(bytes)).wait().map_err(|e| SceneError::Transport(format!("stream: {e}")))
 }

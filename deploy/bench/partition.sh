@@ -3,7 +3,7 @@
 # partitioned for PARTITION_S seconds (default 30: longer than Zenoh's 10 s lease, so the
 # sessions across it close and reconnect after the heal) while the edges keep publishing into
 # their caches (--cache-s CACHE_S, default 45: sized for the outage). Prints, per edge stream,
-# sent / received / lost / missing from the report, and the links that reconnected. Target:
+# sent / received / recovered (of received, from the edge's cache) / lost / missing from the report, and the links that reconnected. Target:
 # received = sent, lost = 0. Needs root for the namespaces.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -53,7 +53,8 @@ import json, sys
 r = json.load(open(sys.argv[1]))
 print(f"partition {sys.argv[2]} s of the edge site, --cache-s {sys.argv[3]}, ran {r['ran_s']:.1f} s")
 for s in r["streams"]:
-    print(f"  {s['source']}/{s['stream']}: sent {s['sent']}, received {s['received']}, lost {s['lost']}, missing {s['missing']}")
+    print(f"  {s['source']}/{s['stream']}: sent {s['sent']}, received {s['received']}, "
+          f"recovered {s['recovered']}, lost {s['lost']}, missing {s['missing']}")
 for l in r["links"]:
     if len(l["connected_at_s"]) > 1:
         print(f"  {l['name']}: connected at {[round(t, 2) for t in l['connected_at_s']]} s")

@@ -8,7 +8,9 @@
 //! pid file, says whether a deployment of FILE is up; the pid file only says whom to signal.
 
 use crate::cli::{DeployFileArgs, DeployHow, DeployRunArgs, DeployUpArgs};
-use crate::emulate::deployment::{self, Options, prepare_state_dir, state_dir, tag_of};
+use crate::emulate::deployment::{
+    self, Options, STATE_DIR_PREFIX, prepare_state_dir, state_dir, tag_of, topology_digest,
+};
 use crate::emulate::lock::Lock;
 use crate::emulate::net;
 use crate::error::{CliError, CliResult};
@@ -85,6 +87,7 @@ pub fn run(args: DeployRunArgs) -> CliResult {
     let write = |name: &str, bytes: &[u8]| std::fs::write(state.join(name), bytes).map_err(CliError::runtime);
     write("supervisor.pid", std::process::id().to_string().as_bytes())?;
     write("out", out.as_os_str().as_encoded_bytes())?;
+    write(DIGEST_FILE, topology_digest(text.as_bytes()).as_bytes())?;
     let options = Options {
         file: args.file,
         text,
@@ -177,6 +180,41 @@ fn supervisor(tag: &str) -> CliResult<Option<i32>> {
     Ok(Some(pid.filter(|&p| p > 1).unwrap_or(0)))
 }
 
+/// The file in a deployment's state folder that holds its topology's digest.
+const DIGEST_FILE: &str = "topology-digest";
+
+/// The tag of `file`'s deployment: by the file's path, or, when nothing of one is there (the
+/// file was moved, or is named by another path), the one deployment whose topology has the
+/// file's bytes and that is up or left something behind.
+fn find_tag(file: &Path) -> CliResult<String> {
+    let tag = tag_of(file);
+    let there = |tag: &str| supervisor(tag).ok().flatten().is_some() || !net::leftovers(tag).is_empty();
+    if there(&tag) {
+        return Ok(tag);
+    }
+    let Ok(text) = std::fs::read(file) else { return Ok(tag) };
+    let digest = topology_digest(&text);
+    let mut up = Vec::new();
+    for entry in std::fs::read_dir(std::env::temp_dir()).into_iter().flatten().flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(other) = name.strip_prefix(STATE_DIR_PREFIX) else { continue };
+        let same = std::fs::read_to_string(entry.path().join(DIGEST_FILE)).is_ok_and(|d| d == digest);
+        // Another user's folder, or one that cannot be read, is not this deployment's.
+        if same && there(other) {
+            up.push(other.to_owned());
+        }
+    }
+    match up.len() {
+        0 => Ok(tag),
+        1 => Ok(up.remove(0)),
+        _ => Err(CliError::input(format!(
+            "nothing of {} is up by its path, and {} deployments of the same topology are: name the file they were started from",
+            file.display(),
+            up.len()
+        ))),
+    }
+}
+
 /// Where the deployment's output is.
 fn out_of(tag: &str) -> Option<PathBuf> {
     std::fs::read(state_dir(tag).join("out")).ok().map(|b| PathBuf::from(String::from_utf8_lossy(&b).into_owned()))
@@ -184,7 +222,7 @@ fn out_of(tag: &str) -> Option<PathBuf> {
 
 pub fn status(args: DeployFileArgs) -> CliResult {
     topology(&args.file)?;
-    let tag = tag_of(&args.file);
+    let tag = find_tag(&args.file)?;
     if supervisor(&tag)?.is_none() {
         return Err(CliError::runtime(format!("no deployment of {} is up", args.file.display())));
     }
@@ -196,8 +234,8 @@ pub fn status(args: DeployFileArgs) -> CliResult {
 }
 
 pub fn down(args: DeployFileArgs) -> CliResult {
-    // A file that no longer parses can still be taken down: only its path matters here.
-    let tag = tag_of(&args.file);
+    // A file that no longer parses can still be taken down: only its path (or bytes) matter here.
+    let tag = find_tag(&args.file)?;
     let was_up = supervisor(&tag)?;
     if let Some(pid) = was_up.filter(|&p| p > 1) {
         // SAFETY: a signal to the process that holds this deployment's lock and named itself.

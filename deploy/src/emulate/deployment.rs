@@ -79,8 +79,16 @@ pub fn tag_of(file: &Path) -> String {
 
 /// Where a deployment of `tag` keeps its lock, its supervisor's pid and where its output is.
 pub fn state_dir(tag: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("risktwin-deploy-{tag}"))
+    std::env::temp_dir().join(format!("{STATE_DIR_PREFIX}{tag}"))
 }
+
+/// A topology file's digest: FNV-1a of its bytes, 16 hex digits.
+pub fn topology_digest(text: &[u8]) -> String {
+    format!("{:016x}", fnv1a64(text.iter().copied()))
+}
+
+/// The start of a state folder's name; its tag follows.
+pub const STATE_DIR_PREFIX: &str = "risktwin-deploy-";
 
 /// Makes the state folder of `tag` (owner only), or checks that the one there is a folder of
 /// this user's and not a link: its name is predictable, and root writes into it.

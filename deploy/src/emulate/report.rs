@@ -3,12 +3,11 @@
 //! its relays against the configured one, per edge and stream sent / received / recovered / lost / missing, each
 //! process's restarts, the event timeline.
 
-use super::deployment::{HopView, Options};
+use super::deployment::{HopView, Options, topology_digest};
 use super::net::Net;
 use super::plan::{PARTICIPANTS_EXT, Planned};
 use super::supervise::Supervised;
 use crate::topology::Jitter;
-use risktwin_common::digest::fnv1a64;
 use serde::Serialize;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
@@ -262,7 +261,7 @@ impl Report {
             version: env!("CARGO_PKG_VERSION"),
             commit: env!("RISKTWIN_COMMIT"),
             topology_file: o.file.display().to_string(),
-            topology_digest: format!("{:016x}", fnv1a64(o.text.bytes())),
+            topology_digest: topology_digest(o.text.as_bytes()),
             seed: o.seed,
             machines: net.describe(),
             ran_s: ran.as_secs_f64(),

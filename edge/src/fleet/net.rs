@@ -488,7 +488,8 @@ impl Answering {
         }
         // Only this scene's end: another scene's outcome must never be reported as this one's.
         if let Some(SceneEnd::Done { ref metrics, risk }) = truth.end {
-            let reported = self.streams.publish_state(&self.stack, &truth).and_then(|()| match &self.reported {
+            let published = self.streams.publish_state(&self.stack, &truth).and_then(|()| self.streams.flush());
+            let reported = published.and_then(|()| match &self.reported {
                 Some(spec) => self.streams.report(spec, self.digest, metrics.clone(), risk),
                 None => Ok(()),
             });

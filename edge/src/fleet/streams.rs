@@ -5,12 +5,17 @@
 //! scene's time, so in real time the stamps follow the wall clock, and in lockstep they advance
 //! at the scene's pace. The streams are the edges' own ([`StreamPublisher`]): numbered, cached
 //! for [`DEFAULT_OUTAGE`] at their rates, so what a partition keeps from the cloud is fetched
-//! after it, and never blocking the physics step (congestion `Drop`).
+//! after it; a full link queue drops rather than holds the physics step (congestion `Drop`).
+//! (One wait remains, as for every edge: a put waits while its stream's cache sends an answer
+//! to a recovery query, which a link that stalls at that moment can hold up.)
 //!
 //! Physics does not wait for the cloud as an `edge vehicle` does before its first message, so
 //! until a subscriber first matches a stream its messages wait in the participant (as many as
 //! the cache holds, the oldest dropped and counted `unsent` beyond) and go out in order when
-//! one does: a scene whose host starts cut off loses nothing of its first seconds.
+//! one does, with the publish time of when they were made: a scene whose host starts cut off
+//! loses nothing of its first seconds. Any subscriber counts (the cloud's ingest in a
+//! deployment; a recorder or another cloud that matches first takes the flush, and an ingest
+//! that subscribes later starts at the next message, the earlier ones `missing` in a report).
 //! The ego of a generated scene reports its episode when the scene ends, as a `ScenarioResult`
 //! on its `scenario_result` key (as `edge vehicle` reports a pushed scenario's), naming the
 //! scene and its scenario, so that the cloud's loop keeps it.
@@ -47,8 +52,8 @@ struct Counted {
     /// `capacity`; `None` after.
     waiting: Option<VecDeque<Vec<u8>>>,
     capacity: usize,
-    /// Made but never put: dropped from `waiting` when full, or still there at the end.
-    unsent: u64,
+    /// Made but dropped from a full `waiting`, oldest first: the first put is numbered this.
+    dropped: u64,
 }
 
 impl Counted {
@@ -64,33 +69,41 @@ impl Counted {
         let publisher = StreamPublisher::declare(session, site, source, stream, delivery)
             .map_err(|e| SceneError::Transport(e.to_string()))?;
         let capacity = delivery.cache_samples;
-        Ok(Counted { publisher, sent: 0, waiting: Some(VecDeque::new()), capacity, unsent: 0 })
+        Ok(Counted { publisher, sent: 0, waiting: Some(VecDeque::new()), capacity, dropped: 0 })
     }
 
     /// Publishes the next message (numbered [`Counted::sent`]), after those waiting for the
     /// first subscriber; or adds it to them while none matches.
     fn put(&mut self, message: Vec<u8>) -> Result<(), SceneError> {
         self.sent += 1;
-        if let Some(waiting) = &mut self.waiting {
-            if !self.publisher.matched() {
-                if waiting.len() == self.capacity {
-                    waiting.pop_front();
-                    self.unsent += 1;
-                }
-                waiting.push_back(message);
-                return Ok(());
-            }
-            for earlier in waiting.drain(..) {
-                self.publisher.put(earlier).map_err(|e| SceneError::Transport(e.to_string()))?;
-            }
-            self.waiting = None;
+        self.flush()?;
+        let Some(waiting) = &mut self.waiting else {
+            return self.publisher.put(message).map_err(|e| SceneError::Transport(e.to_string()));
+        };
+        if waiting.len() == self.capacity {
+            waiting.pop_front();
+            self.dropped += 1;
         }
-        self.publisher.put(message).map_err(|e| SceneError::Transport(e.to_string()))
+        waiting.push_back(message);
+        Ok(())
     }
 
-    /// Made but never put (see [`Counted::unsent`]), counting those still waiting.
+    /// Puts what waits for the first subscriber, in order, once one matches.
+    fn flush(&mut self) -> Result<(), SceneError> {
+        let Some(waiting) = &mut self.waiting else { return Ok(()) };
+        if !self.publisher.matched() {
+            return Ok(());
+        }
+        for earlier in waiting.drain(..) {
+            self.publisher.put(earlier).map_err(|e| SceneError::Transport(e.to_string()))?;
+        }
+        self.waiting = None;
+        Ok(())
+    }
+
+    /// Made but never put: dropped from a full `waiting`, or still waiting.
     fn unsent(&self) -> u64 {
-        self.unsent + self.waiting.as_ref().map_or(0, |w| w.len() as u64)
+        self.dropped + self.waiting.as_ref().map_or(0, |w| w.len() as u64)
     }
 }
 
@@ -168,6 +181,13 @@ impl Streams {
         streams.map(|c| (c.publisher.stream().map_or("map", EdgeStream::as_str).to_owned(), count(c))).collect()
     }
 
+    /// Puts what waits for a first subscriber, if one matches now (at the scene's end: no later
+    /// put would).
+    pub fn flush(&mut self) -> Result<(), SceneError> {
+        self.state.iter_mut().try_for_each(Counted::flush)?;
+        self.objects.flush()
+    }
+
     /// How long the participant keeps its streams after its last put (see
     /// [`risktwin_transport::linger`]).
     pub fn linger(&self) -> Duration {
@@ -238,7 +258,8 @@ impl Streams {
             metrics,
             risk,
             policy: None,
-            state_seqs: self.state.as_ref().and_then(|s| s.sent.checked_sub(1)).map(|last| (0, last)),
+            // The states put: those dropped while no subscriber matched were never published.
+            state_seqs: self.state.as_ref().and_then(|s| Some((s.dropped, s.sent.checked_sub(1)?))),
             scene: Some(SceneRef { digest: format!("{digest:016x}"), spec: spec.clone() }),
         };
         publisher.put(ZBytes::from(encode(&result))).wait().map_err(|e| SceneError::Transport(format!("result: {e}")))

@@ -35,5 +35,6 @@ pub mod scenario;
 pub mod sensor;
 pub mod telemetry;
 pub mod traffic;
+pub mod v2x;
 pub mod vehicle;
 pub mod world;

@@ -19,3 +19,4 @@ mod run;
 mod same_scenario;
 mod support;
 mod train;
+mod v2x;

@@ -7,6 +7,7 @@ mod push;
 mod roles;
 mod scene;
 mod source;
+mod v2x;
 
 pub use bench::*;
 pub use deploy::*;
@@ -14,6 +15,7 @@ pub use push::*;
 pub use roles::*;
 pub use scene::*;
 pub use source::ScenarioSource;
+pub use v2x::*;
 
 use crate::output::Format;
 use clap::{ArgGroup, Args, Parser, Subcommand};
@@ -63,6 +65,9 @@ pub enum Command {
     /// Emulated multi-machine deployments: hosts, links, routers and roles from a topology file.
     #[command(subcommand)]
     Deploy(DeployCommand),
+    /// V2X: the sidelink radio channel of 3GPP TR 37.885.
+    #[command(subcommand)]
+    V2x(V2xCommand),
 }
 
 #[derive(Debug, Args)]

@@ -24,9 +24,10 @@ mod simulate;
 mod simulate_commonroad;
 mod source;
 mod train;
+mod v2x;
 
 use crate::cli::{
-    BenchCommand, Cli, Command, DeployCommand, EdgeCommand, ImportCommand, ScenariosCommand, SceneCommand,
+    BenchCommand, Cli, Command, DeployCommand, EdgeCommand, ImportCommand, ScenariosCommand, SceneCommand, V2xCommand,
 };
 use crate::error::CliResult;
 
@@ -67,5 +68,6 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Deploy(DeployCommand::Status(a)) => deploy::status(a),
         Command::Deploy(DeployCommand::Down(a)) => deploy::down(a),
         Command::Deploy(DeployCommand::Run(a)) => deploy::run(a),
+        Command::V2x(V2xCommand::Channel(a)) => v2x::channel(a),
     }
 }

@@ -1,0 +1,4 @@
+//! V2X: the radio channel between vehicles and road-side units (sidelink), applied per message
+//! and per receiver from the distance between them in the ground truth — never to physics.
+
+pub mod channel;

@@ -1,0 +1,64 @@
+//! `risktwin v2x channel`: the sidelink channel of `risktwin_common::v2x::channel` by distance.
+
+use crate::cli::V2xChannelArgs;
+use crate::error::{CliError, CliResult};
+use crate::output::{Format, csv_float, print_json, print_table};
+use risktwin_common::v2x::channel::{ChannelPoint, LinkBudget, PathLoss};
+use serde::Serialize;
+
+#[derive(Serialize)]
+struct ChannelReport {
+    model: &'static str,
+    parameters: LinkBudget,
+    noise_dbm: f64,
+    points: Vec<ChannelPoint>,
+}
+
+pub fn channel(args: V2xChannelArgs) -> CliResult {
+    let model = PathLoss::from_name(&args.model).ok_or_else(|| {
+        let names: Vec<&str> = PathLoss::ALL.iter().map(|m| m.name()).collect();
+        CliError::input(format!("--model {:?}: not one of {}", args.model, names.join(", ")))
+    })?;
+    if let Some(d) = args.distance_m.iter().find(|d| !(d.is_finite() && **d >= 0.0)) {
+        return Err(CliError::input(format!("--distance-m {d}: a distance is a finite number of metres ≥ 0")));
+    }
+    let budget = LinkBudget {
+        carrier_ghz: args.carrier_ghz,
+        tx_power_dbm: args.tx_power_dbm,
+        tx_antenna_gain_dbi: args.antenna_gain_dbi,
+        rx_antenna_gain_dbi: args.antenna_gain_dbi,
+        noise_figure_db: args.noise_figure_db,
+        bandwidth_hz: args.bandwidth_mhz * 1e6,
+        sinr_threshold_db: args.sinr_threshold_db.unwrap_or(LinkBudget::default().sinr_threshold_db),
+    };
+    budget.check().map_err(CliError::input)?;
+    let points: Vec<ChannelPoint> = args.distance_m.iter().map(|&d| budget.at(model, d)).collect();
+    match args.format {
+        Format::Json => print_json(&ChannelReport {
+            model: model.name(),
+            parameters: budget,
+            noise_dbm: budget.noise_dbm(),
+            points,
+        }),
+        Format::Table | Format::Csv => {
+            let header = ["distance_m", "path_loss_db", "shadowing_sigma_db", "snr_db", "pdr"];
+            let rows: Vec<Vec<String>> = points
+                .iter()
+                .map(|p| {
+                    let cells = [p.distance_m, p.path_loss_db, p.shadowing_sigma_db, p.snr_db, p.pdr];
+                    cells
+                        .iter()
+                        .map(|&v| if args.format == Format::Csv { csv_float(v) } else { format!("{v:.4}") })
+                        .collect()
+                })
+                .collect();
+            if args.format == Format::Csv {
+                println!("{}", header.join(","));
+                rows.iter().for_each(|r| println!("{}", r.join(",")));
+                Ok(())
+            } else {
+                print_table(&header, &rows)
+            }
+        }
+    }
+}

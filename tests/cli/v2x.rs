@@ -1,0 +1,60 @@
+//! `risktwin v2x channel`: the TR 37.885 sidelink channel by distance, as docs/cli.md gives it.
+
+use crate::support::{assert_input_error, ok_json};
+
+#[test]
+fn the_channel_prints_table_6_2_1_1_and_a_pdr_that_falls_with_distance() {
+    let dir = tempfile::tempdir().expect("a temp dir");
+    let lg = 5.9f64.log10();
+    // (model, a, b, c, σ): a + b·log10 d + c·log10 f_c.
+    let models = [
+        ("3gpp-highway-los", 32.4, 20.0, 20.0, 3.0),
+        ("3gpp-urban-los", 38.77, 16.7, 18.2, 3.0),
+        ("3gpp-urban-nlos", 36.85, 30.0, 18.9, 4.0),
+    ];
+    for (model, a, b, c, sigma) in models {
+        let args = ["v2x", "channel", "--model", model, "--distance-m", "5,50,200,800,3000", "--format", "json"];
+        let out = ok_json(dir.path(), &args);
+        assert_eq!(out["model"], model);
+        assert_eq!(out["parameters"]["carrier_ghz"], 5.9, "{out}");
+        assert_eq!(out["noise_dbm"], -95.0, "{out}");
+        let points = out["points"].as_array().expect("points");
+        let mut last_pdr = 1.0;
+        for p in points {
+            let d = p["distance_m"].as_f64().expect("distance_m");
+            let expected = a + b * d.log10() + c * lg;
+            let got = p["path_loss_db"].as_f64().expect("path_loss_db");
+            assert!((got - expected).abs() < 1e-9, "{model} at {d} m: {got} against {expected}");
+            assert_eq!(p["shadowing_sigma_db"], sigma, "{p}");
+            let snr = p["snr_db"].as_f64().expect("snr_db");
+            assert!((snr - (23.0 + 6.0 + 95.0 - got)).abs() < 1e-9, "{p}");
+            let pdr = p["pdr"].as_f64().expect("pdr");
+            assert!((0.0..=1.0).contains(&pdr) && pdr <= last_pdr, "{model}: {points:?}");
+            last_pdr = pdr;
+        }
+        assert!(points[0]["pdr"].as_f64().expect("pdr") > 0.999, "{model}: close by, every packet");
+    }
+    // A higher threshold loses packets sooner.
+    let pdr_at = |threshold: &str| {
+        let args = ["v2x", "channel", "--model", "3gpp-urban-nlos", "--distance-m", "200", "--format", "json"];
+        let out = ok_json(dir.path(), &[&args[..], &["--sinr-threshold-db", threshold]].concat());
+        out["points"][0]["pdr"].as_f64().expect("pdr")
+    };
+    assert!(pdr_at("10") < pdr_at("0"));
+}
+
+#[test]
+fn bad_channel_parameters_are_refused_with_exit_2() {
+    let dir = tempfile::tempdir().expect("a temp dir");
+    let cases: [(&[&str], &str); 6] = [
+        (&["--model", "3gpp-rural", "--distance-m", "10"], "--model \"3gpp-rural\""),
+        (&["--model", "3gpp-urban-los", "--distance-m", "10,-5"], "--distance-m -5"),
+        (&["--model", "3gpp-urban-los", "--distance-m", "ten"], "ten"),
+        (&["--model", "3gpp-urban-los", "--distance-m", "10", "--carrier-ghz", "0"], "carrier 0 GHz"),
+        (&["--model", "3gpp-urban-los", "--distance-m", "10", "--bandwidth-mhz", "-1"], "bandwidth"),
+        (&["--model", "3gpp-urban-los", "--distance-m", "10", "--noise-figure-db", "-2"], "noise figure"),
+    ];
+    for (args, needle) in cases {
+        assert_input_error(dir.path(), &[&["v2x", "channel"][..], args].concat(), needle);
+    }
+}

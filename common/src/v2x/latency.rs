@@ -1,0 +1,208 @@
+//! How long a V2X message takes, sampled per message: the sidelink's semi-persistent scheduling
+//! (a message waits for its reserved resource within the selection window) and a shifted Gamma
+//! for a cellular uplink and backhaul to the cloud (the family measured vehicle-to-cloud latencies
+//! are fitted with; its parameters are the user's, from their own measurements).
+
+use crate::rng::Rng;
+use serde::{Deserialize, Serialize};
+
+/// A latency distribution, in ms.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "model", rename_all = "kebab-case")]
+pub enum Latency {
+    /// Sidelink mode 4 / mode 2 semi-persistent scheduling: the resource is chosen uniformly in
+    /// the selection window [n + T1, n + T2] after the message is made (3GPP TS 36.213 §14.1.1.6:
+    /// T1 ≤ 4 ms, 20 ms ≤ T2 ≤ 100 ms, T2 within the message's latency budget).
+    Sidelink { t1_ms: f64, t2_ms: f64 },
+    /// `offset_ms` + Gamma(`shape`, `scale_ms`): a cellular path's fixed part and its queueing.
+    Gamma { offset_ms: f64, shape: f64, scale_ms: f64 },
+}
+
+impl Latency {
+    /// The widest sidelink window: T1 = 4 ms, T2 = 100 ms (a CAM's 100 ms budget).
+    pub const SIDELINK: Latency = Latency::Sidelink { t1_ms: 4.0, t2_ms: 100.0 };
+
+    /// Why this cannot be sampled, if it cannot.
+    pub fn check(&self) -> Result<(), String> {
+        match *self {
+            Latency::Sidelink { t1_ms, t2_ms } => {
+                if !(t1_ms.is_finite() && t2_ms.is_finite() && 0.0 <= t1_ms && t1_ms <= t2_ms) {
+                    return Err(format!("sidelink window [{t1_ms}, {t2_ms}] ms: need 0 ≤ t1_ms ≤ t2_ms"));
+                }
+            }
+            Latency::Gamma { offset_ms, shape, scale_ms } => {
+                if !(offset_ms.is_finite() && offset_ms >= 0.0) {
+                    return Err(format!("gamma offset {offset_ms} ms: need a finite number ≥ 0"));
+                }
+                if !(shape.is_finite() && shape > 0.0 && scale_ms.is_finite() && scale_ms > 0.0) {
+                    return Err(format!("gamma shape {shape}, scale {scale_ms} ms: both must be positive"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// One latency, ms.
+    pub fn sample_ms(&self, rng: &mut Rng) -> f64 {
+        match *self {
+            Latency::Sidelink { t1_ms, t2_ms } => rng.uniform(t1_ms, t2_ms),
+            Latency::Gamma { offset_ms, shape, scale_ms } => offset_ms + scale_ms * standard_gamma(shape, rng),
+        }
+    }
+
+    /// P(latency ≤ `x_ms`).
+    pub fn cdf(&self, x_ms: f64) -> f64 {
+        match *self {
+            Latency::Sidelink { t1_ms, t2_ms } if t2_ms > t1_ms => ((x_ms - t1_ms) / (t2_ms - t1_ms)).clamp(0.0, 1.0),
+            Latency::Sidelink { t1_ms, .. } => f64::from(u8::from(x_ms >= t1_ms)),
+            Latency::Gamma { offset_ms, shape, scale_ms } => {
+                if x_ms <= offset_ms {
+                    0.0
+                } else {
+                    lower_regularized_gamma(shape, (x_ms - offset_ms) / scale_ms)
+                }
+            }
+        }
+    }
+
+    pub fn mean_ms(&self) -> f64 {
+        match *self {
+            Latency::Sidelink { t1_ms, t2_ms } => 0.5 * (t1_ms + t2_ms),
+            Latency::Gamma { offset_ms, shape, scale_ms } => offset_ms + shape * scale_ms,
+        }
+    }
+}
+
+/// Gamma(`shape`, 1) by Marsaglia and Tsang, "A Simple Method for Generating Gamma Variables"
+/// (ACM TOMS 26(3), 2000), with their boost for shape < 1.
+fn standard_gamma(shape: f64, rng: &mut Rng) -> f64 {
+    if shape < 1.0 {
+        let u = 1.0 - rng.unit(); // (0, 1]
+        return standard_gamma(shape + 1.0, rng) * u.powf(1.0 / shape);
+    }
+    let d = shape - 1.0 / 3.0;
+    let c = 1.0 / (9.0 * d).sqrt();
+    loop {
+        let x = rng.normal();
+        let v = (1.0 + c * x).powi(3);
+        if v <= 0.0 {
+            continue;
+        }
+        let u = 1.0 - rng.unit();
+        if u.ln() < 0.5 * x * x + d - d * v + d * v.ln() {
+            return d * v;
+        }
+    }
+}
+
+/// P(a, x), the regularized lower incomplete gamma function: its series for x < a + 1, else 1
+/// minus Legendre's continued fraction (Lentz's method), as in Numerical Recipes §6.2.
+fn lower_regularized_gamma(a: f64, x: f64) -> f64 {
+    const EPS: f64 = 1e-15;
+    const TINY: f64 = 1e-300;
+    if x <= 0.0 {
+        return 0.0;
+    }
+    let log_prefix = a * x.ln() - x - libm::lgamma(a);
+    if x < a + 1.0 {
+        let (mut term, mut sum, mut n) = (1.0 / a, 1.0 / a, a);
+        for _ in 0..10_000 {
+            n += 1.0;
+            term *= x / n;
+            sum += term;
+            if term.abs() < sum.abs() * EPS {
+                break;
+            }
+        }
+        return (sum * log_prefix.exp()).clamp(0.0, 1.0);
+    }
+    let mut b = x + 1.0 - a;
+    let mut c = 1.0 / TINY;
+    let mut d = 1.0 / b;
+    let mut h = d;
+    for i in 1..10_000 {
+        let an = -(i as f64) * (i as f64 - a);
+        b += 2.0;
+        d = an * d + b;
+        d = if d.abs() < TINY { TINY } else { d };
+        c = b + an / c;
+        c = if c.abs() < TINY { TINY } else { c };
+        d = 1.0 / d;
+        let delta = d * c;
+        h *= delta;
+        if (delta - 1.0).abs() < EPS {
+            break;
+        }
+    }
+    (1.0 - log_prefix.exp() * h).clamp(0.0, 1.0)
+}
+
+/// The Kolmogorov–Smirnov statistic of `samples` against `cdf`: the largest gap between their
+/// empirical distribution and it.
+pub fn ks_statistic(samples: &mut [f64], cdf: impl Fn(f64) -> f64) -> f64 {
+    samples.sort_by(f64::total_cmp);
+    let n = samples.len() as f64;
+    samples.iter().enumerate().fold(0.0, |worst: f64, (i, &x)| {
+        let f = cdf(x);
+        worst.max((f - i as f64 / n).abs()).max(((i + 1) as f64 / n - f).abs())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 1.36 / √n: the Kolmogorov–Smirnov critical value at the 5 % level for large n.
+    fn ks_critical(n: usize) -> f64 {
+        1.36 / (n as f64).sqrt()
+    }
+
+    #[test]
+    fn samplers_pass_a_kolmogorov_smirnov_test_against_their_distributions() {
+        let models = [
+            Latency::SIDELINK,
+            Latency::Gamma { offset_ms: 10.0, shape: 2.5, scale_ms: 4.0 },
+            Latency::Gamma { offset_ms: 0.0, shape: 0.6, scale_ms: 20.0 },
+        ];
+        let n = 20_000;
+        for (k, model) in models.iter().enumerate() {
+            let mut rng = Rng::new(0x5eed + k as u64);
+            let mut samples: Vec<f64> = (0..n).map(|_| model.sample_ms(&mut rng)).collect();
+            let mean = samples.iter().sum::<f64>() / n as f64;
+            let d = ks_statistic(&mut samples, |x| model.cdf(x));
+            assert!(d < ks_critical(n), "{model:?}: D = {d}");
+            assert!((mean - model.mean_ms()).abs() < 0.03 * model.mean_ms(), "{model:?}: mean {mean}");
+        }
+        // And the test can fail: the same samples against another distribution.
+        let mut rng = Rng::new(1);
+        let wrong = Latency::Gamma { offset_ms: 10.0, shape: 3.0, scale_ms: 4.0 };
+        let mut samples: Vec<f64> = (0..n).map(|_| models[1].sample_ms(&mut rng)).collect();
+        assert!(ks_statistic(&mut samples, |x| wrong.cdf(x)) > ks_critical(n));
+    }
+
+    #[test]
+    fn the_gamma_cdf_matches_closed_forms() {
+        // Shape 1 is the exponential: 1 − e^(−x/θ); shape 2: 1 − (1 + x/θ) e^(−x/θ).
+        for x in [0.1, 1.0, 2.5, 7.0, 30.0] {
+            let exp = Latency::Gamma { offset_ms: 0.0, shape: 1.0, scale_ms: 2.0 };
+            assert!((exp.cdf(x) - (1.0 - (-x / 2.0f64).exp())).abs() < 1e-12, "{x}");
+            let erlang = Latency::Gamma { offset_ms: 0.0, shape: 2.0, scale_ms: 1.0 };
+            assert!((erlang.cdf(x) - (1.0 - (1.0 + x) * (-x).exp())).abs() < 1e-12, "{x}");
+        }
+        assert_eq!(Latency::Gamma { offset_ms: 5.0, shape: 2.0, scale_ms: 1.0 }.cdf(4.0), 0.0);
+    }
+
+    #[test]
+    fn the_same_seed_gives_the_same_latencies_and_bad_parameters_are_named() {
+        let draw = |seed| {
+            let mut rng = Rng::new(seed);
+            (0..100).map(|_| Latency::SIDELINK.sample_ms(&mut rng).to_bits()).collect::<Vec<_>>()
+        };
+        assert_eq!(draw(7), draw(7));
+        assert_ne!(draw(7), draw(8));
+        assert!(Latency::Sidelink { t1_ms: 50.0, t2_ms: 20.0 }.check().is_err());
+        assert!(Latency::Gamma { offset_ms: -1.0, shape: 1.0, scale_ms: 1.0 }.check().is_err());
+        assert!(Latency::Gamma { offset_ms: 0.0, shape: 0.0, scale_ms: 1.0 }.check().is_err());
+        assert_eq!(Latency::SIDELINK.check(), Ok(()));
+    }
+}

@@ -4,4 +4,5 @@
 pub mod cam;
 pub mod channel;
 pub mod latency;
+pub mod link;
 pub mod loss;

@@ -2,6 +2,16 @@
 
 use crate::support::{assert_input_error, ok_json};
 
+/// Φ(z) independently of the implementation under test: Zelen and Severo's approximation
+/// (Abramowitz and Stegun 26.2.17), |error| < 7.5e-8.
+fn normal_cdf(z: f64) -> f64 {
+    let t = 1.0 / (1.0 + 0.231_641_9 * z.abs());
+    let poly =
+        t * (0.319_381_530 + t * (-0.356_563_782 + t * (1.781_477_937 + t * (-1.821_255_978 + t * 1.330_274_429))));
+    let tail = (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt() * poly;
+    if z >= 0.0 { 1.0 - tail } else { tail }
+}
+
 #[test]
 fn the_channel_prints_table_6_2_1_1_and_a_pdr_that_falls_with_distance() {
     let dir = tempfile::tempdir().expect("a temp dir");
@@ -17,7 +27,9 @@ fn the_channel_prints_table_6_2_1_1_and_a_pdr_that_falls_with_distance() {
         let out = ok_json(dir.path(), &args);
         assert_eq!(out["model"], model);
         assert_eq!(out["parameters"]["carrier_ghz"], 5.9, "{out}");
-        assert_eq!(out["noise_dbm"], -95.0, "{out}");
+        // −174 dBm/Hz over the packet's 13 resource blocks (2.34 MHz), 9 dB noise figure.
+        let noise = out["noise_dbm"].as_f64().expect("noise_dbm");
+        assert!((noise - (-174.0 + 10.0 * 2.34e6f64.log10() + 9.0)).abs() < 1e-9, "{out}");
         let points = out["points"].as_array().expect("points");
         let mut last_pdr = 1.0;
         for p in points {
@@ -27,8 +39,9 @@ fn the_channel_prints_table_6_2_1_1_and_a_pdr_that_falls_with_distance() {
             assert!((got - expected).abs() < 1e-9, "{model} at {d} m: {got} against {expected}");
             assert_eq!(p["shadowing_sigma_db"], sigma, "{p}");
             let snr = p["snr_db"].as_f64().expect("snr_db");
-            assert!((snr - (23.0 + 6.0 + 95.0 - got)).abs() < 1e-9, "{p}");
+            assert!((snr - (23.0 + 6.0 - noise - got)).abs() < 1e-9, "{p}");
             let pdr = p["pdr"].as_f64().expect("pdr");
+            assert!((pdr - normal_cdf((snr - 2.99) / sigma)).abs() < 1e-7, "Φ((snr − threshold)/σ): {p}");
             assert!((0.0..=1.0).contains(&pdr) && pdr <= last_pdr, "{model}: {points:?}");
             last_pdr = pdr;
         }
@@ -46,13 +59,16 @@ fn the_channel_prints_table_6_2_1_1_and_a_pdr_that_falls_with_distance() {
 #[test]
 fn bad_channel_parameters_are_refused_with_exit_2() {
     let dir = tempfile::tempdir().expect("a temp dir");
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 9] = [
         (&["--model", "3gpp-rural", "--distance-m", "10"], "--model \"3gpp-rural\""),
         (&["--model", "3gpp-urban-los", "--distance-m", "10,-5"], "--distance-m -5"),
         (&["--model", "3gpp-urban-los", "--distance-m", "ten"], "ten"),
         (&["--model", "3gpp-urban-los", "--distance-m", "10", "--carrier-ghz", "0"], "carrier 0 GHz"),
         (&["--model", "3gpp-urban-los", "--distance-m", "10", "--bandwidth-mhz", "-1"], "bandwidth"),
         (&["--model", "3gpp-urban-los", "--distance-m", "10", "--noise-figure-db", "-2"], "noise figure"),
+        (&["--model", "3gpp-urban-los", "--distance-m", "nan"], "--distance-m NaN"),
+        (&["--model", "3gpp-urban-los", "--distance-m", "10", "--carrier-ghz", "inf"], "carrier inf GHz"),
+        (&["--model", "3gpp-urban-los", "--distance-m", "10", "--sinr-threshold-db", "nan"], "sinr_threshold_db"),
     ];
     for (args, needle) in cases {
         assert_input_error(dir.path(), &[&["v2x", "channel"][..], args].concat(), needle);

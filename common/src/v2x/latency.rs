@@ -11,12 +11,22 @@ use serde::{Deserialize, Serialize};
 #[serde(tag = "model", rename_all = "kebab-case")]
 pub enum Latency {
     /// Sidelink mode 4 / mode 2 semi-persistent scheduling: the resource is chosen uniformly in
-    /// the selection window [n + T1, n + T2] after the message is made (3GPP TS 36.213 §14.1.1.6:
-    /// T1 ≤ 4 ms, 20 ms ≤ T2 ≤ 100 ms, T2 within the message's latency budget).
+    /// the selection window [n + T1, n + T2] after the message is made (LTE, 3GPP TS 36.213
+    /// §14.1.1.6: T1 ≤ 4 ms, 20 ms ≤ T2 ≤ 100 ms, T2 within the message's latency budget; other
+    /// windows, e.g. NR's, are accepted up to 1 s). Drawn per message: a real reservation repeats
+    /// every interval, so consecutive periodic messages see the same latency until the resource
+    /// is reselected; this keeps the distribution, not that correlation.
     Sidelink { t1_ms: f64, t2_ms: f64 },
     /// `offset_ms` + Gamma(`shape`, `scale_ms`): a cellular path's fixed part and its queueing.
     Gamma { offset_ms: f64, shape: f64, scale_ms: f64 },
 }
+
+/// The longest sidelink selection window accepted, ms.
+const MAX_WINDOW_MS: f64 = 1000.0;
+/// The gamma shapes accepted: beyond, the sampler's boost underflows (small) or the distribution
+/// function's series needs more terms than it takes (large); latencies need neither.
+const MIN_SHAPE: f64 = 0.01;
+const MAX_SHAPE: f64 = 1000.0;
 
 impl Latency {
     /// The widest sidelink window: T1 = 4 ms, T2 = 100 ms (a CAM's 100 ms budget).
@@ -26,16 +36,18 @@ impl Latency {
     pub fn check(&self) -> Result<(), String> {
         match *self {
             Latency::Sidelink { t1_ms, t2_ms } => {
-                if !(t1_ms.is_finite() && t2_ms.is_finite() && 0.0 <= t1_ms && t1_ms <= t2_ms) {
-                    return Err(format!("sidelink window [{t1_ms}, {t2_ms}] ms: need 0 ≤ t1_ms ≤ t2_ms"));
+                if !(0.0 <= t1_ms && t1_ms <= t2_ms && t2_ms <= MAX_WINDOW_MS) {
+                    return Err(format!("sidelink window [{t1_ms}, {t2_ms}] ms: need 0 ≤ t1_ms ≤ t2_ms ≤ 1000"));
                 }
             }
             Latency::Gamma { offset_ms, shape, scale_ms } => {
                 if !(offset_ms.is_finite() && offset_ms >= 0.0) {
                     return Err(format!("gamma offset {offset_ms} ms: need a finite number ≥ 0"));
                 }
-                if !(shape.is_finite() && shape > 0.0 && scale_ms.is_finite() && scale_ms > 0.0) {
-                    return Err(format!("gamma shape {shape}, scale {scale_ms} ms: both must be positive"));
+                if !((MIN_SHAPE..=MAX_SHAPE).contains(&shape) && scale_ms.is_finite() && scale_ms > 0.0) {
+                    return Err(format!(
+                        "gamma shape {shape}, scale {scale_ms} ms: need a shape in [{MIN_SHAPE}, {MAX_SHAPE}] and a positive scale"
+                    ));
                 }
             }
         }
@@ -102,6 +114,9 @@ fn lower_regularized_gamma(a: f64, x: f64) -> f64 {
     const TINY: f64 = 1e-300;
     if x <= 0.0 {
         return 0.0;
+    }
+    if x.is_infinite() {
+        return 1.0;
     }
     let log_prefix = a * x.ln() - x - libm::lgamma(a);
     if x < a + 1.0 {

@@ -22,6 +22,13 @@ impl BurstLoss {
         if !((0.0..1.0).contains(&share) && mean_burst >= 1.0 && mean_burst.is_finite()) {
             return Err(format!("burst loss {share} over bursts of {mean_burst}: need 0 ≤ share < 1, bursts ≥ 1"));
         }
+        // A chain can enter a burst at most once per message: share ≤ burst / (burst + 1).
+        let most = mean_burst / (mean_burst + 1.0);
+        if share > most {
+            return Err(format!(
+                "burst loss {share} over bursts of {mean_burst}: at most {most:.3} with bursts that long"
+            ));
+        }
         let leave = 1.0 / mean_burst;
         // Stationary P(bad) = enter / (enter + leave) = share.
         let enter = share * leave / (1.0 - share);
@@ -95,6 +102,9 @@ mod tests {
     fn impossible_chains_are_refused() {
         assert!(BurstLoss::from_share(1.0, 5.0).is_err());
         assert!(BurstLoss::from_share(0.1, 0.5).is_err());
+        assert!(
+            BurstLoss::from_share(0.6, 1.0).expect_err("too much for single-message bursts").contains("at most 0.500")
+        );
         assert!(BurstLoss { enter: 0.1, leave: 0.0 }.check().is_err());
         assert_eq!(BurstLoss::from_share(0.0, 1.0).map(|c| c.enter), Ok(0.0));
     }

@@ -17,18 +17,23 @@ pub struct V2xChannelArgs {
     /// Distances between the antennas, m (comma-separated; below 3 m the model holds its 3 m value).
     #[arg(long, value_delimiter = ',', required = true, allow_negative_numbers = true)]
     pub distance_m: Vec<f64>,
-    #[arg(long, default_value_t = 5.9, allow_negative_numbers = true)]
-    pub carrier_ghz: f64,
-    #[arg(long, default_value_t = 23.0, allow_negative_numbers = true)]
-    pub tx_power_dbm: f64,
-    /// Gain of each antenna (transmitter and receiver), dBi.
-    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
-    pub antenna_gain_dbi: f64,
-    #[arg(long, default_value_t = 9.0, allow_negative_numbers = true)]
-    pub noise_figure_db: f64,
-    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
-    pub bandwidth_mhz: f64,
-    /// SNR a packet needs, dB (default: a 190-byte LTE-V2X packet at MCS 7; see docs/v2x.md).
+    /// Carrier, GHz (default 5.9).
+    #[arg(long, allow_negative_numbers = true)]
+    pub carrier_ghz: Option<f64>,
+    /// Transmit power, dBm (default 23).
+    #[arg(long, allow_negative_numbers = true)]
+    pub tx_power_dbm: Option<f64>,
+    /// Gain of each antenna (transmitter and receiver), dBi (default 3).
+    #[arg(long, allow_negative_numbers = true)]
+    pub antenna_gain_dbi: Option<f64>,
+    /// Receiver noise figure, dB (default 9).
+    #[arg(long, allow_negative_numbers = true)]
+    pub noise_figure_db: Option<f64>,
+    /// Bandwidth the packet occupies, over which noise is counted, MHz (default 2.34: the 13
+    /// resource blocks of a 190-byte LTE-V2X packet at MCS 7).
+    #[arg(long, allow_negative_numbers = true)]
+    pub bandwidth_mhz: Option<f64>,
+    /// SNR a packet needs, dB (default 2.99: that packet's; see docs/v2x.md).
     #[arg(long, allow_negative_numbers = true)]
     pub sinr_threshold_db: Option<f64>,
     #[arg(long, value_enum, default_value_t = Format::Table)]

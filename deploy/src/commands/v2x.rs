@@ -22,14 +22,15 @@ pub fn channel(args: V2xChannelArgs) -> CliResult {
     if let Some(d) = args.distance_m.iter().find(|d| !(d.is_finite() && **d >= 0.0)) {
         return Err(CliError::input(format!("--distance-m {d}: a distance is a finite number of metres ≥ 0")));
     }
+    let d = LinkBudget::default();
     let budget = LinkBudget {
-        carrier_ghz: args.carrier_ghz,
-        tx_power_dbm: args.tx_power_dbm,
-        tx_antenna_gain_dbi: args.antenna_gain_dbi,
-        rx_antenna_gain_dbi: args.antenna_gain_dbi,
-        noise_figure_db: args.noise_figure_db,
-        bandwidth_hz: args.bandwidth_mhz * 1e6,
-        sinr_threshold_db: args.sinr_threshold_db.unwrap_or(LinkBudget::default().sinr_threshold_db),
+        carrier_ghz: args.carrier_ghz.unwrap_or(d.carrier_ghz),
+        tx_power_dbm: args.tx_power_dbm.unwrap_or(d.tx_power_dbm),
+        tx_antenna_gain_dbi: args.antenna_gain_dbi.unwrap_or(d.tx_antenna_gain_dbi),
+        rx_antenna_gain_dbi: args.antenna_gain_dbi.unwrap_or(d.rx_antenna_gain_dbi),
+        noise_figure_db: args.noise_figure_db.unwrap_or(d.noise_figure_db),
+        bandwidth_hz: args.bandwidth_mhz.map_or(d.bandwidth_hz, |mhz| mhz * 1e6),
+        sinr_threshold_db: args.sinr_threshold_db.unwrap_or(d.sinr_threshold_db),
     };
     budget.check().map_err(CliError::input)?;
     let points: Vec<ChannelPoint> = args.distance_m.iter().map(|&d| budget.at(model, d)).collect();

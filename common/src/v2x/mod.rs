@@ -1,6 +1,7 @@
 //! V2X: the radio channel between vehicles and road-side units (sidelink), applied per message
 //! and per receiver from the distance between them in the ground truth — never to physics.
 
+pub mod awareness;
 pub mod cam;
 pub mod channel;
 pub mod latency;

@@ -25,6 +25,7 @@ pub mod driver;
 pub mod env;
 pub mod episode;
 pub mod geometry;
+pub mod histogram;
 pub mod metrics;
 pub mod net;
 pub mod planner;

@@ -7,6 +7,7 @@
 use super::cam::{CamState, CamTrigger};
 use super::link::V2xChannel;
 use super::loss::BurstState;
+use crate::histogram::Histogram;
 use crate::rng::Rng;
 use serde::Serialize;
 
@@ -46,8 +47,10 @@ pub struct Awareness {
     rng: Rng,
     cams: u64,
     transmissions: u64,
-    latencies_ms: Vec<f64>,
-    ages_ms: Vec<f64>,
+    /// Latencies of delivered copies and ages sampled, µs (quantiles within 1.6 %).
+    latency_us: Histogram,
+    age_us: Histogram,
+    age_sum_ms: f64,
     never_heard: u64,
 }
 
@@ -60,8 +63,9 @@ impl Awareness {
             rng: Rng::new(seed),
             cams: 0,
             transmissions: 0,
-            latencies_ms: Vec::new(),
-            ages_ms: Vec::new(),
+            latency_us: Histogram::default(),
+            age_us: Histogram::default(),
+            age_sum_ms: 0.0,
             never_heard: 0,
         }
     }
@@ -81,7 +85,7 @@ impl Awareness {
                 let pair = &mut self.pairs[sender * n + receiver];
                 self.transmissions += 1;
                 if let Some(latency_ms) = self.channel.deliver(distance_m, &mut pair.burst, &mut self.rng) {
-                    self.latencies_ms.push(latency_ms);
+                    self.latency_us.record((latency_ms * 1e3).round() as u64);
                     pair.in_flight.push((now_s, now_s + latency_ms / 1e3));
                 }
             }
@@ -98,34 +102,31 @@ impl Awareness {
                 !arrived
             });
             match pair.newest_s {
-                Some(made_s) => self.ages_ms.push((now_s - made_s) * 1e3),
+                Some(made_s) => {
+                    let age_ms = (now_s - made_s) * 1e3;
+                    self.age_us.record((age_ms * 1e3).round() as u64);
+                    self.age_sum_ms += age_ms;
+                }
                 None => self.never_heard += 1,
             }
         }
     }
 
     pub fn summary(&self) -> AwarenessSummary {
-        let delivered = self.latencies_ms.len() as u64;
-        let mut latencies = self.latencies_ms.clone();
-        let mut ages = self.ages_ms.clone();
+        let delivered = self.latency_us.count();
+        let ages = self.age_us.count();
+        let ms = |us: Option<f64>| us.map(|us| us / 1e3);
         AwarenessSummary {
             cams: self.cams,
             transmissions: self.transmissions,
             delivered,
             pdr: (self.transmissions > 0).then(|| delivered as f64 / self.transmissions as f64),
-            latency_p50_ms: quantile(&mut latencies, 0.5),
-            aoi_mean_ms: (!ages.is_empty()).then(|| ages.iter().sum::<f64>() / ages.len() as f64),
-            aoi_p95_ms: quantile(&mut ages, 0.95),
+            latency_p50_ms: ms(self.latency_us.quantile(0.5)),
+            aoi_mean_ms: (ages > 0).then(|| self.age_sum_ms / ages as f64),
+            aoi_p95_ms: ms(self.age_us.quantile(0.95)),
             never_heard: self.never_heard,
         }
     }
-}
-
-/// The `q` quantile (nearest rank) of `values`, sorted in place.
-fn quantile(values: &mut [f64], q: f64) -> Option<f64> {
-    values.sort_by(f64::total_cmp);
-    let last = values.len().checked_sub(1)?;
-    Some(values[((q * values.len() as f64).ceil() as usize).saturating_sub(1).min(last)])
 }
 
 #[cfg(test)]
@@ -156,11 +157,12 @@ mod tests {
         let s = standing(20.0, 60.0, fixed, 1);
         assert_eq!(s.cams, 2 * 61, "one CAM a second each, and the first");
         assert_eq!((s.transmissions, s.delivered, s.pdr), (2 * 61, 2 * 61, Some(1.0)));
-        assert_eq!(s.latency_p50_ms, Some(20.0));
+        let p50 = s.latency_p50_ms.expect("latencies");
+        assert!((p50 - 20.0).abs() < 20.0 / 60.0, "within the histogram's bucket: {s:?}");
         // Ages sampled every 50 ms after each arrival: 50, 100, … 1000 ms; mean 525 ms.
         let mean = s.aoi_mean_ms.expect("ages");
         assert!((mean - 525.0).abs() < 5.0, "{s:?}");
-        assert!(s.aoi_p95_ms.expect("p95") <= 1000.0 + 1e-9, "{s:?}");
+        assert!(s.aoi_p95_ms.expect("p95") <= 1000.0 * (1.0 + 1.0 / 60.0), "{s:?}");
         assert_eq!(s.never_heard, 2, "the first step, before the first CAM arrived");
     }
 

@@ -2,7 +2,6 @@
 //! loopback where none can be made), relays that emulate its links, and supervised processes.
 
 pub mod deployment;
-pub mod histogram;
 pub mod lock;
 pub mod net;
 pub mod network_log;

@@ -9,8 +9,8 @@
 //! The pace is per connection and direction (a link that carries several connections gives
 //! each the bandwidth).
 
-use super::histogram::Histogram;
 use crate::topology::Jitter;
+use risktwin_common::histogram::Histogram;
 use risktwin_common::rng::Rng;
 use std::io;
 use std::net::SocketAddr;

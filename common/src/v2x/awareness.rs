@@ -7,8 +7,11 @@
 use super::cam::{CamState, CamTrigger};
 use super::link::V2xChannel;
 use super::loss::BurstState;
+use crate::episode::evaluate_observed;
 use crate::histogram::Histogram;
 use crate::rng::Rng;
+use crate::scenario::ScenarioSpec;
+use crate::world::World;
 use serde::Serialize;
 
 /// One sender → receiver pair.
@@ -129,11 +132,39 @@ impl Awareness {
     }
 }
 
+/// Every vehicle of `world` as a CAM carries it: the ego, then its traffic in index order.
+fn vehicles(world: &World, out: &mut Vec<CamState>) {
+    out.clear();
+    let time_s = world.time_s;
+    let ego = world.ego.pose();
+    let speed_mps = world.ego.velocity().norm();
+    out.push(CamState { time_s, x_m: ego.x_m, y_m: ego.y_m, heading_rad: ego.heading_rad, speed_mps });
+    let traffic = &world.traffic;
+    out.extend((0..traffic.len()).map(|i| {
+        let obb = traffic.obb(i);
+        let heading_rad = obb.axis.y.atan2(obb.axis.x);
+        CamState { time_s, x_m: obb.centre.x, y_m: obb.centre.y, heading_rad, speed_mps: traffic.speed_mps(i) }
+    }));
+}
+
+/// The awareness of each other of the vehicles of `spec`'s episode (its ego with the reference
+/// driver, and its traffic) over `channel`, every physics step; `None` if no step ran.
+pub fn of_episode(spec: &ScenarioSpec, channel: V2xChannel, seed: u64) -> Option<AwarenessSummary> {
+    let mut awareness: Option<Awareness> = None;
+    let mut states = Vec::new();
+    evaluate_observed(spec, &mut |world, _| {
+        vehicles(world, &mut states);
+        awareness.get_or_insert_with(|| Awareness::new(channel, states.len(), seed)).step(&states);
+    });
+    awareness.map(|a| a.summary())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::v2x::channel::{LinkBudget, PathLoss};
     use crate::v2x::latency::Latency;
+    use crate::v2x::loss::BurstLoss;
 
     fn channel(latency: Latency) -> V2xChannel {
         V2xChannel { model: PathLoss::UrbanNlos, budget: LinkBudget::default(), latency, bursts: None }
@@ -164,6 +195,23 @@ mod tests {
         assert!((mean - 525.0).abs() < 5.0, "{s:?}");
         assert!(s.aoi_p95_ms.expect("p95") <= 1000.0 * (1.0 + 1.0 / 60.0), "{s:?}");
         assert_eq!(s.never_heard, 2, "the first step, before the first CAM arrived");
+    }
+
+    #[test]
+    fn the_vehicles_of_a_cut_in_hear_each_other_and_bursts_age_what_they_know() {
+        let spec = crate::scenario::sample(1, crate::scenario::ScenarioKind::CutIn, 0);
+        let highway = V2xChannel { model: PathLoss::HighwayLos, ..channel(Latency::SIDELINK) };
+        let open = of_episode(&spec, highway, 9).expect("steps ran");
+        // A few vehicles tens of metres apart: every copy arrives, and each receiver's knowledge
+        // is at most a CAM interval (≤ 1 s) and a latency (≤ 100 ms) old.
+        assert!(open.cams > 0 && open.pdr == Some(1.0), "{open:?}");
+        assert!(open.aoi_p95_ms.expect("ages") <= 1100.0 * (1.0 + 1.0 / 60.0), "{open:?}");
+        // Bursts losing 30 % of the copies, 5 in a row on average: older knowledge.
+        let bursts = BurstLoss::from_share(0.3, 5.0).expect("valid");
+        let lossy = of_episode(&spec, V2xChannel { bursts: Some(bursts), ..highway }, 9).expect("steps ran");
+        assert_eq!(lossy.cams, open.cams, "the channel does not change the driving");
+        assert!(lossy.pdr < Some(0.9) && lossy.aoi_mean_ms > open.aoi_mean_ms, "{lossy:?} against {open:?}");
+        assert_eq!(Some(lossy), of_episode(&spec, V2xChannel { bursts: Some(bursts), ..highway }, 9), "seeded");
     }
 
     #[test]

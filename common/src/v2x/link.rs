@@ -1,4 +1,4 @@
-//! One V2X message to one receiver: the channel ([`super::channel`]), burst loss
+//! One V2X message to its receivers: the channel ([`super::channel`]), burst loss
 //! ([`super::loss`]) and latency ([`super::latency`]) applied together, seeded, so that the same
 //! seed gives the same deliveries in real time and in virtual time.
 
@@ -25,15 +25,20 @@ impl V2xChannel {
     }
 
     /// Whether a message sent over `distance_m` (between the antennas, in the ground truth)
-    /// arrives, and if so after how many ms. `burst` is this sender–receiver pair's chain state.
-    /// Each message draws its own shadowing (no correlation between messages beyond the bursts).
-    pub fn deliver(&self, distance_m: f64, burst: &mut BurstState, rng: &mut Rng) -> Option<f64> {
+    /// reaches one receiver. `burst` is this sender–receiver pair's chain state. Each copy draws
+    /// its own shadowing (no correlation between messages beyond the bursts).
+    pub fn receives(&self, distance_m: f64, burst: &mut BurstState, rng: &mut Rng) -> bool {
         let survives_burst = self.bursts.as_ref().is_none_or(|chain| burst.step(chain, rng));
         let point = self.budget.at(self.model, distance_m);
-        // The shadowing adds to the loss: the SNR this message sees.
+        // The shadowing adds to the loss: the SNR this copy sees.
         let snr_db = point.snr_db - point.shadowing_sigma_db * rng.normal();
-        let latency_ms = self.latency.sample_ms(rng);
-        (survives_burst && snr_db >= self.budget.sinr_threshold_db).then_some(latency_ms)
+        survives_burst && snr_db >= self.budget.sinr_threshold_db
+    }
+
+    /// When a broadcast goes out, ms after it is made: once per message, the same for every
+    /// receiver (one transmission on one resource).
+    pub fn latency_ms(&self, rng: &mut Rng) -> f64 {
+        self.latency.sample_ms(rng)
     }
 }
 
@@ -45,10 +50,16 @@ mod tests {
         V2xChannel { model: PathLoss::UrbanNlos, budget: LinkBudget::default(), latency: Latency::SIDELINK, bursts }
     }
 
+    /// `n` messages to one receiver: each one's latency if it arrives.
     fn delivered(channel: &V2xChannel, distance_m: f64, n: u32, seed: u64) -> Vec<Option<f64>> {
         let mut rng = Rng::new(seed);
         let mut burst = BurstState::default();
-        (0..n).map(|_| channel.deliver(distance_m, &mut burst, &mut rng)).collect()
+        (0..n)
+            .map(|_| {
+                let latency_ms = channel.latency_ms(&mut rng);
+                channel.receives(distance_m, &mut burst, &mut rng).then_some(latency_ms)
+            })
+            .collect()
     }
 
     #[test]

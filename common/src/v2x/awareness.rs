@@ -155,10 +155,12 @@ fn vehicles(world: &World, out: &mut Vec<Option<CamState>>) {
     out.push(Some(CamState { time_s, x_m: ego.x_m, y_m: ego.y_m, heading_rad: ego.heading_rad, speed_mps }));
     let traffic = &world.traffic;
     out.extend((0..traffic.len()).map(|i| {
-        let obb = traffic.obb(i);
-        let heading_rad = obb.axis.y.atan2(obb.axis.x);
-        let (x_m, y_m, speed_mps) = (obb.centre.x, obb.centre.y, traffic.velocity(i).norm());
-        traffic.is_active(i).then_some(CamState { time_s, x_m, y_m, heading_rad, speed_mps })
+        traffic.is_active(i).then(|| {
+            let obb = traffic.obb(i);
+            let heading_rad = obb.axis.y.atan2(obb.axis.x);
+            let (x_m, y_m, speed_mps) = (obb.centre.x, obb.centre.y, traffic.velocity(i).norm());
+            CamState { time_s, x_m, y_m, heading_rad, speed_mps }
+        })
     }));
 }
 

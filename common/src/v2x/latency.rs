@@ -152,20 +152,20 @@ fn lower_regularized_gamma(a: f64, x: f64) -> f64 {
     (1.0 - log_prefix.exp() * h).clamp(0.0, 1.0)
 }
 
-/// The Kolmogorov–Smirnov statistic of `samples` against `cdf`: the largest gap between their
-/// empirical distribution and it.
-pub fn ks_statistic(samples: &mut [f64], cdf: impl Fn(f64) -> f64) -> f64 {
-    samples.sort_by(f64::total_cmp);
-    let n = samples.len() as f64;
-    samples.iter().enumerate().fold(0.0, |worst: f64, (i, &x)| {
-        let f = cdf(x);
-        worst.max((f - i as f64 / n).abs()).max(((i + 1) as f64 / n - f).abs())
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The Kolmogorov–Smirnov statistic of `samples` against `cdf`: the largest gap between their
+    /// empirical distribution and it.
+    fn ks_statistic(samples: &mut [f64], cdf: impl Fn(f64) -> f64) -> f64 {
+        samples.sort_by(f64::total_cmp);
+        let n = samples.len() as f64;
+        samples.iter().enumerate().fold(0.0, |worst: f64, (i, &x)| {
+            let f = cdf(x);
+            worst.max((f - i as f64 / n).abs()).max(((i + 1) as f64 / n - f).abs())
+        })
+    }
 
     /// 1.36 / √n: the Kolmogorov–Smirnov critical value at the 5 % level for large n.
     fn ks_critical(n: usize) -> f64 {

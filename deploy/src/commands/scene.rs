@@ -317,16 +317,11 @@ pub fn run(args: SceneRunArgs) -> CliResult {
     let site = site_of(&args.scene)?;
     // Checked before anything starts: a bad endpoint or file is the user's input.
     let data = data_transport(&args.scene)?;
-    let mut summaries = match &args.participant_summaries {
-        Some(path) => Some(
-            std::fs::OpenOptions::new()
-                .create(true)
-                .append(true)
-                .open(path)
-                .map_err(|e| CliError::input(format!("--participant-summaries {}: {e}", path.display())))?,
-        ),
-        None => None,
+    let open_summaries = |path: &std::path::PathBuf| {
+        let file = std::fs::OpenOptions::new().create(true).append(true).open(path);
+        file.map_err(|e| CliError::input(format!("--participant-summaries {}: {e}", path.display())))
     };
+    let mut summaries = args.participant_summaries.as_ref().map(open_summaries).transpose()?;
     let mut children = Children::default();
     let locator = match args.router {
         Some(locator) => locator,

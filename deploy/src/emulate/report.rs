@@ -111,7 +111,7 @@ fn printed(s: &Supervised, ext: &str) -> Vec<Value> {
 
 /// What an edge says it sent on one stream: messages made, of them never put, and whether
 /// every incarnation said.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Default)]
 struct Said {
     sent: u64,
     unsent: u64,
@@ -121,7 +121,7 @@ struct Said {
 /// Adds what `summary` (an edge's, or a scene participant's) says `source` sent per stream.
 fn add_sent(said: &mut BTreeMap<(String, String), Said>, source: &str, summary: &Value, complete: bool) {
     for (stream, n) in summary["sent"].as_object().into_iter().flatten() {
-        let e = said.entry((source.to_owned(), stream.clone())).or_insert(Said { sent: 0, unsent: 0, complete });
+        let e = said.entry((source.to_owned(), stream.clone())).or_insert(Said { complete, ..Said::default() });
         e.sent += n.as_u64().unwrap_or(0);
         e.unsent += summary["unsent"][stream].as_u64().unwrap_or(0);
         e.complete &= complete;
@@ -190,7 +190,7 @@ impl Report {
                 }
                 if docs.is_empty() {
                     // Never silent: an edge that printed nothing still has its row.
-                    sent.insert((id.clone(), "(no summary)".into()), Said { sent: 0, unsent: 0, complete: false });
+                    sent.insert((id.clone(), "(no summary)".into()), Said::default());
                 }
             }
             if p.role == "scene" {
@@ -202,7 +202,7 @@ impl Report {
                     add_sent(&mut sent, summary["participant"].as_str().unwrap_or("(unnamed)"), summary, complete);
                 }
                 if summaries.is_empty() {
-                    sent.insert((p.name.clone(), "(no summary)".into()), Said { sent: 0, unsent: 0, complete: false });
+                    sent.insert((p.name.clone(), "(no summary)".into()), Said::default());
                 }
             }
             if p.role == "cloud" {
@@ -232,8 +232,7 @@ impl Report {
             .into_iter()
             .map(|key| {
                 let said = sent.get(&key).copied();
-                let Said { sent: n_sent, unsent, complete } =
-                    said.unwrap_or(Said { sent: 0, unsent: 0, complete: false });
+                let Said { sent: n_sent, unsent, complete } = said.unwrap_or_default();
                 let n_received = received.get(&key).copied().unwrap_or(0);
                 let n_lost = lost.get(&key).copied().unwrap_or(0);
                 let n_recovered = recovered.get(&key).copied().unwrap_or(0);

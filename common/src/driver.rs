@@ -23,6 +23,9 @@ pub struct DriverView<'a> {
     pub ego_accel_mps2: f64,
     pub ego_footprint: Footprint,
     pub perceived: &'a [PerceivedObject],
+    /// Hazards the ego knows of only from warnings heard over V2X, moved on to now (empty
+    /// without V2X; `v2x::warning`).
+    pub warned: &'a [PerceivedObject],
 }
 
 /// Anything that drives the ego: the reference driver now, learned policies later.
@@ -284,6 +287,11 @@ impl ReferenceDriver {
             } else {
                 self.leaving_lane = None;
             }
+        }
+        // A hazard heard of over V2X binds on its own, even behind a nearer leader the driver
+        // sees: the warning says it is there (the truck ahead may swerve around it).
+        if let Some(hazard) = self.neighbours(road, lane, s, half_len, view.warned).leader {
+            accel = accel.min(self.accel_behind(v, v0, Some(hazard)));
         }
         let accel = self.react(view.time_s, accel);
 

@@ -40,6 +40,7 @@ pub mod recording;
 pub mod report;
 pub mod rescore;
 pub mod search;
+pub mod v2x_sweep;
 pub mod verdict;
 
 pub use config::{ConfigError, RunConfig};

@@ -1,6 +1,7 @@
-//! `risktwin v2x channel`: the TR 37.885 sidelink channel by distance, as docs/cli.md gives it.
+//! `risktwin v2x channel`: the TR 37.885 sidelink channel by distance, as docs/cli.md gives it;
+//! `risktwin v2x sweep`: a small grid end to end, and its config refused where it is wrong.
 
-use crate::support::{assert_input_error, ok_json};
+use crate::support::{assert_input_error, ok_json, ok_stdout, write_file};
 
 /// Φ(z) independently of the implementation under test: Zelen and Severo's approximation
 /// (Abramowitz and Stegun 26.2.17), |error| < 7.5e-8.
@@ -73,4 +74,44 @@ fn bad_channel_parameters_are_refused_with_exit_2() {
     for (args, needle) in cases {
         assert_input_error(dir.path(), &[&["v2x", "channel"][..], args].concat(), needle);
     }
+}
+
+#[test]
+fn a_small_sweep_writes_its_report_and_a_wrong_config_is_refused_by_name() {
+    let dir = tempfile::tempdir().expect("a temp dir");
+    let small = r#"{"models": ["3gpp-urban-nlos"], "rsu_offsets_m": [10, 400],
+        "latencies": [{"model": "sidelink", "t1_ms": 4, "t2_ms": 20}],
+        "bursts": [{"share": 0, "mean_burst": 1}], "kinds": ["pedestrian-crossing"],
+        "seeds": [1, 2, 3], "scenes_per_kind": 2}"#;
+    let config = write_file(dir.path(), "small.json", small);
+    let out = dir.path().join("sweep");
+    let args = ["v2x", "sweep", "--config", config.to_str().expect("utf-8"), "--out", out.to_str().expect("utf-8")];
+    let stdout = ok_stdout(dir.path(), &args);
+    assert!(stdout.contains("12 episodes with V2X"), "2 cells × 3 seeds × 2 scenes: {stdout}");
+    let report = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    assert!(report.contains("## When warnings stop preventing crashes"), "{report}");
+    for figure in
+        ["pdr_vs_distance.png", "latency_cdf.png", "age_of_information.png", "twin_staleness.png", "collisions.png"]
+    {
+        assert!(out.join(figure).is_file() && report.contains(figure), "{figure}");
+    }
+    let bad = [
+        (r#"{"models": ["free-space"]}"#, "unknown model 'free-space'"),
+        (r#"{"rsu_offsets_m": [-10]}"#, "RSU offset -10 m"),
+        (r#"{"bursts": [{"share": 1.5, "mean_burst": 3}]}"#, "burst loss 1.5"),
+        (r#"{"latencies": [{"model": "sidelink", "t1_ms": 50, "t2_ms": 10}]}"#, "sidelink window [50, 10]"),
+        (r#"{"seeds": []}"#, "seeds: the list is empty"),
+        (r#"{"scenes": 3}"#, "unknown field `scenes`"),
+        ("not json", "config"),
+    ];
+    for (text, needle) in bad {
+        let path = write_file(dir.path(), "bad.json", text);
+        let args = ["v2x", "sweep", "--config", path.to_str().expect("utf-8"), "--out", out.to_str().expect("utf-8")];
+        assert_input_error(dir.path(), &args, needle);
+    }
+    assert_input_error(
+        dir.path(),
+        &["v2x", "sweep", "--config", "/nonexistent.json", "--out", "x"],
+        "cannot read config",
+    );
 }

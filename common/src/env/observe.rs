@@ -93,14 +93,14 @@ struct LaneGaps {
 }
 
 impl LaneGaps {
-    /// Scans `view.perceived` for objects in `lane` around the ego at arc length `s_ego_m`.
-    /// An object overlapping the ego lengthwise counts as ahead (or behind) at gap 0.
+    /// Scans the view's objects (perceived and warned of) in `lane` around the ego at arc length
+    /// `s_ego_m`. An object overlapping the ego lengthwise counts as ahead (or behind) at gap 0.
     fn scan(view: &DriverView, lane: usize, s_ego_m: f64) -> Self {
         let l = view.road.lane(lane);
         let half_w = 0.5 * l.width_m;
         let ego_half_len = 0.5 * view.ego_footprint.length_m;
         let mut out = LaneGaps::default();
-        for o in view.perceived {
+        for o in view.perceived.iter().chain(view.warned) {
             let f = l.project(o.obb.centre);
             if f.e_y_m.abs() - o.obb.half_width_m.min(o.obb.half_length_m) > half_w {
                 continue;
@@ -159,7 +159,8 @@ impl Observer {
             (TTC_REF_S / ttc).min(1.0)
         });
         self.objects.clear();
-        self.objects.extend(view.perceived.iter().map(|o| FieldObject { obb: o.obb, velocity: o.velocity }));
+        let objects = view.perceived.iter().chain(view.warned);
+        self.objects.extend(objects.map(|o| FieldObject { obb: o.obb, velocity: o.velocity }));
         let ego = EgoKinematics {
             pose,
             velocity: Vec2::new(pose.heading_rad.cos(), pose.heading_rad.sin()) * view.ego_speed_mps,

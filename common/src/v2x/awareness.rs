@@ -128,6 +128,11 @@ impl Awareness {
         }
     }
 
+    /// The latencies of the copies that arrived, µs.
+    pub fn into_latencies(self) -> Histogram {
+        self.latency_us
+    }
+
     pub fn summary(&self) -> AwarenessSummary {
         let ages = self.age_us.count();
         let ms = |us: Option<f64>| us.map(|us| us / 1e3);
@@ -147,7 +152,7 @@ impl Awareness {
 /// Every vehicle of `world` as a CAM carries it: the ego, then its traffic in index order,
 /// `None` for a traffic vehicle not on the road now (not yet placed, or gone off its lane's end).
 /// Parked cars are on the road and send like the others (1 Hz, standing).
-fn vehicles(world: &World, out: &mut Vec<Option<CamState>>) {
+pub(super) fn vehicles(world: &World, out: &mut Vec<Option<CamState>>) {
     out.clear();
     let time_s = world.time_s;
     let ego = world.ego.pose();

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 /// A latency distribution, in ms.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "model", rename_all = "kebab-case")]
+#[serde(tag = "model", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Latency {
     /// Sidelink mode 4 / mode 2 semi-persistent scheduling: the resource is chosen uniformly in
     /// the selection window [n + T1, n + T2] after the message is made (LTE, 3GPP TS 36.213

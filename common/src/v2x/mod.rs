@@ -4,6 +4,10 @@
 pub mod awareness;
 pub mod cam;
 pub mod channel;
+pub mod experiment;
 pub mod latency;
 pub mod link;
 pub mod loss;
+pub mod sweep;
+pub mod twin;
+pub mod warning;

@@ -189,6 +189,7 @@ impl World {
             ego_accel_mps2: self.ego.state.accel_mps2,
             ego_footprint: self.ego.params.footprint(),
             perceived: &self.perceived,
+            warned: &[],
         }
     }
 

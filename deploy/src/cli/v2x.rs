@@ -7,6 +7,19 @@ use clap::{Args, Subcommand};
 pub enum V2xCommand {
     /// Path loss, SNR and packet delivery ratio of a 3GPP TR 37.885 sidelink channel by distance.
     Channel(V2xChannelArgs),
+    /// A grid of channels, latencies, losses and warning rates over critical scenes of every
+    /// kind, in virtual time: the twin's staleness and the crashes warnings prevent (docs/v2x.md).
+    Sweep(V2xSweepArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct V2xSweepArgs {
+    /// JSON file with any of the grid's keys (docs/v2x.md); without it, the default grid.
+    #[arg(long)]
+    pub config: Option<std::path::PathBuf>,
+    /// Folder for the report, figures and CSV files (created; files in it are replaced).
+    #[arg(long)]
+    pub out: std::path::PathBuf,
 }
 
 #[derive(Debug, Args)]

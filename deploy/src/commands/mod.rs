@@ -69,5 +69,6 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Deploy(DeployCommand::Down(a)) => deploy::down(a),
         Command::Deploy(DeployCommand::Run(a)) => deploy::run(a),
         Command::V2x(V2xCommand::Channel(a)) => v2x::channel(a),
+        Command::V2x(V2xCommand::Sweep(a)) => v2x::sweep(a),
     }
 }

@@ -1,9 +1,12 @@
-//! `risktwin v2x channel`: the sidelink channel of `risktwin_common::v2x::channel` by distance.
+//! `risktwin v2x channel`: the sidelink channel of `risktwin_common::v2x::channel` by distance;
+//! `risktwin v2x sweep`: a grid of V2X experiments in virtual time (`risktwin_pipeline::v2x_sweep`).
 
-use crate::cli::V2xChannelArgs;
+use crate::cli::{V2xChannelArgs, V2xSweepArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_common::v2x::channel::{ChannelPoint, LinkBudget, PathLoss};
+use risktwin_common::v2x::sweep::SweepConfig;
+use risktwin_pipeline::v2x_sweep;
 use serde::Serialize;
 
 #[derive(Serialize)]
@@ -62,4 +65,30 @@ pub fn channel(args: V2xChannelArgs) -> CliResult {
             }
         }
     }
+}
+
+pub fn sweep(args: V2xSweepArgs) -> CliResult {
+    let config = match &args.config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| CliError::input(format!("cannot read config {}: {e}", path.display())))?;
+            serde_json::from_str::<SweepConfig>(&text)
+                .map_err(|e| CliError::input(format!("config {}: {e}", path.display())))?
+        }
+        None => SweepConfig::default(),
+    };
+    let shown =
+        args.config.as_ref().map_or_else(|| "the default grid".to_string(), |p| format!("config {}", p.display()));
+    let grid = config.grid().map_err(|e| CliError::input(format!("{shown}: {e}")))?;
+    eprintln!("v2x sweep: {} cells, {} episodes with V2X …", grid.cells.len(), grid.episodes());
+    let started = std::time::Instant::now();
+    let result = v2x_sweep::run(&config, &args.out).map_err(CliError::runtime)?;
+    let secs = started.elapsed().as_secs_f64();
+    let episodes = result.episodes();
+    println!(
+        "{episodes} episodes with V2X in {secs:.1} s ({:.0} per minute); report: {}",
+        episodes as f64 / secs.max(1e-9) * 60.0,
+        args.out.join(v2x_sweep::REPORT_FILE).display()
+    );
+    Ok(())
 }

@@ -156,6 +156,7 @@ impl Onboard {
             ego_accel_mps2: truth.ego.accel_mps2,
             ego_footprint: self.ego_footprint,
             perceived: &self.perceived,
+            warned: &[],
         };
         Some(driver.act(&view))
     }

@@ -9,9 +9,11 @@ mod canvas;
 mod curves;
 mod fidelity;
 pub mod heatmap;
+mod lines;
 
 pub use ablation::ablation;
 pub use canvas::{ABLATION_FILE, Bitmap, FigureError, TRAINING_CURVES_FILE, write_png};
 pub use curves::training_curves;
 pub use fidelity::fidelity;
 pub use heatmap::HeatmapScene;
+pub use lines::{Panel, Series, line_panels};

@@ -79,6 +79,7 @@ pub fn resimulate(
                     ego_accel_mps2: vehicle.state.accel_mps2,
                     ego_footprint: footprint,
                     perceived: &perceived,
+                    warned: &[],
                 })
             }
         };

@@ -2,8 +2,12 @@
 //! and per receiver from the distance between them in the ground truth — never to physics.
 
 pub mod awareness;
+pub mod bler;
 pub mod cam;
 pub mod channel;
 pub mod latency;
 pub mod link;
 pub mod loss;
+pub mod sps;
+pub mod sps_reference;
+mod sps_sensing;

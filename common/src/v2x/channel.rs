@@ -1,11 +1,13 @@
 //! The sidelink (V2V / V2I) radio channel of 3GPP TR 37.885 ("Study on evaluation methodology
-//! of new V2X use cases for LTE and NR"): median path loss by its Table 6.2.1-1,
-//! log-normal shadowing, a link budget, and reception when the signal-to-noise ratio reaches the
-//! threshold of the packet's modulation and coding. The packet delivery ratio (PDR) at a distance
-//! is the probability, over the shadowing, that it does.
+//! of new V2X use cases for LTE and NR"): median path loss by its Table 6.2.1-1 (and WINNER+ B1,
+//! which the LTE-V2X study of [`super::sps_reference`] uses), log-normal shadowing, a link
+//! budget, and reception when the signal-to-noise ratio reaches the threshold of the packet's
+//! modulation and coding. The packet delivery ratio (PDR) at a distance is the probability, over
+//! the shadowing, that it does.
 //!
 //! Not modelled here: interference from other transmitters and half-duplex losses (both lower
-//! the PDR at range), the NLOSv blockage by other vehicles, the shadowing's correlation in space.
+//! the PDR at range; [`super::sps`] simulates them), the NLOSv blockage by other vehicles, the
+//! shadowing's correlation in space.
 
 use serde::Serialize;
 
@@ -13,7 +15,7 @@ use serde::Serialize;
 /// log-distance fits for vehicles metres apart, not for the near field (ns-3 applies no clamp).
 pub const MIN_DISTANCE_M: f64 = 3.0;
 
-/// A path-loss model of TR 37.885 Table 6.2.1-1.
+/// A path-loss model: those of TR 37.885 Table 6.2.1-1, and WINNER+ B1 line of sight.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub enum PathLoss {
     /// Highway, line of sight (also NLOSv before its blockage term).
@@ -22,10 +24,19 @@ pub enum PathLoss {
     UrbanLos,
     /// Urban grid, buildings in the way.
     UrbanNlos,
+    /// WINNER+ B1 line of sight (P. Kyösti et al., "WINNER II Channel Models", IST-4-027756
+    /// WINNER II D1.1.2, 2008, scenario B1; kept in WINNER+ D5.3) between 1.5 m antennas on
+    /// open ground, never below free space, as Gonzalez-Martín et al. 2019 evaluate LTE-V2X on
+    /// a highway (their `get_PL_SH.m`, github.com/msepulcre/C-V2X).
+    WinnerB1Los,
 }
 
+/// Antenna height above the ground of both vehicles for [`PathLoss::WinnerB1Los`], m.
+const WINNER_B1_ANTENNA_HEIGHT_M: f64 = 1.5;
+
 impl PathLoss {
-    pub const ALL: [PathLoss; 3] = [PathLoss::HighwayLos, PathLoss::UrbanLos, PathLoss::UrbanNlos];
+    pub const ALL: [PathLoss; 4] =
+        [PathLoss::HighwayLos, PathLoss::UrbanLos, PathLoss::UrbanNlos, PathLoss::WinnerB1Los];
 
     /// The model's name on the command line.
     pub const fn name(self) -> &'static str {
@@ -33,6 +44,7 @@ impl PathLoss {
             PathLoss::HighwayLos => "3gpp-highway-los",
             PathLoss::UrbanLos => "3gpp-urban-los",
             PathLoss::UrbanNlos => "3gpp-urban-nlos",
+            PathLoss::WinnerB1Los => "winner-b1-los",
         }
     }
 
@@ -49,16 +61,33 @@ impl PathLoss {
             PathLoss::HighwayLos => 32.4 + 20.0 * d + 20.0 * f,
             PathLoss::UrbanLos => 38.77 + 16.7 * d + 18.2 * f,
             PathLoss::UrbanNlos => 36.85 + 30.0 * d + 18.9 * f,
+            PathLoss::WinnerB1Los => winner_b1_los_db(d, f, carrier_ghz),
         }
     }
 
     /// Standard deviation of the log-normal shadowing, dB (Table 6.2.1-1).
     pub const fn shadowing_sigma_db(self) -> f64 {
         match self {
-            PathLoss::HighwayLos | PathLoss::UrbanLos => 3.0,
+            PathLoss::HighwayLos | PathLoss::UrbanLos | PathLoss::WinnerB1Los => 3.0,
             PathLoss::UrbanNlos => 4.0,
         }
     }
+}
+
+/// WINNER+ B1 LOS at log10 of the distance `lg_d` and of the carrier `lg_f` (GHz): up to the
+/// breakpoint 4 h h f / c, 22.7 log d + 27 + 20 log f; beyond it, 40 log d + 7.56 − 17.3 log h
+/// − 17.3 log h + 2.7 log f; never less than free space, 20 log d + 46.4 + 20 log (f / 5).
+fn winner_b1_los_db(lg_d: f64, lg_f: f64, carrier_ghz: f64) -> f64 {
+    let h = WINNER_B1_ANTENNA_HEIGHT_M;
+    // c as 3·10⁸ m/s, as the authors' get_PL_SH.m takes it.
+    let breakpoint_m = 4.0 * h * h * carrier_ghz * 1e9 / 3e8;
+    let b1 = if lg_d < breakpoint_m.log10() {
+        22.7 * lg_d + 27.0 + 20.0 * lg_f
+    } else {
+        40.0 * lg_d + 7.56 - 2.0 * 17.3 * h.log10() + 2.7 * lg_f
+    };
+    let free_space = 20.0 * lg_d + 46.4 + 20.0 * (lg_f - 5f64.log10());
+    b1.max(free_space)
 }
 
 /// Thermal noise density at 290 K, dBm/Hz.
@@ -193,6 +222,29 @@ mod tests {
         // Below 3 m the model holds its 3 m value.
         assert_eq!(PathLoss::UrbanLos.median_db(0.5, 5.9), PathLoss::UrbanLos.median_db(3.0, 5.9));
         assert_eq!(PathLoss::UrbanNlos.shadowing_sigma_db(), 4.0);
+    }
+
+    #[test]
+    fn winner_b1_is_the_published_models_at_several_distances() {
+        // The authors' get_PL_SH.m (github.com/msepulcre/C-V2X, 71d4c25) run in GNU Octave 7.3 at
+        // 5.91 GHz: free space up to ~100 m, B1 below the 177 m breakpoint, the 40 log d branch
+        // beyond it, 3 m held below 3 m.
+        let octave = [
+            (2.0, 57.394_774_625),
+            (50.0, 81.831_749_618),
+            (150.0, 91.829_021_198),
+            (177.0, 93.460_742_764),
+            (178.0, 93.567_328_727),
+            (300.0, 102.635_378_824),
+            (500.0, 111.509_328_808),
+            (1000.0, 123.550_528_635),
+        ];
+        for (d, want) in octave {
+            let got = PathLoss::WinnerB1Los.median_db(d, 5.91);
+            assert!((got - want).abs() < 1e-6, "{d} m: {got} against {want}");
+        }
+        assert!(PathLoss::WinnerB1Los.median_db(f64::NAN, 5.91).is_nan());
+        assert_eq!(PathLoss::from_name("winner-b1-los"), Some(PathLoss::WinnerB1Los));
     }
 
     #[test]

@@ -24,7 +24,7 @@ pub struct V2xSweepArgs {
 
 #[derive(Debug, Args)]
 pub struct V2xChannelArgs {
-    /// 3gpp-highway-los, 3gpp-urban-los or 3gpp-urban-nlos.
+    /// 3gpp-highway-los, 3gpp-urban-los, 3gpp-urban-nlos or winner-b1-los.
     #[arg(long)]
     pub model: String,
     /// Distances between the antennas, m (comma-separated; below 3 m the model holds its 3 m value).

@@ -5,6 +5,7 @@ use super::table::same_but_latency;
 use crate::figures::{Bitmap, FigureError, Panel, Series, line_panels};
 use risktwin_common::histogram::Histogram;
 use risktwin_common::v2x::channel::{LinkBudget, PathLoss};
+use risktwin_common::v2x::sps_reference::published_curve;
 use risktwin_common::v2x::sweep::{Cell, Row, SweepResult, latency_label, mean_latency_ms};
 
 pub const PDR_FILE: &str = "pdr_vs_distance.png";
@@ -20,17 +21,10 @@ const PDR_DISTANCES_M: std::ops::RangeInclusive<u32> = 0..=100;
 const PDR_STEP_M: f64 = 20.0;
 
 /// Every figure with its file name.
-pub(super) fn draw(r: &SweepResult) -> Result<Vec<(&'static str, Bitmap)>, FigureError> {
+pub(super) fn draw(r: &SweepResult, reproduced: &[f64]) -> Result<Vec<(&'static str, Bitmap)>, FigureError> {
+    let pdr = [pdr_panel(r), published_panel(reproduced)];
     Ok(vec![
-        (
-            PDR_FILE,
-            line_panels(
-                "Packet delivery ratio against distance (TR 37.885, no interference)",
-                &[pdr_panel(r)],
-                1,
-                (1100, 620),
-            )?,
-        ),
+        (PDR_FILE, line_panels("Packet delivery ratio against distance", &pdr, 2, (900, 620))?),
         (LATENCY_FILE, line_panels("Latency of the CAMs that arrived", &[latency_panel(r)], 1, (1100, 620))?),
         (AOI_FILE, line_panels("Age of information among the vehicles", &[aoi_panel(r)], 1, (1100, 620))?),
         (
@@ -127,7 +121,25 @@ fn pdr_panel(r: &SweepResult) -> Panel {
             colour,
         })
         .collect();
-    panel("PDR = Φ((SNR − threshold) / σ)", "distance (m)", "PDR", true, series)
+    panel("The sweep's channels: Φ((SNR − threshold) / σ), no interference", "distance (m)", "PDR", true, series)
+}
+
+/// The published LTE-V2X Mode 4 curve under load and ours for its configuration.
+fn published_panel(reproduced: &[f64]) -> Panel {
+    let published = published_curve();
+    let line = |label: &str, colour, dashed, pdr: &dyn Fn(usize) -> f64| Series {
+        label: label.to_string(),
+        points: published.iter().enumerate().map(|(k, p)| (p.distance_m, pdr(k))).collect(),
+        band: Vec::new(),
+        dashed,
+        colour,
+    };
+    let series = vec![
+        line("Gonzalez-Martín et al. 2019, analytical", 7, true, &|k| published[k].analytical_pdr),
+        line("Gonzalez-Martín et al. 2019, simulated", 5, true, &|k| published[k].simulated_pdr),
+        line("RiskTwin SB-SPS Monte Carlo", 0, false, &|k| reproduced[k]),
+    ];
+    panel("LTE-V2X Mode 4, 0.2 veh/m, 10 Hz, 190 B (half-duplex, interference)", "distance (m)", "PDR", true, series)
 }
 
 fn latency_panel(r: &SweepResult) -> Panel {

@@ -27,7 +27,8 @@ pub struct Bursts {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SweepConfig {
-    /// Path-loss models by name (`3gpp-highway-los`, `3gpp-urban-los`, `3gpp-urban-nlos`).
+    /// Path-loss models by name (`3gpp-highway-los`, `3gpp-urban-los`, `3gpp-urban-nlos`,
+    /// `winner-b1-los`).
     pub models: Vec<String>,
     /// The RSU's distance beside the ego's lane, level with the point of conflict, m.
     pub rsu_offsets_m: Vec<f64>,
@@ -51,7 +52,9 @@ impl Default for SweepConfig {
         let sidelink = |t2_ms| Latency::Sidelink { t1_ms: 4.0, t2_ms };
         let late = |offset_ms| Latency::Gamma { offset_ms, shape: 4.0, scale_ms: 25.0 };
         SweepConfig {
-            models: PathLoss::ALL.iter().map(|m| m.name().to_string()).collect(),
+            models: [PathLoss::HighwayLos, PathLoss::UrbanLos, PathLoss::UrbanNlos]
+                .map(|m| m.name().to_string())
+                .to_vec(),
             rsu_offsets_m: vec![10.0, 400.0],
             latencies: vec![
                 sidelink(20.0),
@@ -129,9 +132,8 @@ impl SweepConfig {
             .iter()
             .map(|m| {
                 PathLoss::from_name(m).ok_or_else(|| {
-                    format!(
-                        "models: unknown model '{m}' (expected 3gpp-highway-los, 3gpp-urban-los or 3gpp-urban-nlos)"
-                    )
+                    let names: Vec<&str> = PathLoss::ALL.iter().map(|m| m.name()).collect();
+                    format!("models: unknown model '{m}' (expected one of {})", names.join(", "))
                 })
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -181,10 +183,10 @@ pub fn mean_latency_ms(latency: &Latency) -> f64 {
     }
 }
 
-/// A short label of a latency model for tables and legends.
+/// A short label of a latency model for tables, legends and CSV fields (no comma).
 pub fn latency_label(latency: &Latency) -> String {
     match *latency {
         Latency::Sidelink { t1_ms, t2_ms } => format!("sidelink {t1_ms}–{t2_ms} ms"),
-        Latency::Gamma { offset_ms, shape, scale_ms } => format!("gamma {offset_ms} + Γ({shape}, {scale_ms}) ms"),
+        Latency::Gamma { offset_ms, shape, scale_ms } => format!("gamma {offset_ms} + Γ(k {shape} θ {scale_ms}) ms"),
     }
 }

@@ -290,7 +290,13 @@ impl ReferenceDriver {
         }
         // A hazard heard of over V2X binds on its own, even behind a nearer leader the driver
         // sees: the warning says it is there (the truck ahead may swerve around it).
-        if let Some(hazard) = self.neighbours(road, lane, s, half_len, view.warned).leader {
+        let hazard = if view.warned.is_empty() {
+            None
+        } else {
+            let s_lane = road.lane(lane).project(pos).s_m;
+            self.neighbours(road, lane, s_lane, half_len, view.warned).leader
+        };
+        if let Some(hazard) = hazard {
             accel = accel.min(self.accel_behind(v, v0, Some(hazard)));
         }
         let accel = self.react(view.time_s, accel);

@@ -168,7 +168,12 @@ impl TwinLag {
             self.critical_true_s = Some(now_s);
         }
         let Some(twin_ego) = twin_ego else { return };
-        if self.critical_seen_s.is_none() && critical(road, &twin_ego, &self.twin_states) {
+        // Only a detection at or after the event is its sighting: a stale twin that still moves
+        // a braking ego at its old speed may see a critical pair before there is one.
+        if self.critical_seen_s.is_none()
+            && self.critical_true_s.is_some()
+            && critical(road, &twin_ego, &self.twin_states)
+        {
             self.critical_seen_s = Some(now_s);
         }
         let kinematics = |s: &VehicleState| EgoKinematics {

@@ -19,11 +19,11 @@ use crate::geometry::{Pose, Vec2};
 use crate::rng::Rng;
 use crate::sensor::{ObjectKind, PerceivedObject, SceneObject, Sensor, SensorParams};
 use crate::vehicle::Controls;
-use crate::world::{EGO_OBJECT_ID, World};
+use crate::world::{DECISION_RATE_HZ, EGO_OBJECT_ID, World};
 
 /// A vehicle slower than this is standing, m/s (above the RSU sensor's velocity noise, 0.3 m/s).
 pub const STANDING_SPEED_MPS: f64 = 1.0;
-/// How long the ego keeps a warned object it no longer hears about, s (its own tracks' memory).
+/// How long the ego keeps a warned object after it last heard of it, s (its own tracks' memory).
 pub const HEARD_MEMORY_S: f64 = 1.0;
 /// The RSU's sensor range, m: a mast camera or radar over an intersection.
 pub const RSU_RANGE_M: f64 = 150.0;
@@ -51,8 +51,11 @@ impl WarningSetup {
         if !(self.rsu_offset_m.is_finite() && self.rsu_offset_m >= 0.0) {
             return Err(format!("RSU offset {} m: need a finite distance ≥ 0", self.rsu_offset_m));
         }
-        if !(self.repeat_hz.is_finite() && (0.1..=50.0).contains(&self.repeat_hz)) {
-            return Err(format!("warning rate {} Hz: need 0.1 to 50 Hz", self.repeat_hz));
+        if !(self.repeat_hz.is_finite() && (0.1..=DECISION_RATE_HZ).contains(&self.repeat_hz)) {
+            return Err(format!(
+                "warning rate {} Hz: need 0.1 to {DECISION_RATE_HZ} Hz (one per step)",
+                self.repeat_hz
+            ));
         }
         Ok(())
     }
@@ -128,8 +131,8 @@ pub struct Warnings {
     scratch: Vec<SceneObject>,
     /// Copies on their way: (arrives, warning).
     in_flight: Vec<(f64, Warning)>,
-    /// The newest warning heard per object.
-    heard: Vec<Warning>,
+    /// The newest warning heard per object, and when it was heard.
+    heard: Vec<(f64, Warning)>,
     /// What the ego heard of and does not see itself, moved on to now.
     warned: Vec<PerceivedObject>,
     counts: WarningCounts,
@@ -170,8 +173,12 @@ impl Warnings {
     /// what it heard. Consumes the world's randomness exactly as [`World::step`] does.
     pub fn step(&mut self, world: &mut World, policy: &mut dyn Policy) -> crate::world::StepReport {
         let now_s = world.time_s;
+        // The phase accumulates, so a rate whose period is not a whole number of steps keeps
+        // its mean (a step sends at most one warning per hazard).
         if now_s + 1e-9 >= self.next_due_s {
-            self.next_due_s = now_s + 1.0 / self.setup.repeat_hz;
+            while now_s + 1e-9 >= self.next_due_s {
+                self.next_due_s += 1.0 / self.setup.repeat_hz;
+            }
             self.broadcast(world, now_s);
         }
         self.deliver(now_s);
@@ -202,19 +209,19 @@ impl Warnings {
             }
             counts.arrived += 1;
             counts.first_heard_s.get_or_insert(now_s);
-            match heard.iter_mut().find(|h| h.object.id == w.object.id) {
-                Some(h) if h.made_s < w.made_s => *h = w,
+            match heard.iter_mut().find(|(_, h)| h.object.id == w.object.id) {
+                Some(h) if h.1.made_s < w.made_s => *h = (now_s, w),
                 Some(_) => {}
-                None => heard.push(w),
+                None => heard.push((now_s, w)),
             }
             false
         });
-        heard.retain(|h| now_s - h.made_s <= HEARD_MEMORY_S);
+        heard.retain(|(heard_s, _)| now_s - heard_s <= HEARD_MEMORY_S);
     }
 
     fn act(&mut self, view: &DriverView, policy: &mut dyn Policy) -> Controls {
         self.warned.clear();
-        for h in &self.heard {
+        for (_, h) in &self.heard {
             if view.perceived.iter().all(|o| o.id != h.object.id) {
                 let mut o = h.object;
                 o.obb.centre += o.velocity * (view.time_s - h.made_s);

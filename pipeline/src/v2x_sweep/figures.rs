@@ -211,7 +211,12 @@ fn collision_panels(r: &SweepResult) -> Vec<Panel> {
                 let rates = |c: usize| -> Vec<f64> {
                     rows(c).map(|row| f64::from(row.crashes_warned) / f64::from(row.episodes)).collect()
                 };
-                let points = cells.iter().filter_map(|&c| Some((x(c), mean(rates(c).into_iter())?))).collect();
+                // Pooled over the seeds, as the rate without V2X is; the band is per seed.
+                let pooled = |c: usize| {
+                    let (w, e) = rows(c).fold((0, 0), |(w, e), row| (w + row.crashes_warned, e + row.episodes));
+                    (e > 0).then(|| f64::from(w) / f64::from(e))
+                };
+                let points = cells.iter().filter_map(|&c| Some((x(c), pooled(c)?))).collect();
                 let band = cells
                     .iter()
                     .filter_map(|&c| {

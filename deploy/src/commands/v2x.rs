@@ -82,7 +82,7 @@ pub fn sweep(args: V2xSweepArgs) -> CliResult {
     let grid = config.grid().map_err(|e| CliError::input(format!("{shown}: {e}")))?;
     eprintln!("v2x sweep: {} cells, {} episodes with V2X …", grid.cells.len(), grid.episodes());
     let started = std::time::Instant::now();
-    let result = v2x_sweep::run(&config, &args.out).map_err(CliError::runtime)?;
+    let result = v2x_sweep::run(&config, grid, &args.out).map_err(CliError::runtime)?;
     let secs = started.elapsed().as_secs_f64();
     let episodes = result.episodes();
     println!(

@@ -8,7 +8,7 @@ mod table;
 
 use crate::figures::{FigureError, write_png};
 use risktwin_common::v2x::sps_reference::{published_curve, reproduced_curve};
-use risktwin_common::v2x::sweep::{self, SweepConfig, SweepResult, latency_label, mean_latency_ms};
+use risktwin_common::v2x::sweep::{self, Grid, SweepConfig, SweepResult, latency_label, mean_latency_ms};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -31,9 +31,8 @@ fn write(path: PathBuf, text: &str) -> Result<(), SweepError> {
     std::fs::write(&path, text).map_err(|source| SweepError::Io { path, source })
 }
 
-/// Runs `config` (already checked into a grid by the caller) and writes `out`.
-pub fn run(config: &SweepConfig, out: &Path) -> Result<SweepResult, SweepError> {
-    let grid = config.grid().expect("the caller checked the config");
+/// Runs `grid` (checked from `config`, which is written beside the results) and writes `out`.
+pub fn run(config: &SweepConfig, grid: Grid, out: &Path) -> Result<SweepResult, SweepError> {
     std::fs::create_dir_all(out).map_err(|source| SweepError::Io { path: out.to_path_buf(), source })?;
     let result = sweep::run(grid);
     let config_json = serde_json::to_string_pretty(config).expect("a config serialises");

@@ -18,8 +18,8 @@ fn a_sweep_folder_is_byte_identical_for_the_same_config() {
         ..SweepConfig::default()
     };
     let (a, b) = (tempfile::tempdir().expect("temp"), tempfile::tempdir().expect("temp"));
-    run(&config, a.path()).expect("runs");
-    run(&config, b.path()).expect("runs");
+    run(&config, config.grid().expect("valid"), a.path()).expect("runs");
+    run(&config, config.grid().expect("valid"), b.path()).expect("runs");
     let mut names: Vec<_> =
         std::fs::read_dir(a.path()).expect("folder").map(|e| e.expect("entry").file_name()).collect();
     names.sort();

@@ -117,6 +117,15 @@ fn nonempty<T>(name: &str, v: &[T]) -> Result<(), String> {
     if v.is_empty() { Err(format!("{name}: the list is empty")) } else { Ok(()) }
 }
 
+/// A repeated value would run the same cells twice and count them twice in every share.
+/// Quadratic: called once the grid's size is known to be bounded.
+fn no_repeats<T: PartialEq + std::fmt::Debug>(name: &str, v: &[T]) -> Result<(), String> {
+    match v.iter().enumerate().find(|(i, x)| v[..*i].contains(x)) {
+        Some((_, x)) => Err(format!("{name}: {x:?} is listed twice")),
+        None => Ok(()),
+    }
+}
+
 impl SweepConfig {
     /// The grid, or why this config has none.
     pub fn grid(&self) -> Result<Grid, String> {
@@ -127,6 +136,31 @@ impl SweepConfig {
         nonempty("warning_rates_hz", &self.warning_rates_hz)?;
         nonempty("kinds", &self.kinds)?;
         nonempty("seeds", &self.seeds)?;
+        if !(1..=10_000).contains(&self.scenes_per_kind) {
+            return Err(format!("scenes_per_kind {}: need 1 to 10000", self.scenes_per_kind));
+        }
+        // Counted before any cell is built: a short file can ask for 10^12 cells.
+        let lengths = [
+            self.models.len(),
+            self.rsu_offsets_m.len(),
+            self.latencies.len(),
+            self.bursts.len(),
+            self.warning_rates_hz.len(),
+            self.kinds.len(),
+            self.seeds.len(),
+            self.scenes_per_kind,
+        ];
+        let episodes = lengths.iter().fold(1u128, |n, &l| n.saturating_mul(l as u128));
+        if episodes > u128::from(MAX_EPISODES) {
+            return Err(format!("{episodes} episodes: at most {MAX_EPISODES} in one sweep"));
+        }
+        no_repeats("models", &self.models)?;
+        no_repeats("rsu_offsets_m", &self.rsu_offsets_m)?;
+        no_repeats("latencies", &self.latencies)?;
+        no_repeats("bursts", &self.bursts)?;
+        no_repeats("warning_rates_hz", &self.warning_rates_hz)?;
+        no_repeats("kinds", &self.kinds)?;
+        no_repeats("seeds", &self.seeds)?;
         let models = self
             .models
             .iter()
@@ -150,9 +184,6 @@ impl SweepConfig {
                 BurstLoss::from_share(b.share, b.mean_burst).map_err(|e| format!("bursts: {e}"))?;
             }
         }
-        if !(1..=10_000).contains(&self.scenes_per_kind) {
-            return Err(format!("scenes_per_kind {}: need 1 to 10000", self.scenes_per_kind));
-        }
         let mut cells = Vec::new();
         for &model in &models {
             for &rsu_offset_m in &self.rsu_offsets_m {
@@ -167,11 +198,7 @@ impl SweepConfig {
                 }
             }
         }
-        let grid = Grid { cells, kinds, seeds: self.seeds.clone(), scenes_per_kind: self.scenes_per_kind };
-        if grid.episodes() > MAX_EPISODES {
-            return Err(format!("{} episodes: at most {MAX_EPISODES} in one sweep", grid.episodes()));
-        }
-        Ok(grid)
+        Ok(Grid { cells, kinds, seeds: self.seeds.clone(), scenes_per_kind: self.scenes_per_kind })
     }
 }
 

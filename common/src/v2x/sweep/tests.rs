@@ -50,6 +50,15 @@ fn the_default_grid_has_every_kind_three_seeds_and_bad_values_are_named() {
     assert!(refused(SweepConfig { rsu_offsets_m: vec![-5.0], ..small() }).contains("RSU offset -5 m"));
     assert!(refused(SweepConfig { kinds: vec!["merge".into()], ..small() }).contains("unknown scenario kind 'merge'"));
     assert!(refused(SweepConfig { seeds: vec![], ..small() }).contains("seeds: the list is empty"));
+    assert!(refused(SweepConfig { seeds: vec![1, 2, 1], ..small() }).contains("seeds: 1 is listed twice"));
+    // Refused by its count alone (10^13 episodes), before a single cell is built.
+    let huge = SweepConfig { rsu_offsets_m: (0..1_000_000).map(f64::from).collect(), ..SweepConfig::default() };
+    let huge = SweepConfig {
+        warning_rates_hz: (1..=20).map(|r| r as f64 / 2.0).collect(),
+        seeds: (0..1000).collect(),
+        ..huge
+    };
+    assert!(refused(huge).contains("at most 2000000 in one sweep"));
     let bursts = vec![Bursts { share: 1.5, mean_burst: 2.0 }];
     assert!(refused(SweepConfig { bursts, ..small() }).contains("bursts: burst loss 1.5"));
     let latencies = vec![Latency::Sidelink { t1_ms: 50.0, t2_ms: 10.0 }];

@@ -57,7 +57,7 @@ fn field(v: Option<f64>) -> String {
 fn rows_csv(r: &SweepResult) -> String {
     let mut s = String::from(
         "model,rsu_offset_m,latency,latency_mean_ms,burst_share,mean_burst,warning_rate_hz,kind,seed,episodes,\
-         crashes_unwarned,crashes_warned,cam_copies,cam_passed,pdr,latency_p50_ms,aoi_mean_ms,twin_position_error_m,\
+         crashes_unwarned,crashes_warned,crashes_prevented,crashes_induced,cam_copies,cam_passed,pdr,latency_p50_ms,aoi_mean_ms,twin_position_error_m,\
          twin_risk_error,critical_events,critical_missed,critical_lag_mean_s,warnings_made,warnings_arrived\n",
     );
     for row in &r.rows {
@@ -65,7 +65,7 @@ fn rows_csv(r: &SweepResult) -> String {
         let p50 = row.latency_us.quantile(0.5).map(|us| us / 1e3);
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             c.model.name(),
             c.rsu_offset_m,
             latency_label(&c.latency),
@@ -78,6 +78,8 @@ fn rows_csv(r: &SweepResult) -> String {
             row.episodes,
             row.crashes_unwarned,
             row.crashes_warned,
+            row.crashes_prevented,
+            row.crashes_induced,
             row.cam_copies,
             row.cam_passed,
             field(row.pdr()),

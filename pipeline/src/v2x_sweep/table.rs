@@ -7,12 +7,12 @@ use std::fmt::Write as _;
 /// driver has without them.
 pub const STILL_PREVENTS_SHARE: f64 = 0.1;
 
-/// Crashes without and with warnings of `cell` on `kind`, summed over the seeds.
-fn crashes(r: &SweepResult, cell: usize, kind: &str) -> (u32, u32) {
-    r.rows
-        .iter()
-        .filter(|row| row.cell == cell && row.kind == kind)
-        .fold((0, 0), |(u, w), row| (u + row.crashes_unwarned, w + row.crashes_warned))
+/// Crashes of `cell` on `kind` summed over the seeds: without warnings, those the warnings
+/// prevent and those they cause.
+fn crashes(r: &SweepResult, cell: usize, kind: &str) -> (u32, u32, u32) {
+    r.rows.iter().filter(|row| row.cell == cell && row.kind == kind).fold((0, 0, 0), |(u, p, i), row| {
+        (u + row.crashes_unwarned, p + row.crashes_prevented, i + row.crashes_induced)
+    })
 }
 
 /// Cells that differ from `c` in their latency only, in the grid's order.
@@ -33,9 +33,10 @@ pub(super) fn same_but_latency(r: &SweepResult, c: &Cell) -> Vec<usize> {
 /// prevent less than [`STILL_PREVENTS_SHARE`] of them.
 pub(super) fn stop_table(r: &SweepResult) -> String {
     let mut s = format!(
-        "Prevented: the share of the crashes without V2X that the warnings avoid, summed over the seeds. \
+        "Prevented: the share of the crashes without V2X that the warnings avoid, summed over the seeds; \
+         caused: crashes with warnings in scenes without one unwarned. \
          Warnings stop preventing crashes at the lowest mean latency at which they avoid less than {:.0} % \
-         of them.\n\n| kind | model | RSU offset (m) | bursts | warning rate (Hz) | crashes without V2X | prevented at {} | stop at mean latency |\n|---|---|---|---|---|---|---|---|\n",
+         of them.\n\n| kind | model | RSU offset (m) | bursts | warning rate (Hz) | crashes without V2X | prevented at {} | caused there | stop at mean latency |\n|---|---|---|---|---|---|---|---|---|\n",
         100.0 * STILL_PREVENTS_SHARE,
         "the lowest latency",
     );
@@ -51,10 +52,10 @@ pub(super) fn stop_table(r: &SweepResult) -> String {
             group.sort_by(|&a, &b| {
                 mean_latency_ms(&r.grid.cells[a].latency).total_cmp(&mean_latency_ms(&r.grid.cells[b].latency))
             });
-            let (unwarned, _) = crashes(r, group[0], kind.name());
+            let (unwarned, _, induced) = crashes(r, group[0], kind.name());
             let prevented = |cell| {
-                let (u, w) = crashes(r, cell, kind.name());
-                (f64::from(u) - f64::from(w)) / f64::from(u)
+                let (u, p, _) = crashes(r, cell, kind.name());
+                f64::from(p) / f64::from(u)
             };
             let (first, stop) = if unwarned == 0 {
                 ("—".to_string(), "no crashes to prevent".to_string())
@@ -82,7 +83,7 @@ pub(super) fn stop_table(r: &SweepResult) -> String {
             };
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
                 kind,
                 c.model.name(),
                 c.rsu_offset_m,
@@ -90,6 +91,7 @@ pub(super) fn stop_table(r: &SweepResult) -> String {
                 c.warning_rate_hz,
                 unwarned,
                 first,
+                induced,
                 stop
             );
         }

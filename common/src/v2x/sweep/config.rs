@@ -61,6 +61,7 @@ impl Default for SweepConfig {
                 sidelink(100.0),
                 sidelink(300.0),
                 sidelink(1000.0),
+                Latency::CELLULAR_LTE_ROUND_TRIP,
                 late(1000.0),
                 late(2000.0),
             ],

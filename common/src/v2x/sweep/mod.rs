@@ -81,6 +81,11 @@ pub struct Row {
     /// Episodes that crash without V2X, and with the cell's warnings.
     pub crashes_unwarned: u32,
     pub crashes_warned: u32,
+    /// Episodes whose unwarned crash the warnings avoid, and crashes they cause (the driver's
+    /// slowing for a warned hazard put it in another's way): warned = unwarned − prevented +
+    /// induced.
+    pub crashes_prevented: u32,
+    pub crashes_induced: u32,
     /// CAMs among the vehicles: copies sent and passed by the channel.
     pub cam_copies: u64,
     pub cam_passed: u64,
@@ -118,6 +123,8 @@ fn run_row(index: usize, cell: &Cell, scenes: &Scenes) -> Row {
         episodes: 0,
         crashes_unwarned: scenes.crashes(),
         crashes_warned: 0,
+        crashes_prevented: 0,
+        crashes_induced: 0,
         cam_copies: 0,
         cam_passed: 0,
         aoi_mean_ms: None,
@@ -130,10 +137,13 @@ fn run_row(index: usize, cell: &Cell, scenes: &Scenes) -> Row {
         warnings_arrived: 0,
         latency_us: Histogram::default(),
     };
-    for (spec, _) in &scenes.scenes {
+    for (spec, crashed_unwarned) in &scenes.scenes {
         let e = run_episode(spec, setup, spec.seed);
+        let crashed = e.result.metrics.collision;
         row.episodes += 1;
-        row.crashes_warned += u32::from(e.result.metrics.collision);
+        row.crashes_warned += u32::from(crashed);
+        row.crashes_prevented += u32::from(*crashed_unwarned && !crashed);
+        row.crashes_induced += u32::from(!*crashed_unwarned && crashed);
         if let Some(a) = &e.awareness {
             row.cam_copies += a.transmissions;
             row.cam_passed += a.passed;

@@ -30,6 +30,9 @@ fn a_sweep_is_its_config_to_the_last_bit() {
     let crashes = |cell| a.rows.iter().filter(|r| r.cell == cell).map(|r| r.crashes_warned).sum::<u32>();
     let unwarned: u32 = a.rows.iter().filter(|r| r.cell == 0).map(|r| r.crashes_unwarned).sum();
     assert!(unwarned > 0, "critical pedestrian crossings hold crashes");
+    for r in &a.rows {
+        assert_eq!(r.crashes_warned + r.crashes_prevented, r.crashes_unwarned + r.crashes_induced, "{r:?}");
+    }
     // Warnings in about 12 ms prevent crashes; 1.6 s late they prevent fewer.
     assert!(crashes(0) < unwarned && crashes(0) < crashes(1), "{} / {} of {unwarned}", crashes(0), crashes(1));
     // Moved on at constant velocity, the twin is within centimetres at 12 ms, and over ten

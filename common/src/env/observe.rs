@@ -27,6 +27,10 @@
 //! | 17, 22 | d_r | gap to the nearest perceived object behind in that lane, 1 when none or no lane | / 100 m, ≤ 1 |
 //! | 18, 23 | Δv_r | its closing speed (its along-lane speed minus the ego's), 0 when none | / 10 m/s |
 //!
+//! "Perceived" objects are those the sensor sees and those a V2X warning reports
+//! ([`DriverView::warned`]): the features do not tell the two apart, so the layout, and the
+//! policy file's format, stayed the same when warnings came (docs/v2x.md).
+//!
 //! The side-lane features let a policy pass a stopped or slow car (the reference driver does
 //! so with MOBIL); without them a lane change is blind.
 //!

@@ -149,7 +149,8 @@ impl SpsHighway {
         position_m.sort_by(f64::total_cmp);
 
         // Median received power (SNR plus noise) by the decimetre; each copy's shadowing scales it.
-        let median_mw: Vec<f64> = (0..=(self.range_m * BINS_PER_M) as usize)
+        // Indexed by the distance rounded to the decimetre, so sized by the range rounded too.
+        let median_mw: Vec<f64> = (0..=(self.range_m * BINS_PER_M + 0.5) as usize)
             .map(|dm| dbm_to_mw(self.budget.at(self.model, dm as f64 / BINS_PER_M).snr_db + self.budget.noise_dbm()))
             .collect();
         let shadowing = shadowing_factors(self.model.shadowing_sigma_db());
@@ -380,6 +381,15 @@ mod tests {
         let a = quick.pdr_at(&distances_m, 3).expect("valid");
         assert_eq!(a, quick.pdr_at(&distances_m, 3).expect("valid"));
         assert_ne!(a, quick.pdr_at(&distances_m, 4).expect("valid"));
+    }
+
+    #[test]
+    fn a_range_between_decimetres_reaches_its_last_receivers() {
+        // 2,000 static vehicles: tens of pairs stand between 150.05 and 150.07 m apart, whose
+        // distance rounds past the range's decimetre.
+        let h = SpsHighway { range_m: 150.07, warmup_ms: 100, measured_ms: 100, ..highway(500.0) };
+        let pdr = h.pdr_at(&[100.0], 5).expect("valid");
+        assert!(pdr[0] > 0.5, "{pdr:?}");
     }
 
     #[test]

@@ -54,6 +54,21 @@ impl Latency {
         Ok(())
     }
 
+    /// A latency from its command-line form: `sidelink:T1:T2` or `gamma:OFFSET:SHAPE:SCALE`
+    /// (ms, the shape a number), checked.
+    pub fn parse(text: &str) -> Result<Latency, String> {
+        let mut parts = text.split(':');
+        let model = parts.next().unwrap_or_default();
+        let numbers: Result<Vec<f64>, _> = parts.map(str::parse::<f64>).collect();
+        let numbers = numbers.map_err(|e| format!("latency {text:?}: {e}"))?;
+        let latency = match (model, &numbers[..]) {
+            ("sidelink", &[t1_ms, t2_ms]) => Latency::Sidelink { t1_ms, t2_ms },
+            ("gamma", &[offset_ms, shape, scale_ms]) => Latency::Gamma { offset_ms, shape, scale_ms },
+            _ => return Err(format!("latency {text:?}: expected sidelink:T1:T2 or gamma:OFFSET:SHAPE:SCALE (ms)")),
+        };
+        latency.check().map(|()| latency)
+    }
+
     /// One latency, ms.
     pub fn sample_ms(&self, rng: &mut Rng) -> f64 {
         match *self {
@@ -155,6 +170,16 @@ fn lower_regularized_gamma(a: f64, x: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn parses_its_command_line_form_and_refuses_bad_values() {
+        assert_eq!(Latency::parse("sidelink:4:100"), Ok(Latency::SIDELINK));
+        let gamma = Latency::Gamma { offset_ms: 10.0, shape: 2.0, scale_ms: 5.0 };
+        assert_eq!(Latency::parse("gamma:10:2:5"), Ok(gamma));
+        for bad in ["sidelink:4", "sidelink:50:10", "gamma:1:0:5", "fixed:3", "sidelink:a:3", ""] {
+            assert!(Latency::parse(bad).is_err(), "{bad}");
+        }
+    }
 
     /// The Kolmogorov–Smirnov statistic of `samples` against `cdf`: the largest gap between their
     /// empirical distribution and it.

@@ -30,6 +30,7 @@ pub mod onboard;
 pub mod physics;
 pub mod recording;
 pub mod streams;
+pub mod v2x;
 pub mod wire;
 
 use physics::SceneWorld;

@@ -13,10 +13,12 @@ use super::onboard::{Onboard, vehicle_state};
 use super::physics::SceneWorld;
 use super::streams::Streams;
 use super::streams::unix_ns;
+use super::v2x::{V2xLayer, cam_state};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{DetectedObject, Frame, Header, ObjectList, RoadMap, VehicleStateSample};
+use risktwin_common::v2x::messages::{MessageChannel, V2xSummary};
 use risktwin_common::vehicle::Controls;
 use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{
@@ -445,6 +447,9 @@ pub struct ParticipantSummary {
     /// Of `sent`, those never put on the wire: made while no cloud had yet subscribed, beyond
     /// what the stream's cache holds, or still waiting for one when the scene ended.
     pub unsent: BTreeMap<String, u64>,
+    /// The V2X layer's counts, when the scene has V2X.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub v2x: Option<V2xSummary>,
 }
 
 /// A participant's stack, driven by the truth subscriber's callback: it answers each step as
@@ -452,6 +457,8 @@ pub struct ParticipantSummary {
 struct Answering {
     stack: Onboard,
     streams: Streams,
+    /// The V2X layer, when the scene has V2X.
+    v2x: Option<V2xLayer>,
     outbox: Publisher<'static>,
     digest: u64,
     describe: String,
@@ -497,7 +504,8 @@ impl Answering {
                 return Some(Err(e));
             }
             let (sent, unsent) = (self.streams.sent(), self.streams.unsent());
-            return Some(Ok(ParticipantSummary { sent, unsent, ..self.summary.clone() }));
+            let v2x = self.v2x.take().map(V2xLayer::finish);
+            return Some(Ok(ParticipantSummary { sent, unsent, v2x, ..self.summary.clone() }));
         }
         let controls = self.stack.respond(&truth);
         self.summary.steps += 1;
@@ -507,12 +515,18 @@ impl Answering {
             return Some(Err(e));
         }
         *lock(&self.last) = Some((truth.step, Instant::now()));
+        if let Some(v2x) = &mut self.v2x
+            && let Err(e) = v2x.on_step(&truth, cam_state(&truth, &self.stack))
+        {
+            return Some(Err(e));
+        }
         self.streams.publish(&self.stack, &truth).err().map(Err)
     }
 }
 
 /// Runs participant `id` of `setup` until the authority ends the scene: the plane on `physics`
-/// (truth in, answers out), its edge streams on `data` (the same session when the scene has one).
+/// (truth in, answers out), its edge streams on `data` (the same session when the scene has one),
+/// and with `v2x` its V2X layer on `physics` (the scene's radio paths, not the backhaul).
 pub fn run_participant(
     physics: &Session,
     data: &Session,
@@ -520,6 +534,7 @@ pub fn run_participant(
     setup: &SceneSetup,
     id: &str,
     timeouts: Timeouts,
+    v2x: Option<MessageChannel>,
 ) -> Result<ParticipantSummary, SceneError> {
     let stack = Onboard::new(setup, id)?;
     let participant =
@@ -544,11 +559,15 @@ pub fn run_participant(
         malformed: 0,
         sent: BTreeMap::new(),
         unsent: BTreeMap::new(),
+        v2x: None,
     };
+    let sends = !matches!(stack.role(), Role::Rsu { .. });
+    let v2x = v2x.map(|channel| V2xLayer::open(physics, site, &participant, digest, channel, sends)).transpose()?;
     let last = Arc::new(Mutex::new(None));
     let answering = Answering {
         stack,
         streams,
+        v2x,
         outbox,
         digest,
         describe: setup.describe(),

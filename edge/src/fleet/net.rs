@@ -63,7 +63,7 @@ fn transport(what: &str) -> impl Fn(Box<dyn std::error::Error + Send + Sync>) ->
 }
 
 /// The plane's publishers are reliable and block on congestion: lockstep needs every message.
-fn reliable_publisher(session: &Session, key: String) -> Result<Publisher<'static>, SceneError> {
+pub(super) fn reliable_publisher(session: &Session, key: String) -> Result<Publisher<'static>, SceneError> {
     session
         .declare_publisher(key.clone())
         .congestion_control(CongestionControl::Block)
@@ -129,7 +129,7 @@ struct Answers {
 }
 
 /// A poisoned lock only means another thread panicked while holding it; the counts stay usable.
-fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+pub(super) fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
     mutex.lock().unwrap_or_else(PoisonError::into_inner)
 }
 

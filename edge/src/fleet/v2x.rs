@@ -11,6 +11,7 @@
 
 use super::Role;
 use super::SceneError;
+use super::net::{lock, reliable_publisher};
 use super::onboard::Onboard;
 use super::streams::unix_ns;
 use super::wire::Truth;
@@ -19,14 +20,13 @@ use risktwin_common::v2x::loss::BurstState;
 use risktwin_common::v2x::messages::{MessageChannel, V2xSummary, V2xTally};
 use risktwin_transport::keyexpr::{scene_v2x, scene_v2x_all};
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
-use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
 use risktwin_transport::{SiteId, SourceId};
 use serde::{Deserialize, Serialize};
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -74,11 +74,6 @@ pub fn cam_state(truth: &Truth, stack: &Onboard) -> Option<CamState> {
         }
     };
     Some(CamState { time_s, x_m, y_m, heading_rad, speed_mps })
-}
-
-/// A poisoned lock only means another thread panicked while holding it; the counts stay usable.
-fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
-    mutex.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 /// What the receiving side holds, shared by the subscriber's callback, the stepping callback
@@ -207,14 +202,8 @@ impl V2xLayer {
     ) -> Result<V2xLayer, SceneError> {
         let transport =
             |key: &str, e: Box<dyn std::error::Error + Send + Sync>| SceneError::Transport(format!("{key}: {e}"));
-        let key = scene_v2x(site, id);
         // Reliable and blocking: every loss is the channel's, none the transport's.
-        let publisher = session
-            .declare_publisher(key.clone())
-            .congestion_control(CongestionControl::Block)
-            .reliability(Reliability::Reliable)
-            .wait()
-            .map_err(|e| transport(&key, e))?;
+        let publisher = reliable_publisher(session, scene_v2x(site, id))?;
         let inbox = Arc::new(Inbox {
             id: id.to_string(),
             scene,

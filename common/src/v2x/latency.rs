@@ -21,6 +21,16 @@ pub enum Latency {
     Gamma { offset_ms: f64, shape: f64, scale_ms: f64 },
 }
 
+/// The command-line form [`Latency::parse`] reads: `sidelink:4:100`, `gamma:10:2:5`.
+impl std::fmt::Display for Latency {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            Latency::Sidelink { t1_ms, t2_ms } => write!(f, "sidelink:{t1_ms}:{t2_ms}"),
+            Latency::Gamma { offset_ms, shape, scale_ms } => write!(f, "gamma:{offset_ms}:{shape}:{scale_ms}"),
+        }
+    }
+}
+
 /// The longest sidelink selection window accepted, ms.
 const MAX_WINDOW_MS: f64 = 1000.0;
 /// The gamma shapes accepted: beyond, the sampler's boost underflows (small) or the distribution
@@ -176,6 +186,9 @@ mod tests {
         assert_eq!(Latency::parse("sidelink:4:100"), Ok(Latency::SIDELINK));
         let gamma = Latency::Gamma { offset_ms: 10.0, shape: 2.0, scale_ms: 5.0 };
         assert_eq!(Latency::parse("gamma:10:2:5"), Ok(gamma));
+        for latency in [Latency::SIDELINK, gamma, Latency::Sidelink { t1_ms: 0.5, t2_ms: 20.25 }] {
+            assert_eq!(Latency::parse(&latency.to_string()), Ok(latency), "{latency}");
+        }
         for bad in ["sidelink:4", "sidelink:50:10", "gamma:1:0:5", "fixed:3", "sidelink:a:3", ""] {
             assert!(Latency::parse(bad).is_err(), "{bad}");
         }

@@ -6,6 +6,8 @@
 //! transport's own time differs.
 
 use super::cam::{CamState, CamTrigger};
+use super::channel::LinkBudget;
+use super::latency::Latency;
 use super::link::V2xChannel;
 use super::loss::BurstState;
 use crate::digest::fnv1a64;
@@ -33,6 +35,62 @@ fn stream(tag: u8, sender: &str, receiver: &str, seq: u64) -> u64 {
 }
 
 impl MessageChannel {
+    /// FNV-1a over everything a decision depends on: the path-loss model, every field of the
+    /// link budget, the latency, the burst chain and the seed (numbers as their exact bits).
+    /// Participants whose channels differ would decide the same message differently.
+    pub fn digest(&self) -> u64 {
+        let V2xChannel { model, budget, latency, bursts } = self.channel;
+        // Every field by name: a new one must be added here.
+        let LinkBudget {
+            carrier_ghz,
+            tx_power_dbm,
+            tx_antenna_gain_dbi,
+            rx_antenna_gain_dbi,
+            noise_figure_db,
+            bandwidth_hz,
+            sinr_threshold_db,
+        } = budget;
+        let mut numbers = vec![
+            carrier_ghz,
+            tx_power_dbm,
+            tx_antenna_gain_dbi,
+            rx_antenna_gain_dbi,
+            noise_figure_db,
+            bandwidth_hz,
+            sinr_threshold_db,
+        ];
+        let latency_tag = match latency {
+            Latency::Sidelink { t1_ms, t2_ms } => {
+                numbers.extend([t1_ms, t2_ms]);
+                1
+            }
+            Latency::Gamma { offset_ms, shape, scale_ms } => {
+                numbers.extend([offset_ms, shape, scale_ms]);
+                2
+            }
+        };
+        let bursts_tag = match bursts {
+            None => 0,
+            Some(chain) => {
+                numbers.extend([chain.enter, chain.leave]);
+                1
+            }
+        };
+        let head = model.name().bytes().chain([0, latency_tag, bursts_tag]);
+        let numbers = numbers.into_iter().flat_map(|v| v.to_bits().to_le_bytes());
+        fnv1a64(head.chain(numbers).chain(self.seed.to_le_bytes()))
+    }
+
+    /// For messages: `V2X 3gpp-urban-nlos sidelink:4:100` (and `bursts 0.3:5`, share and mean).
+    pub fn describe(&self) -> String {
+        let V2xChannel { model, latency, bursts, .. } = self.channel;
+        let bursts = bursts.map_or(String::new(), |c| {
+            // Back from the chain: share = enter / (enter + leave), mean burst = 1 / leave.
+            format!(" bursts {:.3}:{:.3}", c.enter / (c.enter + c.leave), 1.0 / c.leave)
+        });
+        format!("V2X {} {latency}{bursts}", model.name())
+    }
+
     /// When broadcast `seq` of `sender` goes out, ms after it is made: the same for every
     /// receiver (one transmission on one resource).
     pub fn latency_ms(&self, sender: &str, seq: u64) -> f64 {
@@ -130,8 +188,12 @@ impl VirtualScene {
 
     /// One step at `now_s`: each member's state in member order, `None` for one not in the
     /// world now (it neither sends nor receives). Copies due by `now_s` are delivered first.
+    ///
+    /// # Panics
+    /// When `states` does not hold exactly one state per member (a caller's bug: a state would
+    /// be taken for another member's).
     pub fn step(&mut self, now_s: f64, states: &[Option<CamState>]) {
-        debug_assert_eq!(states.len(), self.members.len(), "one state per member");
+        assert_eq!(states.len(), self.members.len(), "VirtualScene::step: one state per member");
         for member in &mut self.members {
             let tally = &mut member.tally;
             member.in_flight.retain(|&(arrives_s, latency_us)| {
@@ -209,6 +271,39 @@ mod tests {
         assert_eq!(channel.latency_ms("v1", 3), channel.latency_ms("v1", 3));
         assert_ne!(channel.latency_ms("v1", 3), channel.latency_ms("v1", 4));
         assert_ne!(channel.latency_ms("v1", 3), urban(8).latency_ms("v1", 3));
+    }
+
+    #[test]
+    fn the_channel_digest_changes_with_every_part_of_the_channel() {
+        use crate::v2x::loss::BurstLoss;
+        let base = urban(7);
+        assert_eq!(base.digest(), urban(7).digest());
+        let mut others = vec![urban(8)];
+        let mut with = |change: &dyn Fn(&mut V2xChannel)| {
+            let mut other = base;
+            change(&mut other.channel);
+            others.push(other);
+        };
+        with(&|c| c.model = PathLoss::UrbanLos);
+        with(&|c| c.budget.tx_power_dbm = 20.0);
+        with(&|c| c.budget.sinr_threshold_db += 1e-9);
+        with(&|c| c.latency = Latency::Sidelink { t1_ms: 4.0, t2_ms: 50.0 });
+        with(&|c| c.latency = Latency::Gamma { offset_ms: 4.0, shape: 100.0, scale_ms: 1.0 });
+        with(&|c| c.bursts = Some(BurstLoss::from_share(0.3, 5.0).expect("valid")));
+        with(&|c| c.bursts = Some(BurstLoss::from_share(0.3, 4.0).expect("valid")));
+        let mut digests: Vec<u64> = others.iter().map(MessageChannel::digest).chain([base.digest()]).collect();
+        digests.sort_unstable();
+        digests.dedup();
+        assert_eq!(digests.len(), others.len() + 1, "every change changes the digest");
+        assert_eq!(base.describe(), "V2X 3gpp-urban-nlos sidelink:4:100");
+        assert_eq!(others[6].describe(), "V2X 3gpp-urban-nlos sidelink:4:100 bursts 0.300:5.000");
+    }
+
+    #[test]
+    #[should_panic(expected = "one state per member")]
+    fn a_virtual_scene_refuses_states_that_are_not_one_per_member() {
+        let mut scene = VirtualScene::new(urban(3), &[("v0".to_owned(), true), ("v1".to_owned(), true)]);
+        scene.step(0.0, &[None]);
     }
 
     #[test]

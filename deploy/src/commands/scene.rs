@@ -95,16 +95,14 @@ fn v2x_of(args: &SceneArgs, setup: &SceneSetup) -> CliResult<Option<MessageChann
     Ok(Some(MessageChannel { channel, seed: setup.seed() }))
 }
 
-/// `SHARE:MEAN_BURST`; a share of 0 is no burst loss.
+/// `SHARE:MEAN_BURST`, both checked; a share of 0 is no burst loss.
 fn bursts_of(text: &str) -> CliResult<Option<BurstLoss>> {
     let bad = |why: String| CliError::input(format!("--v2x-bursts {text:?}: {why}"));
     let (share, mean) = text.split_once(':').ok_or_else(|| bad("expected SHARE:MEAN_BURST".into()))?;
     let number = |v: &str| v.parse::<f64>().map_err(|e| bad(format!("{v:?}: {e}")));
     let (share, mean) = (number(share)?, number(mean)?);
-    if share == 0.0 {
-        return Ok(None);
-    }
-    BurstLoss::from_share(share, mean).map(Some).map_err(bad)
+    let chain = BurstLoss::from_share(share, mean).map_err(bad)?;
+    Ok((share != 0.0).then_some(chain))
 }
 
 /// The recording of CommonRoad XML `xml` read from `shown`, with `ego` or its default ego.

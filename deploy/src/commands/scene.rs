@@ -74,7 +74,11 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
         SceneSource::Generated(spec) => SceneSetup::new(spec, args.connected, args.rsus),
         SceneSource::CommonRoad(recording) => SceneSetup::commonroad(recording, args.connected, args.rsus),
     };
-    setup.and_then(|s| s.without(&args.without)).map_err(CliError::input)
+    let setup = setup.and_then(|s| s.without(&args.without)).map_err(CliError::input)?;
+    // The V2X channel is part of the scene (its digest): every role gets it, and a participant
+    // started with other V2X flags is refused at the join, as one of another seed.
+    let v2x = v2x_of(args, &setup)?;
+    Ok(setup.with_v2x(v2x))
 }
 
 /// The V2X channel the arguments ask for, seeded by the scene (`None`: no V2X).
@@ -304,8 +308,6 @@ fn report_malformed(plane: &ZenohAuthority) {
 pub fn authority(args: SceneRoleArgs) -> CliResult {
     let clock = clock_of(&args.clock, args.speed)?;
     let setup = setup_of(&args.scene)?;
-    // The participants run V2X; the authority only refuses what they would.
-    v2x_of(&args.scene, &setup)?;
     let site = site_of(&args.scene)?;
     let data = data_transport(&args.scene)?;
     let (_runtime, physics, data) = open_planes(&transport_config(args.zenoh)?, data.as_ref())?;
@@ -315,7 +317,6 @@ pub fn authority(args: SceneRoleArgs) -> CliResult {
 
 pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
     let setup = setup_of(&args.scene)?;
-    let v2x = v2x_of(&args.scene, &setup)?;
     let site = site_of(&args.scene)?;
     let role = setup.role_of(&args.participant).map_err(scene_error)?;
     let is_rsu = matches!(role, Role::Rsu { .. });
@@ -328,15 +329,14 @@ pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
     }
     let data = data_transport(&args.scene)?;
     let (_runtime, physics, data) = open_planes(&transport_config(args.zenoh)?, data.as_ref())?;
-    let summary = run_participant(&physics, &data, &site, &setup, &args.participant, Timeouts::default(), v2x)
-        .map_err(scene_error)?;
+    let summary =
+        run_participant(&physics, &data, &site, &setup, &args.participant, Timeouts::default()).map_err(scene_error)?;
     print_json(&summary)
 }
 
 pub fn run(args: SceneRunArgs) -> CliResult {
     let clock = clock_of(&args.clock, args.speed)?;
     let setup = setup_of(&args.scene)?;
-    let v2x = v2x_of(&args.scene, &setup)?;
     if args.format != Format::Json {
         return Err(CliError::input("scene outcomes are JSON only (--format json)"));
     }
@@ -350,9 +350,6 @@ pub fn run(args: SceneRunArgs) -> CliResult {
             return Err(CliError::input("--embedded runs in virtual time; --clock realtime needs the processes"));
         }
         let mut plane = Embedded::new(&setup).map_err(scene_error)?;
-        if let Some(channel) = v2x {
-            plane = plane.with_v2x(&setup, channel);
-        }
         let started = Instant::now();
         let outcome = run_scene(&setup, &mut plane).map_err(scene_error)?;
         log_pace(&outcome, started.elapsed());

@@ -13,7 +13,7 @@ use risktwin_common::episode::run_stepped;
 use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::v2x::cam::CamState;
-use risktwin_common::v2x::messages::{MessageChannel, V2xSummary, VirtualScene};
+use risktwin_common::v2x::messages::{V2xSummary, VirtualScene};
 use risktwin_common::vehicle::Controls;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -34,19 +34,17 @@ pub struct Embedded {
 }
 
 impl Embedded {
-    /// The stacks of every participant of `setup`.
+    /// The stacks of every participant of `setup`; with the scene's V2X, if it has V2X, in
+    /// virtual time: vehicles send CAMs, everyone receives, decided as a deployed scene's
+    /// participants decide them (`super::v2x`).
     pub fn new(setup: &SceneSetup) -> Result<Embedded, SceneError> {
-        let stacks = setup.participants().iter().map(|id| Onboard::new(setup, id)).collect::<Result<_, _>>()?;
-        Ok(Embedded { stacks, v2x: None })
-    }
-
-    /// With V2X over `channel` between the participants: vehicles send CAMs, everyone receives,
-    /// decided as a deployed scene's participants decide them (`super::v2x`).
-    pub fn with_v2x(mut self, setup: &SceneSetup, channel: MessageChannel) -> Self {
-        let members: Vec<(String, bool)> =
-            setup.participants().into_iter().zip(&self.stacks).map(|(id, s)| (id, !is_rsu(s))).collect();
-        self.v2x = Some((VirtualScene::new(channel, &members), Vec::new()));
-        self
+        let ids = setup.participants();
+        let stacks: Vec<Onboard> = ids.iter().map(|id| Onboard::new(setup, id)).collect::<Result<_, _>>()?;
+        let v2x = setup.v2x().map(|&channel| {
+            let members: Vec<(String, bool)> = ids.into_iter().zip(&stacks).map(|(id, s)| (id, !is_rsu(s))).collect();
+            (VirtualScene::new(channel, &members), Vec::new())
+        });
+        Ok(Embedded { stacks, v2x })
     }
 
     /// Each participant's V2X counts, if the scene has V2X.

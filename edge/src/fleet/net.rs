@@ -13,12 +13,11 @@ use super::onboard::{Onboard, vehicle_state};
 use super::physics::SceneWorld;
 use super::streams::Streams;
 use super::streams::unix_ns;
-use super::v2x::{V2xLayer, cam_state};
+use super::v2x::{V2xLayer, V2xReport, cam_state};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{DetectedObject, Frame, Header, ObjectList, RoadMap, VehicleStateSample};
-use risktwin_common::v2x::messages::{MessageChannel, V2xSummary};
 use risktwin_common::vehicle::Controls;
 use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{
@@ -449,7 +448,7 @@ pub struct ParticipantSummary {
     pub unsent: BTreeMap<String, u64>,
     /// The V2X layer's counts, when the scene has V2X.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub v2x: Option<V2xSummary>,
+    pub v2x: Option<V2xReport>,
 }
 
 /// A participant's stack, driven by the truth subscriber's callback: it answers each step as
@@ -457,7 +456,8 @@ pub struct ParticipantSummary {
 struct Answering {
     stack: Onboard,
     streams: Streams,
-    /// The V2X layer, when the scene has V2X.
+    /// The V2X layer, when the scene has V2X; finished by the participant's thread once the
+    /// scene is over (its end waits for messages, never on a Zenoh callback).
     v2x: Option<V2xLayer>,
     outbox: Publisher<'static>,
     digest: u64,
@@ -504,29 +504,31 @@ impl Answering {
                 return Some(Err(e));
             }
             let (sent, unsent) = (self.streams.sent(), self.streams.unsent());
-            let v2x = self.v2x.take().map(V2xLayer::finish);
-            return Some(Ok(ParticipantSummary { sent, unsent, v2x, ..self.summary.clone() }));
+            return Some(Ok(ParticipantSummary { sent, unsent, ..self.summary.clone() }));
         }
         let controls = self.stack.respond(&truth);
         self.summary.steps += 1;
         self.summary.perceived += self.stack.perceived().len() as u64;
-        let reply = Reply::step(&self.summary.participant, truth.step, controls).encode();
-        if let Err(e) = self.outbox.put(reply).wait().map_err(transport("reply")) {
-            return Some(Err(e));
-        }
-        *lock(&self.last) = Some((truth.step, Instant::now()));
+        // The step's CAM goes out before the answer: once every answer to the last step is in,
+        // the authority may end the scene, and every CAM of it must be on its way by then.
         if let Some(v2x) = &mut self.v2x
             && let Err(e) = v2x.on_step(&truth, cam_state(&truth, &self.stack))
         {
             return Some(Err(e));
         }
+        let reply = Reply::step(&self.summary.participant, truth.step, controls).encode();
+        if let Err(e) = self.outbox.put(reply).wait().map_err(transport("reply")) {
+            return Some(Err(e));
+        }
+        *lock(&self.last) = Some((truth.step, Instant::now()));
         self.streams.publish(&self.stack, &truth).err().map(Err)
     }
 }
 
 /// Runs participant `id` of `setup` until the authority ends the scene: the plane on `physics`
 /// (truth in, answers out), its edge streams on `data` (the same session when the scene has one),
-/// and with `v2x` its V2X layer on `physics` (the scene's radio paths, not the backhaul).
+/// and when the scene has V2X its V2X layer on `physics` (the scene's radio paths, not the
+/// backhaul).
 pub fn run_participant(
     physics: &Session,
     data: &Session,
@@ -534,7 +536,6 @@ pub fn run_participant(
     setup: &SceneSetup,
     id: &str,
     timeouts: Timeouts,
-    v2x: Option<MessageChannel>,
 ) -> Result<ParticipantSummary, SceneError> {
     let stack = Onboard::new(setup, id)?;
     let participant =
@@ -561,8 +562,7 @@ pub fn run_participant(
         unsent: BTreeMap::new(),
         v2x: None,
     };
-    let sends = !matches!(stack.role(), Role::Rsu { .. });
-    let v2x = v2x.map(|channel| V2xLayer::open(physics, site, &participant, digest, channel, sends)).transpose()?;
+    let v2x = setup.v2x().map(|&channel| V2xLayer::open(physics, site, setup, &participant, channel)).transpose()?;
     let last = Arc::new(Mutex::new(None));
     let answering = Answering {
         stack,
@@ -620,11 +620,15 @@ pub fn run_participant(
             Some((_, at)) => at + 2 * timeouts.step,
         };
         match end.recv_timeout(wake.saturating_duration_since(now)) {
-            Ok(ended) => {
-                // The streams' caches stay a while for the cloud to fetch what the link lost last.
-                if ended.is_ok() {
+            Ok(mut ended) => {
+                if let Ok(summary) = &mut ended {
+                    let started = Instant::now();
+                    // Here, not on the truth's callback: the V2X end waits for the last messages.
+                    let v2x = lock(&answering).v2x.take();
+                    summary.v2x = v2x.map(V2xLayer::finish);
+                    // The streams' caches stay a while for the cloud to fetch what the link lost last.
                     let linger = lock(&answering).streams.linger();
-                    std::thread::sleep(linger);
+                    std::thread::sleep(linger.saturating_sub(started.elapsed()));
                 }
                 return ended;
             }

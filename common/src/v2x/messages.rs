@@ -5,6 +5,7 @@
 //! the same CAM stream in virtual time in one process. Both agree message for message; only the
 //! transport's own time differs.
 
+use super::awareness::receivers;
 use super::cam::{CamState, CamTrigger};
 use super::channel::LinkBudget;
 use super::latency::Latency;
@@ -217,9 +218,7 @@ impl VirtualScene {
             member.tally.cams_sent += 1;
             let sender_id = member.id.clone();
             let latency_ms = self.channel.latency_ms(&sender_id, seq);
-            for (receiver, other) in states.iter().enumerate() {
-                let Some(other) = other.filter(|_| receiver != sender) else { continue };
-                let distance_m = (state.x_m - other.x_m).hypot(state.y_m - other.y_m);
+            for (receiver, distance_m) in receivers(states, sender) {
                 let member = &mut self.members[receiver];
                 let burst = member.bursts.entry(sender).or_default();
                 member.tally.copies += 1;

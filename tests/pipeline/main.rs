@@ -17,5 +17,6 @@ mod policyloop;
 mod pushrace;
 mod python_zenoh;
 mod scene;
+mod scene_v2x;
 mod shm_gateway;
 mod support;

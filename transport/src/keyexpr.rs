@@ -348,6 +348,17 @@ pub fn scene_replies(site: &SiteId) -> String {
     format!("{ROOT}/{site}/{SCENE_CHUNK}/reply/*")
 }
 
+/// `risktwin/v1/<site>/scene/v2x/<participant>`: a scene participant's V2X broadcasts (CAMs),
+/// to every other participant's V2X layer (never an ingest stream).
+pub fn scene_v2x(site: &SiteId, participant: &SourceId) -> String {
+    format!("{ROOT}/{site}/{SCENE_CHUNK}/v2x/{participant}")
+}
+
+/// `risktwin/v1/<site>/scene/v2x/*`: every participant's V2X broadcasts.
+pub fn scene_v2x_all(site: &SiteId) -> String {
+    format!("{ROOT}/{site}/{SCENE_CHUNK}/v2x/*")
+}
+
 /// What a scene's authority publishes for the cloud on `risktwin/v1/<site>/scene/<topic>`
 /// (protobuf; never an ingest stream).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -543,6 +554,10 @@ mod tests {
         assert_eq!(parse_scene_ground_truth_key(&gt), Some(("track-1", "veh_0.a")));
         assert_eq!(parse_edge_key(&gt), None, "the truth is no ingest stream");
         assert_eq!(scene_ground_truth_all(None), "risktwin/v1/*/scene/gt/*");
+        let v2x = scene_v2x(&site, &src);
+        assert_eq!(v2x, "risktwin/v1/track-1/scene/v2x/veh_0.a");
+        assert_eq!(parse_edge_key(&v2x), None, "V2X broadcasts are no ingest stream");
+        assert_eq!(scene_v2x_all(&site), "risktwin/v1/track-1/scene/v2x/*");
     }
 
     #[test]

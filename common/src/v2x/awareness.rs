@@ -90,9 +90,7 @@ impl Awareness {
             self.cams += 1;
             // One transmission: the same latency for every receiver, the loss per receiver.
             let latency_ms = self.channel.latency_ms(&mut self.rng);
-            for (receiver, other) in states.iter().enumerate() {
-                let Some(other) = other.filter(|_| receiver != sender) else { continue };
-                let distance_m = (state.x_m - other.x_m).hypot(state.y_m - other.y_m);
+            for (receiver, distance_m) in receivers(states, sender) {
                 let pair = &mut self.pairs[sender * n + receiver];
                 self.transmissions += 1;
                 if self.channel.receives(distance_m, &mut pair.burst, &mut self.rng) {
@@ -147,6 +145,17 @@ impl Awareness {
             never_heard: self.never_heard,
         }
     }
+}
+
+/// The receivers of a broadcast of `sender` at one step, in slot order: every other slot of
+/// `states` holding a state (one in the world now), with its distance from the sender's, m.
+/// Shared by [`Awareness`] and [`super::messages::VirtualScene`]: one copy per such receiver.
+pub(super) fn receivers(states: &[Option<CamState>], sender: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+    let from = states[sender];
+    states.iter().enumerate().filter(move |&(receiver, _)| receiver != sender).filter_map(move |(receiver, other)| {
+        let (from, other) = (from?, (*other)?);
+        Some((receiver, (from.x_m - other.x_m).hypot(from.y_m - other.y_m)))
+    })
 }
 
 /// Every vehicle of `world` as a CAM carries it: the ego, then its traffic in index order,

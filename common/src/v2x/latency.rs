@@ -22,6 +22,16 @@ pub enum Latency {
     Gamma { offset_ms: f64, shape: f64, scale_ms: f64 },
 }
 
+/// The command-line form [`Latency::parse`] reads: `sidelink:4:100`, `gamma:10:2:5`.
+impl std::fmt::Display for Latency {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            Latency::Sidelink { t1_ms, t2_ms } => write!(f, "sidelink:{t1_ms}:{t2_ms}"),
+            Latency::Gamma { offset_ms, shape, scale_ms } => write!(f, "gamma:{offset_ms}:{shape}:{scale_ms}"),
+        }
+    }
+}
+
 /// The longest sidelink selection window accepted, ms.
 const MAX_WINDOW_MS: f64 = 1000.0;
 /// The gamma shapes accepted: beyond, the sampler's boost underflows (small) or the distribution
@@ -63,6 +73,21 @@ impl Latency {
             }
         }
         Ok(())
+    }
+
+    /// A latency from its command-line form: `sidelink:T1:T2` or `gamma:OFFSET:SHAPE:SCALE`
+    /// (ms, the shape a number), checked.
+    pub fn parse(text: &str) -> Result<Latency, String> {
+        let mut parts = text.split(':');
+        let model = parts.next().unwrap_or_default();
+        let numbers: Result<Vec<f64>, _> = parts.map(str::parse::<f64>).collect();
+        let numbers = numbers.map_err(|e| format!("latency {text:?}: {e}"))?;
+        let latency = match (model, &numbers[..]) {
+            ("sidelink", &[t1_ms, t2_ms]) => Latency::Sidelink { t1_ms, t2_ms },
+            ("gamma", &[offset_ms, shape, scale_ms]) => Latency::Gamma { offset_ms, shape, scale_ms },
+            _ => return Err(format!("latency {text:?}: expected sidelink:T1:T2 or gamma:OFFSET:SHAPE:SCALE (ms)")),
+        };
+        latency.check().map(|()| latency)
     }
 
     /// One latency, ms.
@@ -166,6 +191,19 @@ fn lower_regularized_gamma(a: f64, x: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn parses_its_command_line_form_and_refuses_bad_values() {
+        assert_eq!(Latency::parse("sidelink:4:100"), Ok(Latency::SIDELINK));
+        let gamma = Latency::Gamma { offset_ms: 10.0, shape: 2.0, scale_ms: 5.0 };
+        assert_eq!(Latency::parse("gamma:10:2:5"), Ok(gamma));
+        for latency in [Latency::SIDELINK, gamma, Latency::Sidelink { t1_ms: 0.5, t2_ms: 20.25 }] {
+            assert_eq!(Latency::parse(&latency.to_string()), Ok(latency), "{latency}");
+        }
+        for bad in ["sidelink:4", "sidelink:50:10", "gamma:1:0:5", "fixed:3", "sidelink:a:3", ""] {
+            assert!(Latency::parse(bad).is_err(), "{bad}");
+        }
+    }
 
     /// The Kolmogorov–Smirnov statistic of `samples` against `cdf`: the largest gap between their
     /// empirical distribution and it.

@@ -9,6 +9,7 @@ pub mod experiment;
 pub mod latency;
 pub mod link;
 pub mod loss;
+pub mod messages;
 pub mod sps;
 pub mod sps_reference;
 mod sps_sensing;

@@ -63,6 +63,19 @@ pub struct SceneArgs {
     /// physics.
     #[arg(long, value_name = "ENDPOINT")]
     pub data_router: Option<String>,
+    /// V2X between the participants over path-loss MODEL (`3gpp-urban-nlos`, …, as `v2x
+    /// channel --model`): each connected vehicle sends CAMs, every other participant receives
+    /// them through the channel. Without it, no V2X.
+    #[arg(long, value_name = "MODEL")]
+    pub v2x_model: Option<String>,
+    /// The V2X latency per broadcast: `sidelink:T1:T2` or `gamma:OFFSET:SHAPE:SCALE`, ms
+    /// (default sidelink:4:100).
+    #[arg(long, value_name = "LATENCY")]
+    pub v2x_latency: Option<String>,
+    /// Burst loss on each V2X link, `SHARE:MEAN_BURST` (0.3:5: 30 % of the messages lost in
+    /// bursts of 5 on average); none by default.
+    #[arg(long, value_name = "SHARE:MEAN")]
+    pub v2x_bursts: Option<String>,
 }
 
 #[derive(Debug, Args)]

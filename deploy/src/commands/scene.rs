@@ -11,6 +11,11 @@ use super::source::{parse_kinds, read_spec_file};
 use crate::cli::{SceneArgs, SceneParticipantArgs, SceneRoleArgs, SceneRunArgs, ZenohArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json};
+use risktwin_common::v2x::channel::LinkBudget;
+use risktwin_common::v2x::latency::Latency;
+use risktwin_common::v2x::link::V2xChannel;
+use risktwin_common::v2x::loss::BurstLoss;
+use risktwin_common::v2x::messages::{MessageChannel, V2xSummary};
 use risktwin_edge::fleet::authority::{Embedded, Paced, SceneOutcome, run_scene};
 use risktwin_edge::fleet::net::{Deadlines, Timeouts, ZenohAuthority, run_participant};
 use risktwin_edge::fleet::{Recording, Role, SceneError, SceneSetup, SceneSource};
@@ -18,6 +23,7 @@ use risktwin_edge::scene::feasible_spec;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{SiteId, TransportConfig, connect};
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read, Write as _};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -68,7 +74,39 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
         SceneSource::Generated(spec) => SceneSetup::new(spec, args.connected, args.rsus),
         SceneSource::CommonRoad(recording) => SceneSetup::commonroad(recording, args.connected, args.rsus),
     };
-    setup.and_then(|s| s.without(&args.without)).map_err(CliError::input)
+    let setup = setup.and_then(|s| s.without(&args.without)).map_err(CliError::input)?;
+    // The V2X channel is part of the scene (its digest): every role gets it, and a participant
+    // started with other V2X flags is refused at the join, as one of another seed.
+    let v2x = v2x_of(args, &setup)?;
+    Ok(setup.with_v2x(v2x))
+}
+
+/// The V2X channel the arguments ask for, seeded by the scene (`None`: no V2X).
+fn v2x_of(args: &SceneArgs, setup: &SceneSetup) -> CliResult<Option<MessageChannel>> {
+    let Some(model) = &args.v2x_model else {
+        if args.v2x_latency.is_some() || args.v2x_bursts.is_some() {
+            return Err(CliError::input("--v2x-latency and --v2x-bursts need --v2x-model"));
+        }
+        return Ok(None);
+    };
+    let model = super::v2x::path_loss_of("--v2x-model", model)?;
+    let latency = match &args.v2x_latency {
+        Some(text) => Latency::parse(text).map_err(|e| CliError::input(format!("--v2x-latency: {e}")))?,
+        None => Latency::SIDELINK,
+    };
+    let bursts = args.v2x_bursts.as_deref().map(bursts_of).transpose()?.flatten();
+    let channel = V2xChannel { model, budget: LinkBudget::default(), latency, bursts };
+    Ok(Some(MessageChannel { channel, seed: setup.seed() }))
+}
+
+/// `SHARE:MEAN_BURST`, both checked; a share of 0 is no burst loss.
+fn bursts_of(text: &str) -> CliResult<Option<BurstLoss>> {
+    let bad = |why: String| CliError::input(format!("--v2x-bursts {text:?}: {why}"));
+    let (share, mean) = text.split_once(':').ok_or_else(|| bad("expected SHARE:MEAN_BURST".into()))?;
+    let number = |v: &str| v.parse::<f64>().map_err(|e| bad(format!("{v:?}: {e}")));
+    let (share, mean) = (number(share)?, number(mean)?);
+    let chain = BurstLoss::from_share(share, mean).map_err(bad)?;
+    Ok((share != 0.0).then_some(chain))
 }
 
 /// The recording of CommonRoad XML `xml` read from `shown`, with `ego` or its default ego.
@@ -105,6 +143,9 @@ struct SceneReport {
     outcome: SceneOutcome,
     #[serde(skip_serializing_if = "Option::is_none")]
     deadlines: Option<Deadlines>,
+    /// An embedded scene's V2X counts per participant, in virtual time (with `--v2x-model`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    v2x: Option<BTreeMap<String, V2xSummary>>,
 }
 
 /// Setup and mismatch errors are the user's input (exit 2); a participant failing mid-run is a
@@ -215,13 +256,13 @@ fn authority_on(
                 tracing::warn!("scene: {} of {} steps were handed out late", paced.late_steps, outcome.steps);
             }
             report_malformed(&paced.inner);
-            SceneReport { outcome, deadlines: None }
+            SceneReport { outcome, deadlines: None, v2x: None }
         }
         Clock::Lockstep { .. } => {
             let mut plane = plane;
             let outcome = run_scene(setup, &mut plane).map_err(scene_error)?;
             report_malformed(&plane);
-            SceneReport { outcome, deadlines: None }
+            SceneReport { outcome, deadlines: None, v2x: None }
         }
         Clock::Realtime => {
             let mut plane = plane.realtime(Duration::from_secs_f64(setup.step_s()));
@@ -237,7 +278,7 @@ fn authority_on(
                     d.ego_controls_held
                 );
             }
-            SceneReport { outcome, deadlines }
+            SceneReport { outcome, deadlines, v2x: None }
         }
     };
     log_pace(&report.outcome, started.elapsed());
@@ -312,7 +353,7 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         let started = Instant::now();
         let outcome = run_scene(&setup, &mut plane).map_err(scene_error)?;
         log_pace(&outcome, started.elapsed());
-        return print_json(&SceneReport { outcome, deadlines: None });
+        return print_json(&SceneReport { outcome, deadlines: None, v2x: plane.v2x_summaries() });
     }
     let site = site_of(&args.scene)?;
     // Checked before anything starts: a bad endpoint or file is the user's input.
@@ -379,6 +420,13 @@ fn scene_argv(args: &SceneArgs) -> Vec<String> {
     argv.extend(["--site".to_owned(), args.site.clone()]);
     if let Some(router) = &args.data_router {
         argv.extend(["--data-router".to_owned(), router.clone()]);
+    }
+    let v2x =
+        [("--v2x-model", &args.v2x_model), ("--v2x-latency", &args.v2x_latency), ("--v2x-bursts", &args.v2x_bursts)];
+    for (flag, value) in v2x {
+        if let Some(value) = value {
+            argv.extend([flag.to_owned(), value.clone()]);
+        }
     }
     argv
 }

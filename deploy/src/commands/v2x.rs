@@ -17,11 +17,16 @@ struct ChannelReport {
     points: Vec<ChannelPoint>,
 }
 
-pub fn channel(args: V2xChannelArgs) -> CliResult {
-    let model = PathLoss::from_name(&args.model).ok_or_else(|| {
+/// The path-loss model `name` given to `flag`.
+pub(super) fn path_loss_of(flag: &str, name: &str) -> CliResult<PathLoss> {
+    PathLoss::from_name(name).ok_or_else(|| {
         let names: Vec<&str> = PathLoss::ALL.iter().map(|m| m.name()).collect();
-        CliError::input(format!("--model {:?}: not one of {}", args.model, names.join(", ")))
-    })?;
+        CliError::input(format!("{flag} {name:?}: not one of {}", names.join(", ")))
+    })
+}
+
+pub fn channel(args: V2xChannelArgs) -> CliResult {
+    let model = path_loss_of("--model", &args.model)?;
     if let Some(d) = args.distance_m.iter().find(|d| !(d.is_finite() && **d >= 0.0)) {
         return Err(CliError::input(format!("--distance-m {d}: a distance is a finite number of metres ≥ 0")));
     }

@@ -5,14 +5,18 @@
 
 use super::onboard::Onboard;
 use super::physics::SceneWorld;
+use super::v2x::cam_state;
 use super::wire::{SceneEnd, Truth};
-use super::{SceneError, SceneSetup, SceneSource};
+use super::{Role, SceneError, SceneSetup, SceneSource};
 use risktwin_common::digest::{FNV_OFFSET, fnv1a64_step};
 use risktwin_common::episode::run_stepped;
 use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
 use risktwin_common::risk::RiskTerms;
+use risktwin_common::v2x::cam::CamState;
+use risktwin_common::v2x::messages::{V2xSummary, VirtualScene};
 use risktwin_common::vehicle::Controls;
 use serde::Serialize;
+use std::collections::BTreeMap;
 
 /// How the truth reaches the participants and their answers come back.
 pub trait Plane {
@@ -25,14 +29,32 @@ pub trait Plane {
 /// Every participant's stack in this process: the embedded run of a scene.
 pub struct Embedded {
     stacks: Vec<Onboard>,
+    /// Every participant's V2X layer in virtual time, if the scene has V2X.
+    v2x: Option<(VirtualScene, Vec<Option<CamState>>)>,
 }
 
 impl Embedded {
-    /// The stacks of every participant of `setup`.
+    /// The stacks of every participant of `setup`; with the scene's V2X, if it has V2X, in
+    /// virtual time: vehicles send CAMs, everyone receives, decided as a deployed scene's
+    /// participants decide them (`super::v2x`).
     pub fn new(setup: &SceneSetup) -> Result<Embedded, SceneError> {
-        let stacks = setup.participants().iter().map(|id| Onboard::new(setup, id)).collect::<Result<_, _>>()?;
-        Ok(Embedded { stacks })
+        let ids = setup.participants();
+        let stacks: Vec<Onboard> = ids.iter().map(|id| Onboard::new(setup, id)).collect::<Result<_, _>>()?;
+        let v2x = setup.v2x().map(|&channel| {
+            let members: Vec<(String, bool)> = ids.into_iter().zip(&stacks).map(|(id, s)| (id, !is_rsu(s))).collect();
+            (VirtualScene::new(channel, &members), Vec::new())
+        });
+        Ok(Embedded { stacks, v2x })
     }
+
+    /// Each participant's V2X counts, if the scene has V2X.
+    pub fn v2x_summaries(&self) -> Option<BTreeMap<String, V2xSummary>> {
+        self.v2x.as_ref().map(|(scene, _)| scene.summaries())
+    }
+}
+
+fn is_rsu(stack: &Onboard) -> bool {
+    matches!(stack.role(), Role::Rsu { .. })
 }
 
 impl Plane for Embedded {
@@ -42,6 +64,11 @@ impl Plane for Embedded {
             if let Some(controls) = stack.respond(truth) {
                 ego = Some(controls);
             }
+        }
+        if let Some((scene, states)) = &mut self.v2x {
+            states.clear();
+            states.extend(self.stacks.iter().map(|stack| cam_state(truth, stack)));
+            scene.step(truth.time_s, states);
         }
         ego.ok_or_else(|| SceneError::Failed { reason: "the ego's stack gave no controls".into() })
     }

@@ -30,6 +30,7 @@ pub mod onboard;
 pub mod physics;
 pub mod recording;
 pub mod streams;
+pub mod v2x;
 pub mod wire;
 
 use physics::SceneWorld;
@@ -37,6 +38,7 @@ pub use recording::Recording;
 use risktwin_common::commonroad::twin::RECORDING_SEED;
 use risktwin_common::digest::fnv1a64;
 use risktwin_common::scenario::{ScenarioSpec, build};
+use risktwin_common::v2x::messages::MessageChannel;
 use std::fmt;
 use thiserror::Error;
 
@@ -109,6 +111,8 @@ pub struct SceneSetup {
     agents: Vec<usize>,
     /// Numbers k of the connected vehicles `vk` taken out of the world, ascending.
     without: Vec<u32>,
+    /// V2X between the participants over this channel ([`v2x`]); `None`: no V2X.
+    v2x: Option<MessageChannel>,
 }
 
 impl SceneSetup {
@@ -150,7 +154,7 @@ impl SceneSetup {
             return Err(SceneError::TooManyConnected { asked: connected, needed, available, what, which });
         }
         let agents = candidates[..needed as usize].to_vec();
-        Ok(SceneSetup { source, connected, rsus, agents, without: Vec::new() })
+        Ok(SceneSetup { source, connected, rsus, agents, without: Vec::new(), v2x: None })
     }
 
     /// The same scene with connected traffic vehicles `ids` (`v1`, …) taken out of the world: a
@@ -168,6 +172,19 @@ impl SceneSetup {
         }
         self.without.sort_unstable();
         Ok(self)
+    }
+
+    /// The same scene with V2X between its participants over `channel` (`None`: none). The
+    /// channel is part of the scene's identity ([`SceneSetup::digest`]): participants started
+    /// with other V2X flags are refused at the join, by name.
+    pub fn with_v2x(mut self, channel: Option<MessageChannel>) -> Self {
+        self.v2x = channel;
+        self
+    }
+
+    /// The scene's V2X channel, if it has V2X.
+    pub fn v2x(&self) -> Option<&MessageChannel> {
+        self.v2x.as_ref()
     }
 
     /// The generated scenario whose episode the ego reports to the cloud when the scene ends:
@@ -198,7 +215,8 @@ impl SceneSetup {
 
     /// The scene's identity: every participant must run the same one. Covers the wire schema,
     /// the role assignment and the scenario: a spec's kind, seed and exact parameters, or a
-    /// recording's file bytes (their FNV-1a) and ego.
+    /// recording's file bytes (their FNV-1a) and ego; and with V2X its channel
+    /// ([`MessageChannel::digest`]; a scene without V2X keeps the digest it had before V2X).
     pub fn digest(&self) -> u64 {
         let head = [wire::SCHEMA_VERSION.to_le_bytes(), self.connected.to_le_bytes(), self.rsus.to_le_bytes()];
         let without = self.without.iter().flat_map(|k| k.to_le_bytes());
@@ -210,7 +228,10 @@ impl SceneSetup {
                 b"commonroad\0".iter().copied().chain(ids.into_iter().flatten()).collect()
             }
         };
-        fnv1a64(head.iter().flatten().copied().chain(without).chain(scenario))
+        // After the scenario's bytes: a spec's JSON ends with `}`, a recording's ids are fixed
+        // length, so the tag cannot be read as part of either.
+        let v2x = self.v2x.iter().flat_map(|c| b"\0v2x\0".iter().copied().chain(c.digest().to_le_bytes()));
+        fnv1a64(head.iter().flatten().copied().chain(without).chain(scenario).chain(v2x))
     }
 
     /// The physics step, s: the world's own, as in the library and `risktwin run`.
@@ -245,7 +266,9 @@ impl SceneSetup {
             }
         };
         let without: String = self.without.iter().map(|k| format!(" without v{k},")).collect();
-        format!("{scenario}, {} connected,{without} {} RSU(s), scene {:016x}", self.connected, self.rsus, self.digest())
+        let v2x = self.v2x.map_or(String::new(), |c| format!(" {},", c.describe()));
+        let (connected, rsus, digest) = (self.connected, self.rsus, self.digest());
+        format!("{scenario}, {connected} connected,{without} {rsus} RSU(s),{v2x} scene {digest:016x}")
     }
 
     /// Every participant id, vehicles first.
@@ -316,5 +339,25 @@ mod tests {
         let SceneSource::Generated(mut spec) = a.source.clone() else { unreachable!("a generated scene") };
         spec.seed += 1;
         assert_ne!(a.digest(), SceneSetup::new(spec, 3, 1).expect("scene").digest());
+    }
+
+    #[test]
+    fn the_v2x_channel_is_part_of_the_scene_and_named_in_it() {
+        use risktwin_common::v2x::channel::{LinkBudget, PathLoss};
+        use risktwin_common::v2x::latency::Latency;
+        use risktwin_common::v2x::link::V2xChannel;
+        let plain = cut_in(3, 1).expect("scene");
+        let channel = |latency| {
+            let channel =
+                V2xChannel { model: PathLoss::UrbanNlos, budget: LinkBudget::default(), latency, bursts: None };
+            MessageChannel { channel, seed: plain.seed() }
+        };
+        let v2x = plain.clone().with_v2x(Some(channel(Latency::SIDELINK)));
+        assert_eq!(plain.clone().with_v2x(None).digest(), plain.digest(), "no V2X, the digest of before");
+        assert_ne!(v2x.digest(), plain.digest());
+        let slower = plain.clone().with_v2x(Some(channel(Latency::Sidelink { t1_ms: 4.0, t2_ms: 50.0 })));
+        assert_ne!(v2x.digest(), slower.digest(), "another latency, another scene");
+        assert!(v2x.describe().contains(", V2X 3gpp-urban-nlos sidelink:4:100, scene "), "{v2x}");
+        assert!(!plain.describe().contains("V2X"), "{plain}");
     }
 }

@@ -13,6 +13,7 @@ use super::onboard::{Onboard, vehicle_state};
 use super::physics::SceneWorld;
 use super::streams::Streams;
 use super::streams::unix_ns;
+use super::v2x::{V2xLayer, V2xReport, cam_state};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
 use risktwin_common::scenario::ScenarioSpec;
@@ -61,7 +62,7 @@ fn transport(what: &str) -> impl Fn(Box<dyn std::error::Error + Send + Sync>) ->
 }
 
 /// The plane's publishers are reliable and block on congestion: lockstep needs every message.
-fn reliable_publisher(session: &Session, key: String) -> Result<Publisher<'static>, SceneError> {
+pub(super) fn reliable_publisher(session: &Session, key: String) -> Result<Publisher<'static>, SceneError> {
     session
         .declare_publisher(key.clone())
         .congestion_control(CongestionControl::Block)
@@ -127,7 +128,7 @@ struct Answers {
 }
 
 /// A poisoned lock only means another thread panicked while holding it; the counts stay usable.
-fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+pub(super) fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
     mutex.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
@@ -445,6 +446,9 @@ pub struct ParticipantSummary {
     /// Of `sent`, those never put on the wire: made while no cloud had yet subscribed, beyond
     /// what the stream's cache holds, or still waiting for one when the scene ended.
     pub unsent: BTreeMap<String, u64>,
+    /// The V2X layer's counts, when the scene has V2X.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub v2x: Option<V2xReport>,
 }
 
 /// A participant's stack, driven by the truth subscriber's callback: it answers each step as
@@ -452,6 +456,9 @@ pub struct ParticipantSummary {
 struct Answering {
     stack: Onboard,
     streams: Streams,
+    /// The V2X layer, when the scene has V2X; finished by the participant's thread once the
+    /// scene is over (its end waits for messages, never on a Zenoh callback).
+    v2x: Option<V2xLayer>,
     outbox: Publisher<'static>,
     digest: u64,
     describe: String,
@@ -502,6 +509,13 @@ impl Answering {
         let controls = self.stack.respond(&truth);
         self.summary.steps += 1;
         self.summary.perceived += self.stack.perceived().len() as u64;
+        // The step's CAM goes out before the answer: once every answer to the last step is in,
+        // the authority may end the scene, and every CAM of it must be on its way by then.
+        if let Some(v2x) = &mut self.v2x
+            && let Err(e) = v2x.on_step(&truth, cam_state(&truth, &self.stack))
+        {
+            return Some(Err(e));
+        }
         let reply = Reply::step(&self.summary.participant, truth.step, controls).encode();
         if let Err(e) = self.outbox.put(reply).wait().map_err(transport("reply")) {
             return Some(Err(e));
@@ -512,7 +526,9 @@ impl Answering {
 }
 
 /// Runs participant `id` of `setup` until the authority ends the scene: the plane on `physics`
-/// (truth in, answers out), its edge streams on `data` (the same session when the scene has one).
+/// (truth in, answers out), its edge streams on `data` (the same session when the scene has one),
+/// and when the scene has V2X its V2X layer on `physics` (the scene's radio paths, not the
+/// backhaul).
 pub fn run_participant(
     physics: &Session,
     data: &Session,
@@ -544,11 +560,14 @@ pub fn run_participant(
         malformed: 0,
         sent: BTreeMap::new(),
         unsent: BTreeMap::new(),
+        v2x: None,
     };
+    let v2x = setup.v2x().map(|&channel| V2xLayer::open(physics, site, setup, &participant, channel)).transpose()?;
     let last = Arc::new(Mutex::new(None));
     let answering = Answering {
         stack,
         streams,
+        v2x,
         outbox,
         digest,
         describe: setup.describe(),
@@ -601,11 +620,15 @@ pub fn run_participant(
             Some((_, at)) => at + 2 * timeouts.step,
         };
         match end.recv_timeout(wake.saturating_duration_since(now)) {
-            Ok(ended) => {
-                // The streams' caches stay a while for the cloud to fetch what the link lost last.
-                if ended.is_ok() {
+            Ok(mut ended) => {
+                if let Ok(summary) = &mut ended {
+                    let started = Instant::now();
+                    // Here, not on the truth's callback: the V2X end waits for the last messages.
+                    let v2x = lock(&answering).v2x.take();
+                    summary.v2x = v2x.map(V2xLayer::finish);
+                    // The streams' caches stay a while for the cloud to fetch what the link lost last.
                     let linger = lock(&answering).streams.linger();
-                    std::thread::sleep(linger);
+                    std::thread::sleep(linger.saturating_sub(started.elapsed()));
                 }
                 return ended;
             }

@@ -1,0 +1,325 @@
+//! A scene's V2X messages decided one by one from a seed: each broadcast's latency from (seed,
+//! sender, sequence) and each copy's fate from (seed, sender, receiver, sequence), so a decision
+//! never depends on the order messages arrive in. A deployed scene's participants decide so in
+//! real time, each in its own process (`risktwin_edge::fleet::v2x`); [`VirtualScene`] decides
+//! the same CAM stream in virtual time in one process. Both agree message for message; only the
+//! transport's own time differs.
+
+use super::awareness::receivers;
+use super::cam::{CamState, CamTrigger};
+use super::channel::LinkBudget;
+use super::latency::Latency;
+use super::link::V2xChannel;
+use super::loss::BurstState;
+use crate::digest::fnv1a64;
+use crate::histogram::Histogram;
+use crate::rng::Rng;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// Stream tags: a broadcast's latency and a copy's fate never share random numbers.
+const LATENCY_TAG: u8 = 1;
+const COPY_TAG: u8 = 2;
+
+/// The channel of a scene's V2X paths and the seed its decisions derive from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MessageChannel {
+    pub channel: V2xChannel,
+    pub seed: u64,
+}
+
+/// The random stream of one decision: FNV-1a over the tag, the ids and the sequence number.
+fn stream(tag: u8, sender: &str, receiver: &str, seq: u64) -> u64 {
+    // A 0 byte ends each id: ("v1", "0…") and ("v10", "…") never meet.
+    let ids = sender.bytes().chain([0]).chain(receiver.bytes()).chain([0]);
+    fnv1a64([tag].into_iter().chain(ids).chain(seq.to_le_bytes()))
+}
+
+impl MessageChannel {
+    /// FNV-1a over everything a decision depends on: the path-loss model, every field of the
+    /// link budget, the latency, the burst chain and the seed (numbers as their exact bits).
+    /// Participants whose channels differ would decide the same message differently.
+    pub fn digest(&self) -> u64 {
+        let V2xChannel { model, budget, latency, bursts } = self.channel;
+        // Every field by name: a new one must be added here.
+        let LinkBudget {
+            carrier_ghz,
+            tx_power_dbm,
+            tx_antenna_gain_dbi,
+            rx_antenna_gain_dbi,
+            noise_figure_db,
+            bandwidth_hz,
+            sinr_threshold_db,
+        } = budget;
+        let mut numbers = vec![
+            carrier_ghz,
+            tx_power_dbm,
+            tx_antenna_gain_dbi,
+            rx_antenna_gain_dbi,
+            noise_figure_db,
+            bandwidth_hz,
+            sinr_threshold_db,
+        ];
+        let latency_tag = match latency {
+            Latency::Sidelink { t1_ms, t2_ms } => {
+                numbers.extend([t1_ms, t2_ms]);
+                1
+            }
+            Latency::Gamma { offset_ms, shape, scale_ms } => {
+                numbers.extend([offset_ms, shape, scale_ms]);
+                2
+            }
+        };
+        let bursts_tag = match bursts {
+            None => 0,
+            Some(chain) => {
+                numbers.extend([chain.enter, chain.leave]);
+                1
+            }
+        };
+        let head = model.name().bytes().chain([0, latency_tag, bursts_tag]);
+        let numbers = numbers.into_iter().flat_map(|v| v.to_bits().to_le_bytes());
+        fnv1a64(head.chain(numbers).chain(self.seed.to_le_bytes()))
+    }
+
+    /// For messages: `V2X 3gpp-urban-nlos sidelink:4:100` (and `bursts 0.3:5`, share and mean).
+    pub fn describe(&self) -> String {
+        let V2xChannel { model, latency, bursts, .. } = self.channel;
+        let bursts = bursts.map_or(String::new(), |c| {
+            // Back from the chain: share = enter / (enter + leave), mean burst = 1 / leave.
+            format!(" bursts {:.3}:{:.3}", c.enter / (c.enter + c.leave), 1.0 / c.leave)
+        });
+        format!("V2X {} {latency}{bursts}", model.name())
+    }
+
+    /// When broadcast `seq` of `sender` goes out, ms after it is made: the same for every
+    /// receiver (one transmission on one resource).
+    pub fn latency_ms(&self, sender: &str, seq: u64) -> f64 {
+        self.channel.latency_ms(&mut Rng::derive(self.seed, stream(LATENCY_TAG, sender, "", seq)))
+    }
+
+    /// Whether `receiver`'s copy of broadcast `seq` of `sender` arrives over `distance_m`;
+    /// `burst` is the pair's chain, stepped in the sender's sequence order.
+    pub fn passes(&self, sender: &str, receiver: &str, seq: u64, distance_m: f64, burst: &mut BurstState) -> bool {
+        let mut rng = Rng::derive(self.seed, stream(COPY_TAG, sender, receiver, seq));
+        self.channel.receives(distance_m, burst, &mut rng)
+    }
+}
+
+/// One participant's V2X counts.
+#[derive(Debug, Default)]
+pub struct V2xTally {
+    /// CAMs this participant broadcast.
+    pub cams_sent: u64,
+    /// Copies of others' CAMs it decided (the channel applied).
+    pub copies: u64,
+    /// Of those, passed by the channel (some may still be held when the scene ends).
+    pub passed: u64,
+    /// Passed copies handed over after their latency.
+    pub delivered: u64,
+    /// Latency of the delivered copies, µs: real time measures arrival wall − sent wall.
+    pub latency_us: Histogram,
+}
+
+/// What [`V2xTally`] reports.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct V2xSummary {
+    pub cams_sent: u64,
+    pub copies: u64,
+    pub passed: u64,
+    pub lost: u64,
+    pub delivered: u64,
+    /// passed / copies; `None` with no copy.
+    pub pdr: Option<f64>,
+    pub latency_p50_ms: Option<f64>,
+    pub latency_p95_ms: Option<f64>,
+}
+
+impl V2xTally {
+    pub fn summary(&self) -> V2xSummary {
+        let ms = |q| self.latency_us.quantile(q).map(|us| us / 1e3);
+        V2xSummary {
+            cams_sent: self.cams_sent,
+            copies: self.copies,
+            passed: self.passed,
+            lost: self.copies - self.passed,
+            delivered: self.delivered,
+            pdr: (self.copies > 0).then(|| self.passed as f64 / self.copies as f64),
+            latency_p50_ms: ms(0.5),
+            latency_p95_ms: ms(0.95),
+        }
+    }
+}
+
+/// A participant of a [`VirtualScene`].
+struct Member {
+    id: String,
+    /// Vehicles send CAMs; roadside units only receive.
+    trigger: Option<CamTrigger>,
+    seq: u64,
+    tally: V2xTally,
+    /// Copies on their way to this member: arrival time, s, and latency, µs.
+    in_flight: Vec<(f64, u64)>,
+    /// Burst chains of the pairs with this member as receiver, by sender.
+    bursts: BTreeMap<usize, BurstState>,
+}
+
+/// The V2X layers of every participant of a scene, in virtual time in one process.
+pub struct VirtualScene {
+    channel: MessageChannel,
+    members: Vec<Member>,
+}
+
+impl VirtualScene {
+    /// `members`: each participant's id and whether it sends CAMs (a vehicle) or not (an RSU).
+    pub fn new(channel: MessageChannel, members: &[(String, bool)]) -> VirtualScene {
+        let members = members
+            .iter()
+            .map(|(id, sends)| Member {
+                id: id.clone(),
+                trigger: sends.then(CamTrigger::default),
+                seq: 0,
+                tally: V2xTally::default(),
+                in_flight: Vec::new(),
+                bursts: BTreeMap::new(),
+            })
+            .collect();
+        VirtualScene { channel, members }
+    }
+
+    /// One step at `now_s`: each member's state in member order, `None` for one not in the
+    /// world now (it neither sends nor receives). Copies due by `now_s` are delivered first.
+    ///
+    /// # Panics
+    /// When `states` does not hold exactly one state per member (a caller's bug: a state would
+    /// be taken for another member's).
+    pub fn step(&mut self, now_s: f64, states: &[Option<CamState>]) {
+        assert_eq!(states.len(), self.members.len(), "VirtualScene::step: one state per member");
+        for member in &mut self.members {
+            let tally = &mut member.tally;
+            member.in_flight.retain(|&(arrives_s, latency_us)| {
+                let due = arrives_s <= now_s;
+                if due {
+                    tally.delivered += 1;
+                    tally.latency_us.record(latency_us);
+                }
+                !due
+            });
+        }
+        for sender in 0..self.members.len() {
+            let Some(state) = states[sender] else { continue };
+            let member = &mut self.members[sender];
+            let Some(trigger) = &mut member.trigger else { continue };
+            if trigger.check(state).is_none() {
+                continue;
+            }
+            let seq = member.seq;
+            member.seq += 1;
+            member.tally.cams_sent += 1;
+            let sender_id = member.id.clone();
+            let latency_ms = self.channel.latency_ms(&sender_id, seq);
+            for (receiver, distance_m) in receivers(states, sender) {
+                let member = &mut self.members[receiver];
+                let burst = member.bursts.entry(sender).or_default();
+                member.tally.copies += 1;
+                if self.channel.passes(&sender_id, &member.id, seq, distance_m, burst) {
+                    member.tally.passed += 1;
+                    let latency_us = (latency_ms * 1e3).round() as u64;
+                    member.in_flight.push((now_s + latency_ms / 1e3, latency_us));
+                }
+            }
+        }
+    }
+
+    /// Each member's counts, by id.
+    pub fn summaries(&self) -> BTreeMap<String, V2xSummary> {
+        self.members.iter().map(|m| (m.id.clone(), m.tally.summary())).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::v2x::channel::{LinkBudget, PathLoss};
+    use crate::v2x::latency::Latency;
+
+    fn urban(seed: u64) -> MessageChannel {
+        let channel = V2xChannel {
+            model: PathLoss::UrbanNlos,
+            budget: LinkBudget::default(),
+            latency: Latency::SIDELINK,
+            bursts: None,
+        };
+        MessageChannel { channel, seed }
+    }
+
+    #[test]
+    fn decisions_depend_on_the_message_not_on_the_order_they_are_taken_in() {
+        let channel = urban(7);
+        let forward: Vec<bool> =
+            (0..200).map(|seq| channel.passes("v1", "rsu0", seq, 339.0, &mut BurstState::default())).collect();
+        let backward: Vec<bool> =
+            (0..200).rev().map(|seq| channel.passes("v1", "rsu0", seq, 339.0, &mut BurstState::default())).collect();
+        assert_eq!(forward, backward.into_iter().rev().collect::<Vec<_>>());
+        // About half arrive at 339 m in urban NLOS; receivers of one broadcast differ.
+        let passed = forward.iter().filter(|p| **p).count();
+        assert!((70..130).contains(&passed), "{passed} of 200");
+        let other: Vec<bool> =
+            (0..200).map(|seq| channel.passes("v1", "v2", seq, 339.0, &mut BurstState::default())).collect();
+        assert_ne!(forward, other);
+        assert_eq!(channel.latency_ms("v1", 3), channel.latency_ms("v1", 3));
+        assert_ne!(channel.latency_ms("v1", 3), channel.latency_ms("v1", 4));
+        assert_ne!(channel.latency_ms("v1", 3), urban(8).latency_ms("v1", 3));
+    }
+
+    #[test]
+    fn the_channel_digest_changes_with_every_part_of_the_channel() {
+        use crate::v2x::loss::BurstLoss;
+        let base = urban(7);
+        assert_eq!(base.digest(), urban(7).digest());
+        let mut others = vec![urban(8)];
+        let mut with = |change: &dyn Fn(&mut V2xChannel)| {
+            let mut other = base;
+            change(&mut other.channel);
+            others.push(other);
+        };
+        with(&|c| c.model = PathLoss::UrbanLos);
+        with(&|c| c.budget.tx_power_dbm = 20.0);
+        with(&|c| c.budget.sinr_threshold_db += 1e-9);
+        with(&|c| c.latency = Latency::Sidelink { t1_ms: 4.0, t2_ms: 50.0 });
+        with(&|c| c.latency = Latency::Gamma { offset_ms: 4.0, shape: 100.0, scale_ms: 1.0 });
+        with(&|c| c.bursts = Some(BurstLoss::from_share(0.3, 5.0).expect("valid")));
+        with(&|c| c.bursts = Some(BurstLoss::from_share(0.3, 4.0).expect("valid")));
+        let mut digests: Vec<u64> = others.iter().map(MessageChannel::digest).chain([base.digest()]).collect();
+        digests.sort_unstable();
+        digests.dedup();
+        assert_eq!(digests.len(), others.len() + 1, "every change changes the digest");
+        assert_eq!(base.describe(), "V2X 3gpp-urban-nlos sidelink:4:100");
+        assert_eq!(others[6].describe(), "V2X 3gpp-urban-nlos sidelink:4:100 bursts 0.300:5.000");
+    }
+
+    #[test]
+    #[should_panic(expected = "one state per member")]
+    fn a_virtual_scene_refuses_states_that_are_not_one_per_member() {
+        let mut scene = VirtualScene::new(urban(3), &[("v0".to_owned(), true), ("v1".to_owned(), true)]);
+        scene.step(0.0, &[None]);
+    }
+
+    #[test]
+    fn a_virtual_scene_counts_every_copy_once_and_delivers_after_the_latency() {
+        let members = [("v0".to_owned(), true), ("v1".to_owned(), true), ("rsu0".to_owned(), false)];
+        let mut scene = VirtualScene::new(urban(3), &members);
+        let at = |t: f64, x_m: f64| Some(CamState { time_s: t, x_m, y_m: 0.0, heading_rad: 0.0, speed_mps: 0.0 });
+        for k in 0..=200 {
+            let t = f64::from(k) * 0.05;
+            scene.step(t, &[at(t, 0.0), at(t, 300.0), at(t, 20.0)]);
+        }
+        let s = scene.summaries();
+        // Standing vehicles send at 1 Hz: 11 CAMs each over 10 s; the RSU sends none.
+        assert_eq!((s["v0"].cams_sent, s["v1"].cams_sent, s["rsu0"].cams_sent), (11, 11, 0));
+        assert_eq!((s["v0"].copies, s["v1"].copies, s["rsu0"].copies), (11, 11, 22));
+        assert!(s["rsu0"].pdr.expect("copies") > s["v0"].pdr.expect("copies"), "20 m against 300 m: {s:?}");
+        let p50 = s["rsu0"].latency_p50_ms.expect("delivered");
+        assert!((4.0..=100.0).contains(&p50), "{p50}");
+    }
+}

@@ -1,0 +1,627 @@
+//! The V2X layer of a scene's participants, in real time: each connected vehicle sends CAMs by
+//! the ETSI generation rules from its own state in each step's truth, on
+//! `risktwin/v1/<site>/scene/v2x/<participant>`; every other participant (vehicles and RSUs)
+//! receives them and applies the channel per message and per receiver, from the distance
+//! between the CAM's position and its own position in the truth of the step the CAM was made
+//! in: the copy is lost or passed (`MessageChannel::passes`), and a passed copy is held until
+//! its sent wall time plus the broadcast's latency (`MessageChannel::latency_ms`) by a delivery
+//! thread, never by the physics. The decisions derive from (seed, sender, receiver, sequence),
+//! so `risktwin_common::v2x::messages::VirtualScene`, which the embedded scene runs, makes the
+//! same ones in virtual time.
+//!
+//! The latency is imposed, not measured: the hold ends at sent + the seeded draw that virtual
+//! time records. What real time adds is the **excess**, per delivered copy: arrival − (sent +
+//! drawn latency), the delivery timer's overshoot, or the transport's where the copy came (or
+//! could be decided) only after its drawn latency had passed (then counted `late`, its hold 0).
+//! Sent and arrival are wall clocks of two processes: on different hosts they must be
+//! synchronised. At the scene's end each sender announces how many CAMs it sent, and a receiver
+//! waits (at most [`FINISH_WAIT`]) until it has decided every copy it can still expect; what it
+//! could not is counted `undecided`, never dropped silently.
+
+use super::net::{lock, reliable_publisher};
+use super::onboard::Onboard;
+use super::streams::unix_ns;
+use super::wire::Truth;
+use super::{Role, SceneError, SceneSetup};
+use risktwin_common::histogram::Histogram;
+use risktwin_common::v2x::cam::{CamState, CamTrigger};
+use risktwin_common::v2x::loss::BurstState;
+use risktwin_common::v2x::messages::{MessageChannel, V2xSummary, V2xTally};
+use risktwin_transport::keyexpr::{scene_v2x, scene_v2x_all};
+use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
+use risktwin_transport::zenoh::sample::Sample;
+use risktwin_transport::zenoh::{Session, Wait};
+use risktwin_transport::{SiteId, SourceId};
+use serde::{Deserialize, Serialize};
+use std::cmp::Reverse;
+use std::collections::{BTreeMap, BinaryHeap};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// Version of the V2X messages; bump on any change to them.
+const V2X_SCHEMA: u32 = 2;
+
+/// Steps of its own positions a receiver keeps for CAMs made in them (10 s of scene).
+const OWN_HISTORY_STEPS: u64 = 200;
+
+/// How far ahead of its own latest step a CAM may be made and still wait for that step; and
+/// how many CAMs may wait at once. Beyond, a CAM is dropped and counted (`ahead`).
+const AHEAD_STEPS: u64 = OWN_HISTORY_STEPS;
+const MAX_WAITING: usize = 4096;
+
+/// How long [`V2xLayer::finish`] waits for the copies it can still expect.
+pub const FINISH_WAIT: Duration = Duration::from_millis(500);
+
+/// The longest a passed copy is held: a sent time far in the future (a wrong clock, a hostile
+/// sender) neither holds it for ever nor overflows the timer.
+const MAX_HOLD: Duration = Duration::from_secs(60);
+
+/// A message on a participant's V2X key (postcard): who sent it, in which scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WireV2x {
+    pub schema: u32,
+    /// The scene's digest (its V2X channel included): another scene's messages are dropped and
+    /// counted.
+    pub scene: u64,
+    /// The sending participant: the last segment of the key it comes on.
+    pub sender: String,
+    pub body: V2xBody,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum V2xBody {
+    Cam(WireCam),
+    /// The sender's last message of the scene: it sent `cams` CAMs (sequence 0 to `cams` − 1).
+    End {
+        cams: u64,
+    },
+}
+
+/// A CAM on the wire: when it was made in the scene and on the wall clock, and the state it
+/// carries (not ETSI's ASN.1 encoding).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WireCam {
+    /// The sender's CAM count before this one.
+    pub seq: u64,
+    /// The physics step whose truth it was made from, and its scene time, s.
+    pub step: u64,
+    pub made_s: f64,
+    /// Wall clock when it was put on the wire, ns since the Unix epoch.
+    pub sent_unix_ns: i64,
+    /// Position, heading and speed: m, m, rad, m/s.
+    pub state: [f64; 4],
+}
+
+/// A participant's own state in `truth` as a CAM carries it: a vehicle's pose and speed, an
+/// RSU's mast (standing); `None` for a vehicle not in the world now.
+pub fn cam_state(truth: &Truth, stack: &Onboard) -> Option<CamState> {
+    let time_s = truth.time_s;
+    let (x_m, y_m, heading_rad, speed_mps) = match stack.role() {
+        Role::Ego => {
+            let [x, y, heading] = truth.ego.pose;
+            (x, y, heading, truth.ego.speed_mps)
+        }
+        Role::Agent { traffic_index } => {
+            let o = truth.objects.iter().find(|o| o.id == traffic_index as u32)?;
+            (o.centre[0], o.centre[1], o.axis[1].atan2(o.axis[0]), o.velocity[0].hypot(o.velocity[1]))
+        }
+        Role::Rsu { .. } => {
+            let (mast, _) = stack.mast();
+            (mast.x_m, mast.y_m, mast.heading_rad, 0.0)
+        }
+    };
+    Some(CamState { time_s, x_m, y_m, heading_rad, speed_mps })
+}
+
+/// A participant's V2X counts in real time: the decisions (as virtual time counts them) and
+/// what only real time has.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct V2xReport {
+    #[serde(flatten)]
+    pub summary: V2xSummary,
+    /// Passed copies whose drawn latency had already passed when they could be decided (the
+    /// transport, or this participant's own step, took longer): handed over at once.
+    pub late: u64,
+    /// Arrival − (sent + drawn latency) of the delivered copies, ms: the delivery timer's
+    /// overshoot, and the transport's for late copies.
+    pub excess_p50_ms: Option<f64>,
+    pub excess_p99_ms: Option<f64>,
+    /// CAMs of others this layer knows were sent but could not decide by the end: still
+    /// waiting for their step, or announced (by a later sequence number or the sender's end)
+    /// and never arrived. Each is at most one copy.
+    pub undecided: u64,
+    /// CAMs made in a step whose own position this layer no longer (or never) held.
+    pub stale: u64,
+    /// CAMs dropped for being made too far ahead of this participant's own steps.
+    pub ahead: u64,
+    /// Messages that did not decode, of another schema, from no sending participant of the
+    /// scene, on another participant's key, repeated, or with a non-finite state.
+    pub malformed: u64,
+    /// Messages of another scene (or of the same scene with another V2X channel).
+    pub foreign: u64,
+}
+
+/// One sending participant, as a receiver sees it.
+#[derive(Debug, Default)]
+struct Peer {
+    /// The pair's burst chain, stepped in the sender's sequence order.
+    burst: BurstState,
+    /// CAMs taken from it: decided, waiting, or dropped and counted.
+    taken: u64,
+    /// The sequence number expected next (one past the highest taken).
+    next_seq: u64,
+    /// The count its end announced.
+    ended: Option<u64>,
+}
+
+/// A passed copy held until its due time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+struct Held {
+    due: Instant,
+    sent_unix_ns: i64,
+    /// sent + the drawn latency, ns since the Unix epoch.
+    due_unix_ns: i64,
+}
+
+/// What the receiving side holds, shared by the subscriber's callback, the stepping callback,
+/// the delivery thread and the end.
+#[derive(Default)]
+struct Receiving {
+    /// This participant's position by step (`None`: not in the world then).
+    own: BTreeMap<u64, Option<(f64, f64)>>,
+    latest_step: Option<u64>,
+    /// CAMs made in a step this participant has not seen yet, with their sender.
+    waiting: Vec<(String, WireCam)>,
+    /// Every other sending participant of the scene, by id.
+    peers: BTreeMap<String, Peer>,
+    held: BinaryHeap<Reverse<Held>>,
+    tally: V2xTally,
+    late: u64,
+    excess_us: Histogram,
+    stale: u64,
+    ahead: u64,
+    malformed: u64,
+    foreign: u64,
+    closed: bool,
+}
+
+impl Receiving {
+    /// Every copy this layer can still expect is decided: nothing waits, and every sender has
+    /// announced its end and all its CAMs have come.
+    fn settled(&self) -> bool {
+        self.waiting.is_empty() && self.peers.values().all(|p| p.ended.is_some_and(|n| p.taken >= n))
+    }
+
+    /// CAMs known to be sent and not decided.
+    fn undecided(&self) -> u64 {
+        let unarrived = self.peers.values().map(|p| p.ended.unwrap_or(0).max(p.next_seq).saturating_sub(p.taken));
+        self.waiting.len() as u64 + unarrived.sum::<u64>()
+    }
+}
+
+struct Inbox {
+    id: String,
+    scene: u64,
+    channel: MessageChannel,
+    state: Mutex<Receiving>,
+    /// Wakes the delivery thread: a copy held, or the layer closed.
+    wake: Condvar,
+    /// Wakes the end: a message taken.
+    taken: Condvar,
+}
+
+impl Inbox {
+    /// A message on `key`.
+    fn on_sample(&self, key: &str, payload: &[u8]) {
+        let mut state = lock(&self.state);
+        self.take(&mut state, key, payload);
+        self.taken.notify_all();
+    }
+
+    fn take(&self, state: &mut Receiving, key: &str, payload: &[u8]) {
+        let message = match postcard::from_bytes::<WireV2x>(payload) {
+            Ok(message) if message.schema == V2X_SCHEMA => message,
+            Ok(_) | Err(_) => {
+                state.malformed += 1;
+                return;
+            }
+        };
+        if message.scene != self.scene {
+            state.foreign += 1;
+            return;
+        }
+        // The sender is the key's: nobody speaks for another participant.
+        if key.rsplit('/').next() != Some(message.sender.as_str()) {
+            state.malformed += 1;
+            return;
+        }
+        if message.sender == self.id {
+            return;
+        }
+        let Some(peer) = state.peers.get_mut(&message.sender) else {
+            // Not a sending participant of this scene (an RSU sends nothing).
+            state.malformed += 1;
+            return;
+        };
+        let cam = match message.body {
+            V2xBody::End { cams } if peer.ended.is_none() => {
+                peer.ended = Some(cams);
+                return;
+            }
+            V2xBody::Cam(cam) if cam.seq >= peer.next_seq && cam.state.iter().all(|v| v.is_finite()) => cam,
+            V2xBody::End { .. } | V2xBody::Cam(_) => {
+                state.malformed += 1;
+                return;
+            }
+        };
+        peer.next_seq = cam.seq + 1;
+        peer.taken += 1;
+        let latest = state.latest_step;
+        if latest.is_some_and(|latest| cam.step <= latest) {
+            self.decide(state, &message.sender, &cam);
+        } else if cam.step > latest.unwrap_or(0).saturating_add(AHEAD_STEPS) || state.waiting.len() >= MAX_WAITING {
+            state.ahead += 1;
+        } else {
+            state.waiting.push((message.sender, cam));
+        }
+    }
+
+    /// Applies the channel to this participant's copy of `sender`'s `cam`: counted, and held
+    /// if it passes.
+    fn decide(&self, state: &mut Receiving, sender: &str, cam: &WireCam) {
+        let (x_m, y_m) = match state.own.get(&cam.step) {
+            Some(&Some(own)) => own,
+            // Not in the world when the CAM was made: no copy (as in virtual time).
+            Some(None) => return,
+            None => {
+                state.stale += 1;
+                if state.stale == 1 {
+                    tracing::warn!(
+                        "V2X {}: no own position for step {} (CAM {} of {sender}); counted stale",
+                        self.id,
+                        cam.step,
+                        cam.seq
+                    );
+                }
+                return;
+            }
+        };
+        let Some(peer) = state.peers.get_mut(sender) else { return };
+        let distance_m = (cam.state[0] - x_m).hypot(cam.state[1] - y_m);
+        let passes = self.channel.passes(sender, &self.id, cam.seq, distance_m, &mut peer.burst);
+        state.tally.copies += 1;
+        if !passes {
+            return;
+        }
+        state.tally.passed += 1;
+        // The same draw virtual time records: the latency is imposed here, not measured.
+        let latency_ns = (self.channel.latency_ms(sender, cam.seq) * 1e6).round() as i64;
+        let due_unix_ns = cam.sent_unix_ns.saturating_add(latency_ns);
+        let wait_ns = due_unix_ns.saturating_sub(unix_ns());
+        if wait_ns <= 0 {
+            state.late += 1;
+        }
+        let wait = Duration::from_nanos(wait_ns.max(0) as u64).min(MAX_HOLD);
+        state.held.push(Reverse(Held { due: Instant::now() + wait, sent_unix_ns: cam.sent_unix_ns, due_unix_ns }));
+        self.wake.notify_one();
+    }
+
+    /// This participant's position in step `step`; decides the CAMs that waited for it.
+    fn on_step(&self, step: u64, own: Option<(f64, f64)>) {
+        let mut state = lock(&self.state);
+        state.own.insert(step, own);
+        state.own.retain(|&k, _| k + OWN_HISTORY_STEPS > step);
+        state.latest_step = Some(step);
+        let (ready, waiting): (Vec<_>, Vec<_>) =
+            std::mem::take(&mut state.waiting).into_iter().partition(|(_, cam)| cam.step <= step);
+        state.waiting = waiting;
+        for (sender, cam) in &ready {
+            self.decide(&mut state, sender, cam);
+        }
+        self.taken.notify_all();
+    }
+
+    /// Hands over each held copy at its due time, measuring its latency and excess on the wall
+    /// clock.
+    fn deliver(&self) {
+        let mut state = lock(&self.state);
+        while !state.closed {
+            let now = Instant::now();
+            while let Some(&Reverse(held)) = state.held.peek() {
+                if held.due > now {
+                    break;
+                }
+                state.held.pop();
+                let arrival_ns = unix_ns();
+                let us = |ns: i64| (ns.max(0) as u64).div_ceil(1000);
+                state.tally.delivered += 1;
+                state.tally.latency_us.record(us(arrival_ns.saturating_sub(held.sent_unix_ns)));
+                state.excess_us.record(us(arrival_ns.saturating_sub(held.due_unix_ns)));
+            }
+            state = match state.held.peek() {
+                Some(&Reverse(held)) => {
+                    let wait = held.due.saturating_duration_since(now);
+                    self.wake.wait_timeout(state, wait).unwrap_or_else(PoisonError::into_inner).0
+                }
+                None => self.wake.wait(state).unwrap_or_else(PoisonError::into_inner),
+            };
+        }
+    }
+}
+
+/// One participant's V2X layer on a Zenoh session.
+pub struct V2xLayer {
+    inbox: Arc<Inbox>,
+    _subscriber: Subscriber<()>,
+    publisher: Publisher<'static>,
+    deliverer: Option<JoinHandle<()>>,
+    /// A vehicle's CAM generation; an RSU sends none.
+    trigger: Option<CamTrigger>,
+    seq: u64,
+}
+
+impl V2xLayer {
+    /// Declares participant `id`'s V2X publisher and its subscriber to every participant's
+    /// broadcasts in scene `setup` over `channel`, and starts its delivery thread.
+    pub fn open(
+        session: &Session,
+        site: &SiteId,
+        setup: &SceneSetup,
+        id: &SourceId,
+        channel: MessageChannel,
+    ) -> Result<V2xLayer, SceneError> {
+        let transport =
+            |key: &str, e: Box<dyn std::error::Error + Send + Sync>| SceneError::Transport(format!("{key}: {e}"));
+        let sends = |p: &str| setup.role_of(p).is_ok_and(|role| !matches!(role, Role::Rsu { .. }));
+        let peers = setup.participants().into_iter().filter(|p| sends(p) && p != id.as_str());
+        let receiving = Receiving { peers: peers.map(|p| (p, Peer::default())).collect(), ..Receiving::default() };
+        // Reliable and blocking: every loss is the channel's, none the transport's.
+        let publisher = reliable_publisher(session, scene_v2x(site, id))?;
+        let inbox = Arc::new(Inbox {
+            id: id.to_string(),
+            scene: setup.digest(),
+            channel,
+            state: Mutex::new(receiving),
+            wake: Condvar::new(),
+            taken: Condvar::new(),
+        });
+        let all = scene_v2x_all(site);
+        let subscriber = session
+            .declare_subscriber(all.clone())
+            .callback({
+                let inbox = Arc::clone(&inbox);
+                move |sample: Sample| inbox.on_sample(sample.key_expr().as_str(), &sample.payload().to_bytes())
+            })
+            .wait()
+            .map_err(|e| transport(&all, e))?;
+        let deliverer = std::thread::Builder::new()
+            .name(format!("v2x-{id}"))
+            .spawn({
+                let inbox = Arc::clone(&inbox);
+                move || inbox.deliver()
+            })
+            .map_err(|e| SceneError::Failed { reason: format!("cannot start the V2X delivery thread: {e}") })?;
+        let trigger = sends(id.as_str()).then(CamTrigger::default);
+        Ok(V2xLayer { inbox, _subscriber: subscriber, publisher, deliverer: Some(deliverer), trigger, seq: 0 })
+    }
+
+    fn put(&self, body: V2xBody) -> Result<(), SceneError> {
+        let message = WireV2x { schema: V2X_SCHEMA, scene: self.inbox.scene, sender: self.inbox.id.clone(), body };
+        let bytes = postcard::to_allocvec(&message).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
+        self.publisher.put(bytes).wait().map_err(|e| SceneError::Transport(format!("V2X: {e}")))
+    }
+
+    /// Step `truth`, before it is answered: records this participant's position for the CAMs
+    /// made in it, and sends a CAM if the generation rules say so. Before the answer, so that
+    /// the authority never ends the scene with a CAM of its last step not yet sent.
+    pub fn on_step(&mut self, truth: &Truth, own: Option<CamState>) -> Result<(), SceneError> {
+        self.inbox.on_step(truth.step, own.map(|s| (s.x_m, s.y_m)));
+        let (Some(trigger), Some(state)) = (&mut self.trigger, own) else { return Ok(()) };
+        if trigger.check(state).is_none() {
+            return Ok(());
+        }
+        self.put(V2xBody::Cam(WireCam {
+            seq: self.seq,
+            step: truth.step,
+            made_s: truth.time_s,
+            sent_unix_ns: unix_ns(),
+            state: [state.x_m, state.y_m, state.heading_rad, state.speed_mps],
+        }))?;
+        self.seq += 1;
+        lock(&self.inbox.state).tally.cams_sent += 1;
+        Ok(())
+    }
+
+    /// Ends the layer once the scene is over: announces how many CAMs it sent, waits (at most
+    /// [`FINISH_WAIT`]) until every copy it can still expect is decided, and stops; its counts.
+    /// Copies still held are passed, not delivered. Blocks: never call it on a Zenoh callback
+    /// (the messages it waits for may come on that thread).
+    pub fn finish(mut self) -> V2xReport {
+        if self.trigger.is_some()
+            && let Err(e) = self.put(V2xBody::End { cams: self.seq })
+        {
+            tracing::warn!("V2X {}: could not announce the end: {e}", self.inbox.id);
+        }
+        let deadline = Instant::now() + FINISH_WAIT;
+        let mut state = lock(&self.inbox.state);
+        while !state.settled() {
+            let now = Instant::now();
+            if now >= deadline {
+                break;
+            }
+            state = self.inbox.taken.wait_timeout(state, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
+        }
+        state.closed = true;
+        drop(state);
+        self.inbox.wake.notify_one();
+        if let Some(thread) = self.deliverer.take() {
+            // The thread only counts; had it panicked, the counts it left are still reported.
+            let _ = thread.join();
+        }
+        let state = lock(&self.inbox.state);
+        let id = &self.inbox.id;
+        let silent: Vec<&str> =
+            state.peers.iter().filter(|(_, p)| p.ended.is_none()).map(|(s, _)| s.as_str()).collect();
+        if !silent.is_empty() {
+            tracing::warn!("V2X {id}: no end announced by {} within {FINISH_WAIT:?}", silent.join(", "));
+        }
+        let ms = |q| state.excess_us.quantile(q).map(|us| us / 1e3);
+        let report = V2xReport {
+            summary: state.tally.summary(),
+            late: state.late,
+            excess_p50_ms: ms(0.5),
+            excess_p99_ms: ms(0.99),
+            undecided: state.undecided(),
+            stale: state.stale,
+            ahead: state.ahead,
+            malformed: state.malformed,
+            foreign: state.foreign,
+        };
+        let dropped = [
+            ("undecided", report.undecided),
+            ("stale", report.stale),
+            ("ahead of its steps", report.ahead),
+            ("malformed", report.malformed),
+            ("of another scene", report.foreign),
+        ];
+        for (what, n) in dropped.into_iter().filter(|(_, n)| *n > 0) {
+            tracing::warn!("V2X {id}: {n} CAMs {what}");
+        }
+        report
+    }
+}
+
+impl Drop for V2xLayer {
+    fn drop(&mut self) {
+        lock(&self.inbox.state).closed = true;
+        self.inbox.wake.notify_one();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use risktwin_common::v2x::channel::{LinkBudget, PathLoss};
+    use risktwin_common::v2x::latency::Latency;
+    use risktwin_common::v2x::link::V2xChannel;
+
+    const SCENE: u64 = 9;
+
+    /// Receiver `rsu0` of a scene whose vehicles `v0` and `v1` send.
+    fn inbox() -> Inbox {
+        let channel = V2xChannel {
+            model: PathLoss::HighwayLos,
+            budget: LinkBudget::default(),
+            latency: Latency::SIDELINK,
+            bursts: None,
+        };
+        let peers = ["v0", "v1"].map(|p| (p.to_owned(), Peer::default())).into_iter().collect();
+        Inbox {
+            id: "rsu0".into(),
+            scene: SCENE,
+            channel: MessageChannel { channel, seed: 1 },
+            state: Mutex::new(Receiving { peers, ..Receiving::default() }),
+            wake: Condvar::new(),
+            taken: Condvar::new(),
+        }
+    }
+
+    fn message(sender: &str, body: V2xBody) -> Vec<u8> {
+        let message = WireV2x { schema: V2X_SCHEMA, scene: SCENE, sender: sender.into(), body };
+        postcard::to_allocvec(&message).expect("encodes")
+    }
+
+    /// CAM `seq` of step `step`, made 10 m from the receiver's position, sent now.
+    fn cam(seq: u64, step: u64) -> V2xBody {
+        V2xBody::Cam(WireCam { seq, step, made_s: 0.0, sent_unix_ns: unix_ns(), state: [10.0, 0.0, 0.0, 0.0] })
+    }
+
+    fn key(sender: &str) -> String {
+        format!("risktwin/v1/site/scene/v2x/{sender}")
+    }
+
+    #[test]
+    fn every_cam_is_decided_counted_or_waits_and_none_is_dropped_silently() {
+        let inbox = inbox();
+        inbox.on_step(0, Some((0.0, 0.0)));
+        inbox.on_sample(&key("v0"), &message("v0", cam(0, 0)));
+        inbox.on_sample(&key("v0"), &message("v0", cam(0, 0)));
+        inbox.on_sample(&key("v1"), &message("v0", cam(1, 0)));
+        inbox.on_sample(&key("v9"), &message("v9", cam(0, 0)));
+        inbox.on_sample(&key("rsu1"), &message("rsu1", cam(0, 0)));
+        inbox.on_sample(&key("v1"), &[0xFF, 0x13]);
+        let mut nan = cam(5, 0);
+        if let V2xBody::Cam(c) = &mut nan {
+            c.state[0] = f64::NAN;
+        }
+        inbox.on_sample(&key("v1"), &message("v1", nan));
+        let other_scene = WireV2x { schema: V2X_SCHEMA, scene: SCENE + 1, sender: "v1".into(), body: cam(0, 0) };
+        inbox.on_sample(&key("v1"), &postcard::to_allocvec(&other_scene).expect("encodes"));
+        {
+            let state = lock(&inbox.state);
+            assert_eq!(state.tally.copies, 1, "the first CAM only");
+            let why = "a repeat, a sender on another's key, a stranger, an RSU, garbage, NaN";
+            assert_eq!((state.malformed, state.foreign), (6, 1), "{why}");
+        }
+        // Not in the world at step 1: no copy, as in virtual time. Ahead of the own steps: waits,
+        // or beyond the bound, dropped and counted.
+        inbox.on_step(1, None);
+        inbox.on_sample(&key("v0"), &message("v0", cam(1, 1)));
+        inbox.on_sample(&key("v0"), &message("v0", cam(2, 3)));
+        inbox.on_sample(&key("v0"), &message("v0", cam(3, 1 + AHEAD_STEPS + 1)));
+        {
+            let state = lock(&inbox.state);
+            assert_eq!((state.tally.copies, state.waiting.len(), state.ahead), (1, 1, 1));
+            assert!(!state.settled(), "a CAM waits, and no sender announced its end");
+            assert_eq!(state.undecided(), 1, "the waiting CAM; the sequence numbers are all there");
+        }
+        inbox.on_step(3, Some((0.0, 0.0)));
+        // v1's CAMs 0 to 2 were never taken (its NaN one was refused): its end announces 4.
+        inbox.on_sample(&key("v0"), &message("v0", V2xBody::End { cams: 4 }));
+        inbox.on_sample(&key("v1"), &message("v1", V2xBody::End { cams: 4 }));
+        let state = lock(&inbox.state);
+        assert_eq!((state.tally.copies, state.waiting.len()), (2, 0), "the waiting CAM decided at its step");
+        assert!(!state.settled());
+        assert_eq!(state.undecided(), 4, "v1's four: announced, none taken");
+    }
+
+    #[test]
+    fn a_cam_of_a_step_no_longer_held_is_stale_and_hostile_times_neither_panic_nor_hold_for_ever() {
+        let inbox = inbox();
+        for step in 0..=OWN_HISTORY_STEPS + 10 {
+            inbox.on_step(step, Some((0.0, 0.0)));
+        }
+        inbox.on_sample(&key("v0"), &message("v0", cam(0, 3)));
+        assert_eq!(lock(&inbox.state).stale, 1);
+        for (seq, sent_unix_ns) in [(1, i64::MAX), (2, i64::MIN), (3, unix_ns() - 1_000_000_000)] {
+            let body = V2xBody::Cam(WireCam { seq, step: 20, made_s: 0.0, sent_unix_ns, state: [1.0, 0.0, 0.0, 0.0] });
+            inbox.on_sample(&key("v0"), &message("v0", body));
+        }
+        let state = lock(&inbox.state);
+        assert_eq!((state.tally.copies, state.tally.passed), (3, 3), "1 m on a highway");
+        assert_eq!(state.late, 2, "sent long ago: their latency has passed");
+        let latest = state.held.iter().map(|Reverse(h)| h.due).max().expect("held");
+        assert!(latest <= Instant::now() + MAX_HOLD, "a sent time in the far future is held at most {MAX_HOLD:?}");
+    }
+
+    #[test]
+    fn a_v2x_message_round_trips_through_postcard() {
+        let cam = WireCam {
+            seq: 4,
+            step: 17,
+            made_s: 0.85,
+            sent_unix_ns: 1_700_000_000_123_456_789,
+            state: [1.5, -0.0, 3.0, 29.9],
+        };
+        for body in [V2xBody::Cam(cam), V2xBody::End { cams: 12 }] {
+            let message = WireV2x { schema: V2X_SCHEMA, scene: 9, sender: "v1".into(), body };
+            let bytes = postcard::to_allocvec(&message).expect("encodes");
+            let back: WireV2x = postcard::from_bytes(&bytes).expect("decodes");
+            assert_eq!(back, message);
+            if let V2xBody::Cam(cam) = back.body {
+                assert_eq!(cam.state[1].to_bits(), (-0.0f64).to_bits());
+            }
+        }
+    }
+}

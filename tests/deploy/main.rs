@@ -13,6 +13,8 @@ use std::process::{Command, Output, Stdio};
 use std::sync::{Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
+mod v2x;
+
 const BIN: &str = env!("CARGO_BIN_EXE_risktwin");
 
 /// Runs `risktwin args…` to its end, killed after `limit`.

@@ -20,3 +20,4 @@ mod scene;
 mod scene_v2x;
 mod shm_gateway;
 mod support;
+mod v2x_agreement;

@@ -35,7 +35,7 @@ fn count(v2x: &Value, key: &str) -> u64 {
     v2x[key].as_u64().unwrap_or_else(|| panic!("{key} in {v2x}"))
 }
 
-/// Copies and passed equal per participant, pooled PDR within 2 points, each participant's
+/// Copies and passed equal per participant, the warning counts equal, pooled PDR within 2 points, each participant's
 /// latency p50 within 2 ms and its excess p50 within 2 ms, late copies at most 2 % of the passed
 /// ones, nothing undecided, stale, ahead, malformed or foreign; figures printed under `what`.
 pub fn assert_agrees(what: &str, real_time: &PerParticipant, virtual_time: &PerParticipant) {
@@ -55,6 +55,10 @@ pub fn assert_agrees(what: &str, real_time: &PerParticipant, virtual_time: &PerP
         assert_eq!(count(real, "cams_sent"), count(virt, "cams_sent"), "{id}: CAMs sent");
         assert_eq!(count(real, "copies"), count(virt, "copies"), "{id}: copies decided: {real}");
         assert_eq!(count(real, "passed"), count(virt, "passed"), "{id}: copies passed: {real}");
+        // Warnings: equal decisions (the agreement's scene has none yet, so both count 0).
+        for key in ["warnings_made", "warning_copies", "warnings_passed", "warnings_heard", "warned_steps"] {
+            assert_eq!(count(real, key), count(virt, key), "{id}: {key}: {real}");
+        }
         for dropped in ["undecided", "stale", "ahead", "malformed", "foreign"] {
             assert_eq!(count(real, dropped), 0, "{id}: {dropped}: {real}");
         }

@@ -11,15 +11,34 @@ use super::channel::LinkBudget;
 use super::latency::Latency;
 use super::link::V2xChannel;
 use super::loss::BurstState;
+use super::warning::{Heard, RepeatClock, Warning, is_hazard};
 use crate::digest::fnv1a64;
 use crate::histogram::Histogram;
 use crate::rng::Rng;
+use crate::sensor::PerceivedObject;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
 /// Stream tags: a broadcast's latency and a copy's fate never share random numbers.
 const LATENCY_TAG: u8 = 1;
 const COPY_TAG: u8 = 2;
+/// A warning's latency and a copy's fate: an RSU's warnings are numbered apart from CAMs.
+const WARNING_LATENCY_TAG: u8 = 3;
+const WARNING_COPY_TAG: u8 = 4;
+
+/// How often a scene's RSU repeats its warnings while a hazard lasts, Hz (the sweep's default).
+pub const SCENE_WARNING_HZ: f64 = 10.0;
+
+/// Whether a warning copy made at `made_s` with `latency_ms` is heard in the step at `now_s`:
+/// from the first step at or after its arrival, in virtual and in real time alike.
+pub fn warning_due(made_s: f64, latency_ms: f64, now_s: f64) -> bool {
+    made_s + latency_ms / 1e3 <= now_s + 1e-9
+}
+
+/// The hazards an RSU warns of among what it perceives ([`super::warning`]'s rule), in order.
+pub fn hazards(seen: &[PerceivedObject]) -> impl Iterator<Item = &PerceivedObject> {
+    seen.iter().filter(|o| is_hazard(o))
+}
 
 /// The channel of a scene's V2X paths and the seed its decisions derive from.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -104,6 +123,25 @@ impl MessageChannel {
         let mut rng = Rng::derive(self.seed, stream(COPY_TAG, sender, receiver, seq));
         self.channel.receives(distance_m, burst, &mut rng)
     }
+
+    /// When warning `seq` of RSU `sender` goes out, ms after it is made.
+    pub fn warning_latency_ms(&self, sender: &str, seq: u64) -> f64 {
+        self.channel.latency_ms(&mut Rng::derive(self.seed, stream(WARNING_LATENCY_TAG, sender, "", seq)))
+    }
+
+    /// Whether `receiver`'s copy of warning `seq` of RSU `sender` arrives over `distance_m`;
+    /// `burst` is the pair's warning chain, stepped in the sender's warning order.
+    pub fn warning_passes(
+        &self,
+        sender: &str,
+        receiver: &str,
+        seq: u64,
+        distance_m: f64,
+        burst: &mut BurstState,
+    ) -> bool {
+        let mut rng = Rng::derive(self.seed, stream(WARNING_COPY_TAG, sender, receiver, seq));
+        self.channel.receives(distance_m, burst, &mut rng)
+    }
 }
 
 /// One participant's V2X counts.
@@ -119,6 +157,15 @@ pub struct V2xTally {
     pub delivered: u64,
     /// Latency of the delivered copies, µs: real time measures arrival wall − sent wall.
     pub latency_us: Histogram,
+    /// Warnings this participant (an RSU) made: one per hazard per repetition.
+    pub warnings_made: u64,
+    /// Copies of RSUs' warnings it decided, passed, and heard (handed to its driver's view
+    /// from the first step at or after made + latency).
+    pub warning_copies: u64,
+    pub warnings_passed: u64,
+    pub warnings_heard: u64,
+    /// Steps whose driver view held a warned object it did not perceive itself.
+    pub warned_steps: u64,
 }
 
 /// What [`V2xTally`] reports.
@@ -133,6 +180,11 @@ pub struct V2xSummary {
     pub pdr: Option<f64>,
     pub latency_p50_ms: Option<f64>,
     pub latency_p95_ms: Option<f64>,
+    pub warnings_made: u64,
+    pub warning_copies: u64,
+    pub warnings_passed: u64,
+    pub warnings_heard: u64,
+    pub warned_steps: u64,
 }
 
 impl V2xTally {
@@ -147,6 +199,11 @@ impl V2xTally {
             pdr: (self.copies > 0).then(|| self.passed as f64 / self.copies as f64),
             latency_p50_ms: ms(0.5),
             latency_p95_ms: ms(0.95),
+            warnings_made: self.warnings_made,
+            warning_copies: self.warning_copies,
+            warnings_passed: self.warnings_passed,
+            warnings_heard: self.warnings_heard,
+            warned_steps: self.warned_steps,
         }
     }
 }
@@ -162,12 +219,20 @@ struct Member {
     in_flight: Vec<(f64, u64)>,
     /// Burst chains of the pairs with this member as receiver, by sender.
     bursts: BTreeMap<usize, BurstState>,
+    /// An RSU's warning repetitions and count (warnings only with [`VirtualScene::warning`]).
+    repeat: Option<RepeatClock>,
+    warning_seq: u64,
+    /// Warning copies on their way to this member (a vehicle): (made, latency ms, warning).
+    warnings_in_flight: Vec<(f64, f64, Warning)>,
+    warning_bursts: BTreeMap<usize, BurstState>,
+    heard: Heard,
 }
 
 /// The V2X layers of every participant of a scene, in virtual time in one process.
 pub struct VirtualScene {
     channel: MessageChannel,
     members: Vec<Member>,
+    warnings: bool,
 }
 
 impl VirtualScene {
@@ -182,9 +247,80 @@ impl VirtualScene {
                 tally: V2xTally::default(),
                 in_flight: Vec::new(),
                 bursts: BTreeMap::new(),
+                repeat: (!sends).then(|| RepeatClock::new(SCENE_WARNING_HZ)),
+                warning_seq: 0,
+                warnings_in_flight: Vec::new(),
+                warning_bursts: BTreeMap::new(),
+                heard: Heard::default(),
             })
             .collect();
-        VirtualScene { channel, members }
+        VirtualScene { channel, members, warnings: false }
+    }
+
+    /// With `on`, the RSUs warn the vehicles of the hazards they perceive ([`Self::warn`]).
+    pub fn warning(mut self, on: bool) -> VirtualScene {
+        self.warnings = on;
+        self
+    }
+
+    /// Warning copies due by `now_s` are heard; what member `member` heard and does not
+    /// perceive itself (`perceived`), moved on to `now_s`: its driver's warned objects. Call
+    /// once per member and step, before it acts.
+    pub fn warned(&mut self, member: usize, now_s: f64, perceived: &[PerceivedObject]) -> &[PerceivedObject] {
+        let m = &mut self.members[member];
+        let (heard, tally) = (&mut m.heard, &mut m.tally);
+        m.warnings_in_flight.retain(|&(made_s, latency_ms, w)| {
+            let due = warning_due(made_s, latency_ms, now_s);
+            if due {
+                tally.warnings_heard += 1;
+                heard.hear(now_s, w);
+            }
+            !due
+        });
+        heard.forget(now_s);
+        let warned = heard.warned(now_s, perceived);
+        tally.warned_steps += u64::from(!warned.is_empty());
+        warned
+    }
+
+    /// The RSUs warn at `now_s` of the hazards each perceived in this step (`seen`, per member;
+    /// empty for vehicles), if a repetition is due: each warning goes to every vehicle in the
+    /// world now, decided per copy from the distance between the RSU's and the vehicle's
+    /// states. Nothing without [`Self::warning`].
+    pub fn warn(&mut self, now_s: f64, states: &[Option<CamState>], seen: &[&[PerceivedObject]]) {
+        assert_eq!(states.len(), self.members.len(), "VirtualScene::warn: one state per member");
+        assert_eq!(seen.len(), self.members.len(), "VirtualScene::warn: one perception per member");
+        if !self.warnings {
+            return;
+        }
+        for sender in 0..self.members.len() {
+            let member = &mut self.members[sender];
+            let Some(repeat) = &mut member.repeat else { continue };
+            if states[sender].is_none() || !repeat.due(now_s) {
+                continue;
+            }
+            let sender_id = member.id.clone();
+            for object in hazards(seen[sender]) {
+                let member = &mut self.members[sender];
+                let seq = member.warning_seq;
+                member.warning_seq += 1;
+                member.tally.warnings_made += 1;
+                let latency_ms = self.channel.warning_latency_ms(&sender_id, seq);
+                let warning = Warning { made_s: now_s, object: *object };
+                for (receiver, distance_m) in receivers(states, sender) {
+                    let member = &mut self.members[receiver];
+                    if member.trigger.is_none() {
+                        continue;
+                    }
+                    let burst = member.warning_bursts.entry(sender).or_default();
+                    member.tally.warning_copies += 1;
+                    if self.channel.warning_passes(&sender_id, &member.id, seq, distance_m, burst) {
+                        member.tally.warnings_passed += 1;
+                        member.warnings_in_flight.push((now_s, latency_ms, warning));
+                    }
+                }
+            }
+        }
     }
 
     /// One step at `now_s`: each member's state in member order, `None` for one not in the

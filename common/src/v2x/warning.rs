@@ -82,8 +82,9 @@ pub struct WarningCounts {
 }
 
 /// Whether the RSU warns of `o`: a pedestrian (on the road whenever it is in the scene), or a
-/// vehicle standing, whether parked or stopped in a lane. Not the ego.
-fn is_hazard(o: &PerceivedObject) -> bool {
+/// vehicle standing, whether parked or stopped in a lane. Not the ego. One rule for the sweep's
+/// RSU and a scene's RSU participants.
+pub fn is_hazard(o: &PerceivedObject) -> bool {
     o.id != EGO_OBJECT_ID && (o.kind == ObjectKind::Pedestrian || o.velocity.norm() < STANDING_SPEED_MPS)
 }
 
@@ -118,6 +119,81 @@ fn rsu_mast(world: &World, offset_m: f64) -> (Pose, Sensor) {
     (pose, Sensor::new(params).expect("an all-round sensor without dropout is valid"))
 }
 
+/// When an RSU repeats its warnings: at `repeat_hz`, the phase accumulating, so a rate whose
+/// period is not a whole number of steps keeps its mean (a step sends at most one warning per
+/// hazard).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RepeatClock {
+    repeat_hz: f64,
+    next_due_s: f64,
+}
+
+impl RepeatClock {
+    pub fn new(repeat_hz: f64) -> RepeatClock {
+        RepeatClock { repeat_hz, next_due_s: 0.0 }
+    }
+
+    /// Whether a repetition is due at `now_s` (then the next one is scheduled).
+    pub fn due(&mut self, now_s: f64) -> bool {
+        if now_s + 1e-9 < self.next_due_s {
+            return false;
+        }
+        while now_s + 1e-9 >= self.next_due_s {
+            self.next_due_s += 1.0 / self.repeat_hz;
+        }
+        true
+    }
+}
+
+/// What a receiver has heard: the newest warning per object, kept [`HEARD_MEMORY_S`] after it
+/// was last heard, and fused into what the receiver perceives itself.
+#[derive(Debug, Default, Clone)]
+pub struct Heard {
+    /// The newest warning heard per object, and when it was heard.
+    heard: Vec<(f64, Warning)>,
+    /// What the receiver heard of and does not see itself, moved on to now.
+    warned: Vec<PerceivedObject>,
+}
+
+impl Heard {
+    /// `w` is heard at `now_s`: it replaces an older warning of the same object.
+    pub fn hear(&mut self, now_s: f64, w: Warning) {
+        match self.heard.iter_mut().find(|(_, h)| h.object.id == w.object.id) {
+            Some(h) if h.1.made_s < w.made_s => *h = (now_s, w),
+            Some(_) => {}
+            None => self.heard.push((now_s, w)),
+        }
+    }
+
+    /// Forgets what was last heard more than [`HEARD_MEMORY_S`] before `now_s`.
+    pub fn forget(&mut self, now_s: f64) {
+        self.heard.retain(|(heard_s, _)| now_s - heard_s <= HEARD_MEMORY_S);
+    }
+
+    /// The heard objects `perceived` lacks, each moved on from when it was seen to `time_s` at
+    /// the velocity it was seen with: a [`DriverView::warned`].
+    pub fn warned(&mut self, time_s: f64, perceived: &[PerceivedObject]) -> &[PerceivedObject] {
+        self.warned.clear();
+        for (_, h) in &self.heard {
+            if perceived.iter().all(|o| o.id != h.object.id) {
+                let mut o = h.object;
+                o.obb.centre += o.velocity * (time_s - h.made_s);
+                self.warned.push(o);
+            }
+        }
+        &self.warned
+    }
+
+    /// How many objects are heard of now.
+    pub fn len(&self) -> usize {
+        self.heard.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.heard.is_empty()
+    }
+}
+
 /// The RSU, the channel to the ego, and what the ego has heard.
 pub struct Warnings {
     setup: WarningSetup,
@@ -126,15 +202,12 @@ pub struct Warnings {
     sensor_rng: Rng,
     channel_rng: Rng,
     burst: BurstState,
-    next_due_s: f64,
+    repeat: RepeatClock,
     seen: Vec<PerceivedObject>,
     scratch: Vec<SceneObject>,
     /// Copies on their way: (arrives, warning).
     in_flight: Vec<(f64, Warning)>,
-    /// The newest warning heard per object, and when it was heard.
-    heard: Vec<(f64, Warning)>,
-    /// What the ego heard of and does not see itself, moved on to now.
-    warned: Vec<PerceivedObject>,
+    heard: Heard,
     counts: WarningCounts,
 }
 
@@ -149,12 +222,11 @@ impl Warnings {
             sensor_rng: Rng::derive(seed, RSU_SENSOR_STREAM),
             channel_rng: Rng::derive(seed, CHANNEL_STREAM),
             burst: BurstState::default(),
-            next_due_s: 0.0,
+            repeat: RepeatClock::new(setup.repeat_hz),
             seen: Vec::new(),
             scratch: Vec::new(),
             in_flight: Vec::new(),
-            heard: Vec::new(),
-            warned: Vec::new(),
+            heard: Heard::default(),
             counts: WarningCounts::default(),
         }
     }
@@ -173,12 +245,7 @@ impl Warnings {
     /// what it heard. Consumes the world's randomness exactly as [`World::step`] does.
     pub fn step(&mut self, world: &mut World, policy: &mut dyn Policy) -> crate::world::StepReport {
         let now_s = world.time_s;
-        // The phase accumulates, so a rate whose period is not a whole number of steps keeps
-        // its mean (a step sends at most one warning per hazard).
-        if now_s + 1e-9 >= self.next_due_s {
-            while now_s + 1e-9 >= self.next_due_s {
-                self.next_due_s += 1.0 / self.setup.repeat_hz;
-            }
+        if self.repeat.due(now_s) {
             self.broadcast(world, now_s);
         }
         self.deliver(now_s);
@@ -209,26 +276,15 @@ impl Warnings {
             }
             counts.arrived += 1;
             counts.first_heard_s.get_or_insert(now_s);
-            match heard.iter_mut().find(|(_, h)| h.object.id == w.object.id) {
-                Some(h) if h.1.made_s < w.made_s => *h = (now_s, w),
-                Some(_) => {}
-                None => heard.push((now_s, w)),
-            }
+            heard.hear(now_s, w);
             false
         });
-        heard.retain(|(heard_s, _)| now_s - heard_s <= HEARD_MEMORY_S);
+        heard.forget(now_s);
     }
 
     fn act(&mut self, view: &DriverView, policy: &mut dyn Policy) -> Controls {
-        self.warned.clear();
-        for (_, h) in &self.heard {
-            if view.perceived.iter().all(|o| o.id != h.object.id) {
-                let mut o = h.object;
-                o.obb.centre += o.velocity * (view.time_s - h.made_s);
-                self.warned.push(o);
-            }
-        }
-        policy.act(&DriverView { warned: &self.warned, ..*view })
+        let warned = self.heard.warned(view.time_s, view.perceived);
+        policy.act(&DriverView { warned, ..*view })
     }
 }
 

@@ -76,6 +76,11 @@ pub struct SceneArgs {
     /// bursts of 5 on average); none by default.
     #[arg(long, value_name = "SHARE:MEAN")]
     pub v2x_bursts: Option<String>,
+    /// With --v2x-model: each RSU warns the vehicles of the hazards it perceives (DENM-like,
+    /// 10 Hz while a hazard lasts), and the ego's driver reacts to what it hears. So far only
+    /// with --embedded (virtual time).
+    #[arg(long)]
+    pub v2x_warnings: bool,
 }
 
 #[derive(Debug, Args)]

@@ -78,7 +78,10 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
     // The V2X channel is part of the scene (its digest): every role gets it, and a participant
     // started with other V2X flags is refused at the join, as one of another seed.
     let v2x = v2x_of(args, &setup)?;
-    Ok(setup.with_v2x(v2x))
+    if args.v2x_warnings && v2x.is_none() {
+        return Err(CliError::input("--v2x-warnings needs --v2x-model"));
+    }
+    Ok(setup.with_v2x(v2x).with_warnings(args.v2x_warnings))
 }
 
 /// The V2X channel the arguments ask for, seeded by the scene (`None`: no V2X).
@@ -355,6 +358,9 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         log_pace(&outcome, started.elapsed());
         return print_json(&SceneReport { outcome, deadlines: None, v2x: plane.v2x_summaries() });
     }
+    if setup.warnings() {
+        return Err(CliError::input("--v2x-warnings runs only --embedded so far (not over a router)"));
+    }
     let site = site_of(&args.scene)?;
     // Checked before anything starts: a bad endpoint or file is the user's input.
     let data = data_transport(&args.scene)?;
@@ -427,6 +433,9 @@ fn scene_argv(args: &SceneArgs) -> Vec<String> {
         if let Some(value) = value {
             argv.extend([flag.to_owned(), value.clone()]);
         }
+    }
+    if args.v2x_warnings {
+        argv.push("--v2x-warnings".to_owned());
     }
     argv
 }

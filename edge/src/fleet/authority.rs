@@ -42,7 +42,7 @@ impl Embedded {
         let stacks: Vec<Onboard> = ids.iter().map(|id| Onboard::new(setup, id)).collect::<Result<_, _>>()?;
         let v2x = setup.v2x().map(|&channel| {
             let members: Vec<(String, bool)> = ids.into_iter().zip(&stacks).map(|(id, s)| (id, !is_rsu(s))).collect();
-            (VirtualScene::new(channel, &members), Vec::new())
+            (VirtualScene::new(channel, &members).warning(setup.warnings()), Vec::new())
         });
         Ok(Embedded { stacks, v2x })
     }
@@ -60,14 +60,22 @@ fn is_rsu(stack: &Onboard) -> bool {
 impl Plane for Embedded {
     fn exchange(&mut self, truth: &Truth) -> Result<Controls, SceneError> {
         let mut ego = None;
-        for stack in &mut self.stacks {
-            if let Some(controls) = stack.respond(truth) {
+        for (member, stack) in self.stacks.iter_mut().enumerate() {
+            let Some(pose) = stack.perceive(truth) else { continue };
+            // The warnings heard by this step (made + latency ≤ now) reach the driver's view.
+            let warned = match &mut self.v2x {
+                Some((scene, _)) => scene.warned(member, truth.time_s, stack.perceived()),
+                None => &[],
+            };
+            if let Some(controls) = stack.act(truth, pose, warned) {
                 ego = Some(controls);
             }
         }
         if let Some((scene, states)) = &mut self.v2x {
             states.clear();
             states.extend(self.stacks.iter().map(|stack| cam_state(truth, stack)));
+            let seen: Vec<&[_]> = self.stacks.iter().map(Onboard::perceived).collect();
+            scene.warn(truth.time_s, states, &seen);
             scene.step(truth.time_s, states);
         }
         ego.ok_or_else(|| SceneError::Failed { reason: "the ego's stack gave no controls".into() })

@@ -113,6 +113,8 @@ pub struct SceneSetup {
     without: Vec<u32>,
     /// V2X between the participants over this channel ([`v2x`]); `None`: no V2X.
     v2x: Option<MessageChannel>,
+    /// With V2X: the RSUs warn the vehicles of the hazards they perceive (DENM-like).
+    warnings: bool,
 }
 
 impl SceneSetup {
@@ -154,7 +156,7 @@ impl SceneSetup {
             return Err(SceneError::TooManyConnected { asked: connected, needed, available, what, which });
         }
         let agents = candidates[..needed as usize].to_vec();
-        Ok(SceneSetup { source, connected, rsus, agents, without: Vec::new(), v2x: None })
+        Ok(SceneSetup { source, connected, rsus, agents, without: Vec::new(), v2x: None, warnings: false })
     }
 
     /// The same scene with connected traffic vehicles `ids` (`v1`, …) taken out of the world: a
@@ -185,6 +187,18 @@ impl SceneSetup {
     /// The scene's V2X channel, if it has V2X.
     pub fn v2x(&self) -> Option<&MessageChannel> {
         self.v2x.as_ref()
+    }
+
+    /// The same scene with its RSUs warning the vehicles over the V2X channel (with `on`, and
+    /// V2X): part of the scene's identity, as the channel is.
+    pub fn with_warnings(mut self, on: bool) -> Self {
+        self.warnings = on;
+        self
+    }
+
+    /// Whether the scene's RSUs warn its vehicles over V2X.
+    pub fn warnings(&self) -> bool {
+        self.warnings && self.v2x.is_some()
     }
 
     /// The generated scenario whose episode the ego reports to the cloud when the scene ends:
@@ -231,7 +245,10 @@ impl SceneSetup {
         // After the scenario's bytes: a spec's JSON ends with `}`, a recording's ids are fixed
         // length, so the tag cannot be read as part of either.
         let v2x = self.v2x.iter().flat_map(|c| b"\0v2x\0".iter().copied().chain(c.digest().to_le_bytes()));
-        fnv1a64(head.iter().flatten().copied().chain(without).chain(scenario).chain(v2x))
+        let warnings = if self.warnings() { &b"\0warn"[..] } else { &[][..] };
+        fnv1a64(
+            head.iter().flatten().copied().chain(without).chain(scenario).chain(v2x).chain(warnings.iter().copied()),
+        )
     }
 
     /// The physics step, s: the world's own, as in the library and `risktwin run`.

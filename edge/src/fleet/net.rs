@@ -562,6 +562,9 @@ pub fn run_participant(
         unsent: BTreeMap::new(),
         v2x: None,
     };
+    if setup.warnings() {
+        return Err(SceneError::Failed { reason: "V2X warnings are not carried over a router yet".into() });
+    }
     let v2x = setup.v2x().map(|&channel| V2xLayer::open(physics, site, setup, &participant, channel)).transpose()?;
     let last = Arc::new(Mutex::new(None));
     let answering = Answering {

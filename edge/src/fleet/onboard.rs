@@ -122,6 +122,13 @@ impl Onboard {
 
     /// Perceives `truth`; the ego's driver then acts (`None` from participants that do not drive).
     pub fn respond(&mut self, truth: &Truth) -> Option<Controls> {
+        let pose = self.perceive(truth)?;
+        self.act(truth, pose, &[])
+    }
+
+    /// Perceives `truth`: where the participant is (`None`: a vehicle that left the world, which
+    /// perceives nothing).
+    pub fn perceive(&mut self, truth: &Truth) -> Option<Pose> {
         self.objects.clear();
         let pose = match self.role {
             Role::Ego => {
@@ -147,6 +154,12 @@ impl Onboard {
             }
         };
         self.sensor.perceive(pose, &self.objects, &mut self.rng, &mut self.perceived);
+        Some(pose)
+    }
+
+    /// The ego's driver acts at `pose` (from [`Self::perceive`]) on what it perceived and the
+    /// objects it was `warned` of over V2X; `None` from participants that do not drive.
+    pub fn act(&mut self, truth: &Truth, pose: Pose, warned: &[PerceivedObject]) -> Option<Controls> {
         let driver = self.driver.as_mut()?;
         let view = DriverView {
             road: &self.road,
@@ -156,7 +169,7 @@ impl Onboard {
             ego_accel_mps2: truth.ego.accel_mps2,
             ego_footprint: self.ego_footprint,
             perceived: &self.perceived,
-            warned: &[],
+            warned,
         };
         Some(driver.act(&view))
     }

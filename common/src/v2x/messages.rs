@@ -4,6 +4,12 @@
 //! real time, each in its own process (`risktwin_edge::fleet::v2x`); [`VirtualScene`] decides
 //! the same CAM stream in virtual time in one process. Both agree message for message; only the
 //! transport's own time differs.
+//!
+//! An RSU's warnings (DENM-like, [`super::warning`]'s hazard rule) are decided the same way
+//! under their own stream tags, from (seed, RSU, warning sequence) and (seed, RSU, vehicle,
+//! warning sequence); a copy is heard from the first step at or after made + latency
+//! ([`warning_due`]). So far only [`VirtualScene`] makes them (`scene run --embedded
+//! --v2x-warnings`).
 
 use super::awareness::receivers;
 use super::cam::{CamState, CamTrigger};
@@ -457,5 +463,44 @@ mod tests {
         assert!(s["rsu0"].pdr.expect("copies") > s["v0"].pdr.expect("copies"), "20 m against 300 m: {s:?}");
         let p50 = s["rsu0"].latency_p50_ms.expect("delivered");
         assert!((4.0..=100.0).contains(&p50), "{p50}");
+    }
+
+    #[test]
+    fn a_virtual_scene_warns_vehicles_of_hazards_from_the_first_step_after_the_latency() {
+        use crate::geometry::{Footprint, Obb, Pose, Vec2};
+        use crate::sensor::ObjectKind;
+        let members = [("v0".to_owned(), true), ("rsu0".to_owned(), false)];
+        let pedestrian = PerceivedObject {
+            id: 7,
+            kind: ObjectKind::Pedestrian,
+            obb: Obb::new(Pose::new(30.0, 0.0, 0.0), Footprint::new(0.5, 0.5)),
+            velocity: Vec2::new(0.0, 1.0),
+            visible_fraction: 1.0,
+        };
+        let at = |t: f64, x_m: f64| Some(CamState { time_s: t, x_m, y_m: 0.0, heading_rad: 0.0, speed_mps: 0.0 });
+        let channel = urban(3);
+        let mut off = VirtualScene::new(channel, &members);
+        off.warn(0.0, &[at(0.0, 0.0), at(0.0, 20.0)], &[&[], &[pedestrian]]);
+        assert_eq!(off.summaries()["rsu0"].warnings_made, 0, "no warnings unless asked");
+        let mut scene = VirtualScene::new(channel, &members).warning(true);
+        let latency_ms = channel.warning_latency_ms("rsu0", 0);
+        let mut first_heard = None;
+        for k in 0..40 {
+            let t = f64::from(k) * 0.05;
+            if !scene.warned(0, t, &[]).is_empty() {
+                first_heard.get_or_insert(t);
+            }
+            // The RSU sees the pedestrian in the first step only.
+            let seen: &[PerceivedObject] = if k == 0 { &[pedestrian] } else { &[] };
+            scene.warn(t, &[at(t, 0.0), at(t, 20.0)], &[&[], seen]);
+        }
+        let s = scene.summaries();
+        assert_eq!((s["rsu0"].warnings_made, s["v0"].warning_copies, s["v0"].warnings_passed), (1, 1, 1));
+        assert_eq!(s["v0"].warnings_heard, 1);
+        let first = first_heard.expect("heard");
+        assert!(warning_due(0.0, latency_ms, first) && !warning_due(0.0, latency_ms, first - 0.05), "{first}");
+        // Kept 1 s after it was heard, then forgotten.
+        let steps = s["v0"].warned_steps;
+        assert!((20..=21).contains(&steps), "{steps}");
     }
 }

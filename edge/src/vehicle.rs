@@ -186,7 +186,7 @@ impl Producer for Vehicle {
                     self.policy = Some(policy);
                 }
             }
-            CloudToEdge::Control => {}
+            CloudToEdge::Control | CloudToEdge::Warning => {}
         }
     }
 

@@ -46,6 +46,21 @@ impl IngestStats {
     }
 }
 
+/// A message the worker accepted: who sent it, when (its clock and the cloud's), and a
+/// state's kinematics (what the warning path needs, without decoding twice).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AcceptedMessage {
+    /// The source's index ([`IngestWorker::source_name`] names it).
+    pub source: SourceIndex,
+    pub seq: u64,
+    /// The capture time as the source stamped it (its own clock), ns.
+    pub capture_ns: i64,
+    /// The capture time on the cloud's clock (the source's clock estimate), ns.
+    pub cloud_ns: i64,
+    /// The kinematics, for a `state` message.
+    pub state: Option<ObservedKinematics>,
+}
+
 /// Decode, validate, align and record edge messages.
 pub struct IngestWorker<W: Write + Seek> {
     core: IngestCore<TwinSample>,
@@ -71,7 +86,7 @@ impl<W: Write + Seek> IngestWorker<W> {
 
     /// Handles one message from `source` on `stream`, received at `receive_ns` (cloud clock).
     /// `topic` names it in the recording. Snapshots that become due are passed to `on_snapshot`.
-    /// `Ok(true)` when the message was accepted (and recorded), `Ok(false)` when it was dropped.
+    /// `Ok(Some(_))` when the message was accepted (and recorded), `Ok(None)` when it was dropped.
     pub fn handle(
         &mut self,
         source: &str,
@@ -80,22 +95,26 @@ impl<W: Write + Seek> IngestWorker<W> {
         payload: &[u8],
         receive_ns: i64,
         on_snapshot: impl FnMut(&Snapshot<TwinSample>),
-    ) -> Result<bool, RecordingError> {
+    ) -> Result<Option<AcceptedMessage>, RecordingError> {
         self.stats.received += 1;
         let (header, sample) = match Self::decode(stream, payload) {
             Ok(v) => v,
             Err(reason) => {
                 self.drop_for(reason);
-                return Ok(false);
+                return Ok(None);
             }
         };
         if header.source != source {
             self.drop_for(DropReason::SourceMismatch);
-            return Ok(false);
+            return Ok(None);
         }
         let Ok(src) = self.sources.index_of(source) else {
             self.drop_for(DropReason::TooManySources);
-            return Ok(false);
+            return Ok(None);
+        };
+        let state = match &sample {
+            TwinSample::State(k) => Some(*k),
+            _ => None,
         };
         let incoming = Incoming {
             source: src,
@@ -115,7 +134,7 @@ impl<W: Write + Seek> IngestWorker<W> {
         match verdict {
             Err(reason) => {
                 self.drop_for(reason);
-                Ok(false)
+                Ok(None)
             }
             Ok(accepted) => {
                 self.stats.accepted += 1;
@@ -132,7 +151,8 @@ impl<W: Write + Seek> IngestWorker<W> {
                     rec.write(channel, receive_ns.max(0) as u64, header.publish_time_ns.max(0) as u64, payload)?;
                     self.stats.recorded += 1;
                 }
-                Ok(true)
+                let (seq, capture_ns, cloud_ns) = (header.seq, header.capture_time_ns, accepted.cloud_ns);
+                Ok(Some(AcceptedMessage { source: src, seq, capture_ns, cloud_ns, state }))
             }
         }
     }

@@ -15,6 +15,7 @@ use crate::twin::fidelity::distribution::Distribution;
 use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
 use crate::twin::watch::{WatchCounts, WatchedEpisode};
+use crate::warning::{HazardWarner, WarningSink, WarningSummary};
 use risktwin_common::align::{DropReason, IngestConfig};
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{ObjectList, RiskReport, ScenarioResult, VehicleStateSample};
@@ -185,6 +186,9 @@ pub struct LiveIngest {
     /// Where the key of each stream's first accepted sample goes, to be declared (see
     /// [`super::routes`]).
     route_keys: Option<UnboundedSender<String>>,
+    /// The warning role: every accepted state re-assesses its pairs, and warnings go to the sink
+    /// at once, before the twin's tick work.
+    warnings: Option<(HazardWarner, Box<WarningSink<'static>>)>,
 }
 
 impl LiveIngest {
@@ -227,6 +231,7 @@ impl LiveIngest {
             wrong_schema_logged: HashSet::new(),
             losses: LossCounts::default(),
             route_keys: None,
+            warnings: None,
         })
     }
 
@@ -240,6 +245,25 @@ impl LiveIngest {
     pub fn with_route_keys(mut self, keys: Option<UnboundedSender<String>>) -> Self {
         self.route_keys = keys;
         self
+    }
+
+    /// Runs the warning path ([`crate::warning`]) on every accepted state, handing each warning to
+    /// the sink (which puts it), when given.
+    pub fn with_warnings(mut self, path: Option<(HazardWarner, Box<WarningSink<'static>>)>) -> Self {
+        self.warnings = path;
+        self
+    }
+
+    /// `site`'s scene published its road map: the warning path measures lane TTC on it.
+    pub fn set_warning_road(&mut self, site: &str, road: &risktwin_common::road::Road) {
+        if let Some((warner, _)) = self.warnings.as_mut() {
+            warner.set_site_road(site, road.clone());
+        }
+    }
+
+    /// What the warning path did, when it runs.
+    pub fn warning_summary(&self) -> Option<WarningSummary> {
+        self.warnings.as_ref().map(|(warner, _)| warner.summary())
     }
 
     /// Counts samples the edge-stream subscriber could neither receive nor recover.
@@ -342,6 +366,10 @@ impl LiveIngest {
                 ticked = true;
             }
         })?;
+        if let (Some(msg), Some((warner, sink))) = (accepted.as_ref(), self.warnings.as_mut()) {
+            warner.on_state(parsed.site, parsed.source, msg, receive_ns, &mut **sink);
+        }
+        let accepted = accepted.is_some();
         if accepted && parsed.stream == EdgeStream::State {
             self.watch_state(parsed.site, parsed.source, payload);
         }

@@ -119,6 +119,7 @@ fn every_key_is_tagged_with_the_message_the_code_encodes() {
     assert_eq!(CloudToEdge::Scenario.message(), ScenarioPush::PROTO_NAME);
     assert_eq!(CloudToEdge::Policy.message(), PolicyUpdate::PROTO_NAME);
     assert_eq!(CloudToEdge::Control.message(), ControlCommand::PROTO_NAME);
+    assert_eq!(CloudToEdge::Warning.message(), risktwin_common::telemetry::HazardWarning::PROTO_NAME);
     assert_eq!(EdgeReport::ScenarioResult.message(), ScenarioResult::PROTO_NAME);
     assert_eq!(EDGE_MAP_MESSAGE, RoadMap::PROTO_NAME);
     assert_eq!(protobuf(RoadMap::PROTO_NAME).to_string(), risktwin_protos::encoding_of(RoadMap::PROTO_NAME));

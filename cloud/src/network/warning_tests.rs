@@ -1,0 +1,158 @@
+//! The warning role against real Zenoh sessions in this process: a router on a free port, the
+//! cloud with `ingest,twin,warning`, raw edge publishers and a subscriber on the vehicles'
+//! warning keys. A pair on a collision course is warned, a safe pair is not, and bad input is
+//! counted and dropped.
+
+use super::{CloudConfig, Role, run};
+use risktwin_common::telemetry::{HazardKind, HazardWarning, VehicleStateSample};
+use risktwin_protos::{decode_tagged, encode};
+use risktwin_transport::router::{RouterConfig, run as run_router};
+use risktwin_transport::zenoh::qos::CongestionControl;
+use risktwin_transport::{Mode, TransportConfig, connect, protobuf, shutdown};
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use tokio::sync::{mpsc, oneshot};
+use tokio::time::timeout;
+
+const STEP: Duration = Duration::from_secs(30);
+
+fn now_ns() -> i64 {
+    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64)
+}
+
+/// `source`'s state number `seq`, stamped now, at (`x_m`, `y_m`) driving east at `vx_mps`.
+fn state(source: &str, seq: u64, x_m: f64, y_m: f64, vx_mps: f64) -> VehicleStateSample {
+    let mut s = crate::test_fixtures::state(source, seq, now_ns());
+    s.pose.x_m = x_m;
+    s.pose.y_m = y_m;
+    s.velocity.x = vx_mps;
+    s.speed_mps = vx_mps;
+    s
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_collision_course_is_warned_a_safe_pair_is_not_and_bad_input_is_counted() {
+    let (router_stop, router_shutdown) = shutdown::channel();
+    let (port_tx, port_rx) = oneshot::channel();
+    let router_config = RouterConfig { listen: vec!["tcp/127.0.0.1:0".into()], connect: vec![] };
+    let router = tokio::spawn(async move {
+        run_router(&router_config, router_shutdown, |locators| {
+            let _ = port_tx.send(locators.to_vec());
+        })
+        .await
+    });
+    let locators = timeout(STEP, port_rx).await.unwrap().unwrap();
+    let client = TransportConfig { mode: Mode::Client, connect: locators, ..TransportConfig::default() };
+
+    // The vehicles' side: every warning of the site.
+    let vehicles = connect(&client).await.unwrap();
+    let (warn_tx, mut warn_rx) = mpsc::unbounded_channel();
+    let _warnings = vehicles
+        .declare_subscriber("risktwin/v1/site/*/warning")
+        .callback(move |sample| {
+            let _ = warn_tx.send((
+                sample.key_expr().to_string(),
+                sample.encoding().to_string(),
+                sample.payload().to_bytes().into_owned(),
+            ));
+        })
+        .await
+        .unwrap();
+
+    let (cloud_stop, cloud_shutdown) = shutdown::channel();
+    let (ready_tx, ready_rx) = oneshot::channel();
+    let mut cloud_config = CloudConfig::new(client.clone());
+    cloud_config.roles = vec![Role::Ingest, Role::Twin, Role::Warning];
+    let cloud = tokio::spawn(async move {
+        run(&cloud_config, cloud_shutdown, || {
+            let _ = ready_tx.send(());
+        })
+        .await
+    });
+    timeout(STEP, ready_rx).await.unwrap().unwrap();
+
+    let edges = connect(&client).await.unwrap();
+    let mut publishers = BTreeMap::new();
+    for source in ["veh-a", "veh-b", "veh-c", "veh-d"] {
+        let publisher = edges
+            .declare_publisher(format!("risktwin/v1/site/{source}/state"))
+            .encoding(protobuf("risktwin.v1.VehicleState"))
+            .congestion_control(CongestionControl::Block)
+            .await
+            .unwrap();
+        let matched = async {
+            let listener = publisher.matching_listener().await.unwrap();
+            if !publisher.matching_status().await.unwrap().matching() {
+                while !listener.recv_async().await.unwrap().matching() {}
+            }
+        };
+        timeout(STEP, matched).await.unwrap();
+        publishers.insert(source, publisher);
+    }
+    // veh-a drives at 10 m/s towards veh-b standing 20 m ahead (TTC 1.55 s); veh-c and veh-d
+    // drive side by side at 20 m/s, 50 m to the north. States every 20 ms until both of the
+    // first pair were warned (the first warnings may go out before the subscription is known;
+    // the repeat limit sends the next 500 ms later).
+    let mut got: Vec<HazardWarning> = Vec::new();
+    let deadline = Instant::now() + STEP;
+    let mut seq = 0;
+    // At least 10 rounds (200 ms), so that the aligner emits snapshots too.
+    while seq < 10
+        || !(got.iter().any(|w| w.warned_source == "veh-a") && got.iter().any(|w| w.warned_source == "veh-b"))
+    {
+        assert!(Instant::now() < deadline, "no warning for both cars within {STEP:?}: {got:?}");
+        for (source, x, y, v) in [
+            ("veh-a", 0.0, 0.0, 10.0),
+            ("veh-b", 20.0, 0.0, 0.0),
+            ("veh-c", 0.0, 50.0, 20.0),
+            ("veh-d", 0.0, 53.5, 20.0),
+        ] {
+            publishers[source].put(encode(&state(source, seq, x, y, v))).await.unwrap();
+        }
+        seq += 1;
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        while let Ok((key, encoding, bytes)) = warn_rx.try_recv() {
+            let warning = decode_tagged::<HazardWarning>(&encoding, &bytes).expect("a valid, tagged warning");
+            assert_eq!(key, format!("risktwin/v1/site/{}/warning", warning.warned_source));
+            got.push(warning);
+        }
+    }
+    for w in &got {
+        let pair = (w.warned_source.as_str(), w.hazard_source.as_str());
+        assert!(matches!(pair, ("veh-a", "veh-b") | ("veh-b", "veh-a")), "{w:?}");
+        // Both stand in a lane of the cloud's default road (lane TTC, 1.55 s) or off it
+        // (contact predicted at the 1.55 s step or the next).
+        assert!(matches!(w.kind, HazardKind::LaneTtc | HazardKind::PredictedContact), "{w:?}");
+        assert!(w.ttc_s > 1.5 && w.ttc_s < 1.65, "{w:?}");
+    }
+
+    // Bad input on the same streams: counted by reason, warns no one, stops nothing.
+    let mut nan = state("veh-a", seq, 0.0, 0.0, 10.0);
+    nan.speed_mps = f64::NAN;
+    for payload in [b"\x00garbage".to_vec(), encode(&nan), encode(&state("veh-z", seq, 0.0, 0.0, 10.0))] {
+        publishers["veh-a"].put(payload).await.unwrap();
+    }
+    let tagged_as_list = encode(&state("veh-b", seq, 20.0, 0.0, 0.0));
+    publishers["veh-b"].put(tagged_as_list).encoding("application/protobuf;risktwin.v1.ObjectList").await.unwrap();
+    // A warning key is no edge stream: the ingest never sees it.
+    edges.put("risktwin/v1/site/veh-a/warning", b"not a warning".to_vec()).await.unwrap();
+    // One more good state after the bad ones: the path still runs.
+    publishers["veh-c"].put(encode(&state("veh-c", seq, 0.0, 50.0, 20.0))).await.unwrap();
+    drop(publishers);
+    edges.close().await.unwrap();
+
+    cloud_stop.fire();
+    let summary = timeout(STEP, cloud).await.unwrap().unwrap().unwrap();
+    let dropped = &summary.ingest.dropped;
+    let expected = [("malformed", 1), ("invalid-field", 1), ("source-mismatch", 1), ("wrong-schema", 1)];
+    assert_eq!(dropped, &expected.into_iter().map(|(k, n)| (k.to_owned(), n)).collect::<BTreeMap<_, _>>());
+    let warning = summary.warning.expect("the warning role ran");
+    assert_eq!(warning.states, summary.ingest.total_received, "every accepted message was a state");
+    assert_eq!(warning.states, 4 * seq + 1);
+    assert!(warning.sent >= 2 && warning.failed == 0, "{warning:?}");
+    assert_eq!(warning.sent_to.keys().collect::<Vec<_>>(), ["site/veh-a", "site/veh-b"]);
+    assert!(summary.ingest.snapshots > 0, "the aligned snapshots go on beside the warnings");
+    vehicles.close().await.unwrap();
+    router_stop.fire();
+    timeout(STEP, router).await.unwrap().unwrap().unwrap();
+}

@@ -289,7 +289,9 @@ impl Site {
         out: &mut Out<'_, '_>,
     ) {
         let last = self.last_warned.get(&(warned, hazard)).copied();
-        if last.is_some_and(|t| trigger.t_ns.saturating_sub(t) < repeat_ns) {
+        // Sources' clock estimates differ, so message times of two sources may come out of
+        // order: with no limit, nothing is held back.
+        if repeat_ns > 0 && last.is_some_and(|t| trigger.t_ns.saturating_sub(t) < repeat_ns) {
             out.summary.rate_limited += 1;
             return;
         }

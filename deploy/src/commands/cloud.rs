@@ -6,14 +6,16 @@
 //! FILE.csv|json [--db FILE] [--ego ID]` the criticality of a replayed CommonRoad scenario,
 //! written on exit (with `--db`, the drive stored as a recorded case of the library),
 //! `--roles ingest,twin,loop[,trainer] --db FILE [--loop-report FILE.md]` the closed loop over
-//! the fleet, with policy retraining and the regression gate.
-//! Also `risktwin bench zenoh|latency`.
+//! the fleet, with policy retraining and the regression gate; `--roles ingest,warning` a hazard
+//! warning to both vehicles of a critical pair on every state message.
+//! Also `risktwin bench zenoh|latency|warning`.
 
 use super::router::{transport_config, with_signals};
-use crate::cli::{BenchLatencyArgs, BenchZenohArgs, CloudArgs};
+use crate::cli::{BenchLatencyArgs, BenchWarningArgs, BenchZenohArgs, CloudArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_bench::latency::{LatencyConfig, latency};
+use risktwin_bench::warning::{WarningBenchConfig, warning};
 use risktwin_bench::zenoh_throughput::{BenchConfig, throughput};
 use risktwin_cloud::fleet_loop::trainer::TrainerConfig;
 use risktwin_cloud::network::criticality::{CriticalityConfig, CriticalityRoleError};
@@ -75,6 +77,14 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     if args.loop_report.is_some() && !config.roles.contains(&Role::Loop) {
         return Err(CliError::input("--loop-report needs the loop role (--roles ingest,twin,loop --db FILE)"));
     }
+    if !(args.warning_ttc_s > 0.0 && args.warning_ttc_s <= 10.0) {
+        return Err(CliError::input(format!("--warning-ttc-s {} must lie in (0, 10]", args.warning_ttc_s)));
+    }
+    if !(0.0..=60_000.0).contains(&args.warning_repeat_ms) {
+        return Err(CliError::input(format!("--warning-repeat-ms {} must lie in [0, 60000]", args.warning_repeat_ms)));
+    }
+    config.warning.critical_ttc_s = args.warning_ttc_s;
+    config.warning.repeat_ns = (args.warning_repeat_ms * 1e6) as i64;
     let road_kind: ScenarioKind = args.road.parse().map_err(CliError::input)?;
     config.road = risktwin_cloud::twin::scenario_road(road_kind);
     let summary = with_signals(|shutdown| async move {
@@ -172,6 +182,49 @@ pub fn bench_latency(args: BenchLatencyArgs) -> CliResult {
                     format!("ratio {:.3}", report.ratio),
                     "ours_p50 / (raw_p50 + tick)".into(),
                     String::new(),
+                ],
+            ],
+        ),
+    }
+}
+
+pub fn bench_warning(args: BenchWarningArgs) -> CliResult {
+    if args.messages <= 50 || !(args.rate_hz > 0.0 && args.rate_hz <= 10_000.0) {
+        return Err(CliError::input("--messages must exceed 50 and --rate-hz lie in (0, 10000]"));
+    }
+    let config = WarningBenchConfig { messages: args.messages, rate_hz: args.rate_hz, risk: args.risk };
+    let report = with_signals(|_shutdown| async move { warning(config).await.map_err(CliError::runtime) })?;
+    match args.format {
+        Format::Json => print_json(&report),
+        _ => print_table(
+            &["side", "p50 ms", "p99 ms", "samples"],
+            &[
+                vec![
+                    "raw zenoh one-way".into(),
+                    format!("{:.3}", report.raw_p50_ms),
+                    format!("{:.3}", report.raw_p99_ms),
+                    report.raw_samples.to_string(),
+                ],
+                vec![
+                    "edge publish → warning at the vehicle".into(),
+                    format!("{:.3}", report.warning_p50_ms),
+                    format!("{:.3}", report.warning_p99_ms),
+                    report.warning_samples.to_string(),
+                ],
+                vec![
+                    "  of which in the cloud (receipt → put)".into(),
+                    format!("{:.3}", report.cloud_p50_ms),
+                    format!("{:.3}", report.cloud_p99_ms),
+                    String::new(),
+                ],
+                vec![
+                    format!("ratio {:.2} (warning p50 / raw p50)", report.ratio),
+                    format!("target ≤ {}", report.target_p50_ms),
+                    if report.risk { "with the risk role".into() } else { String::new() },
+                    format!(
+                        "sent {}, held back {}, failed {}",
+                        report.warnings.sent, report.warnings.rate_limited, report.warnings.failed
+                    ),
                 ],
             ],
         ),

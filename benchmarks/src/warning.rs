@@ -16,9 +16,7 @@
 //!
 //! The first [`WARMUP`] samples of each side are left out.
 
-use crate::latency::{
-    LatencyConfig, SentAt, WARMUP, bench_ids, percentile, put_instant, raw_side, settle, state,
-};
+use crate::latency::{LatencyConfig, SentAt, WARMUP, bench_ids, percentile, put_instant, raw_side, settle, state};
 use crate::zenoh_throughput::peer_pair;
 use risktwin_cloud::network::warning::warning_sink;
 use risktwin_cloud::network::{CloudError, LiveIngest};
@@ -83,7 +81,8 @@ pub struct WarningReport {
 
 /// Runs both sides and reports.
 pub async fn warning(config: WarningBenchConfig) -> Result<WarningReport, CloudError> {
-    let raw_config = LatencyConfig { messages: config.messages, rate_hz: config.rate_hz, ingest: IngestConfig::default() };
+    let raw_config =
+        LatencyConfig { messages: config.messages, rate_hz: config.rate_hz, ingest: IngestConfig::default() };
     let mut raw = raw_side(raw_config).await?;
     let (mut ours, mut cloud, warnings) = our_side(config).await?;
     let (raw_p50, raw_p99) = (percentile(&mut raw, 0.5), percentile(&mut raw, 0.99));
@@ -120,8 +119,8 @@ async fn our_side(config: WarningBenchConfig) -> Result<(Vec<f64>, Vec<f64>, War
     let road = scenario_road(ScenarioKind::CutIn);
     let risk = if config.risk { Some(RiskAssessor::new(road.clone(), RiskConfig::default())?) } else { None };
     let warner = HazardWarner::new(WarningConfig { repeat_ns: 0, ..WarningConfig::default() }, Some(road));
-    let ingest = LiveIngest::new(None, Some(TwinOutputs::new(risk)))?
-        .with_warnings(Some((warner, warning_sink(&cloud_side))));
+    let ingest =
+        LiveIngest::new(None, Some(TwinOutputs::new(risk)))?.with_warnings(Some((warner, warning_sink(&cloud_side))));
     let ingest = Arc::new(Mutex::new(ingest));
     let (ingest_cb, held_cb, loss_ingest) = (Arc::clone(&ingest), Arc::clone(&held), Arc::clone(&ingest));
     let measured_key = risktwin_transport::keyexpr::edge_stream(&site, &measured, EdgeStream::State);

@@ -10,7 +10,9 @@
 //! `ScenarioResult` goes back on `risktwin/v1/<site>/<id>/scenario_result` and the vehicle
 //! returns to its own scenario. A valid policy update drives from then on: the vehicle's own
 //! scene at once, and every pushed scenario executed after it (its `ScenarioResult` names the
-//! policy version that drove).
+//! policy version that drove). Hazard warnings of the cloud's warning role
+//! (`risktwin/v1/<site>/<id>/warning`) are counted in the summary; the driver does not act on
+//! them yet.
 
 pub mod push;
 
@@ -31,7 +33,7 @@ use std::convert::Infallible;
 pub const DEFAULT_STATE_RATE_HZ: f64 = 50.0;
 
 const STREAMS: [EdgeStream; 3] = [EdgeStream::State, EdgeStream::Can, EdgeStream::Perception];
-const PUSHES: [CloudToEdge; 2] = [CloudToEdge::Scenario, CloudToEdge::Policy];
+const PUSHES: [CloudToEdge; 3] = [CloudToEdge::Scenario, CloudToEdge::Policy, CloudToEdge::Warning];
 
 /// A pushed scenario being played out.
 struct Pushed {
@@ -186,7 +188,8 @@ impl Producer for Vehicle {
                     self.policy = Some(policy);
                 }
             }
-            CloudToEdge::Control | CloudToEdge::Warning => {}
+            CloudToEdge::Warning => self.pushes.warning(encoding, payload),
+            CloudToEdge::Control => {}
         }
     }
 

@@ -44,6 +44,8 @@ pub mod push;
 mod receive;
 pub mod routes;
 mod scene;
+#[cfg(test)]
+mod test_harness;
 pub mod warning;
 #[cfg(test)]
 mod warning_tests;

@@ -3,18 +3,15 @@
 //! warning keys. A pair on a collision course is warned, a safe pair is not, and bad input is
 //! counted and dropped.
 
-use super::{CloudConfig, Role, run};
+use super::test_harness::{Router, STEP, start_cloud, state_publisher};
+use super::{CloudConfig, Role};
 use risktwin_common::telemetry::{HazardKind, HazardWarning, VehicleStateSample};
 use risktwin_protos::{decode_tagged, encode};
-use risktwin_transport::router::{RouterConfig, run as run_router};
-use risktwin_transport::zenoh::qos::CongestionControl;
-use risktwin_transport::{Mode, TransportConfig, connect, protobuf, shutdown};
+use risktwin_transport::connect;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-use tokio::sync::{mpsc, oneshot};
+use tokio::sync::mpsc;
 use tokio::time::timeout;
-
-const STEP: Duration = Duration::from_secs(30);
 
 fn now_ns() -> i64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64)
@@ -32,17 +29,8 @@ fn state(source: &str, seq: u64, x_m: f64, y_m: f64, vx_mps: f64) -> VehicleStat
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_collision_course_is_warned_a_safe_pair_is_not_and_bad_input_is_counted() {
-    let (router_stop, router_shutdown) = shutdown::channel();
-    let (port_tx, port_rx) = oneshot::channel();
-    let router_config = RouterConfig { listen: vec!["tcp/127.0.0.1:0".into()], connect: vec![] };
-    let router = tokio::spawn(async move {
-        run_router(&router_config, router_shutdown, |locators| {
-            let _ = port_tx.send(locators.to_vec());
-        })
-        .await
-    });
-    let locators = timeout(STEP, port_rx).await.unwrap().unwrap();
-    let client = TransportConfig { mode: Mode::Client, connect: locators, ..TransportConfig::default() };
+    let router = Router::start().await;
+    let client = router.client.clone();
 
     // The vehicles' side: every warning of the site.
     let vehicles = connect(&client).await.unwrap();
@@ -59,35 +47,14 @@ async fn a_collision_course_is_warned_a_safe_pair_is_not_and_bad_input_is_counte
         .await
         .unwrap();
 
-    let (cloud_stop, cloud_shutdown) = shutdown::channel();
-    let (ready_tx, ready_rx) = oneshot::channel();
     let mut cloud_config = CloudConfig::new(client.clone());
     cloud_config.roles = vec![Role::Ingest, Role::Twin, Role::Warning];
-    let cloud = tokio::spawn(async move {
-        run(&cloud_config, cloud_shutdown, || {
-            let _ = ready_tx.send(());
-        })
-        .await
-    });
-    timeout(STEP, ready_rx).await.unwrap().unwrap();
+    let (cloud_stop, cloud) = start_cloud(cloud_config).await;
 
     let edges = connect(&client).await.unwrap();
     let mut publishers = BTreeMap::new();
     for source in ["veh-a", "veh-b", "veh-c", "veh-d"] {
-        let publisher = edges
-            .declare_publisher(format!("risktwin/v1/site/{source}/state"))
-            .encoding(protobuf("risktwin.v1.VehicleState"))
-            .congestion_control(CongestionControl::Block)
-            .await
-            .unwrap();
-        let matched = async {
-            let listener = publisher.matching_listener().await.unwrap();
-            if !publisher.matching_status().await.unwrap().matching() {
-                while !listener.recv_async().await.unwrap().matching() {}
-            }
-        };
-        timeout(STEP, matched).await.unwrap();
-        publishers.insert(source, publisher);
+        publishers.insert(source, state_publisher(&edges, format!("risktwin/v1/site/{source}/state")).await);
     }
     // veh-a drives at 10 m/s towards veh-b standing 20 m ahead (TTC 1.55 s); veh-c and veh-d
     // drive side by side at 20 m/s, 50 m to the north. States every 20 ms until both of the
@@ -153,6 +120,5 @@ async fn a_collision_course_is_warned_a_safe_pair_is_not_and_bad_input_is_counte
     assert_eq!(warning.sent_to.keys().collect::<Vec<_>>(), ["site/veh-a", "site/veh-b"]);
     assert!(summary.ingest.snapshots > 0, "the aligned snapshots go on beside the warnings");
     vehicles.close().await.unwrap();
-    router_stop.fire();
-    timeout(STEP, router).await.unwrap().unwrap().unwrap();
+    router.stop().await;
 }

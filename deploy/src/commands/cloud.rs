@@ -141,9 +141,7 @@ pub fn bench_zenoh(args: BenchZenohArgs) -> CliResult {
 }
 
 pub fn bench_latency(args: BenchLatencyArgs) -> CliResult {
-    if args.messages <= 50 || !(args.rate_hz > 0.0 && args.rate_hz <= 10_000.0) {
-        return Err(CliError::input("--messages must exceed 50 and --rate-hz lie in (0, 10000]"));
-    }
+    check_pacing(args.messages, args.rate_hz)?;
     let mut ingest = IngestConfig::default();
     let ms = |flag: &str, v: f64| {
         if (0.0..=10_000.0).contains(&v) {
@@ -160,73 +158,74 @@ pub fn bench_latency(args: BenchLatencyArgs) -> CliResult {
     }
     let config = LatencyConfig { messages: args.messages, rate_hz: args.rate_hz, ingest };
     let report = with_signals(|_shutdown| async move { latency(config).await.map_err(CliError::runtime) })?;
-    match args.format {
-        Format::Json => print_json(&report),
-        _ => print_table(
-            &["side", "p50 ms", "p99 ms", "samples"],
-            &[
-                vec![
-                    "raw zenoh one-way".into(),
-                    format!("{:.3}", report.raw_p50_ms),
-                    format!("{:.3}", report.raw_p99_ms),
-                    report.raw_samples.to_string(),
-                ],
-                vec![
-                    "edge publish → twin snapshot".into(),
-                    format!("{:.3}", report.ours_p50_ms),
-                    format!("{:.3}", report.ours_p99_ms),
-                    report.ours_samples.to_string(),
-                ],
-                vec![
-                    format!("tick {} ms, lateness {} ms", report.tick_ms, report.lateness_ms),
-                    format!("ratio {:.3}", report.ratio),
-                    "ours_p50 / (raw_p50 + tick)".into(),
-                    String::new(),
-                ],
+    let rows = match args.format {
+        Format::Json => Vec::new(),
+        _ => vec![
+            latency_row("raw zenoh one-way", report.raw_p50_ms, report.raw_p99_ms, Some(report.raw_samples)),
+            latency_row(
+                "edge publish → twin snapshot",
+                report.ours_p50_ms,
+                report.ours_p99_ms,
+                Some(report.ours_samples),
+            ),
+            vec![
+                format!("tick {} ms, lateness {} ms", report.tick_ms, report.lateness_ms),
+                format!("ratio {:.3}", report.ratio),
+                "ours_p50 / (raw_p50 + tick)".into(),
+                String::new(),
             ],
-        ),
-    }
+        ],
+    };
+    print_latency(args.format, &report, &rows)
 }
 
 pub fn bench_warning(args: BenchWarningArgs) -> CliResult {
-    if args.messages <= 50 || !(args.rate_hz > 0.0 && args.rate_hz <= 10_000.0) {
-        return Err(CliError::input("--messages must exceed 50 and --rate-hz lie in (0, 10000]"));
-    }
+    check_pacing(args.messages, args.rate_hz)?;
     let config = WarningBenchConfig { messages: args.messages, rate_hz: args.rate_hz, risk: args.risk };
     let report = with_signals(|_shutdown| async move { warning(config).await.map_err(CliError::runtime) })?;
-    match args.format {
-        Format::Json => print_json(&report),
-        _ => print_table(
-            &["side", "p50 ms", "p99 ms", "samples"],
-            &[
-                vec![
-                    "raw zenoh one-way".into(),
-                    format!("{:.3}", report.raw_p50_ms),
-                    format!("{:.3}", report.raw_p99_ms),
-                    report.raw_samples.to_string(),
-                ],
-                vec![
-                    "edge publish → warning at the vehicle".into(),
-                    format!("{:.3}", report.warning_p50_ms),
-                    format!("{:.3}", report.warning_p99_ms),
-                    report.warning_samples.to_string(),
-                ],
-                vec![
-                    "  of which in the cloud (receipt → put)".into(),
-                    format!("{:.3}", report.cloud_p50_ms),
-                    format!("{:.3}", report.cloud_p99_ms),
-                    String::new(),
-                ],
-                vec![
-                    format!("ratio {:.2} (warning p50 / raw p50)", report.ratio),
-                    format!("target ≤ {}", report.target_p50_ms),
-                    if report.risk { "with the risk role".into() } else { String::new() },
-                    format!(
-                        "sent {}, held back {}, failed {}",
-                        report.warnings.sent, report.warnings.rate_limited, report.warnings.failed
-                    ),
-                ],
+    let rows = match args.format {
+        Format::Json => Vec::new(),
+        _ => vec![
+            latency_row("raw zenoh one-way", report.raw_p50_ms, report.raw_p99_ms, Some(report.raw_samples)),
+            latency_row(
+                "edge publish → warning at the vehicle",
+                report.warning_p50_ms,
+                report.warning_p99_ms,
+                Some(report.warning_samples),
+            ),
+            latency_row("  of which in the cloud (receipt → put)", report.cloud_p50_ms, report.cloud_p99_ms, None),
+            vec![
+                format!("ratio {:.2} (warning p50 / raw p50)", report.ratio),
+                format!("target ≤ {}", report.target_p50_ms),
+                if report.risk { "with the risk role".into() } else { String::new() },
+                format!(
+                    "sent {}, held back {}, failed {}",
+                    report.warnings.sent, report.warnings.rate_limited, report.warnings.failed
+                ),
             ],
-        ),
+        ],
+    };
+    print_latency(args.format, &report, &rows)
+}
+
+/// One row of a latency table: what, p50 and p99 in ms, and how many samples.
+fn latency_row(what: &str, p50_ms: f64, p99_ms: f64, samples: Option<usize>) -> Vec<String> {
+    let samples = samples.map(|n| n.to_string()).unwrap_or_default();
+    vec![what.to_owned(), format!("{p50_ms:.3}"), format!("{p99_ms:.3}"), samples]
+}
+
+/// The pacing flags of the latency benchmarks: more messages than the warm-up, a sane rate.
+fn check_pacing(messages: u64, rate_hz: f64) -> CliResult {
+    if messages <= 50 || !(rate_hz > 0.0 && rate_hz <= 10_000.0) {
+        return Err(CliError::input("--messages must exceed 50 and --rate-hz lie in (0, 10000]"));
+    }
+    Ok(())
+}
+
+/// A latency report as JSON, or as a table of `rows` (side, p50, p99, samples).
+fn print_latency(format: Format, report: &impl serde::Serialize, rows: &[Vec<String>]) -> CliResult {
+    match format {
+        Format::Json => print_json(report),
+        _ => print_table(&["side", "p50 ms", "p99 ms", "samples"], rows),
     }
 }

@@ -4,12 +4,13 @@
 //! observation and action sizes and decision rate — `common::net::HostPolicy`; a file without
 //! a decision rate predates the field and is taken as 20 Hz — and whose file names the same
 //! algorithm, a monotonic version per policy id) and then drive the vehicle. A refused push is
-//! counted by reason and logged; the vehicle keeps running what it was running.
+//! counted by reason and logged; the vehicle keeps running what it was running. Hazard
+//! warnings are counted (refused ones by reason).
 
 use crate::scene::ActivePolicy;
 use risktwin_common::net::HostPolicy;
 use risktwin_common::scenario::check_feasible;
-use risktwin_common::telemetry::{PolicyRef, PolicyUpdate, ScenarioPush};
+use risktwin_common::telemetry::{HazardWarning, PolicyRef, PolicyUpdate, ScenarioPush};
 use risktwin_protos::decode_tagged;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -57,6 +58,11 @@ pub struct PushSummary {
     pub policies_refused: BTreeMap<String, u64>,
     /// The latest accepted policy, which drives the vehicle.
     pub policy: Option<PolicyLine>,
+    /// Hazard warnings received from the cloud's warning role (logged; the vehicle's driver does
+    /// not act on them yet).
+    pub warnings_received: u64,
+    /// Warnings refused, by reason.
+    pub warnings_refused: BTreeMap<String, u64>,
 }
 
 impl PushSummary {
@@ -81,6 +87,17 @@ impl PushSummary {
         }
         self.scenarios_accepted += 1;
         Some(push)
+    }
+
+    /// Counts a hazard warning (`payload` tagged `encoding`), or refuses it by reason.
+    pub fn warning(&mut self, encoding: &str, payload: &[u8]) {
+        match decode_tagged::<HazardWarning>(encoding, payload) {
+            Ok(w) => {
+                tracing::debug!("edge: warned about {} ({:?}, TTC {:.2} s)", w.hazard_source, w.kind, w.ttc_s);
+                self.warnings_received += 1;
+            }
+            Err(e) => Self::refuse(&mut self.warnings_refused, "hazard warning", e.reason(), &e.to_string()),
+        }
     }
 
     /// Validates a policy update (`payload` tagged `encoding`) and loads its weights; the policy
@@ -155,6 +172,34 @@ mod tests {
 
     fn policy(version: u32, algo: &str, weights: Vec<u8>) -> Vec<u8> {
         encode(&PolicyUpdate { header: header(), policy_id: "p".into(), version, algo: algo.into(), weights })
+    }
+
+    #[test]
+    fn warnings_are_counted_and_bad_ones_refused_by_reason() {
+        use risktwin_common::geometry::{Footprint, Pose, Vec2};
+        use risktwin_common::telemetry::HazardKind;
+        let warning = HazardWarning {
+            header: header(),
+            warned_source: "veh-1".into(),
+            hazard_source: "veh-2".into(),
+            hazard_pose: Pose::new(10.0, 0.0, 0.0),
+            hazard_velocity: Vec2::zeros(),
+            hazard_footprint: Footprint::new(4.5, 1.8),
+            kind: HazardKind::PredictedContact,
+            ttc_s: 1.2,
+            distance_m: 5.5,
+            trigger_source: "veh-1".into(),
+            trigger_seq: 7,
+            trigger_capture_time_ns: 1,
+        };
+        let mut log = PushSummary::default();
+        let tag = encoding_of("risktwin.v1.HazardWarning");
+        log.warning(&tag, &encode(&warning));
+        log.warning(&tag, b"\xff\xff garbage");
+        log.warning(POLICY, &encode(&warning));
+        assert_eq!(log.warnings_received, 1);
+        let reasons: Vec<(&str, u64)> = log.warnings_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        assert_eq!(reasons, [("malformed", 1), ("wrong-schema", 1)]);
     }
 
     #[test]

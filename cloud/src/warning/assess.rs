@@ -39,8 +39,8 @@ pub fn within_reach(a: &ObservedKinematics, b: &ObservedKinematics, horizon_s: f
         - b.footprint.bounding_radius_m();
     let closable_m = (b.velocity - a.velocity).norm() * horizon_s
         + 0.5 * (a.accel_mps2.abs() + b.accel_mps2.abs()) * horizon_s * horizon_s;
-    // NaN never gets here (the ingest refuses non-finite states); `!(>)` keeps it in anyway.
-    !(gap_m > closable_m)
+    // NaN never gets here (the ingest refuses non-finite states); it would be kept in.
+    gap_m.partial_cmp(&closable_m) != Some(std::cmp::Ordering::Greater)
 }
 
 /// The criticality of the pair (`a`, `b`), both at the same instant, or `None` when it is not

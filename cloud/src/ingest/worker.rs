@@ -96,6 +96,23 @@ impl<W: Write + Seek> IngestWorker<W> {
         receive_ns: i64,
         on_snapshot: impl FnMut(&Snapshot<TwinSample>),
     ) -> Result<Option<AcceptedMessage>, RecordingError> {
+        self.handle_then(source, stream, topic, payload, receive_ns, |_| {}, on_snapshot)
+    }
+
+    /// [`IngestWorker::handle`], handing an accepted message to `on_accepted` first: before the
+    /// snapshots it makes due go to `on_snapshot` and before it is recorded
+    /// (`IngestCore::ingest_then`; the snapshots and the recording are the same).
+    #[allow(clippy::too_many_arguments)]
+    pub fn handle_then(
+        &mut self,
+        source: &str,
+        stream: EdgeStream,
+        topic: &str,
+        payload: &[u8],
+        receive_ns: i64,
+        on_accepted: impl FnOnce(&AcceptedMessage),
+        on_snapshot: impl FnMut(&Snapshot<TwinSample>),
+    ) -> Result<Option<AcceptedMessage>, RecordingError> {
         self.stats.received += 1;
         let (header, sample) = match Self::decode(stream, payload) {
             Ok(v) => v,
@@ -124,12 +141,18 @@ impl<W: Write + Seek> IngestWorker<W> {
             receive_ns,
             payload: sample,
         };
+        let (seq, capture_ns) = (header.seq, header.capture_time_ns);
+        let message = |cloud_ns| AcceptedMessage { source: src, seq, capture_ns, cloud_ns, state };
         let mut snapshots = 0;
         let mut on_snapshot = on_snapshot;
-        let verdict = self.core.ingest(incoming, |s| {
-            snapshots += 1;
-            on_snapshot(s);
-        });
+        let verdict = self.core.ingest_then(
+            incoming,
+            |cloud_ns| on_accepted(&message(cloud_ns)),
+            |s| {
+                snapshots += 1;
+                on_snapshot(s);
+            },
+        );
         self.stats.snapshots += snapshots;
         match verdict {
             Err(reason) => {
@@ -151,8 +174,7 @@ impl<W: Write + Seek> IngestWorker<W> {
                     rec.write(channel, receive_ns.max(0) as u64, header.publish_time_ns.max(0) as u64, payload)?;
                     self.stats.recorded += 1;
                 }
-                let (seq, capture_ns, cloud_ns) = (header.seq, header.capture_time_ns, accepted.cloud_ns);
-                Ok(Some(AcceptedMessage { source: src, seq, capture_ns, cloud_ns, state }))
+                Ok(Some(message(accepted.cloud_ns)))
             }
         }
     }

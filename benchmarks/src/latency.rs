@@ -25,7 +25,7 @@ use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
 use risktwin_protos::encode;
 use risktwin_transport::recovery::{DEFAULT_OUTAGE, is_recovered};
 use risktwin_transport::zenoh::Wait;
-use risktwin_transport::zenoh::qos::CongestionControl;
+use risktwin_transport::zenoh::qos::{CongestionControl, Priority};
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{
     Delivery, EdgeStream, SiteId, SourceId, StreamLoss, StreamPublisher, TransportError, subscribe_edge_streams,
@@ -70,7 +70,7 @@ pub struct LatencyReport {
 
 /// Runs both sides and reports.
 pub async fn latency(config: LatencyConfig) -> Result<LatencyReport, CloudError> {
-    let mut raw = raw_side(config).await?;
+    let mut raw = raw_side(config, RawQos::PLAIN).await?;
     let mut ours = our_side(config).await?;
     let tick_ms = config.ingest.align.tick_ns as f64 * 1e-6;
     let (raw_p50, raw_p99) = (percentile(&mut raw, 0.5), percentile(&mut raw, 0.99));
@@ -111,7 +111,22 @@ pub(crate) fn put_instant(sent: &SentAt, seq: usize) -> Option<Instant> {
     sent.lock().unwrap_or_else(PoisonError::into_inner).get(seq).copied().flatten()
 }
 
-pub(crate) async fn raw_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
+/// How the raw side's publisher sends: `bench latency`'s plain publisher (default priority, not
+/// express, blocking under congestion), or the warning puts' QoS (`bench warning`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct RawQos {
+    pub congestion: CongestionControl,
+    pub priority: Priority,
+    pub express: bool,
+}
+
+impl RawQos {
+    /// A plain publisher's QoS, blocking under congestion.
+    pub(crate) const PLAIN: RawQos =
+        RawQos { congestion: CongestionControl::Block, priority: Priority::DEFAULT, express: false };
+}
+
+pub(crate) async fn raw_side(config: LatencyConfig, qos: RawQos) -> Result<Vec<f64>, CloudError> {
     let (sub_side, pub_side) = peer_pair().await?;
     let n = usize::try_from(config.messages).unwrap_or(usize::MAX);
     let sent: SentAt = Arc::new(Mutex::new(vec![None; n]));
@@ -133,7 +148,9 @@ pub(crate) async fn raw_side(config: LatencyConfig) -> Result<Vec<f64>, CloudErr
         .map_err(|e| TransportError::Declare { what: "subscriber", key: key.into(), reason: e.to_string() })?;
     let publisher = pub_side
         .declare_publisher(key)
-        .congestion_control(CongestionControl::Block)
+        .congestion_control(qos.congestion)
+        .priority(qos.priority)
+        .express(qos.express)
         .await
         .map_err(|e| TransportError::Declare { what: "publisher", key: key.into(), reason: e.to_string() })?;
     wait_matching(&publisher).await;

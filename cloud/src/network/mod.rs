@@ -57,7 +57,7 @@ use crate::fleet_loop::{FleetLoop, LoopConfig};
 use crate::library::ScenarioLibrary;
 use crate::twin::outputs::{TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
-use crate::warning::{HazardWarner, WarningConfig, WarningSummary};
+use crate::warning::{HazardWarner, WarningConfig, WarningSink, WarningSummary};
 use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, CriticalitySummary};
 use fleet_loop::LoopRoleSummary;
 use library::LibrarySummary;
@@ -317,15 +317,20 @@ pub async fn run(
     let (episodes_tx, episodes_rx) = tokio::sync::mpsc::unbounded_channel();
     let route_keys = config.has(Role::Ingest).then(|| routes::declare_route_keys(&session));
     let (route_keys, keys_tx) = route_keys.unzip();
-    let ingest =
-        LiveIngest::new(config.record.as_deref(), outputs)?
-            .with_replay_time(config.replay_time)
-            .with_route_keys(keys_tx)
-            .with_publisher(config.has(Role::Twin).then_some(publish_tx))
-            .with_episodes(fleet.is_some().then_some(episodes_tx))
-            .with_warnings(config.has(Role::Warning).then(|| {
-                (HazardWarner::new(config.warning, Some(config.road.clone())), warning::warning_sink(&session))
-            }));
+    // The warning role's publishers are declared by a task, never in the ingest's callback.
+    let (warning_sink, warning_publishers) = if config.has(Role::Warning) {
+        let (sink, publishers) = warning::warning_sink(&session);
+        let warner = HazardWarner::new(config.warning, Some(config.road.clone()));
+        (Some((warner, Box::new(sink) as Box<dyn WarningSink>)), Some(publishers))
+    } else {
+        (None, None)
+    };
+    let ingest = LiveIngest::new(config.record.as_deref(), outputs)?
+        .with_replay_time(config.replay_time)
+        .with_route_keys(keys_tx)
+        .with_publisher(config.has(Role::Twin).then_some(publish_tx))
+        .with_episodes(fleet.is_some().then_some(episodes_tx))
+        .with_warnings(warning_sink);
     let ingest = Arc::new(Mutex::new(ingest));
     let subscriber = if config.has(Role::Ingest) {
         Some(
@@ -393,6 +398,9 @@ pub async fn run(
     edges.undeclare().await.map_err(|e| undeclare_error("liveliness subscriber", e))?;
     if let Some(keys) = route_keys {
         keys.task.abort();
+    }
+    if let Some(publishers) = warning_publishers {
+        publishers.task.abort();
     }
     let library_summary = match library_task {
         Some(task) => Some(task.await.map_err(|e| join_error("library", e))??),

@@ -10,12 +10,20 @@
 //! velocity to `t`. A broad phase ([`assess::within_reach`]) skips pairs too far apart to meet
 //! within the TTC threshold; the rest are assessed ([`assess::assess_pair`]). Both vehicles of a
 //! critical pair are warned, each about the other, at most once per
-//! [`WarningConfig::repeat_ns`] of message time per (warned, hazard) pair.
+//! [`WarningConfig::repeat_ns`] of message time per (warned, hazard) pair (a pair that comes to
+//! contact is warned about at once, whatever went before).
 //!
-//! Transport-free and clock-free like the ingest: the caller passes the receive time and a sink
-//! that puts each warning on its key (`risktwin/v1/<site>/<warned>/warning`). Nothing is
-//! allocated per message once a site's sources and critical pairs are known; a warning that goes
-//! out allocates its message.
+//! Members are forgotten once not heard for [`WarningConfig::forget_ns`] of message time (found
+//! in the scan of a later state of their site; their publisher goes with them), and the repeat
+//! limit's entries once older than [`WarningConfig::repeat_ns`] (swept once per that much message
+//! time per site), so both stay bounded by the vehicles that are live. Each state still scans
+//! every live member of its site (no spatial index): measured at about N × 6 ns with N members
+//! (see docs/results.md, `risktwin bench warning`).
+//!
+//! Transport-free and clock-free like the ingest: the caller passes the receive time and a
+//! [`WarningSink`] that puts each warning on its key (`risktwin/v1/<site>/<warned>/warning`) and is
+//! told when a vehicle joins (its first state) and leaves. Nothing is allocated per message once
+//! a site's sources and critical pairs are known; a warning that goes out allocates its message.
 
 pub mod assess;
 
@@ -26,7 +34,7 @@ use assess::{PairRisk, assess_pair, vehicle_state, within_reach};
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::risk::EgoLaneFrame;
 use risktwin_common::road::Road;
-use risktwin_common::telemetry::{Frame, HazardWarning, Header};
+use risktwin_common::telemetry::{Frame, HazardKind, HazardWarning, Header};
 use risktwin_transport::keyexpr::{CLOUD_CHUNK, CloudToEdge, cloud_to_edge};
 use risktwin_transport::{SiteId, SourceId};
 use serde::Serialize;
@@ -46,14 +54,25 @@ pub struct WarningConfig {
     /// At most one warning per (warned, hazard) pair per this much message time, ns (0: every
     /// critical message warns).
     pub repeat_ns: i64,
+    /// A member not heard for this much message time is forgotten (its warnings, numbered
+    /// from 0 again, and its publisher start over when it is heard again), ns. Beyond
+    /// `max_age_ns` it is never paired anyway; the longer bound keeps a loss burst from
+    /// redeclaring its publisher.
+    pub forget_ns: i64,
 }
 
 impl Default for WarningConfig {
     /// TTC below 2 s, 50 ms steps, states up to 200 ms old (10 periods of a 50 Hz stream: a
     /// short loss burst; constant velocity is off by ½·a·t² = 0.2 m at 10 m/s² over 0.2 s),
-    /// one warning per pair per 500 ms.
+    /// one warning per pair per 500 ms, members forgotten after 2 s.
     fn default() -> Self {
-        WarningConfig { critical_ttc_s: CRITICAL_TTC_S, step_s: 0.05, max_age_ns: 200_000_000, repeat_ns: 500_000_000 }
+        WarningConfig {
+            critical_ttc_s: CRITICAL_TTC_S,
+            step_s: 0.05,
+            max_age_ns: 200_000_000,
+            repeat_ns: 500_000_000,
+            forget_ns: 2_000_000_000,
+        }
     }
 }
 
@@ -75,12 +94,34 @@ pub struct WarningSummary {
     pub rate_limited: u64,
     /// Warnings the transport refused, or with no key (an id the key scheme does not allow).
     pub failed: u64,
+    /// Of `sent`, those put through the vehicle's declared publisher, and those put once on
+    /// the session because its publisher was not declared yet (the network sink's counts).
+    pub via_publisher: u64,
+    pub one_off: u64,
+    /// Members forgotten (not heard for `forget_ns`, or their edge left).
+    pub forgotten: u64,
     /// Warnings sent per `site/vehicle`.
     pub sent_to: BTreeMap<String, u64>,
 }
 
-/// Puts one warning on its key; `false` when it did not go out.
-pub type WarningSink<'a> = dyn FnMut(&str, &HazardWarning) -> bool + Send + 'a;
+/// Where the warning path's output goes.
+pub trait WarningSink: Send {
+    /// A vehicle whose warnings go on `key` sent its first state: warnings to it may follow.
+    fn joined(&mut self, _key: &str) {}
+    /// The vehicle of `key` is forgotten: nothing goes to it until it is heard again.
+    fn left(&mut self, _key: &str) {}
+    /// Puts one warning on `key`; `false` when it did not go out.
+    fn put(&mut self, key: &str, warning: &HazardWarning) -> bool;
+    /// Adds the sink's own counts to `summary`.
+    fn count(&self, _summary: &mut WarningSummary) {}
+}
+
+/// A closure that puts warnings is a sink that ignores joins and leaves.
+impl<F: FnMut(&str, &HazardWarning) -> bool + Send> WarningSink for F {
+    fn put(&mut self, key: &str, warning: &HazardWarning) -> bool {
+        self(key, warning)
+    }
+}
 
 /// The latest states of one site's sources (members), as structure of arrays.
 #[derive(Debug, Default)]
@@ -90,13 +131,18 @@ struct Site {
     names: Vec<String>,
     /// The key each member's warnings go to; `None` when an id is not a valid key chunk.
     keys: Vec<Option<String>>,
+    /// Each member's ingest source index.
+    sources: Vec<u32>,
     /// The time of each member's latest state, cloud clock, ns.
     t_ns: Vec<i64>,
     latest: Vec<ObservedKinematics>,
     /// Warnings sent to each member (its next warning's seq).
     sent: Vec<u64>,
-    /// The message time of the last warning to `warned` about `hazard` (member indices).
-    last_warned: HashMap<(u32, u32), i64>,
+    /// The message time and kind of the last warning to `warned` about `hazard` (ingest source
+    /// indices).
+    last_warned: HashMap<(u32, u32), (i64, HazardKind)>,
+    /// The message time from which `last_warned` is swept next.
+    next_sweep_ns: i64,
 }
 
 /// One critical pair found for a message, before the repeat limit.
@@ -120,6 +166,8 @@ pub struct HazardWarner {
     /// Per ingest source index: (site, member) once it sent a state.
     members: Vec<Option<(u32, u32)>>,
     alerts: Vec<Alert>,
+    /// Members of the site being scanned that are to be forgotten.
+    gone: Vec<u32>,
     summary: WarningSummary,
 }
 
@@ -133,6 +181,7 @@ impl HazardWarner {
             site_index: HashMap::new(),
             members: Vec::new(),
             alerts: Vec::new(),
+            gone: Vec::new(),
             summary: WarningSummary::default(),
         }
     }
@@ -152,11 +201,11 @@ impl HazardWarner {
         source: &str,
         msg: &AcceptedMessage,
         receive_ns: i64,
-        sink: &mut WarningSink<'_>,
+        sink: &mut dyn WarningSink,
     ) {
         let Some(state) = msg.state else { return };
         self.summary.states += 1;
-        let (s, m) = self.member(site, source, msg.source.0 as usize);
+        let (s, m) = self.member(site, source, msg.source.0 as usize, sink);
         let t_ns = msg.cloud_ns;
         let site = &mut self.sites[s];
         let newest = site.t_ns[m] <= t_ns;
@@ -173,9 +222,17 @@ impl HazardWarner {
         let road = site.road.as_ref().or(self.default_road.as_ref());
         let mut frame: Option<EgoLaneFrame> = None;
         self.alerts.clear();
+        self.gone.clear();
         for other in 0..site.names.len() {
             let age_ns = t_ns.saturating_sub(site.t_ns[other]);
-            if other == m || age_ns.saturating_abs() > self.config.max_age_ns {
+            if other == m {
+                continue;
+            }
+            if age_ns > self.config.forget_ns {
+                self.gone.push(other as u32);
+                continue;
+            }
+            if age_ns.saturating_abs() > self.config.max_age_ns {
                 continue;
             }
             let then = site.latest[other];
@@ -191,7 +248,7 @@ impl HazardWarner {
             }
         }
         let trigger = Trigger { source, seq: msg.seq, capture_ns: msg.capture_ns, t_ns, receive_ns };
-        let mut out = Out { summary: &mut self.summary, sink };
+        let mut out = Out { summary: &mut self.summary, sink: &mut *sink };
         for alert in &self.alerts {
             // The trigger's source about the other, then the other about the trigger's source.
             site.warn(
@@ -204,6 +261,26 @@ impl HazardWarner {
             );
             site.warn((alert.other, m as u32), &state, &alert.risk, &trigger, self.config.repeat_ns, &mut out);
         }
+        if t_ns >= site.next_sweep_ns {
+            // Entries older than the repeat window hold nothing back any more.
+            let repeat_ns = self.config.repeat_ns;
+            site.last_warned.retain(|_, (last, _)| t_ns.saturating_sub(*last) < repeat_ns);
+            site.next_sweep_ns = t_ns.saturating_add(repeat_ns.max(1));
+        }
+        // Highest first: a swap-remove moves the last member, never one still to go.
+        while let Some(gone) = self.gone.pop() {
+            self.forget(s, gone as usize, sink);
+        }
+    }
+
+    /// Edge `source` of `site` left (its liveliness token went): it is forgotten, so that a new
+    /// process under its name is taken in afresh (its clock estimate is reset too, and its
+    /// first states may map before the old one's last).
+    pub fn source_left(&mut self, site: &str, source: &str, sink: &mut dyn WarningSink) {
+        let Some(&s) = self.site_index.get(site) else { return };
+        if let Some(m) = self.sites[s].names.iter().position(|n| n == source) {
+            self.forget(s, m, sink);
+        }
     }
 
     /// What the path did so far.
@@ -211,10 +288,40 @@ impl HazardWarner {
         let mut summary = self.summary.clone();
         for site in &self.sites {
             for (name, sent) in site.names.iter().zip(&site.sent).filter(|(_, n)| **n > 0) {
-                summary.sent_to.insert(format!("{}/{name}", site.name), *sent);
+                *summary.sent_to.entry(format!("{}/{name}", site.name)).or_default() += *sent;
             }
         }
         summary
+    }
+
+    /// How many members (vehicles heard within `forget_ns`, not yet forgotten) all sites hold.
+    pub fn members(&self) -> usize {
+        self.sites.iter().map(|s| s.names.len()).sum()
+    }
+
+    /// Forgets member `m` of site `s`: its publisher goes (`sink.left`), its warnings sent are
+    /// kept in the summary, its repeat-limit entries go.
+    fn forget(&mut self, s: usize, m: usize, sink: &mut dyn WarningSink) {
+        let site = &mut self.sites[s];
+        if let Some(key) = site.keys[m].as_deref() {
+            sink.left(key);
+        }
+        if site.sent[m] > 0 {
+            *self.summary.sent_to.entry(format!("{}/{}", site.name, site.names[m])).or_default() += site.sent[m];
+        }
+        let source = site.sources[m];
+        site.names.swap_remove(m);
+        site.keys.swap_remove(m);
+        site.sources.swap_remove(m);
+        site.t_ns.swap_remove(m);
+        site.latest.swap_remove(m);
+        site.sent.swap_remove(m);
+        site.last_warned.retain(|&(w, h), _| w != source && h != source);
+        self.members[source as usize] = None;
+        if let Some(&moved) = site.sources.get(m) {
+            self.members[moved as usize] = Some((s as u32, m as u32));
+        }
+        self.summary.forgotten += 1;
     }
 
     /// The index of `site`, added if new.
@@ -229,7 +336,7 @@ impl HazardWarner {
 
     /// The (site, member) of ingest source `index`, added at `site` if new (a source stays at the
     /// site of its first state, as the ingest's other counts do).
-    fn member(&mut self, site: &str, source: &str, index: usize) -> (usize, usize) {
+    fn member(&mut self, site: &str, source: &str, index: usize, sink: &mut dyn WarningSink) -> (usize, usize) {
         if let Some(Some((s, m))) = self.members.get(index) {
             return (*s as usize, *m as usize);
         }
@@ -238,9 +345,13 @@ impl HazardWarner {
             (Ok(site), Ok(source)) => Some(cloud_to_edge(&site, &source, CloudToEdge::Warning)),
             _ => None,
         };
+        if let Some(key) = key.as_deref() {
+            sink.joined(key);
+        }
         let site = &mut self.sites[s];
         site.names.push(source.to_owned());
         site.keys.push(key);
+        site.sources.push(index as u32);
         site.t_ns.push(i64::MIN);
         site.latest.push(ObservedKinematics {
             pose: Pose::default(),
@@ -271,9 +382,9 @@ struct Trigger<'a> {
 }
 
 /// Where warnings go and are counted.
-struct Out<'a, 's> {
+struct Out<'a> {
     summary: &'a mut WarningSummary,
-    sink: &'a mut WarningSink<'s>,
+    sink: &'a mut dyn WarningSink,
 }
 
 impl Site {
@@ -286,12 +397,16 @@ impl Site {
         risk: &PairRisk,
         trigger: &Trigger<'_>,
         repeat_ns: i64,
-        out: &mut Out<'_, '_>,
+        out: &mut Out<'_>,
     ) {
-        let last = self.last_warned.get(&(warned, hazard)).copied();
+        let pair = (self.sources[warned as usize], self.sources[hazard as usize]);
+        let last = self.last_warned.get(&pair).copied();
         // Sources' clock estimates differ, so message times of two sources may come out of
-        // order: with no limit, nothing is held back.
-        if repeat_ns > 0 && last.is_some_and(|t| trigger.t_ns.saturating_sub(t) < repeat_ns) {
+        // order: with no limit, nothing is held back. A pair that comes to contact is warned
+        // about at once (an escalation is news).
+        let escalates = |kind: HazardKind| risk.kind == HazardKind::Contact && kind != HazardKind::Contact;
+        if repeat_ns > 0 && last.is_some_and(|(t, kind)| trigger.t_ns.saturating_sub(t) < repeat_ns && !escalates(kind))
+        {
             out.summary.rate_limited += 1;
             return;
         }
@@ -320,16 +435,18 @@ impl Site {
             trigger_seq: trigger.seq,
             trigger_capture_time_ns: trigger.capture_ns,
         };
-        if !(out.sink)(key, &warning) {
+        if !out.sink.put(key, &warning) {
             out.summary.failed += 1;
             return;
         }
         out.summary.sent += 1;
         self.sent[w] += 1;
-        match self.last_warned.get_mut(&(warned, hazard)) {
-            Some(t) => *t = trigger.t_ns,
-            None => {
-                self.last_warned.insert((warned, hazard), trigger.t_ns);
+        if repeat_ns > 0 {
+            match self.last_warned.get_mut(&pair) {
+                Some(last) => *last = (trigger.t_ns, risk.kind),
+                None => {
+                    self.last_warned.insert(pair, (trigger.t_ns, risk.kind));
+                }
             }
         }
     }

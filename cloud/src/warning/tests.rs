@@ -170,3 +170,110 @@ fn lane_ttc_uses_the_sites_road_and_braking() {
     plain.on_state("s", "follow", &msg(1, 0, t, car(100.0, y, 20.0)), t, &mut sent.sink());
     assert_eq!(plain.summary().critical, 0);
 }
+
+/// A sink that logs joins, leaves and puts (keys).
+#[derive(Default)]
+struct Log {
+    joined: Vec<String>,
+    left: Vec<String>,
+    puts: Vec<(String, HazardWarning)>,
+}
+
+impl WarningSink for Log {
+    fn joined(&mut self, key: &str) {
+        self.joined.push(key.to_owned());
+    }
+    fn left(&mut self, key: &str) {
+        self.left.push(key.to_owned());
+    }
+    fn put(&mut self, key: &str, warning: &HazardWarning) -> bool {
+        self.puts.push((key.to_owned(), warning.clone()));
+        true
+    }
+}
+
+#[test]
+fn silent_members_are_forgotten_with_their_publishers_and_old_repeat_entries_go() {
+    let config = WarningConfig::default();
+    let mut warner = HazardWarner::new(config, None);
+    let mut log = Log::default();
+    let t0 = 1_000 * MS;
+    // A follower 15 m behind a standing lead at 15 m/s: critical, both warned.
+    warner.on_state("s", "lead", &msg(0, 0, t0, car(30.0, 0.0, 0.0)), t0, &mut log);
+    warner.on_state("s", "follow", &msg(1, 0, t0, car(15.0, 0.0, 15.0)), t0, &mut log);
+    warner.on_state("s", "third", &msg(2, 0, t0, car(500.0, 0.0, 0.0)), t0, &mut log);
+    assert_eq!(
+        log.joined,
+        ["risktwin/v1/s/lead/warning", "risktwin/v1/s/follow/warning", "risktwin/v1/s/third/warning"]
+    );
+    assert_eq!(log.puts.len(), 2);
+    assert_eq!(warner.sites[0].last_warned.len(), 2);
+    // Then only the follower and the third car publish, far apart from each other, every 100 ms.
+    for k in 1..=25u64 {
+        let t = t0 + k as i64 * 100 * MS;
+        warner.on_state("s", "follow", &msg(1, k, t, car(-1000.0, 0.0, 0.0)), t, &mut log);
+        warner.on_state("s", "third", &msg(2, k, t, car(500.0, 0.0, 0.0)), t, &mut log);
+        if k == 6 {
+            // 600 ms on: the repeat entries (500 ms) are swept.
+            assert!(warner.sites[0].last_warned.is_empty(), "{:?}", warner.sites[0].last_warned);
+        }
+    }
+    // The lead, not heard for over 2 s, is forgotten: its publisher goes, its count stays.
+    assert_eq!(log.left, ["risktwin/v1/s/lead/warning"]);
+    assert_eq!(warner.members(), 2);
+    let summary = warner.summary();
+    assert_eq!(summary.forgotten, 1);
+    assert_eq!(summary.sent_to, BTreeMap::from([("s/follow".into(), 1), ("s/lead".into(), 1)]));
+    // The swap-remove moved a member: both remaining ones still map to their own slots.
+    for (index, name) in [(1, "follow"), (2, "third")] {
+        let (s, m) = warner.members[index].expect("a member");
+        assert_eq!(warner.sites[s as usize].names[m as usize], name);
+    }
+    assert_eq!(warner.members[0], None);
+    // Heard again: a new member, declared again, its warnings numbered from 0.
+    let t = t0 + 2_600 * MS;
+    warner.on_state("s", "lead", &msg(0, 30, t, car(30.0, 0.0, 0.0)), t, &mut log);
+    warner.on_state("s", "follow", &msg(1, 30, t, car(15.0, 0.0, 15.0)), t, &mut log);
+    assert_eq!(log.joined.last().map(String::as_str), Some("risktwin/v1/s/lead/warning"));
+    let to_lead = log.puts.iter().rfind(|(_, w)| w.warned_source == "lead").expect("warned again");
+    assert_eq!((to_lead.1.trigger_seq, to_lead.1.header.seq), (30, 0));
+    assert_eq!(warner.summary().sent_to["s/lead"], 2);
+}
+
+#[test]
+fn a_pair_coming_to_contact_is_warned_at_once_despite_the_repeat_limit() {
+    let mut warner = HazardWarner::new(WarningConfig::default(), None);
+    let mut log = Log::default();
+    let t0 = 1_000 * MS;
+    warner.on_state("s", "lead", &msg(0, 0, t0, car(30.0, 0.0, 0.0)), t0, &mut log);
+    warner.on_state("s", "follow", &msg(1, 0, t0, car(15.0, 0.0, 15.0)), t0, &mut log);
+    // 100 ms later: still predicted, held back; then touching: contact, sent; again: held back.
+    let cases = [(100, 16.5, 0), (200, 26.0, 2), (300, 26.0, 0)];
+    for (k, (after_ms, x, new_puts)) in cases.into_iter().enumerate() {
+        let before = log.puts.len();
+        let t = t0 + after_ms * MS;
+        warner.on_state("s", "lead", &msg(0, k as u64 + 1, t, car(30.0, 0.0, 0.0)), t, &mut log);
+        warner.on_state("s", "follow", &msg(1, k as u64 + 1, t, car(x, 0.0, 15.0)), t, &mut log);
+        assert_eq!(log.puts.len() - before, new_puts, "at {after_ms} ms: {:?}", &log.puts[before..]);
+    }
+    let kinds: Vec<HazardKind> = log.puts.iter().map(|(_, w)| w.kind).collect();
+    use HazardKind::{Contact, PredictedContact};
+    assert_eq!(kinds, [PredictedContact, PredictedContact, Contact, Contact]);
+}
+
+#[test]
+fn an_edge_that_left_is_forgotten_and_its_next_process_taken_in() {
+    let mut warner = HazardWarner::new(WarningConfig::default(), None);
+    let mut log = Log::default();
+    let t = 10_000 * MS;
+    warner.on_state("s", "veh", &msg(0, 50, t, car(0.0, 0.0, 0.0)), t, &mut log);
+    warner.source_left("s", "veh", &mut log);
+    warner.source_left("s", "unknown", &mut log);
+    warner.source_left("nowhere", "veh", &mut log);
+    assert_eq!((log.left.len(), warner.members(), warner.summary().forgotten), (1, 0, 1));
+    // The new process's clock estimate starts over: its first state maps 300 ms earlier than
+    // the old one's last, and still counts as its latest.
+    let earlier = t - 300 * MS;
+    warner.on_state("s", "veh", &msg(0, 0, earlier, car(0.0, 0.0, 0.0)), earlier, &mut log);
+    assert_eq!((warner.summary().late_states, log.joined.len()), (0, 2));
+}

@@ -158,13 +158,14 @@ pub struct CloudArgs {
     /// Seed of the trainer's held-out set and runs (version V trains with seed + V).
     #[arg(long, default_value_t = 1)]
     pub train_seed: u64,
-    /// The warning role warns about a pair whose time to collision lies below this, s.
-    #[arg(long, default_value_t = 2.0)]
-    pub warning_ttc_s: f64,
+    /// The warning role warns about a pair whose time to collision lies below this, s (default
+    /// 2; needs the warning role).
+    #[arg(long)]
+    pub warning_ttc_s: Option<f64>,
     /// The warning role warns about one pair at most once per this much message time, ms (0:
-    /// on every critical message).
-    #[arg(long, default_value_t = 500.0)]
-    pub warning_repeat_ms: f64,
+    /// on every critical message; default 500; needs the warning role).
+    #[arg(long)]
+    pub warning_repeat_ms: Option<f64>,
     /// The risk role evaluates on the road of this scenario kind (the edges' `--kind`); so does
     /// the warning role's lane TTC.
     #[arg(long, default_value = "cut-in")]

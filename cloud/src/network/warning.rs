@@ -21,6 +21,7 @@ use risktwin_transport::zenoh::qos::{CongestionControl, Priority};
 use risktwin_transport::zenoh::{Session, Wait};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{SystemTime, UNIX_EPOCH};
 use tokio::sync::{mpsc, watch};
 use tokio::task::JoinHandle;
 
@@ -111,7 +112,12 @@ impl WarningSink for NetworkSink {
     }
 
     fn put(&mut self, key: &str, warning: &HazardWarning) -> bool {
-        let payload = encode(warning);
+        // The header's publish time: now, as the put goes out (the warner, clock-free, leaves the
+        // trigger's receive time there).
+        let mut stamped = warning.clone();
+        stamped.header.publish_time_ns =
+            SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+        let payload = encode(&stamped);
         let declared = self.declared.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(publisher) = declared.get(key) {
             let ok = publisher.put(payload).wait().is_ok();

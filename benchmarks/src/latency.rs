@@ -25,7 +25,7 @@ use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
 use risktwin_protos::encode;
 use risktwin_transport::recovery::{DEFAULT_OUTAGE, is_recovered};
 use risktwin_transport::zenoh::Wait;
-use risktwin_transport::zenoh::qos::CongestionControl;
+use risktwin_transport::zenoh::qos::{CongestionControl, Priority};
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{
     Delivery, EdgeStream, SiteId, SourceId, StreamLoss, StreamPublisher, TransportError, subscribe_edge_streams,
@@ -70,7 +70,7 @@ pub struct LatencyReport {
 
 /// Runs both sides and reports.
 pub async fn latency(config: LatencyConfig) -> Result<LatencyReport, CloudError> {
-    let mut raw = raw_side(config).await?;
+    let mut raw = raw_side(config, RawQos::PLAIN).await?;
     let mut ours = our_side(config).await?;
     let tick_ms = config.ingest.align.tick_ns as f64 * 1e-6;
     let (raw_p50, raw_p99) = (percentile(&mut raw, 0.5), percentile(&mut raw, 0.99));
@@ -91,7 +91,7 @@ pub async fn latency(config: LatencyConfig) -> Result<LatencyReport, CloudError>
 }
 
 /// The `q` quantile (nearest rank) of `values`, ms; NaN when empty.
-fn percentile(values: &mut [f64], q: f64) -> f64 {
+pub(crate) fn percentile(values: &mut [f64], q: f64) -> f64 {
     values.sort_by(f64::total_cmp);
     if values.is_empty() {
         return f64::NAN;
@@ -100,18 +100,33 @@ fn percentile(values: &mut [f64], q: f64) -> f64 {
     values[rank - 1]
 }
 
-fn period(config: LatencyConfig) -> Duration {
+pub(crate) fn period(config: LatencyConfig) -> Duration {
     Duration::from_secs_f64(1.0 / config.rate_hz)
 }
 
 /// Put instants by sequence number, shared by the publishing loop and the receive callback.
-type SentAt = Arc<Mutex<Vec<Option<Instant>>>>;
+pub(crate) type SentAt = Arc<Mutex<Vec<Option<Instant>>>>;
 
-fn put_instant(sent: &SentAt, seq: usize) -> Option<Instant> {
+pub(crate) fn put_instant(sent: &SentAt, seq: usize) -> Option<Instant> {
     sent.lock().unwrap_or_else(PoisonError::into_inner).get(seq).copied().flatten()
 }
 
-async fn raw_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
+/// How the raw side's publisher sends: `bench latency`'s plain publisher (default priority, not
+/// express, blocking under congestion), or the warning puts' QoS (`bench warning`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct RawQos {
+    pub congestion: CongestionControl,
+    pub priority: Priority,
+    pub express: bool,
+}
+
+impl RawQos {
+    /// A plain publisher's QoS, blocking under congestion.
+    pub(crate) const PLAIN: RawQos =
+        RawQos { congestion: CongestionControl::Block, priority: Priority::DEFAULT, express: false };
+}
+
+pub(crate) async fn raw_side(config: LatencyConfig, qos: RawQos) -> Result<Vec<f64>, CloudError> {
     let (sub_side, pub_side) = peer_pair().await?;
     let n = usize::try_from(config.messages).unwrap_or(usize::MAX);
     let sent: SentAt = Arc::new(Mutex::new(vec![None; n]));
@@ -133,7 +148,9 @@ async fn raw_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
         .map_err(|e| TransportError::Declare { what: "subscriber", key: key.into(), reason: e.to_string() })?;
     let publisher = pub_side
         .declare_publisher(key)
-        .congestion_control(CongestionControl::Block)
+        .congestion_control(qos.congestion)
+        .priority(qos.priority)
+        .express(qos.express)
         .await
         .map_err(|e| TransportError::Declare { what: "publisher", key: key.into(), reason: e.to_string() })?;
     wait_matching(&publisher).await;
@@ -167,7 +184,7 @@ async fn wait_matching(publisher: &risktwin_transport::zenoh::pubsub::Publisher<
 }
 
 /// Waits until `want` latencies are in, or nothing new came for 2 s.
-async fn settle(latencies: &Mutex<Vec<f64>>, want: usize) {
+pub(crate) async fn settle(latencies: &Mutex<Vec<f64>>, want: usize) {
     let mut last = (0, Instant::now());
     loop {
         let have = latencies.lock().unwrap_or_else(PoisonError::into_inner).len();
@@ -183,19 +200,20 @@ async fn settle(latencies: &Mutex<Vec<f64>>, want: usize) {
     }
 }
 
-fn state(seq: u64, spacing_m: f64) -> VehicleStateSample {
+/// `source`'s state number `seq`, stamped now, at `x_m` on the x axis driving at `speed_mps`.
+pub(crate) fn state(source: &str, seq: u64, x_m: f64, speed_mps: f64) -> VehicleStateSample {
     let now_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
     VehicleStateSample {
         header: Header {
-            source: "lat-0".into(),
+            source: source.into(),
             seq,
             capture_time_ns: now_ns,
             publish_time_ns: now_ns,
             frame: Frame::World,
         },
-        pose: Pose::new(seq as f64 * spacing_m, 0.0, 0.0),
-        velocity: Vec2::new(SPEED_MPS, 0.0),
-        speed_mps: SPEED_MPS,
+        pose: Pose::new(x_m, 0.0, 0.0),
+        velocity: Vec2::new(speed_mps, 0.0),
+        speed_mps,
         accel_mps2: 0.0,
         yaw_rate_radps: 0.0,
         steer_rad: 0.0,
@@ -203,18 +221,20 @@ fn state(seq: u64, spacing_m: f64) -> VehicleStateSample {
     }
 }
 
+/// The benchmark's site and a source of it, as typed ids.
+pub(crate) fn bench_ids(site: &str, source: &str) -> Result<(SiteId, SourceId), TransportError> {
+    let config = |key: &'static str, value: &str, e: risktwin_transport::KeyError| TransportError::Config {
+        key,
+        value: value.into(),
+        reason: e.to_string(),
+    };
+    let site_id = SiteId::new(site).map_err(|e| config("site", site, e))?;
+    Ok((site_id, SourceId::new(source).map_err(|e| config("source", source, e))?))
+}
+
 async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     let (sub_side, pub_side) = peer_pair().await?;
-    let site = SiteId::new("bench").map_err(|e| TransportError::Config {
-        key: "site",
-        value: "bench".into(),
-        reason: e.to_string(),
-    })?;
-    let source = SourceId::new("lat-0").map_err(|e| TransportError::Config {
-        key: "source",
-        value: "lat-0".into(),
-        reason: e.to_string(),
-    })?;
+    let (site, source) = bench_ids("bench", "lat-0")?;
     let n = usize::try_from(config.messages).unwrap_or(usize::MAX);
     let spacing_m = SPEED_MPS / config.rate_hz;
     let sent: SentAt = Arc::new(Mutex::new(vec![None; n]));
@@ -257,7 +277,7 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     let start = Instant::now();
     for seq in 0..n {
         tokio::time::sleep_until((start + period(config) * seq as u32).into()).await;
-        let payload = encode(&state(seq as u64, spacing_m));
+        let payload = encode(&state("lat-0", seq as u64, seq as f64 * spacing_m, SPEED_MPS));
         sent.lock().unwrap_or_else(PoisonError::into_inner)[seq] = Some(Instant::now());
         publisher.put(payload)?;
     }

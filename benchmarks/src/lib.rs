@@ -6,6 +6,8 @@
 //! - [`zenoh_throughput`]: edge→cloud messages per second through our publisher and a
 //!   stand-in ingest, against raw Zenoh (`bench zenoh`);
 //! - [`latency`]: edge publish → twin snapshot, against a raw Zenoh hop (`bench latency`);
+//! - [`warning`]: edge publish → hazard warning at the vehicle, against a raw Zenoh hop
+//!   (`bench warning`);
 //! - [`replay`]: MCAP replay into the ingest worker, against the `mcap` reader (`bench replay`);
 //! - [`fleet_ingest`]: a fleet of publisher processes against the real cloud ingest role, with
 //!   its CPU cost (`bench ingest`);
@@ -29,6 +31,7 @@ pub mod replay;
 pub mod standin;
 pub mod standin_ingest;
 pub mod synth;
+pub mod warning;
 pub mod zenoh_throughput;
 
 use thiserror::Error;

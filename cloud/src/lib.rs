@@ -5,6 +5,8 @@
 //!   ([`ingest::IngestWorker`], transport-free), and record what was accepted;
 //! - [`twin`]: the live twin built from those snapshots, and its per-tick outputs (scene boxes,
 //!   the risk field and report of every vehicle) — transport-free too;
+//! - [`warning`]: the event-driven warning path: each accepted state re-assesses the pairs it
+//!   touches and warns both vehicles of a critical one at once, beside the aligned snapshots;
 //! - [`network`]: the `risktwin cloud` roles on Zenoh (subscriptions, queryables, the
 //!   publisher of the twin's outputs, liveliness) and the cloud→edge pushes;
 //! - [`fleet_loop`]: the closed loop over the fleet (what the `loop` role decides), on the
@@ -62,3 +64,4 @@ pub mod network;
 mod test_fixtures;
 pub mod trainer;
 pub mod twin;
+pub mod warning;

@@ -149,6 +149,42 @@ pub struct RiskReport {
     pub min_distance_m: f64,
 }
 
+/// How a pair was found critical (see [`HazardWarning`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum HazardKind {
+    /// The footprints overlap at the triggering message's time.
+    Contact,
+    /// One follows the other in its lane, closing in below the TTC threshold.
+    LaneTtc,
+    /// The footprints, moved on at constant velocity, overlap within the TTC threshold.
+    PredictedContact,
+}
+
+/// Cloud to one vehicle: a hazard is near (DENM-like). The header's source is the cloud, its
+/// seq numbers the warnings to this vehicle, its capture time is the triggering message's time
+/// on the cloud's clock.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HazardWarning {
+    pub header: Header,
+    /// The vehicle warned.
+    pub warned_source: String,
+    /// The other vehicle of the pair.
+    pub hazard_source: String,
+    /// The hazard at the triggering message's time.
+    pub hazard_pose: Pose,
+    pub hazard_velocity: Vec2,
+    pub hazard_footprint: Footprint,
+    pub kind: HazardKind,
+    /// Time to collision, s (0 on contact).
+    pub ttc_s: f64,
+    /// Footprint-to-footprint distance at the triggering message's time, m.
+    pub distance_m: f64,
+    /// The state message that raised it: source, seq, capture time (the source's clock).
+    pub trigger_source: String,
+    pub trigger_seq: u64,
+    pub trigger_capture_time_ns: i64,
+}
+
 /// One actuator command for a vehicle.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControlCommand {

@@ -20,8 +20,9 @@ use risktwin_common::metrics::RewardWeights;
 use risktwin_common::net::{HostDriver, HostPolicy};
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, check_feasible, sample};
 use risktwin_common::sensor::PerceivedObject;
-use risktwin_common::telemetry::DetectedObject;
 use risktwin_common::telemetry::PolicyRef;
+use risktwin_common::telemetry::{DetectedObject, HazardWarning};
+use risktwin_common::v2x::warning::{Heard, Warning};
 use risktwin_common::vehicle::{Controls, Vehicle, VehicleState};
 use risktwin_common::world::World;
 use std::fmt;
@@ -39,12 +40,15 @@ pub fn feasible_spec(seed: u64, kind: ScenarioKind) -> Result<ScenarioSpec, Edge
 }
 
 /// A scenario world stepping at the world's step with the ego controller; when the scenario's
-/// horizon is reached it starts over, so an edge can publish for as long as it runs.
+/// horizon is reached it starts over, so an edge can publish for as long as it runs. Hazards
+/// the cloud warned of are fused into what the controller sees (`common::v2x::warning::Heard`:
+/// the warned objects it does not perceive itself, kept 1 s after last heard).
 pub struct Scene {
     spec: ScenarioSpec,
     pub world: World,
     controller: EgoController,
     policy: Option<ActivePolicy>,
+    heard: Heard,
 }
 
 impl Scene {
@@ -56,7 +60,18 @@ impl Scene {
     /// The world of `spec` at t = 0, driven by `policy` when given.
     fn with_policy(spec: ScenarioSpec, policy: Option<ActivePolicy>) -> Self {
         let (world, controller) = EgoController::world(&spec, policy.as_ref());
-        Scene { spec, world, controller, policy }
+        Scene { spec, world, controller, policy, heard: Heard::default() }
+    }
+
+    /// A cloud hazard warning heard now; its hazard is object `id` of what the ego perceives.
+    pub fn hear(&mut self, warning: &HazardWarning, id: u32) {
+        let now_s = self.world.time_s;
+        self.heard.hear(now_s, Warning::from_hazard(warning, id, now_s));
+    }
+
+    /// The hazards heard of and not yet forgotten.
+    pub fn heard(&self) -> &Heard {
+        &self.heard
     }
 
     /// Drives with `policy` from the next step on (the world goes on where it is).
@@ -70,13 +85,18 @@ impl Scene {
         self.controller.driven_by()
     }
 
-    /// One step (and a restart first when the horizon was reached): the ego over it.
+    /// One step (and a restart first when the horizon was reached, forgetting what was heard:
+    /// its time starts over): the ego over it. As `World::step`, with the heard hazards fused
+    /// into the controller's view (nothing heard: the same step).
     pub fn step(&mut self) -> Segment {
         if self.world.time_s >= self.world.horizon_s {
             *self = Scene::with_policy(self.spec.clone(), self.policy.take());
         }
         let from = self.world.ego.state;
-        let controls = self.world.step(self.controller.policy()).controls;
+        self.heard.forget_old(self.world.time_s);
+        self.world.perceive();
+        let controls = self.heard.act(&self.world.view(), self.controller.policy());
+        let controls = self.world.advance(controls).controls;
         Segment { ego: self.world.ego.clone(), from, controls }
     }
 }

@@ -10,7 +10,11 @@
 //! `ScenarioResult` goes back on `risktwin/v1/<site>/<id>/scenario_result` and the vehicle
 //! returns to its own scenario. A valid policy update drives from then on: the vehicle's own
 //! scene at once, and every pushed scenario executed after it (its `ScenarioResult` names the
-//! policy version that drove).
+//! policy version that drove). A hazard warning of the cloud's warning role
+//! (`risktwin/v1/<site>/<id>/warning`) addressed to this vehicle puts the other vehicle it warns
+//! of among the objects the driver of the own scene sees (as a V2X warning: `scene::Scene::hear`),
+//! until 1 s after it was last heard of; warnings that arrive while a pushed episode plays (its
+//! driving was recorded ahead of time) are only counted.
 
 pub mod push;
 
@@ -31,7 +35,7 @@ use std::convert::Infallible;
 pub const DEFAULT_STATE_RATE_HZ: f64 = 50.0;
 
 const STREAMS: [EdgeStream; 3] = [EdgeStream::State, EdgeStream::Can, EdgeStream::Perception];
-const PUSHES: [CloudToEdge; 2] = [CloudToEdge::Scenario, CloudToEdge::Policy];
+const PUSHES: [CloudToEdge; 3] = [CloudToEdge::Scenario, CloudToEdge::Policy, CloudToEdge::Warning];
 
 /// A pushed scenario being played out.
 struct Pushed {
@@ -41,8 +45,17 @@ struct Pushed {
     state_seqs: Option<(u64, u64)>,
 }
 
+/// The object ids the hazards warned of get among what the ego perceives: from here up, one per
+/// hazard vehicle in order of first warning (scene objects are numbered from 0; the ego is
+/// `u32::MAX`).
+pub const HAZARD_ID_BASE: u32 = 0x4000_0000;
+
 /// A vehicle's scene and its last physics step, ticked at the CAN rate.
 pub struct Vehicle {
+    /// The vehicle's own id (the warnings addressed to it name it).
+    id: String,
+    /// The hazard vehicles warned of so far: object id `HAZARD_ID_BASE + index`.
+    hazards: Vec<String>,
     scene: Scene,
     pushed: Option<Pushed>,
     /// Whether the current step came from the pushed tape.
@@ -71,6 +84,8 @@ impl Vehicle {
         let scene = Scene::new(feasible_spec(config.scenario_seed, config.kind)?);
         let segment = Segment::at_rest(scene.world.ego.clone());
         Ok(Vehicle {
+            id: config.id.as_str().to_owned(),
+            hazards: Vec::new(),
             scene,
             pushed: None,
             on_tape: false,
@@ -86,6 +101,25 @@ impl Vehicle {
     /// The pushes received so far.
     pub fn pushes(&self) -> &PushSummary {
         &self.pushes
+    }
+
+    /// A hazard warning (`payload` tagged `encoding`): addressed to this vehicle, its hazard goes
+    /// to the own scene's driver (not while a pushed episode plays).
+    fn warning(&mut self, encoding: &str, payload: &[u8]) {
+        let Some(warning) = self.pushes.warning(&self.id, encoding, payload) else { return };
+        if self.pushed.is_some() {
+            self.pushes.warnings_on_tape += 1;
+            return;
+        }
+        let index = match self.hazards.iter().position(|h| *h == warning.hazard_source) {
+            Some(i) => i,
+            None => {
+                self.hazards.push(warning.hazard_source.clone());
+                self.hazards.len() - 1
+            }
+        };
+        let id = HAZARD_ID_BASE.saturating_add(u32::try_from(index).unwrap_or(u32::MAX));
+        self.scene.hear(&warning, id);
     }
 
     /// One physics step: from the pushed episode while it lasts, else from the own scene.
@@ -186,6 +220,7 @@ impl Producer for Vehicle {
                     self.policy = Some(policy);
                 }
             }
+            CloudToEdge::Warning => self.warning(encoding, payload),
             CloudToEdge::Control => {}
         }
     }
@@ -244,4 +279,84 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<VehicleSumma
     let mut vehicle = Vehicle::new(config)?;
     let sent = run_producer(config, &mut vehicle, shutdown).await?;
     Ok(VehicleSummary { sent, pushes: vehicle.pushes })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use risktwin_common::geometry::{Footprint, Vec2};
+    use risktwin_common::telemetry::{Frame, HazardKind, HazardWarning, Header};
+    use risktwin_protos::encoding_of;
+    use risktwin_transport::{SiteId, SourceId};
+
+    fn vehicle(id: &str) -> Vehicle {
+        let config = EdgeConfig::new(SiteId::new("site").unwrap(), SourceId::new(id).unwrap(), 50.0);
+        Vehicle::new(&config).expect("a feasible scenario")
+    }
+
+    /// A warning to `warned` of a vehicle standing `ahead_m` ahead of `v`'s ego in its lane.
+    fn standing_ahead(v: &Vehicle, warned: &str, ahead_m: f64) -> HazardWarning {
+        let world = &v.scene.world;
+        let lane = world.road.lane(world.route.lane);
+        let s_m = lane.project(world.ego.pose().position()).s_m;
+        HazardWarning {
+            header: Header {
+                source: "cloud".into(),
+                seq: 0,
+                capture_time_ns: 1,
+                publish_time_ns: 1,
+                frame: Frame::World,
+            },
+            warned_source: warned.into(),
+            hazard_source: "veh-9".into(),
+            hazard_pose: lane.pose_at(s_m + ahead_m, 0.0),
+            hazard_velocity: Vec2::zeros(),
+            hazard_footprint: Footprint::new(4.5, 1.8),
+            kind: HazardKind::LaneTtc,
+            ttc_s: 1.5,
+            distance_m: ahead_m - 4.5,
+            trigger_source: warned.into(),
+            trigger_seq: 1,
+            trigger_capture_time_ns: 1,
+        }
+    }
+
+    #[test]
+    fn a_warning_to_this_vehicle_slows_its_driver_for_the_hazard_in_its_lane_until_forgotten() {
+        let (mut plain, mut warned) = (vehicle("veh-1"), vehicle("veh-1"));
+        for _ in 0..10 {
+            plain.scene.step();
+            warned.scene.step();
+        }
+        let speed = |v: &Vehicle| v.scene.world.ego.state.speed_mps;
+        assert_eq!(speed(&plain), speed(&warned), "nothing heard: the same drive");
+        assert!(speed(&plain) > 5.0, "the ego drives: {} m/s", speed(&plain));
+        let tag = encoding_of("risktwin.v1.HazardWarning");
+        // Addressed to another vehicle: refused, not heard.
+        plain.on_push(CloudToEdge::Warning, &tag, &encode(&standing_ahead(&plain, "veh-2", 30.0)));
+        assert!(plain.scene.heard().is_empty());
+        assert_eq!(plain.pushes().warnings_refused.get("wrong-vehicle"), Some(&1));
+        // The warning again every 500 ms (the cloud's repeat limit) for 1.5 s, of the same spot:
+        // the driver brakes for it after its reaction time (0.75 s); the other drives on.
+        let warning = standing_ahead(&warned, "veh-1", 40.0);
+        let (mut free_brake, mut warned_brake) = (0.0f64, 0.0f64);
+        for step in 0..30 {
+            if step % 10 == 0 {
+                warned.on_push(CloudToEdge::Warning, &tag, &encode(&warning));
+                assert_eq!(warned.scene.heard().len(), 1, "one hazard, heard again");
+            }
+            free_brake = free_brake.max(plain.scene.step().controls.brake);
+            warned_brake = warned_brake.max(warned.scene.step().controls.brake);
+        }
+        assert_eq!(warned.pushes().warnings_received, 3);
+        assert!(warned_brake > free_brake + 0.1, "brake {warned_brake} vs {free_brake}");
+        assert!(speed(&warned) < speed(&plain) - 1.0, "{} vs {} m/s", speed(&warned), speed(&plain));
+        // Not heard of again: forgotten 1 s after it was last heard (at step 20).
+        assert_eq!(warned.scene.heard().len(), 1, "0.5 s after");
+        // A step forgets at its start: the one that starts 1.05 s after.
+        for _ in 0..12 {
+            warned.scene.step();
+        }
+        assert!(warned.scene.heard().is_empty(), "1.05 s after");
+    }
 }

@@ -160,3 +160,16 @@ fn missing_subcommand_is_named() {
     assert_input_error(dir.path(), &[], "subcommand");
     assert_input_error(dir.path(), &["scenarios"], "subcommand");
 }
+
+#[test]
+fn warning_flags_without_the_warning_role_are_refused() {
+    let dir = tempdir().unwrap();
+    for flag in ["--warning-ttc-s", "--warning-repeat-ms"] {
+        assert_input_error(dir.path(), &["cloud", "--roles", "ingest", flag, "1"], "need the warning role");
+    }
+    assert_input_error(
+        dir.path(),
+        &["cloud", "--roles", "ingest,warning", "--warning-ttc-s", "0"],
+        "--warning-ttc-s 0 must lie in (0, 10]",
+    );
+}

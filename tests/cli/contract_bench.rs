@@ -1,4 +1,4 @@
-//! `bench sim`, `bench risk-field` and `bench fanout` with tiny sizes: the fields docs/cli.md
+//! `bench sim`, `bench risk-field`, `bench fanout` and `bench warning` with tiny sizes: the fields docs/cli.md
 //! promises and sane rates.
 
 use crate::support::{assert_input_error, keys, num, ok_json, uint};
@@ -47,5 +47,26 @@ fn bench_fanout_json_and_bad_sizes() {
     for bad in [["--echoes", "0"], ["--out-bytes", "4"], ["--reply-bytes", "8"]] {
         let args: Vec<&str> = ["bench", "fanout"].into_iter().chain(bad).collect();
         assert_input_error(dir.path(), &args, "--echoes and --rounds must be positive");
+    }
+}
+
+#[test]
+fn bench_warning_json_and_bad_flags() {
+    let dir = tempdir().unwrap();
+    let b = ok_json(dir.path(), &["bench", "warning", "--messages", "80", "--rate-hz", "100", "--format", "json"]);
+    let present = keys(&b);
+    for key in
+        ["raw_p50_ms", "warning_p50_ms", "warning_p99_ms", "cloud_p50_ms", "ratio", "warnings", "assess_us_per_state"]
+    {
+        assert!(present.contains(&key), "bench warning JSON lacks {key}: {b}");
+    }
+    // 80 messages, 50 of them warm-up: each of the other 30 states of warn-0 raises a warning to
+    // it (the repeat limit is off). Put with `Drop`, a few may be lost on a loaded machine.
+    let samples = uint(&b, "warning_samples");
+    assert!((25..=30).contains(&samples), "{samples} warnings timed: {b}");
+    assert!(num(&b, "warning_p50_ms") > 0.0 && num(&b, "ratio") > 0.0, "{b}");
+    for bad in [["--messages", "50"], ["--rate-hz", "0"]] {
+        let args: Vec<&str> = ["bench", "warning"].into_iter().chain(bad).collect();
+        assert_input_error(dir.path(), &args, "--messages must exceed 50");
     }
 }

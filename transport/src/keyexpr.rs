@@ -3,7 +3,7 @@
 //! Every key starts with `risktwin/v1/<site>/` and is named by direction:
 //! - edge→cloud streams: `risktwin/v1/<site>/<source_id>/{state,can,perception,rsu,signal}`
 //! - an edge's road map: `risktwin/v1/<site>/<source_id>/map` (not an ingest stream)
-//! - cloud→edge pushes: `risktwin/v1/<site>/<source_id>/{scenario,policy,control}`
+//! - cloud→edge pushes: `risktwin/v1/<site>/<source_id>/{scenario,policy,control,warning}`
 //! - cloud outputs: `risktwin/v1/<site>/cloud/{risk_field,risk_report,snapshot}`
 //! - library queryables: `risktwin/v1/<site>/cloud/library/**`
 //! - liveliness tokens: `risktwin/v1/<site>/alive/<source_id>`
@@ -167,6 +167,8 @@ pub enum CloudToEdge {
     Policy,
     /// A control command.
     Control,
+    /// A hazard warning (`HazardWarning`) about another vehicle, from the cloud's warning role.
+    Warning,
 }
 
 impl CloudToEdge {
@@ -176,6 +178,7 @@ impl CloudToEdge {
             CloudToEdge::Scenario => "scenario",
             CloudToEdge::Policy => "policy",
             CloudToEdge::Control => "control",
+            CloudToEdge::Warning => "warning",
         }
     }
 
@@ -185,6 +188,7 @@ impl CloudToEdge {
             CloudToEdge::Scenario => "risktwin.v1.ScenarioPush",
             CloudToEdge::Policy => "risktwin.v1.PolicyUpdate",
             CloudToEdge::Control => "risktwin.v1.ControlCommand",
+            CloudToEdge::Warning => "risktwin.v1.HazardWarning",
         }
     }
 }
@@ -499,6 +503,8 @@ mod tests {
         assert_eq!(edge_stream_all(Some(&site), EdgeStream::Rsu), "risktwin/v1/track-1/*/rsu");
         assert_eq!(edge_streams_all(None), "risktwin/v1/*/*/*");
         assert_eq!(cloud_to_edge(&site, &src, CloudToEdge::Policy), "risktwin/v1/track-1/veh_0.a/policy");
+        assert_eq!(cloud_to_edge(&site, &src, CloudToEdge::Warning), "risktwin/v1/track-1/veh_0.a/warning");
+        assert_eq!(parse_edge_key("risktwin/v1/track-1/veh_0.a/warning"), None, "a warning is no edge stream");
         assert_eq!(cloud_output(&site, CloudOutput::RiskField), "risktwin/v1/track-1/cloud/risk_field");
         assert_eq!(library_queryable(&site), "risktwin/v1/track-1/cloud/library/**");
         assert_eq!(library_ranked(&site), "risktwin/v1/track-1/cloud/library/ranked");

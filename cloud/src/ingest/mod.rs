@@ -9,6 +9,6 @@ mod worker;
 pub use digest::SnapshotDigest;
 pub use replay::{ReplayCounts, replay_into};
 pub use sample::{ObservedKinematics, TwinSample};
-pub use worker::{IngestStats, IngestWorker};
+pub use worker::{AcceptedMessage, IngestStats, IngestWorker};
 #[cfg(test)]
 mod tests;

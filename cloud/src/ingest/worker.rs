@@ -46,6 +46,21 @@ impl IngestStats {
     }
 }
 
+/// A message the worker accepted: who sent it, when (its clock and the cloud's), and a
+/// state's kinematics (what the warning path needs, without decoding twice).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AcceptedMessage {
+    /// The source's index ([`IngestWorker::source_name`] names it).
+    pub source: SourceIndex,
+    pub seq: u64,
+    /// The capture time as the source stamped it (its own clock), ns.
+    pub capture_ns: i64,
+    /// The capture time on the cloud's clock (the source's clock estimate), ns.
+    pub cloud_ns: i64,
+    /// The kinematics, for a `state` message.
+    pub state: Option<ObservedKinematics>,
+}
+
 /// Decode, validate, align and record edge messages.
 pub struct IngestWorker<W: Write + Seek> {
     core: IngestCore<TwinSample>,
@@ -71,7 +86,7 @@ impl<W: Write + Seek> IngestWorker<W> {
 
     /// Handles one message from `source` on `stream`, received at `receive_ns` (cloud clock).
     /// `topic` names it in the recording. Snapshots that become due are passed to `on_snapshot`.
-    /// `Ok(true)` when the message was accepted (and recorded), `Ok(false)` when it was dropped.
+    /// `Ok(Some(_))` when the message was accepted (and recorded), `Ok(None)` when it was dropped.
     pub fn handle(
         &mut self,
         source: &str,
@@ -80,22 +95,43 @@ impl<W: Write + Seek> IngestWorker<W> {
         payload: &[u8],
         receive_ns: i64,
         on_snapshot: impl FnMut(&Snapshot<TwinSample>),
-    ) -> Result<bool, RecordingError> {
+    ) -> Result<Option<AcceptedMessage>, RecordingError> {
+        self.handle_then(source, stream, topic, payload, receive_ns, |_| {}, on_snapshot)
+    }
+
+    /// [`IngestWorker::handle`], handing an accepted message to `on_accepted` first: before the
+    /// snapshots it makes due go to `on_snapshot` and before it is recorded
+    /// (`IngestCore::ingest_then`; the snapshots and the recording are the same).
+    #[allow(clippy::too_many_arguments)]
+    pub fn handle_then(
+        &mut self,
+        source: &str,
+        stream: EdgeStream,
+        topic: &str,
+        payload: &[u8],
+        receive_ns: i64,
+        on_accepted: impl FnOnce(&AcceptedMessage),
+        on_snapshot: impl FnMut(&Snapshot<TwinSample>),
+    ) -> Result<Option<AcceptedMessage>, RecordingError> {
         self.stats.received += 1;
         let (header, sample) = match Self::decode(stream, payload) {
             Ok(v) => v,
             Err(reason) => {
                 self.drop_for(reason);
-                return Ok(false);
+                return Ok(None);
             }
         };
         if header.source != source {
             self.drop_for(DropReason::SourceMismatch);
-            return Ok(false);
+            return Ok(None);
         }
         let Ok(src) = self.sources.index_of(source) else {
             self.drop_for(DropReason::TooManySources);
-            return Ok(false);
+            return Ok(None);
+        };
+        let state = match &sample {
+            TwinSample::State(k) => Some(*k),
+            _ => None,
         };
         let incoming = Incoming {
             source: src,
@@ -105,17 +141,23 @@ impl<W: Write + Seek> IngestWorker<W> {
             receive_ns,
             payload: sample,
         };
+        let (seq, capture_ns) = (header.seq, header.capture_time_ns);
+        let message = |cloud_ns| AcceptedMessage { source: src, seq, capture_ns, cloud_ns, state };
         let mut snapshots = 0;
         let mut on_snapshot = on_snapshot;
-        let verdict = self.core.ingest(incoming, |s| {
-            snapshots += 1;
-            on_snapshot(s);
-        });
+        let verdict = self.core.ingest_then(
+            incoming,
+            |cloud_ns| on_accepted(&message(cloud_ns)),
+            |s| {
+                snapshots += 1;
+                on_snapshot(s);
+            },
+        );
         self.stats.snapshots += snapshots;
         match verdict {
             Err(reason) => {
                 self.drop_for(reason);
-                Ok(false)
+                Ok(None)
             }
             Ok(accepted) => {
                 self.stats.accepted += 1;
@@ -132,7 +174,7 @@ impl<W: Write + Seek> IngestWorker<W> {
                     rec.write(channel, receive_ns.max(0) as u64, header.publish_time_ns.max(0) as u64, payload)?;
                     self.stats.recorded += 1;
                 }
-                Ok(true)
+                Ok(Some(message(accepted.cloud_ns)))
             }
         }
     }

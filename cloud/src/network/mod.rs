@@ -14,6 +14,9 @@
 //!   site's vehicles go out as `foxglove.SceneUpdate` boxes on `…/cloud/scene` each tick;
 //! - `risk` (needs `twin`): at 2 Hz of twin time per site, the risk field around every vehicle
 //!   (`foxglove.Grid` on `…/cloud/risk_field`) and its `RiskReport` (`…/cloud/risk_report`);
+//! - `warning` (needs `ingest`): every accepted state re-assesses the pairs it touches
+//!   ([`crate::warning`]) and a `HazardWarning` goes to each vehicle of a critical pair on
+//!   `…/<vehicle>/warning`, put from the receive callback ([`warning`]);
 //! - `library` (needs `--db`): the queryable of [`library`] answering ranked scenarios;
 //! - `criticality` (needs `--criticality-out` or `--db`): the road map and obstacle states of a
 //!   site (a replayed `risktwin import commonroad` recording), and on shutdown their CommonRoad
@@ -42,6 +45,11 @@ mod receive;
 pub mod routes;
 mod scene;
 #[cfg(test)]
+mod test_harness;
+pub mod warning;
+#[cfg(test)]
+mod warning_tests;
+#[cfg(test)]
 mod wire_tests;
 
 use crate::fleet_loop::trainer::TrainerConfig;
@@ -49,6 +57,7 @@ use crate::fleet_loop::{FleetLoop, LoopConfig};
 use crate::library::ScenarioLibrary;
 use crate::twin::outputs::{TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
+use crate::warning::{HazardWarner, WarningConfig, WarningSink, WarningSummary};
 use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, CriticalitySummary};
 use fleet_loop::LoopRoleSummary;
 use library::LibrarySummary;
@@ -80,6 +89,8 @@ pub enum Role {
     Criticality,
     /// The closed loop over the fleet.
     Loop,
+    /// Hazard warnings on every accepted state (the event-driven path).
+    Warning,
     /// Policy retraining on the library, gated before every push (with `loop`).
     Trainer,
 }
@@ -94,6 +105,7 @@ impl Role {
             Role::Criticality => "criticality",
             Role::Loop => "loop",
             Role::Trainer => "trainer",
+            Role::Warning => "warning",
         }
     }
 }
@@ -109,6 +121,7 @@ impl std::str::FromStr for Role {
             "criticality" => Ok(Role::Criticality),
             "loop" => Ok(Role::Loop),
             "trainer" => Ok(Role::Trainer),
+            "warning" => Ok(Role::Warning),
             other => Err(CloudError::UnknownRole { role: other.to_owned() }),
         }
     }
@@ -117,7 +130,7 @@ impl std::str::FromStr for Role {
 /// Why the cloud role failed.
 #[derive(Debug, Error)]
 pub enum CloudError {
-    #[error("role {role:?} is not one of ingest, twin, risk, library, criticality, loop, trainer")]
+    #[error("role {role:?} is not one of ingest, twin, risk, library, criticality, loop, trainer, warning")]
     UnknownRole { role: String },
     #[error("role {role:?} needs role {needs:?} in the same process (e.g. --roles ingest,twin,risk)")]
     RoleNeeds { role: &'static str, needs: &'static str },
@@ -172,6 +185,8 @@ pub struct CloudConfig {
     pub fleet_loop: LoopConfig,
     /// How the `trainer` role trains and gates.
     pub trainer: TrainerConfig,
+    /// When the `warning` role finds a pair critical, and how often it warns.
+    pub warning: WarningConfig,
 }
 
 impl CloudConfig {
@@ -192,6 +207,7 @@ impl CloudConfig {
             criticality: None,
             fleet_loop: LoopConfig::default(),
             trainer: TrainerConfig::default(),
+            warning: WarningConfig::default(),
         }
     }
 
@@ -209,6 +225,7 @@ impl CloudConfig {
             (Role::Risk, Role::Twin),
             (Role::Loop, Role::Twin),
             (Role::Trainer, Role::Loop),
+            (Role::Warning, Role::Ingest),
         ] {
             if self.has(role) && !self.has(needs) {
                 return Err(CloudError::RoleNeeds { role: role.name(), needs: needs.name() });
@@ -250,6 +267,9 @@ pub struct CloudSummary {
     /// The loop role, when it ran.
     #[serde(rename = "loop", skip_serializing_if = "Option::is_none")]
     pub fleet_loop: Option<LoopRoleSummary>,
+    /// The warning role, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub warning: Option<WarningSummary>,
 }
 
 /// Runs the cloud roles until `shutdown` fires; `on_ready` is called once every subscription
@@ -280,6 +300,7 @@ pub async fn run(
         library: None,
         criticality: None,
         fleet_loop: None,
+        warning: None,
     };
     let session = tokio::select! {
         opened = connect(&config.transport) => opened?,
@@ -296,11 +317,20 @@ pub async fn run(
     let (episodes_tx, episodes_rx) = tokio::sync::mpsc::unbounded_channel();
     let route_keys = config.has(Role::Ingest).then(|| routes::declare_route_keys(&session));
     let (route_keys, keys_tx) = route_keys.unzip();
+    // The warning role's publishers are declared by a task, never in the ingest's callback.
+    let (warning_sink, warning_publishers) = if config.has(Role::Warning) {
+        let (sink, publishers) = warning::warning_sink(&session);
+        let warner = HazardWarner::new(config.warning, Some(config.road.clone()));
+        (Some((warner, Box::new(sink) as Box<dyn WarningSink>)), Some(publishers))
+    } else {
+        (None, None)
+    };
     let ingest = LiveIngest::new(config.record.as_deref(), outputs)?
         .with_replay_time(config.replay_time)
         .with_route_keys(keys_tx)
         .with_publisher(config.has(Role::Twin).then_some(publish_tx))
-        .with_episodes(fleet.is_some().then_some(episodes_tx));
+        .with_episodes(fleet.is_some().then_some(episodes_tx))
+        .with_warnings(warning_sink);
     let ingest = Arc::new(Mutex::new(ingest));
     let subscriber = if config.has(Role::Ingest) {
         Some(
@@ -321,7 +351,7 @@ pub async fn run(
         None => None,
     };
     // The loop needs the scene maps too: they start the twin's watch of a scene's episode.
-    let map_subscriber = if config.has(Role::Risk) || config.has(Role::Loop) {
+    let map_subscriber = if config.has(Role::Risk) || config.has(Role::Loop) || config.has(Role::Warning) {
         Some(scene::subscribe_maps(&session, config.site.as_ref(), Arc::clone(&ingest)).await?)
     } else {
         None
@@ -369,6 +399,9 @@ pub async fn run(
     if let Some(keys) = route_keys {
         keys.task.abort();
     }
+    if let Some(publishers) = warning_publishers {
+        publishers.task.abort();
+    }
     let library_summary = match library_task {
         Some(task) => Some(task.await.map_err(|e| join_error("library", e))??),
         None => None,
@@ -399,7 +432,9 @@ pub async fn run(
             }
         }
     };
-    let (ingest, twin) = ingest.into_inner().unwrap_or_else(PoisonError::into_inner).finish()?;
+    let ingest = ingest.into_inner().unwrap_or_else(PoisonError::into_inner);
+    let warning = ingest.warning_summary();
+    let (ingest, twin) = ingest.finish()?;
     let liveliness = liveness.lock().unwrap_or_else(PoisonError::into_inner).summary();
     // Computed last, once every other role has flushed: a scenario that cannot be rebuilt fails
     // the run without losing the recording or the database.
@@ -410,7 +445,7 @@ pub async fn run(
         }
         None => None,
     };
-    Ok(CloudSummary { ingest, liveliness, twin, library: library_summary, criticality, fleet_loop })
+    Ok(CloudSummary { ingest, liveliness, twin, library: library_summary, criticality, fleet_loop, warning })
 }
 
 fn join_error(what: &str, e: tokio::task::JoinError) -> CloudError {

@@ -10,11 +10,12 @@
 //! through a channel.
 
 use super::loss::LossCounts;
-use crate::ingest::{IngestStats, IngestWorker, ObservedKinematics, SnapshotDigest};
+use crate::ingest::{AcceptedMessage, IngestStats, IngestWorker, ObservedKinematics, SnapshotDigest};
 use crate::twin::fidelity::distribution::Distribution;
 use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
 use crate::twin::watch::{WatchCounts, WatchedEpisode};
+use crate::warning::{HazardWarner, WarningSink, WarningSummary};
 use risktwin_common::align::{DropReason, IngestConfig};
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{ObjectList, RiskReport, ScenarioResult, VehicleStateSample};
@@ -185,6 +186,9 @@ pub struct LiveIngest {
     /// Where the key of each stream's first accepted sample goes, to be declared (see
     /// [`super::routes`]).
     route_keys: Option<UnboundedSender<String>>,
+    /// The warning role: every accepted state re-assesses its pairs, and warnings go to the sink
+    /// at once, before the tick work the message triggers and before it is recorded.
+    warnings: Option<(HazardWarner, Box<dyn WarningSink>)>,
 }
 
 impl LiveIngest {
@@ -227,6 +231,7 @@ impl LiveIngest {
             wrong_schema_logged: HashSet::new(),
             losses: LossCounts::default(),
             route_keys: None,
+            warnings: None,
         })
     }
 
@@ -240,6 +245,29 @@ impl LiveIngest {
     pub fn with_route_keys(mut self, keys: Option<UnboundedSender<String>>) -> Self {
         self.route_keys = keys;
         self
+    }
+
+    /// Runs the warning path ([`crate::warning`]) on every accepted state, handing each warning to
+    /// the sink (which puts it), when given.
+    pub fn with_warnings(mut self, path: Option<(HazardWarner, Box<dyn WarningSink>)>) -> Self {
+        self.warnings = path;
+        self
+    }
+
+    /// `site`'s scene published its road map: the warning path measures lane TTC on it.
+    pub fn set_warning_road(&mut self, site: &str, road: &risktwin_common::road::Road) {
+        if let Some((warner, _)) = self.warnings.as_mut() {
+            warner.set_site_road(site, road.clone());
+        }
+    }
+
+    /// What the warning path did, when it runs.
+    pub fn warning_summary(&self) -> Option<WarningSummary> {
+        self.warnings.as_ref().map(|(warner, sink)| {
+            let mut summary = warner.summary();
+            sink.count(&mut summary);
+            summary
+        })
     }
 
     /// Counts samples the edge-stream subscriber could neither receive nor recover.
@@ -334,14 +362,24 @@ impl LiveIngest {
         let lag = &mut self.lag;
         let mut outputs = self.outputs.as_mut();
         let mut ticked = false;
-        let accepted = self.worker.handle(parsed.source, parsed.stream, key, payload, receive_ns, |s| {
-            digest.add(s);
-            lag.add(receive_ns.saturating_sub(s.tick_ns).max(0) as f64 * 1e-9);
-            if let Some(outputs) = outputs.as_mut() {
-                outputs.apply(s);
-                ticked = true;
+        let warnings = self.warnings.as_mut();
+        // The warning path runs as soon as the message is accepted: before the snapshots it
+        // makes due are applied and before it is recorded (`IngestWorker::handle_then`).
+        let on_accepted = |msg: &AcceptedMessage| {
+            if let Some((warner, sink)) = warnings {
+                warner.on_state(parsed.site, parsed.source, msg, receive_ns, &mut **sink);
             }
-        })?;
+        };
+        let accepted =
+            self.worker.handle_then(parsed.source, parsed.stream, key, payload, receive_ns, on_accepted, |s| {
+                digest.add(s);
+                lag.add(receive_ns.saturating_sub(s.tick_ns).max(0) as f64 * 1e-9);
+                if let Some(outputs) = outputs.as_mut() {
+                    outputs.apply(s);
+                    ticked = true;
+                }
+            })?;
+        let accepted = accepted.is_some();
         if accepted && parsed.stream == EdgeStream::State {
             self.watch_state(parsed.site, parsed.source, payload);
         }
@@ -418,6 +456,9 @@ impl LiveIngest {
     pub(crate) fn edge_left(&mut self, site: &str, source: &str) {
         if self.sites.get(source).is_some_and(|s| s == site) {
             self.worker.restart_source(source);
+            if let Some((warner, sink)) = self.warnings.as_mut() {
+                warner.source_left(site, source, &mut **sink);
+            }
         }
     }
 

@@ -1,19 +1,15 @@
 //! The cloud role against real Zenoh sessions in this process: a router on a free port, the
 //! cloud recording to MCAP, and a raw session that sends real encodings mixed with bad input.
 
-use super::{CloudConfig, run};
+use super::CloudConfig;
+use super::test_harness::{Router, STEP, start_cloud, state_publisher};
 use risktwin_common::telemetry::VehicleStateSample;
 use risktwin_protos::encode;
 use risktwin_protos::recording::read_messages;
-use risktwin_transport::router::{RouterConfig, run as run_router};
-use risktwin_transport::zenoh::qos::CongestionControl;
-use risktwin_transport::{Mode, TransportConfig, connect, protobuf, shutdown};
+use risktwin_transport::{connect, protobuf};
 use std::collections::BTreeMap;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
-use tokio::sync::oneshot;
+use std::time::{SystemTime, UNIX_EPOCH};
 use tokio::time::timeout;
-
-const STEP: Duration = Duration::from_secs(30);
 
 /// The `seq`-th state of a 50 Hz stream starting at `epoch_ns`.
 fn state(source: &str, seq: u64, epoch_ns: i64) -> VehicleStateSample {
@@ -22,48 +18,16 @@ fn state(source: &str, seq: u64, epoch_ns: i64) -> VehicleStateSample {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
-    let (router_stop, router_shutdown) = shutdown::channel();
-    let (port_tx, port_rx) = oneshot::channel();
-    let router_config = RouterConfig { listen: vec!["tcp/127.0.0.1:0".into()], connect: vec![] };
-    let router = tokio::spawn(async move {
-        run_router(&router_config, router_shutdown, |locators| {
-            let _ = port_tx.send(locators.to_vec());
-        })
-        .await
-    });
-    let locators = timeout(STEP, port_rx).await.unwrap().unwrap();
-    assert!(locators.iter().all(|l| l.starts_with("tcp/127.0.0.1:") && !l.ends_with(":0")), "{locators:?}");
-    let client = TransportConfig { mode: Mode::Client, connect: locators, ..TransportConfig::default() };
-
-    let (cloud_stop, cloud_shutdown) = shutdown::channel();
-    let (ready_tx, ready_rx) = oneshot::channel();
+    let router = Router::start().await;
     let dir = tempfile::tempdir().unwrap();
     let recording = dir.path().join("live.mcap");
-    let mut cloud_config = CloudConfig::new(client.clone());
+    let mut cloud_config = CloudConfig::new(router.client.clone());
     cloud_config.record = Some(recording.clone());
-    let cloud = tokio::spawn(async move {
-        run(&cloud_config, cloud_shutdown, || {
-            let _ = ready_tx.send(());
-        })
-        .await
-    });
-    timeout(STEP, ready_rx).await.unwrap().unwrap();
+    let (cloud_stop, cloud) = start_cloud(cloud_config).await;
 
-    let sender = connect(&client).await.unwrap();
+    let sender = connect(&router.client).await.unwrap();
     let key = "risktwin/v1/site/veh-1/state";
-    let publisher = sender
-        .declare_publisher(key)
-        .encoding(protobuf("risktwin.v1.VehicleState"))
-        .congestion_control(CongestionControl::Block)
-        .await
-        .unwrap();
-    let matched = async {
-        let listener = publisher.matching_listener().await.unwrap();
-        if !publisher.matching_status().await.unwrap().matching() {
-            while !listener.recv_async().await.unwrap().matching() {}
-        }
-    };
-    timeout(STEP, matched).await.unwrap();
+    let publisher = state_publisher(&sender, key.to_owned()).await;
     let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64;
     let record = |source: &str, seq: u64| encode(&state(source, seq, epoch_ns));
     let mut nan = state("veh-1", 3, epoch_ns);
@@ -107,8 +71,7 @@ async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
     assert_eq!(recorded.len(), 3, "exactly the accepted messages are recorded");
     assert!(recorded.iter().all(|m| m.topic == key), "{recorded:?}");
     assert_eq!(summary.ingest.snapshot_digest.len(), 16);
-    router_stop.fire();
-    timeout(STEP, router).await.unwrap().unwrap().unwrap();
+    router.stop().await;
 }
 
 #[test]
@@ -119,6 +82,7 @@ fn every_key_is_tagged_with_the_message_the_code_encodes() {
     assert_eq!(CloudToEdge::Scenario.message(), ScenarioPush::PROTO_NAME);
     assert_eq!(CloudToEdge::Policy.message(), PolicyUpdate::PROTO_NAME);
     assert_eq!(CloudToEdge::Control.message(), ControlCommand::PROTO_NAME);
+    assert_eq!(CloudToEdge::Warning.message(), risktwin_common::telemetry::HazardWarning::PROTO_NAME);
     assert_eq!(EdgeReport::ScenarioResult.message(), ScenarioResult::PROTO_NAME);
     assert_eq!(EDGE_MAP_MESSAGE, RoadMap::PROTO_NAME);
     assert_eq!(protobuf(RoadMap::PROTO_NAME).to_string(), risktwin_protos::encoding_of(RoadMap::PROTO_NAME));

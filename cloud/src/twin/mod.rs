@@ -197,7 +197,7 @@ fn current(snapshot: &Snapshot<TwinSample>, src: SourceIndex, stream: EdgeStream
 }
 
 /// `pose` moved on at `velocity` for `behind_ns` (a held value predicted to the tick).
-fn moved_on(pose: Pose, velocity: Vec2, behind_ns: i64) -> Pose {
+pub(crate) fn moved_on(pose: Pose, velocity: Vec2, behind_ns: i64) -> Pose {
     let p = pose.position() + velocity * (behind_ns as f64 * 1e-9);
     Pose::new(p.x, p.y, pose.heading_rad)
 }

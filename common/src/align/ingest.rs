@@ -125,8 +125,30 @@ impl<T: Clone> IngestCore<T> {
 
     /// Takes in one message; emits due snapshots through `on_snapshot` first.
     pub fn ingest(&mut self, msg: Incoming<T>, on_snapshot: impl FnMut(&Snapshot<T>)) -> Result<Accepted, DropReason> {
+        self.ingest_then(msg, |_| {}, on_snapshot)
+    }
+
+    /// [`IngestCore::ingest`], handing a message that passes steps 2–4 to `on_admitted` (with its
+    /// cloud time) before any snapshot goes to `on_snapshot`: a caller that reacts to each
+    /// message at once does so before the tick work it triggers. The core's state ends exactly
+    /// as with `ingest` (steps 2–4 touch no aligner state, and the aligner still advances
+    /// before the push), so the snapshots are the same; an admitted message is accepted (the
+    /// aligner refuses only what step 2 refused already).
+    pub fn ingest_then(
+        &mut self,
+        msg: Incoming<T>,
+        on_admitted: impl FnOnce(i64),
+        on_snapshot: impl FnMut(&Snapshot<T>),
+    ) -> Result<Accepted, DropReason> {
+        let admitted = self.admit(&msg);
+        if let Ok(cloud_ns) = admitted {
+            on_admitted(cloud_ns);
+        }
         self.aligner.advance(msg.receive_ns, on_snapshot);
-        let r = self.take(msg);
+        let r = admitted.and_then(|cloud_ns| {
+            let push = self.aligner.push(msg.source, msg.stream, cloud_ns, msg.payload)?;
+            Ok(Accepted { cloud_ns, push })
+        });
         match r {
             Ok(_) => self.accepted += 1,
             Err(reason) => self.drops.add(reason),
@@ -134,7 +156,9 @@ impl<T: Clone> IngestCore<T> {
         r
     }
 
-    fn take(&mut self, msg: Incoming<T>) -> Result<Accepted, DropReason> {
+    /// Steps 2–4 and the estimator's update of step 5: the message's cloud time, or why it is
+    /// dropped. Touches no aligner state.
+    fn admit(&mut self, msg: &Incoming<T>) -> Result<i64, DropReason> {
         let streams = self.aligner.streams();
         if msg.stream.as_usize() >= streams {
             return Err(DropReason::UnknownStream);
@@ -179,9 +203,7 @@ impl<T: Clone> IngestCore<T> {
         self.future_streak[s] = 0;
         clock.observe(msg.capture_ns, msg.receive_ns);
         // The first message of a source (or after a reset) anchors it at its receive time.
-        let cloud_ns = mapped.unwrap_or(msg.receive_ns);
-        let push = self.aligner.push(msg.source, msg.stream, cloud_ns, msg.payload)?;
-        Ok(Accepted { cloud_ns, push })
+        Ok(mapped.unwrap_or(msg.receive_ns))
     }
 
     /// `source` may have started over (its process left, and a new one may come under the same

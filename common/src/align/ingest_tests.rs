@@ -224,3 +224,36 @@ fn replaying_a_recording_reproduces_the_live_snapshots_bit_for_bit() {
     let as_of = mid.values().iter().skip(1).step_by(2).filter(|a| a.status == ValueStatus::AsOf).count();
     assert!(interpolated >= 27 && as_of >= 27, "{interpolated} interpolated, {as_of} as-of of 30");
 }
+
+#[test]
+fn admission_is_told_before_the_snapshots_and_changes_none_of_them() {
+    let (mut sent, _) = fleet(20, 15, 4, Network { spike: 0.1, ..net() });
+    sent.sort_by_key(|s: &Sent| (s.msg.receive_ns, s.tie_key));
+    let (mut plain, mut then) = (core(), core());
+    let (mut plain_snaps, mut then_snaps) = (Vec::new(), Vec::new());
+    let mut admitted_first = 0;
+    for s in &sent {
+        let expected = plain.ingest(s.msg.clone(), |snap| plain_snaps.push(snap.clone()));
+        // Every event in order: the admission (its cloud time), then the snapshots.
+        let events = std::cell::RefCell::new(Vec::new());
+        let got = then.ingest_then(
+            s.msg.clone(),
+            |cloud_ns| events.borrow_mut().push(Some(cloud_ns)),
+            |snap| {
+                then_snaps.push(snap.clone());
+                events.borrow_mut().push(None);
+            },
+        );
+        assert_eq!(got, expected, "the same verdict");
+        let events = events.into_inner();
+        let admissions: Vec<i64> = events.iter().flatten().copied().collect();
+        assert_eq!(admissions, expected.iter().map(|a| a.cloud_ns).collect::<Vec<_>>(), "told once, when accepted");
+        if admissions.len() == 1 && events.len() > 1 {
+            assert_eq!(events[0], Some(admissions[0]), "before the snapshots it triggers");
+            admitted_first += 1;
+        }
+    }
+    assert!(admitted_first > 100, "accepted messages that made ticks due: {admitted_first}");
+    assert!(fingerprint(&plain_snaps) == fingerprint(&then_snaps), "the snapshots are the same");
+    assert_eq!((plain.accepted(), plain.drops().total()), (then.accepted(), then.drops().total()));
+}

@@ -283,7 +283,7 @@ impl VirtualScene {
             }
             !due
         });
-        heard.forget(now_s);
+        heard.forget_old(now_s);
         let warned = heard.warned(now_s, perceived);
         tally.warned_steps += u64::from(!warned.is_empty());
         warned

@@ -10,14 +10,16 @@
 //! the moment the RSU saw it at the velocity it was seen with. Every policy — the reference
 //! driver, a learned one — reads it from its [`DriverView`], so the observation's layout (and the
 //! policy file's format) does not change, and a policy trained without warnings reacts to a
-//! warned pedestrian as to one it sees.
+//! warned pedestrian as to one it sees. [`Heard`] keeps what was heard and fuses it; an edge
+//! vehicle feeds it the cloud's hazard warnings ([`Warning::from_hazard`]) the same way.
 
 use super::link::V2xChannel;
 use super::loss::BurstState;
 use crate::driver::{DriverView, Policy};
-use crate::geometry::{Pose, Vec2};
+use crate::geometry::{Obb, Pose, Vec2};
 use crate::rng::Rng;
 use crate::sensor::{ObjectKind, PerceivedObject, SceneObject, Sensor, SensorParams};
+use crate::telemetry::HazardWarning;
 use crate::vehicle::Controls;
 use crate::world::{DECISION_RATE_HZ, EGO_OBJECT_ID, World};
 
@@ -66,6 +68,23 @@ impl WarningSetup {
 pub struct Warning {
     pub made_s: f64,
     pub object: PerceivedObject,
+}
+
+impl Warning {
+    /// A cloud hazard warning as an edge vehicle hears it at `now_s` (its scene's time): the
+    /// hazard vehicle, numbered `id` among the objects its ego perceives, at the pose, velocity
+    /// and footprint the warning gives, taken as made at `now_s`: the path's few milliseconds
+    /// are not moved on (the cloud's clock is not the scene's).
+    pub fn from_hazard(w: &HazardWarning, id: u32, now_s: f64) -> Warning {
+        let object = PerceivedObject {
+            id,
+            kind: ObjectKind::Vehicle,
+            obb: Obb::new(w.hazard_pose, w.hazard_footprint),
+            velocity: w.hazard_velocity,
+            visible_fraction: 1.0,
+        };
+        Warning { made_s: now_s, object }
+    }
 }
 
 /// What the warnings of one episode did.
@@ -145,28 +164,33 @@ impl RepeatClock {
     }
 }
 
-/// What a receiver has heard: the newest warning per object, kept [`HEARD_MEMORY_S`] after it
-/// was last heard, and fused into what the receiver perceives itself.
-#[derive(Debug, Default, Clone)]
+/// What the ego has heard of, and what its policy sees of it: the newest warning per object,
+/// kept [`HEARD_MEMORY_S`] after it was last heard, fused into the policy's [`DriverView`] as
+/// warned objects (those the ego does not perceive itself, moved on to the view's time at the
+/// velocity they were seen with). The RSU's warnings here and the cloud's hazard warnings at an
+/// edge vehicle (`edge::scene`) both go through it.
+#[derive(Debug, Clone, Default)]
 pub struct Heard {
     /// The newest warning heard per object, and when it was heard.
     heard: Vec<(f64, Warning)>,
-    /// What the receiver heard of and does not see itself, moved on to now.
+    /// What the ego heard of and does not see itself, moved on to now.
     warned: Vec<PerceivedObject>,
 }
 
 impl Heard {
-    /// `w` is heard at `now_s`: it replaces an older warning of the same object.
+    /// `w` heard at `now_s`: kept unless what is held of its object was made later (of two made
+    /// at the same time, the one heard last; the RSU makes one per object per step, so for it
+    /// that never happens).
     pub fn hear(&mut self, now_s: f64, w: Warning) {
         match self.heard.iter_mut().find(|(_, h)| h.object.id == w.object.id) {
-            Some(h) if h.1.made_s < w.made_s => *h = (now_s, w),
+            Some(h) if h.1.made_s <= w.made_s => *h = (now_s, w),
             Some(_) => {}
             None => self.heard.push((now_s, w)),
         }
     }
 
-    /// Forgets what was last heard more than [`HEARD_MEMORY_S`] before `now_s`.
-    pub fn forget(&mut self, now_s: f64) {
+    /// Forgets the objects last heard of more than [`HEARD_MEMORY_S`] before `now_s`.
+    pub fn forget_old(&mut self, now_s: f64) {
         self.heard.retain(|(heard_s, _)| now_s - heard_s <= HEARD_MEMORY_S);
     }
 
@@ -184,13 +208,25 @@ impl Heard {
         &self.warned
     }
 
-    /// How many objects are heard of now.
+    /// The objects held now.
     pub fn len(&self) -> usize {
         self.heard.len()
     }
 
     pub fn is_empty(&self) -> bool {
         self.heard.is_empty()
+    }
+
+    /// Forgets everything (a new episode: its clock starts over).
+    pub fn clear(&mut self) {
+        self.heard.clear();
+        self.warned.clear();
+    }
+
+    /// `policy` acting on `view` with the warned objects added (see the type's doc).
+    pub fn act(&mut self, view: &DriverView, policy: &mut dyn Policy) -> Controls {
+        let warned = self.warned(view.time_s, view.perceived);
+        policy.act(&DriverView { warned, ..*view })
     }
 }
 
@@ -250,7 +286,7 @@ impl Warnings {
         }
         self.deliver(now_s);
         world.perceive();
-        let controls = self.act(&world.view(), policy);
+        let controls = self.heard.act(&world.view(), policy);
         world.advance(controls)
     }
 
@@ -279,12 +315,7 @@ impl Warnings {
             heard.hear(now_s, w);
             false
         });
-        heard.forget(now_s);
-    }
-
-    fn act(&mut self, view: &DriverView, policy: &mut dyn Policy) -> Controls {
-        let warned = self.heard.warned(view.time_s, view.perceived);
-        policy.act(&DriverView { warned, ..*view })
+        heard.forget_old(now_s);
     }
 }
 

@@ -18,6 +18,8 @@ pub enum BenchCommand {
     Ingest(BenchIngestArgs),
     /// Edge publish → twin snapshot latency, ours against a raw Zenoh one-way hop.
     Latency(BenchLatencyArgs),
+    /// Edge state publish → hazard warning at the vehicle, against a raw Zenoh one-way hop.
+    Warning(BenchWarningArgs),
     /// The raw Zenoh floor of a lockstep step: one put out to N echo processes, N answers back.
     Fanout(BenchFanoutArgs),
     /// A deployment's emulated link at 0 ms against the direct TCP path: round trip and
@@ -127,6 +129,22 @@ pub struct BenchLatencyArgs {
     /// Allowed lateness of the aligner, ms (default: the ingest's 30, `DEFAULT_LATENESS_NS`).
     #[arg(long)]
     pub lateness_ms: Option<f64>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+/// `risktwin bench warning`.
+#[derive(Debug, clap::Args)]
+pub struct BenchWarningArgs {
+    /// Messages per side (the first 50 warm up and are not counted).
+    #[arg(long, default_value_t = 1000)]
+    pub messages: u64,
+    /// Publish rate of each vehicle's state, Hz.
+    #[arg(long, default_value_t = 50.0)]
+    pub rate_hz: f64,
+    /// Run the risk role (risk field of every vehicle at 2 Hz) in the cloud's callback too.
+    #[arg(long)]
+    pub risk: bool,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

@@ -112,7 +112,8 @@ pub struct EdgeArgs {
 pub struct CloudArgs {
     /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db),
     /// criticality (needs --criticality-out or --db: the replayed drive stored as a recorded
-    /// case), loop (needs twin and --db), trainer (needs loop).
+    /// case), loop (needs twin and --db), trainer (needs loop), warning (needs ingest: a hazard
+    /// warning to both vehicles of a critical pair on every state message).
     #[arg(long, default_value = "ingest", value_delimiter = ',')]
     pub roles: Vec<String>,
     /// Serve one site only (default: every site).
@@ -157,7 +158,16 @@ pub struct CloudArgs {
     /// Seed of the trainer's held-out set and runs (version V trains with seed + V).
     #[arg(long, default_value_t = 1)]
     pub train_seed: u64,
-    /// The risk role evaluates on the road of this scenario kind (the edges' `--kind`).
+    /// The warning role warns about a pair whose time to collision lies below this, s (default
+    /// 2; needs the warning role).
+    #[arg(long)]
+    pub warning_ttc_s: Option<f64>,
+    /// The warning role warns about one pair at most once per this much message time, ms (0:
+    /// on every critical message; default 500; needs the warning role).
+    #[arg(long)]
+    pub warning_repeat_ms: Option<f64>,
+    /// The risk role evaluates on the road of this scenario kind (the edges' `--kind`); so does
+    /// the warning role's lane TTC.
     #[arg(long, default_value = "cut-in")]
     pub road: String,
     /// The criticality role writes the CommonRoad criticality of the replayed scenario here on

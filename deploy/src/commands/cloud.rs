@@ -6,14 +6,16 @@
 //! FILE.csv|json [--db FILE] [--ego ID]` the criticality of a replayed CommonRoad scenario,
 //! written on exit (with `--db`, the drive stored as a recorded case of the library),
 //! `--roles ingest,twin,loop[,trainer] --db FILE [--loop-report FILE.md]` the closed loop over
-//! the fleet, with policy retraining and the regression gate.
-//! Also `risktwin bench zenoh|latency`.
+//! the fleet, with policy retraining and the regression gate; `--roles ingest,warning` a hazard
+//! warning to both vehicles of a critical pair on every state message.
+//! Also `risktwin bench zenoh|latency|warning`.
 
 use super::router::{transport_config, with_signals};
-use crate::cli::{BenchLatencyArgs, BenchZenohArgs, CloudArgs};
+use crate::cli::{BenchLatencyArgs, BenchWarningArgs, BenchZenohArgs, CloudArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_bench::latency::{LatencyConfig, latency};
+use risktwin_bench::warning::{WarningBenchConfig, warning};
 use risktwin_bench::zenoh_throughput::{BenchConfig, throughput};
 use risktwin_cloud::fleet_loop::trainer::TrainerConfig;
 use risktwin_cloud::network::criticality::{CriticalityConfig, CriticalityRoleError};
@@ -75,6 +77,23 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     if args.loop_report.is_some() && !config.roles.contains(&Role::Loop) {
         return Err(CliError::input("--loop-report needs the loop role (--roles ingest,twin,loop --db FILE)"));
     }
+    if (args.warning_ttc_s.is_some() || args.warning_repeat_ms.is_some()) && !config.roles.contains(&Role::Warning) {
+        return Err(CliError::input(
+            "--warning-ttc-s and --warning-repeat-ms need the warning role (--roles ingest,warning)",
+        ));
+    }
+    if let Some(ttc_s) = args.warning_ttc_s {
+        if !(ttc_s > 0.0 && ttc_s <= 10.0) {
+            return Err(CliError::input(format!("--warning-ttc-s {ttc_s} must lie in (0, 10]")));
+        }
+        config.warning.critical_ttc_s = ttc_s;
+    }
+    if let Some(repeat_ms) = args.warning_repeat_ms {
+        if !(0.0..=60_000.0).contains(&repeat_ms) {
+            return Err(CliError::input(format!("--warning-repeat-ms {repeat_ms} must lie in [0, 60000]")));
+        }
+        config.warning.repeat_ns = (repeat_ms * 1e6) as i64;
+    }
     let road_kind: ScenarioKind = args.road.parse().map_err(CliError::input)?;
     config.road = risktwin_cloud::twin::scenario_road(road_kind);
     let summary = with_signals(|shutdown| async move {
@@ -131,9 +150,7 @@ pub fn bench_zenoh(args: BenchZenohArgs) -> CliResult {
 }
 
 pub fn bench_latency(args: BenchLatencyArgs) -> CliResult {
-    if args.messages <= 50 || !(args.rate_hz > 0.0 && args.rate_hz <= 10_000.0) {
-        return Err(CliError::input("--messages must exceed 50 and --rate-hz lie in (0, 10000]"));
-    }
+    check_pacing(args.messages, args.rate_hz)?;
     let mut ingest = IngestConfig::default();
     let ms = |flag: &str, v: f64| {
         if (0.0..=10_000.0).contains(&v) {
@@ -150,30 +167,92 @@ pub fn bench_latency(args: BenchLatencyArgs) -> CliResult {
     }
     let config = LatencyConfig { messages: args.messages, rate_hz: args.rate_hz, ingest };
     let report = with_signals(|_shutdown| async move { latency(config).await.map_err(CliError::runtime) })?;
-    match args.format {
-        Format::Json => print_json(&report),
-        _ => print_table(
-            &["side", "p50 ms", "p99 ms", "samples"],
-            &[
-                vec![
-                    "raw zenoh one-way".into(),
-                    format!("{:.3}", report.raw_p50_ms),
-                    format!("{:.3}", report.raw_p99_ms),
-                    report.raw_samples.to_string(),
-                ],
-                vec![
-                    "edge publish → twin snapshot".into(),
-                    format!("{:.3}", report.ours_p50_ms),
-                    format!("{:.3}", report.ours_p99_ms),
-                    report.ours_samples.to_string(),
-                ],
-                vec![
-                    format!("tick {} ms, lateness {} ms", report.tick_ms, report.lateness_ms),
-                    format!("ratio {:.3}", report.ratio),
-                    "ours_p50 / (raw_p50 + tick)".into(),
-                    String::new(),
-                ],
+    let rows = match args.format {
+        Format::Json => Vec::new(),
+        _ => vec![
+            latency_row("raw zenoh one-way", report.raw_p50_ms, report.raw_p99_ms, Some(report.raw_samples)),
+            latency_row(
+                "edge publish → twin snapshot",
+                report.ours_p50_ms,
+                report.ours_p99_ms,
+                Some(report.ours_samples),
+            ),
+            vec![
+                format!("tick {} ms, lateness {} ms", report.tick_ms, report.lateness_ms),
+                format!("ratio {:.3}", report.ratio),
+                "ours_p50 / (raw_p50 + tick)".into(),
+                String::new(),
             ],
-        ),
+        ],
+    };
+    print_latency(args.format, &report, &rows)
+}
+
+pub fn bench_warning(args: BenchWarningArgs) -> CliResult {
+    check_pacing(args.messages, args.rate_hz)?;
+    let config = WarningBenchConfig { messages: args.messages, rate_hz: args.rate_hz, risk: args.risk };
+    let report = with_signals(|_shutdown| async move { warning(config).await.map_err(CliError::runtime) })?;
+    let mut rows = match args.format {
+        Format::Json => Vec::new(),
+        _ => vec![
+            latency_row(
+                "raw zenoh one-way (warning QoS), 1 hop",
+                report.raw_p50_ms,
+                report.raw_p99_ms,
+                Some(report.raw_samples),
+            ),
+            latency_row(
+                "edge publish → warning at the vehicle, 2 hops",
+                report.warning_p50_ms,
+                report.warning_p99_ms,
+                Some(report.warning_samples),
+            ),
+            latency_row(
+                "  of which in the cloud (callback start → put returned)",
+                report.cloud_p50_ms,
+                report.cloud_p99_ms,
+                None,
+            ),
+            vec![
+                format!("ratio {:.2} (warning p50 / raw p50: 2 hops against 1)", report.ratio),
+                format!("target ≤ {}", report.target_p50_ms),
+                if report.risk { "with the risk role".into() } else { String::new() },
+                format!(
+                    "sent {} ({} via declared publishers), held back {}, failed {}",
+                    report.warnings.sent,
+                    report.warnings.via_publisher,
+                    report.warnings.rate_limited,
+                    report.warnings.failed
+                ),
+            ],
+        ],
+    };
+    if args.format != Format::Json {
+        for (n, us) in &report.assess_us_per_state {
+            rows.push(vec![format!("warning path alone per state, {n} vehicles on the site"), format!("{us:.2} µs")]);
+        }
+    }
+    print_latency(args.format, &report, &rows)
+}
+
+/// One row of a latency table: what, p50 and p99 in ms, and how many samples.
+fn latency_row(what: &str, p50_ms: f64, p99_ms: f64, samples: Option<usize>) -> Vec<String> {
+    let samples = samples.map(|n| n.to_string()).unwrap_or_default();
+    vec![what.to_owned(), format!("{p50_ms:.3}"), format!("{p99_ms:.3}"), samples]
+}
+
+/// The pacing flags of the latency benchmarks: more messages than the warm-up, a sane rate.
+fn check_pacing(messages: u64, rate_hz: f64) -> CliResult {
+    if messages <= 50 || !(rate_hz > 0.0 && rate_hz <= 10_000.0) {
+        return Err(CliError::input("--messages must exceed 50 and --rate-hz lie in (0, 10000]"));
+    }
+    Ok(())
+}
+
+/// A latency report as JSON, or as a table of `rows` (side, p50, p99, samples).
+fn print_latency(format: Format, report: &impl serde::Serialize, rows: &[Vec<String>]) -> CliResult {
+    match format {
+        Format::Json => print_json(report),
+        _ => print_table(&["side", "p50 ms", "p99 ms", "samples"], rows),
     }
 }

@@ -62,6 +62,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Scene(SceneCommand::Vehicle(a)) => scene::participant(a, "vehicle"),
         Command::Scene(SceneCommand::Rsu(a)) => scene::participant(a, "rsu"),
         Command::Bench(BenchCommand::Latency(a)) => cloud::bench_latency(a),
+        Command::Bench(BenchCommand::Warning(a)) => cloud::bench_warning(a),
         Command::Bench(BenchCommand::Fanout(a)) => bench_fanout::fanout(a),
         Command::Bench(BenchCommand::Link(a)) => bench_link::link(a),
         Command::Deploy(DeployCommand::Up(a)) => deploy::up(a),

@@ -4,12 +4,14 @@
 //! observation and action sizes and decision rate — `common::net::HostPolicy`; a file without
 //! a decision rate predates the field and is taken as 20 Hz — and whose file names the same
 //! algorithm, a monotonic version per policy id) and then drive the vehicle. A refused push is
-//! counted by reason and logged; the vehicle keeps running what it was running.
+//! counted by reason and logged; the vehicle keeps running what it was running. A hazard
+//! warning addressed to the vehicle is handed on to its driver (see [`super`]); one that does
+//! not decode, or that names another vehicle (`wrong-vehicle`), is refused by reason.
 
 use crate::scene::ActivePolicy;
 use risktwin_common::net::HostPolicy;
 use risktwin_common::scenario::check_feasible;
-use risktwin_common::telemetry::{PolicyRef, PolicyUpdate, ScenarioPush};
+use risktwin_common::telemetry::{HazardWarning, PolicyRef, PolicyUpdate, ScenarioPush};
 use risktwin_protos::decode_tagged;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -57,6 +59,13 @@ pub struct PushSummary {
     pub policies_refused: BTreeMap<String, u64>,
     /// The latest accepted policy, which drives the vehicle.
     pub policy: Option<PolicyLine>,
+    /// Hazard warnings received from the cloud's warning role, addressed to this vehicle.
+    pub warnings_received: u64,
+    /// Of those, received while a pushed episode played (recorded ahead of time: its driver
+    /// cannot react; the own scene's driver does not hear them either).
+    pub warnings_on_tape: u64,
+    /// Warnings refused, by reason.
+    pub warnings_refused: BTreeMap<String, u64>,
 }
 
 impl PushSummary {
@@ -81,6 +90,26 @@ impl PushSummary {
         }
         self.scenarios_accepted += 1;
         Some(push)
+    }
+
+    /// A valid hazard warning addressed to vehicle `me` (`payload` tagged `encoding`), or
+    /// `None` (counted by reason and logged).
+    pub fn warning(&mut self, me: &str, encoding: &str, payload: &[u8]) -> Option<HazardWarning> {
+        let w = match decode_tagged::<HazardWarning>(encoding, payload) {
+            Ok(w) => w,
+            Err(e) => {
+                Self::refuse(&mut self.warnings_refused, "hazard warning", e.reason(), &e.to_string());
+                return None;
+            }
+        };
+        if w.warned_source != me {
+            let detail = format!("addressed to {:?}, this is {me:?}", w.warned_source);
+            Self::refuse(&mut self.warnings_refused, "hazard warning", "wrong-vehicle", &detail);
+            return None;
+        }
+        tracing::debug!("edge: warned about {} ({:?}, TTC {:.2} s)", w.hazard_source, w.kind, w.ttc_s);
+        self.warnings_received += 1;
+        Some(w)
     }
 
     /// Validates a policy update (`payload` tagged `encoding`) and loads its weights; the policy
@@ -155,6 +184,35 @@ mod tests {
 
     fn policy(version: u32, algo: &str, weights: Vec<u8>) -> Vec<u8> {
         encode(&PolicyUpdate { header: header(), policy_id: "p".into(), version, algo: algo.into(), weights })
+    }
+
+    #[test]
+    fn warnings_to_the_vehicle_are_taken_and_others_refused_by_reason() {
+        use risktwin_common::geometry::{Footprint, Pose, Vec2};
+        use risktwin_common::telemetry::HazardKind;
+        let warning = HazardWarning {
+            header: header(),
+            warned_source: "veh-1".into(),
+            hazard_source: "veh-2".into(),
+            hazard_pose: Pose::new(10.0, 0.0, 0.0),
+            hazard_velocity: Vec2::zeros(),
+            hazard_footprint: Footprint::new(4.5, 1.8),
+            kind: HazardKind::PredictedContact,
+            ttc_s: 1.2,
+            distance_m: 5.5,
+            trigger_source: "veh-1".into(),
+            trigger_seq: 7,
+            trigger_capture_time_ns: 1,
+        };
+        let mut log = PushSummary::default();
+        let tag = encoding_of("risktwin.v1.HazardWarning");
+        assert_eq!(log.warning("veh-1", &tag, &encode(&warning)), Some(warning.clone()));
+        assert_eq!(log.warning("veh-1", &tag, b"\xff\xff garbage"), None);
+        assert_eq!(log.warning("veh-1", POLICY, &encode(&warning)), None);
+        assert_eq!(log.warning("veh-2", &tag, &encode(&warning)), None, "addressed to veh-1");
+        assert_eq!(log.warnings_received, 1);
+        let reasons: Vec<(&str, u64)> = log.warnings_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        assert_eq!(reasons, [("malformed", 1), ("wrong-schema", 1), ("wrong-vehicle", 1)]);
     }
 
     #[test]

@@ -16,6 +16,7 @@ mod perception;
 mod risk;
 mod scenario;
 mod vehicle;
+mod warning;
 
 #[cfg(test)]
 pub(crate) mod tests;
@@ -149,6 +150,7 @@ wire_message!(telemetry::ControlCommand, crate::v1::ControlCommand, "risktwin.v1
 wire_message!(telemetry::PolicyUpdate, crate::v1::PolicyUpdate, "risktwin.v1.PolicyUpdate");
 wire_message!(telemetry::ScenarioPush, crate::v1::ScenarioPush, "risktwin.v1.ScenarioPush");
 wire_message!(telemetry::ScenarioResult, crate::v1::ScenarioResult, "risktwin.v1.ScenarioResult");
+wire_message!(telemetry::HazardWarning, crate::v1::HazardWarning, "risktwin.v1.HazardWarning");
 
 // Validation helpers shared by the per-family files.
 

@@ -34,6 +34,23 @@ pub(crate) fn vehicle_state() -> VehicleStateSample {
     }
 }
 
+fn warning(kind: HazardKind) -> HazardWarning {
+    HazardWarning {
+        header: Header { source: "cloud".into(), ..hdr(15) },
+        warned_source: "vehicle-1".into(),
+        hazard_source: "vehicle-2".into(),
+        hazard_pose: Pose::new(12.5, -3.5, 0.25),
+        hazard_velocity: Vec2::new(-4.0, 0.1),
+        hazard_footprint: Footprint::new(4.5, 1.8),
+        kind,
+        ttc_s: 1.375,
+        distance_m: 6.0,
+        trigger_source: "vehicle-2".into(),
+        trigger_seq: 81,
+        trigger_capture_time_ns: 1_700_000_000_500_000_000,
+    }
+}
+
 fn object(id: u32, kind: ObjectKind) -> DetectedObject {
     DetectedObject {
         id,
@@ -169,6 +186,21 @@ fn every_message_round_trips_bit_exactly() {
         state_seqs: Some((0, 120)),
         scene: Some(SceneRef { digest: "00ff00ff00ff00ff".into(), spec }),
     });
+    for kind in [HazardKind::Contact, HazardKind::LaneTtc, HazardKind::PredictedContact] {
+        round_trip(&warning(kind));
+    }
+}
+
+#[test]
+fn hazard_warnings_without_ids_or_with_bad_values_are_rejected() {
+    let w = warning(HazardKind::LaneTtc);
+    rejects(&w, |p| p.warned_source.clear(), missing("HazardWarning", "warned_source"));
+    rejects(&w, |p| p.trigger_source.clear(), missing("HazardWarning", "trigger_source"));
+    rejects(&w, |p| p.hazard_pose = None, missing("HazardWarning", "hazard_pose"));
+    rejects(&w, |p| p.kind = 0, bad("HazardWarning", "kind", "value is UNSPECIFIED (0)"));
+    rejects(&w, |p| p.kind = 9, bad("HazardWarning", "kind", "unknown enum value 9"));
+    rejects(&w, |p| p.ttc_s = -0.5, bad("HazardWarning", "ttc_s", "-0.5 is not a finite number ≥ 0"));
+    rejects(&w, |p| p.distance_m = f64::NAN, bad("HazardWarning", "distance_m", "NaN is not a finite number ≥ 0"));
 }
 
 #[test]
@@ -422,6 +454,7 @@ fn garbage_bytes_are_errors_not_panics() {
         let _ = decode::<PolicyUpdate>(b);
         let _ = decode::<ScenarioPush>(b);
         let _ = decode::<ScenarioResult>(b);
+        let _ = decode::<HazardWarning>(b);
     }
     assert_eq!(rejected, inputs.len(), "no truncation or random buffer is a valid vehicle state");
 }

@@ -50,7 +50,7 @@ impl Footprint {
 }
 
 /// An oriented bounding box: centre, unit axis along the length, half extents.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Obb {
     pub centre: Vec2,
     /// Unit vector along the length; the width axis is this rotated by +90°.

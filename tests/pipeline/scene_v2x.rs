@@ -5,7 +5,7 @@
 //! agree is in `v2x_agreement.rs`.
 
 use crate::support::{Proc, start_router};
-use crate::v2x_agreement::{PerParticipant, SCENE, assert_agrees};
+use crate::v2x_agreement::{PerParticipant, SCENE, assert_agrees, assert_warnings_agree};
 use std::time::Duration;
 
 const PARTICIPANTS: [&str; 7] = ["v0", "v1", "v2", "rsu0", "rsu1", "rsu2", "rsu3"];
@@ -82,12 +82,13 @@ fn bad_v2x_flags_are_refused_with_exit_2() {
     }
 }
 
-/// RSU → vehicle warnings on a scene's V2X paths, in virtual time (issue 16, item 3): in a
-/// pedestrian crossing where the unwarned ego hits the pedestrian, rsu0 warns it over a short
-/// latency and the ego stops in time; the warnings are counted made, passed and heard. (The run
-/// over a router does not carry warnings yet and refuses them, by name.)
+/// RSU → vehicle warnings on a scene's V2X paths (issue 16, item 3): in a pedestrian crossing
+/// where the unwarned ego hits the pedestrian, rsu0 warns it over a short latency and the ego
+/// stops in time; the warnings are counted made, passed and heard. In virtual time embedded, and
+/// in real time with every role its own process over a router (lockstep at the wall clock): the
+/// same episode, step for step, and the same warnings decided and heard.
 #[test]
-fn rsu_warnings_prevent_the_crash_of_an_embedded_scene() {
+fn rsu_warnings_prevent_the_crash_of_a_scene_embedded_and_over_a_router() {
     let scene = [
         "--kind",
         "pedestrian-crossing",
@@ -120,10 +121,19 @@ fn rsu_warnings_prevent_the_crash_of_an_embedded_scene() {
     assert!(ego["warned_steps"].as_u64().expect("a count") > 0, "{ego}");
 
     let (_router, locator) = start_router();
-    let run_argv = args(&args(&["scene", "run", "--router", locator.as_str()], &scene), &["--v2x-warnings"]);
-    let mut over_router = Proc::spawn("run", &run_argv);
-    let (status, _) = over_router.wait_exit(Duration::from_secs(20));
-    let stderr = over_router.drain_stderr();
-    assert_eq!(status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("--v2x-warnings runs only --embedded"), "{stderr}");
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let summaries = dir.path().join("participants.jsonl");
+    let over_router = ["--router", locator.as_str(), "--speed", "1", "--v2x-warnings", "--participant-summaries"];
+    let argv = args(&args(&args(&["scene", "run"], &scene), &over_router), &[summaries.to_str().expect("utf-8")]);
+    let real = Proc::spawn("run", &argv).exit_json(Duration::from_secs(90));
+    assert_eq!(real["truth_digest"], warned["truth_digest"], "the warned episode, step for step: {real}");
+    assert_eq!(real["metrics"]["collision"], false, "{real}");
+    let lines = std::fs::read_to_string(&summaries).expect("the participants' summaries");
+    let real_time: PerParticipant = lines
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .map(|s| (s["participant"].as_str().expect("participant").to_owned(), s["v2x"].clone()))
+        .collect();
+    let virtual_time: PerParticipant = serde_json::from_value(warned["v2x"].clone()).expect("V2X counts");
+    assert_warnings_agree(&real_time, &virtual_time);
 }

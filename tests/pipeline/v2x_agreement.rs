@@ -12,8 +12,10 @@ use serde_json::Value;
 use std::collections::BTreeMap;
 
 /// An emergency braking with the ego, two connected vehicles and four RSUs 150 m apart in urban
-/// NLOS: the RSUs 300 and 450 m along the route hear about 80 % and 30 % of the CAMs.
-pub const SCENE: [&str; 12] = [
+/// NLOS: the RSUs 300 and 450 m along the route hear about 80 % and 30 % of the CAMs. The RSUs
+/// warn: rsu0 and rsu1 of the braked cars standing in their view (81 warnings, each to three
+/// vehicles).
+pub const SCENE: [&str; 13] = [
     "--kind",
     "emergency-braking",
     "--seed",
@@ -26,6 +28,7 @@ pub const SCENE: [&str; 12] = [
     "3gpp-urban-nlos",
     "--v2x-latency",
     "sidelink:4:100",
+    "--v2x-warnings",
 ];
 
 /// V2X counts per participant.
@@ -35,9 +38,10 @@ fn count(v2x: &Value, key: &str) -> u64 {
     v2x[key].as_u64().unwrap_or_else(|| panic!("{key} in {v2x}"))
 }
 
-/// Copies and passed equal per participant, the warning counts equal, pooled PDR within 2 points, each participant's
+/// Copies and passed equal per participant, pooled PDR within 2 points, each participant's
 /// latency p50 within 2 ms and its excess p50 within 2 ms, late copies at most 2 % of the passed
-/// ones, nothing undecided, stale, ahead, malformed or foreign; figures printed under `what`.
+/// ones, nothing undecided, stale, ahead, malformed or foreign, and the warnings agreeing
+/// ([`assert_warnings_agree`]); figures printed under `what`.
 pub fn assert_agrees(what: &str, real_time: &PerParticipant, virtual_time: &PerParticipant) {
     assert_eq!(real_time.keys().collect::<Vec<_>>(), virtual_time.keys().collect::<Vec<_>>(), "participants");
     let total = |side: &PerParticipant, key: &str| side.values().map(|v| count(v, key)).sum::<u64>();
@@ -55,10 +59,6 @@ pub fn assert_agrees(what: &str, real_time: &PerParticipant, virtual_time: &PerP
         assert_eq!(count(real, "cams_sent"), count(virt, "cams_sent"), "{id}: CAMs sent");
         assert_eq!(count(real, "copies"), count(virt, "copies"), "{id}: copies decided: {real}");
         assert_eq!(count(real, "passed"), count(virt, "passed"), "{id}: copies passed: {real}");
-        // Warnings: equal decisions (the agreement's scene has none yet, so both count 0).
-        for key in ["warnings_made", "warning_copies", "warnings_passed", "warnings_heard", "warned_steps"] {
-            assert_eq!(count(real, key), count(virt, key), "{id}: {key}: {real}");
-        }
         for dropped in ["undecided", "stale", "ahead", "malformed", "foreign"] {
             assert_eq!(count(real, dropped), 0, "{id}: {dropped}: {real}");
         }
@@ -74,5 +74,25 @@ pub fn assert_agrees(what: &str, real_time: &PerParticipant, virtual_time: &PerP
         );
         assert!((real_ms - virtual_ms).abs() <= 2.0, "{id}: latency p50 {real_ms} ms against {virtual_ms} ms");
         assert!(excess_p50 <= 2.0, "{id}: excess p50 {excess_p50} ms over the drawn latency: {real}");
+    }
+    assert_warnings_agree(real_time, virtual_time);
+}
+
+/// The RSUs' warnings decided alike in real and virtual time: per participant, made, copies,
+/// passed, heard and warned steps equal; in real time no warning batch came after the step that
+/// needed it, and late copies (batch after the drawn latency) at most 2 % of the passed ones.
+pub fn assert_warnings_agree(real_time: &PerParticipant, virtual_time: &PerParticipant) {
+    assert_eq!(real_time.keys().collect::<Vec<_>>(), virtual_time.keys().collect::<Vec<_>>(), "participants");
+    for (id, virt) in virtual_time {
+        let real = &real_time[id];
+        for key in ["warnings_made", "warning_copies", "warnings_passed", "warnings_heard", "warned_steps"] {
+            assert_eq!(count(real, key), count(virt, key), "{id}: {key}: {real}");
+        }
+        assert_eq!(count(real, "warning_batches_late"), 0, "{id}: {real}");
+        let (late, passed) = (count(real, "warnings_late"), count(real, "warnings_passed"));
+        let (made, copies, heard) =
+            (count(real, "warnings_made"), count(real, "warning_copies"), count(real, "warnings_heard"));
+        eprintln!("{id}: warnings made {made}, copies {copies}, passed {passed}, heard {heard}, late {late}");
+        assert!(late * 50 <= passed, "{id}: {late} of {passed} passed warnings late: {real}");
     }
 }

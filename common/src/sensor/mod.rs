@@ -59,8 +59,9 @@ pub struct SceneObject {
     pub kind: ObjectKind,
 }
 
-/// One object as the ego's sensor reports it, in the world frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// One object as the ego's sensor reports it, in the world frame (and as a V2X warning carries
+/// it).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PerceivedObject {
     /// Identity of the true object (perfect association).
     pub id: u32,

@@ -8,8 +8,8 @@
 //! An RSU's warnings (DENM-like, [`super::warning`]'s hazard rule) are decided the same way
 //! under their own stream tags, from (seed, RSU, warning sequence) and (seed, RSU, vehicle,
 //! warning sequence); a copy is heard from the first step at or after made + latency
-//! ([`warning_due`]). So far only [`VirtualScene`] makes them (`scene run --embedded
-//! --v2x-warnings`).
+//! ([`warning_due`]). [`WarningSender`] and [`WarningInbox`] are the two ends of that path, used
+//! alike by [`VirtualScene`] and by a deployed scene's RSUs and vehicles.
 
 use super::awareness::receivers;
 use super::cam::{CamState, CamTrigger};
@@ -150,6 +150,101 @@ impl MessageChannel {
     }
 }
 
+/// An RSU's warnings: its repetitions and its warning count, whose sequence numbers the copies'
+/// decisions derive from.
+#[derive(Debug, Clone)]
+pub struct WarningSender {
+    repeat: RepeatClock,
+    seq: u64,
+}
+
+impl Default for WarningSender {
+    fn default() -> Self {
+        WarningSender { repeat: RepeatClock::new(SCENE_WARNING_HZ), seq: 0 }
+    }
+}
+
+impl WarningSender {
+    /// The warnings made at `now_s` of the hazards in `seen`, if a repetition is due: into `out`
+    /// as (sequence, object), in `seen`'s order, counted in `tally`. `out` is cleared first.
+    pub fn make(
+        &mut self,
+        now_s: f64,
+        seen: &[PerceivedObject],
+        out: &mut Vec<(u64, PerceivedObject)>,
+        tally: &mut V2xTally,
+    ) {
+        out.clear();
+        if !self.repeat.due(now_s) {
+            return;
+        }
+        for object in hazards(seen) {
+            out.push((self.seq, *object));
+            self.seq += 1;
+            tally.warnings_made += 1;
+        }
+    }
+}
+
+/// A vehicle's end of the RSUs' warnings: decides its copies, holds the passed ones until made
+/// + latency and hears them into its [`Heard`].
+#[derive(Debug, Default)]
+pub struct WarningInbox {
+    /// Passed copies on their way: (made, latency ms, warning), in the order they were decided.
+    in_flight: Vec<(f64, f64, Warning)>,
+    /// The pairs' burst chains by RSU, stepped in each RSU's warning order.
+    bursts: BTreeMap<String, BurstState>,
+    heard: Heard,
+}
+
+impl WarningInbox {
+    /// `receiver`'s copy of warning `seq` of RSU `sender` over `distance_m`, with the warning's
+    /// drawn `latency_ms`: counted, and held if the channel passes it. Decide each RSU's copies
+    /// in its sequence order, and copies of one step before those of the next: the order they
+    /// are heard in breaks ties ([`Heard::hear`]). Whether it passed.
+    #[allow(clippy::too_many_arguments)]
+    pub fn decide(
+        &mut self,
+        channel: &MessageChannel,
+        (sender, receiver): (&str, &str),
+        seq: u64,
+        distance_m: f64,
+        latency_ms: f64,
+        warning: Warning,
+        tally: &mut V2xTally,
+    ) -> bool {
+        let burst = match self.bursts.get_mut(sender) {
+            Some(burst) => burst,
+            None => self.bursts.entry(sender.to_owned()).or_default(),
+        };
+        tally.warning_copies += 1;
+        let passes = channel.warning_passes(sender, receiver, seq, distance_m, burst);
+        if passes {
+            tally.warnings_passed += 1;
+            self.in_flight.push((warning.made_s, latency_ms, warning));
+        }
+        passes
+    }
+
+    /// Copies due by `now_s` are heard; what was heard and is not in `perceived`, moved on to
+    /// `now_s`: the driver's warned objects. Call once per step, before the driver acts.
+    pub fn warned(&mut self, now_s: f64, perceived: &[PerceivedObject], tally: &mut V2xTally) -> &[PerceivedObject] {
+        let heard = &mut self.heard;
+        self.in_flight.retain(|&(made_s, latency_ms, w)| {
+            let due = warning_due(made_s, latency_ms, now_s);
+            if due {
+                tally.warnings_heard += 1;
+                heard.hear(now_s, w);
+            }
+            !due
+        });
+        heard.forget_old(now_s);
+        let warned = heard.warned(now_s, perceived);
+        tally.warned_steps += u64::from(!warned.is_empty());
+        warned
+    }
+}
+
 /// One participant's V2X counts.
 #[derive(Debug, Default)]
 pub struct V2xTally {
@@ -225,13 +320,10 @@ struct Member {
     in_flight: Vec<(f64, u64)>,
     /// Burst chains of the pairs with this member as receiver, by sender.
     bursts: BTreeMap<usize, BurstState>,
-    /// An RSU's warning repetitions and count (warnings only with [`VirtualScene::warning`]).
-    repeat: Option<RepeatClock>,
-    warning_seq: u64,
-    /// Warning copies on their way to this member (a vehicle): (made, latency ms, warning).
-    warnings_in_flight: Vec<(f64, f64, Warning)>,
-    warning_bursts: BTreeMap<usize, BurstState>,
-    heard: Heard,
+    /// An RSU's warnings (made only with [`VirtualScene::warning`]).
+    sender: Option<WarningSender>,
+    /// A vehicle's warnings received.
+    inbox: WarningInbox,
 }
 
 /// The V2X layers of every participant of a scene, in virtual time in one process.
@@ -239,6 +331,8 @@ pub struct VirtualScene {
     channel: MessageChannel,
     members: Vec<Member>,
     warnings: bool,
+    /// The warnings one RSU makes in one step.
+    made: Vec<(u64, PerceivedObject)>,
 }
 
 impl VirtualScene {
@@ -253,14 +347,11 @@ impl VirtualScene {
                 tally: V2xTally::default(),
                 in_flight: Vec::new(),
                 bursts: BTreeMap::new(),
-                repeat: (!sends).then(|| RepeatClock::new(SCENE_WARNING_HZ)),
-                warning_seq: 0,
-                warnings_in_flight: Vec::new(),
-                warning_bursts: BTreeMap::new(),
-                heard: Heard::default(),
+                sender: (!sends).then(WarningSender::default),
+                inbox: WarningInbox::default(),
             })
             .collect();
-        VirtualScene { channel, members, warnings: false }
+        VirtualScene { channel, members, warnings: false, made: Vec::new() }
     }
 
     /// With `on`, the RSUs warn the vehicles of the hazards they perceive ([`Self::warn`]).
@@ -274,19 +365,7 @@ impl VirtualScene {
     /// once per member and step, before it acts.
     pub fn warned(&mut self, member: usize, now_s: f64, perceived: &[PerceivedObject]) -> &[PerceivedObject] {
         let m = &mut self.members[member];
-        let (heard, tally) = (&mut m.heard, &mut m.tally);
-        m.warnings_in_flight.retain(|&(made_s, latency_ms, w)| {
-            let due = warning_due(made_s, latency_ms, now_s);
-            if due {
-                tally.warnings_heard += 1;
-                heard.hear(now_s, w);
-            }
-            !due
-        });
-        heard.forget_old(now_s);
-        let warned = heard.warned(now_s, perceived);
-        tally.warned_steps += u64::from(!warned.is_empty());
-        warned
+        m.inbox.warned(now_s, perceived, &mut m.tally)
     }
 
     /// The RSUs warn at `now_s` of the hazards each perceived in this step (`seen`, per member;
@@ -301,28 +380,20 @@ impl VirtualScene {
         }
         for sender in 0..self.members.len() {
             let member = &mut self.members[sender];
-            let Some(repeat) = &mut member.repeat else { continue };
-            if states[sender].is_none() || !repeat.due(now_s) {
+            let Some(warnings) = &mut member.sender else { continue };
+            if states[sender].is_none() {
                 continue;
             }
+            warnings.make(now_s, seen[sender], &mut self.made, &mut member.tally);
             let sender_id = member.id.clone();
-            for object in hazards(seen[sender]) {
-                let member = &mut self.members[sender];
-                let seq = member.warning_seq;
-                member.warning_seq += 1;
-                member.tally.warnings_made += 1;
+            for &(seq, object) in &self.made {
                 let latency_ms = self.channel.warning_latency_ms(&sender_id, seq);
-                let warning = Warning { made_s: now_s, object: *object };
+                let warning = Warning { made_s: now_s, object };
                 for (receiver, distance_m) in receivers(states, sender) {
-                    let member = &mut self.members[receiver];
-                    if member.trigger.is_none() {
-                        continue;
-                    }
-                    let burst = member.warning_bursts.entry(sender).or_default();
-                    member.tally.warning_copies += 1;
-                    if self.channel.warning_passes(&sender_id, &member.id, seq, distance_m, burst) {
-                        member.tally.warnings_passed += 1;
-                        member.warnings_in_flight.push((now_s, latency_ms, warning));
+                    let Member { id, trigger, inbox, tally, .. } = &mut self.members[receiver];
+                    if trigger.is_some() {
+                        let ids = (sender_id.as_str(), id.as_str());
+                        inbox.decide(&self.channel, ids, seq, distance_m, latency_ms, warning, tally);
                     }
                 }
             }

@@ -358,9 +358,6 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         log_pace(&outcome, started.elapsed());
         return print_json(&SceneReport { outcome, deadlines: None, v2x: plane.v2x_summaries() });
     }
-    if setup.warnings() {
-        return Err(CliError::input("--v2x-warnings runs only --embedded so far (not over a router)"));
-    }
     let site = site_of(&args.scene)?;
     // Checked before anything starts: a bad endpoint or file is the user's input.
     let data = data_transport(&args.scene)?;

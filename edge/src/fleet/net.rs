@@ -452,7 +452,9 @@ pub struct ParticipantSummary {
 }
 
 /// A participant's stack, driven by the truth subscriber's callback: it answers each step as
-/// the truth arrives, on Zenoh's receiving thread, with no hand-over to another thread.
+/// the truth arrives, on Zenoh's receiving thread, with no hand-over to another thread; except
+/// a vehicle that waits for RSU warnings, which must not wait on that thread (the warnings may
+/// come on it) and answers on a thread of its own.
 struct Answering {
     stack: Onboard,
     streams: Streams,
@@ -506,13 +508,21 @@ impl Answering {
             let (sent, unsent) = (self.streams.sent(), self.streams.unsent());
             return Some(Ok(ParticipantSummary { sent, unsent, ..self.summary.clone() }));
         }
-        let controls = self.stack.respond(&truth);
+        // A vehicle out of the world perceives nothing and hears nothing (as embedded).
+        let controls = self.stack.perceive(&truth).and_then(|pose| {
+            let warned = match &mut self.v2x {
+                Some(v2x) => v2x.warned(&truth, self.stack.perceived()),
+                None => &[],
+            };
+            self.stack.act(&truth, pose, warned)
+        });
         self.summary.steps += 1;
         self.summary.perceived += self.stack.perceived().len() as u64;
-        // The step's CAM goes out before the answer: once every answer to the last step is in,
-        // the authority may end the scene, and every CAM of it must be on its way by then.
+        // The step's V2X messages go out before the answer: once every answer to the last step
+        // is in, the authority may end the scene, and every message of it must be on its way by
+        // then; and a vehicle's next step needs the RSUs' warnings of this one.
         if let Some(v2x) = &mut self.v2x
-            && let Err(e) = v2x.on_step(&truth, cam_state(&truth, &self.stack))
+            && let Err(e) = v2x.on_step(&truth, cam_state(&truth, &self.stack), self.stack.perceived())
         {
             return Some(Err(e));
         }
@@ -562,9 +572,7 @@ pub fn run_participant(
         unsent: BTreeMap::new(),
         v2x: None,
     };
-    if setup.warnings() {
-        return Err(SceneError::Failed { reason: "V2X warnings are not carried over a router yet".into() });
-    }
+    let waits_for_warnings = setup.warnings() && !matches!(stack.role(), Role::Rsu { .. });
     let v2x = setup.v2x().map(|&channel| V2xLayer::open(physics, site, setup, &participant, channel)).transpose()?;
     let last = Arc::new(Mutex::new(None));
     let answering = Answering {
@@ -581,25 +589,37 @@ pub fn run_participant(
     };
     let answering = Arc::new(Mutex::new(answering));
     let (end_tx, end) = std::sync::mpsc::sync_channel(1);
-    let truth_key = scene_truth(site);
-    let _truth = physics
-        .declare_subscriber(truth_key.clone())
-        .callback({
-            let answering = Arc::clone(&answering);
-            move |sample: Sample| {
-                let mut answering = lock(&answering);
-                if answering.over {
-                    return;
-                }
-                if let Some(ended) = answering.on_truth(&sample.payload().to_bytes()) {
-                    answering.over = true;
-                    // The channel holds one end and only one is sent.
-                    let _ = end_tx.try_send(ended);
-                }
+    let answer = {
+        let answering = Arc::clone(&answering);
+        move |payload: &[u8]| {
+            let mut answering = lock(&answering);
+            if answering.over {
+                return;
             }
+            if let Some(ended) = answering.on_truth(payload) {
+                answering.over = true;
+                // The channel holds one end and only one is sent.
+                let _ = end_tx.try_send(ended);
+            }
+        }
+    };
+    let on_truth: Box<dyn Fn(Sample) + Send + Sync> = if waits_for_warnings {
+        let (steps, handed) = std::sync::mpsc::channel::<Vec<u8>>();
+        // Ends when the subscriber (and with it the sender) is gone.
+        std::thread::Builder::new()
+            .name(format!("scene-{id}"))
+            .spawn(move || handed.iter().for_each(|payload| answer(&payload)))
+            .map_err(|e| SceneError::Failed { reason: format!("cannot start the stepping thread: {e}") })?;
+        Box::new(move |sample: Sample| {
+            // Fails only once the thread is gone with the scene.
+            let _ = steps.send(sample.payload().to_bytes().into_owned());
         })
-        .wait()
-        .map_err(transport(&truth_key))?;
+    } else {
+        Box::new(move |sample: Sample| answer(&sample.payload().to_bytes()))
+    };
+    let truth_key = scene_truth(site);
+    let _truth =
+        physics.declare_subscriber(truth_key.clone()).callback(on_truth).wait().map_err(transport(&truth_key))?;
 
     // This thread repeats the join until the first truth arrives and watches for silence.
     let join_deadline = Instant::now() + timeouts.join;

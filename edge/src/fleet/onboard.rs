@@ -120,12 +120,6 @@ impl Onboard {
         self.role
     }
 
-    /// Perceives `truth`; the ego's driver then acts (`None` from participants that do not drive).
-    pub fn respond(&mut self, truth: &Truth) -> Option<Controls> {
-        let pose = self.perceive(truth)?;
-        self.act(truth, pose, &[])
-    }
-
     /// Perceives `truth`: where the participant is (`None`: a vehicle that left the world, which
     /// perceives nothing).
     pub fn perceive(&mut self, truth: &Truth) -> Option<Pose> {

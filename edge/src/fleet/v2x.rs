@@ -17,6 +17,18 @@
 //! synchronised. At the scene's end each sender announces how many CAMs it sent, and a receiver
 //! waits (at most [`FINISH_WAIT`]) until it has decided every copy it can still expect; what it
 //! could not is counted `undecided`, never dropped silently.
+//!
+//! With warnings (`--v2x-warnings`), each RSU also sends, every step before it answers, the
+//! DENM-like warnings it made in that step (often none: the batch then says the step is done),
+//! and a vehicle, before its driver acts in step k, waits (at most [`WARNING_WAIT`]) for every
+//! RSU's batch of step k − 1 and decides its copies as virtual time does
+//! (`risktwin_common::v2x::messages::WarningInbox`): from the distance between the mast and its
+//! own position in the step the warning was made, heard from the first step at or after made +
+//! drawn latency. So a warned episode is the embedded one step for step. What real time adds is
+//! counted: copies whose batch came after their drawn latency had passed (`warnings_late`), and
+//! batches that had not come when a step needed them (`warning_batches_late`).
+
+mod wire;
 
 use super::net::{lock, reliable_publisher};
 use super::onboard::Onboard;
@@ -24,23 +36,24 @@ use super::streams::unix_ns;
 use super::wire::Truth;
 use super::{Role, SceneError, SceneSetup};
 use risktwin_common::histogram::Histogram;
+use risktwin_common::sensor::PerceivedObject;
 use risktwin_common::v2x::cam::{CamState, CamTrigger};
 use risktwin_common::v2x::loss::BurstState;
-use risktwin_common::v2x::messages::{MessageChannel, V2xSummary, V2xTally};
+use risktwin_common::v2x::messages::{MessageChannel, V2xSummary, V2xTally, WarningInbox, WarningSender};
+use risktwin_common::v2x::warning::Warning;
 use risktwin_transport::keyexpr::{scene_v2x, scene_v2x_all};
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
 use risktwin_transport::{SiteId, SourceId};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap};
-use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
-
-/// Version of the V2X messages; bump on any change to them.
-const V2X_SCHEMA: u32 = 2;
+use wire::V2X_SCHEMA;
+pub use wire::{V2xBody, WireCam, WireV2x, WireWarnings};
 
 /// Steps of its own positions a receiver keeps for CAMs made in them (10 s of scene).
 const OWN_HISTORY_STEPS: u64 = 200;
@@ -53,45 +66,14 @@ const MAX_WAITING: usize = 4096;
 /// How long [`V2xLayer::finish`] waits for the copies it can still expect.
 pub const FINISH_WAIT: Duration = Duration::from_millis(500);
 
+/// How long a vehicle waits for the RSUs' warnings of the step before the one it answers. They
+/// were sent before the RSUs answered that step, so through one router they are already here;
+/// the wait covers paths that reorder, well inside the authority's step timeout.
+pub const WARNING_WAIT: Duration = Duration::from_millis(500);
+
 /// The longest a passed copy is held: a sent time far in the future (a wrong clock, a hostile
 /// sender) neither holds it for ever nor overflows the timer.
 const MAX_HOLD: Duration = Duration::from_secs(60);
-
-/// A message on a participant's V2X key (postcard): who sent it, in which scene.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct WireV2x {
-    pub schema: u32,
-    /// The scene's digest (its V2X channel included): another scene's messages are dropped and
-    /// counted.
-    pub scene: u64,
-    /// The sending participant: the last segment of the key it comes on.
-    pub sender: String,
-    pub body: V2xBody,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub enum V2xBody {
-    Cam(WireCam),
-    /// The sender's last message of the scene: it sent `cams` CAMs (sequence 0 to `cams` − 1).
-    End {
-        cams: u64,
-    },
-}
-
-/// A CAM on the wire: when it was made in the scene and on the wall clock, and the state it
-/// carries (not ETSI's ASN.1 encoding).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct WireCam {
-    /// The sender's CAM count before this one.
-    pub seq: u64,
-    /// The physics step whose truth it was made from, and its scene time, s.
-    pub step: u64,
-    pub made_s: f64,
-    /// Wall clock when it was put on the wire, ns since the Unix epoch.
-    pub sent_unix_ns: i64,
-    /// Position, heading and speed: m, m, rad, m/s.
-    pub state: [f64; 4],
-}
 
 /// A participant's own state in `truth` as a CAM carries it: a vehicle's pose and speed, an
 /// RSU's mast (standing); `None` for a vehicle not in the world now.
@@ -131,7 +113,8 @@ pub struct V2xReport {
     /// waiting for their step, or announced (by a later sequence number or the sender's end)
     /// and never arrived. Each is at most one copy.
     pub undecided: u64,
-    /// CAMs made in a step whose own position this layer no longer (or never) held.
+    /// CAMs (and warning batches) made in a step whose own position this layer no longer (or
+    /// never) held.
     pub stale: u64,
     /// CAMs dropped for being made too far ahead of this participant's own steps.
     pub ahead: u64,
@@ -140,6 +123,12 @@ pub struct V2xReport {
     pub malformed: u64,
     /// Messages of another scene (or of the same scene with another V2X channel).
     pub foreign: u64,
+    /// Passed warning copies whose batch came after their drawn latency had passed: heard in
+    /// the step virtual time hears them, but real time could not have.
+    pub warnings_late: u64,
+    /// RSU warning batches that had not come when the step that needed them was answered
+    /// (decided later, or never): the episode may then differ from virtual time's.
+    pub warning_batches_late: u64,
 }
 
 /// One sending participant, as a receiver sees it.
@@ -153,6 +142,23 @@ struct Peer {
     next_seq: u64,
     /// The count its end announced.
     ended: Option<u64>,
+}
+
+/// One RSU's warning batches, as a vehicle receives them.
+#[derive(Debug)]
+struct RsuBatches {
+    id: String,
+    /// The newest step a batch came for.
+    through: Option<u64>,
+    /// Steps through which missing batches were counted late.
+    counted: Option<u64>,
+    /// Batches not decided yet, with their arrival, ns since the Unix epoch.
+    batches: Vec<(WireWarnings, i64)>,
+}
+
+/// A step number with `None` before step 0, for comparisons.
+fn after(step: Option<u64>) -> u64 {
+    step.map_or(0, |s| s + 1)
 }
 
 /// A passed copy held until its due time.
@@ -184,13 +190,26 @@ struct Receiving {
     malformed: u64,
     foreign: u64,
     closed: bool,
+    /// At a vehicle of a scene with warnings: every RSU's batches, in participant order.
+    rsus: Vec<RsuBatches>,
+    warnings: WarningInbox,
+    warnings_late: u64,
+    warning_batches_late: u64,
 }
 
 impl Receiving {
-    /// Every copy this layer can still expect is decided: nothing waits, and every sender has
-    /// announced its end and all its CAMs have come.
+    /// Every copy this layer can still expect is decided: nothing waits, every sender has
+    /// announced its end and all its CAMs have come, and every RSU's warnings of the last step
+    /// have come.
     fn settled(&self) -> bool {
-        self.waiting.is_empty() && self.peers.values().all(|p| p.ended.is_some_and(|n| p.taken >= n))
+        self.waiting.is_empty()
+            && self.peers.values().all(|p| p.ended.is_some_and(|n| p.taken >= n))
+            && self.has_warnings_through(self.latest_step)
+    }
+
+    /// Every RSU's warning batch of `step` (and before) has come.
+    fn has_warnings_through(&self, step: Option<u64>) -> bool {
+        self.rsus.iter().all(|r| after(r.through) >= after(step))
     }
 
     /// CAMs known to be sent and not decided.
@@ -204,6 +223,8 @@ struct Inbox {
     id: String,
     scene: u64,
     channel: MessageChannel,
+    /// The scene's RSUs, when it has warnings: their batches are not malformed anywhere.
+    warners: Vec<String>,
     state: Mutex<Receiving>,
     /// Wakes the delivery thread: a copy held, or the layer closed.
     wake: Condvar,
@@ -239,6 +260,10 @@ impl Inbox {
         if message.sender == self.id {
             return;
         }
+        if let V2xBody::Warnings(batch) = message.body {
+            self.take_warnings(state, &message.sender, batch);
+            return;
+        }
         let Some(peer) = state.peers.get_mut(&message.sender) else {
             // Not a sending participant of this scene (an RSU sends nothing).
             state.malformed += 1;
@@ -250,7 +275,7 @@ impl Inbox {
                 return;
             }
             V2xBody::Cam(cam) if cam.seq >= peer.next_seq && cam.state.iter().all(|v| v.is_finite()) => cam,
-            V2xBody::End { .. } | V2xBody::Cam(_) => {
+            V2xBody::End { .. } | V2xBody::Cam(_) | V2xBody::Warnings(_) => {
                 state.malformed += 1;
                 return;
             }
@@ -265,6 +290,80 @@ impl Inbox {
         } else {
             state.waiting.push((message.sender, cam));
         }
+    }
+
+    /// RSU `sender`'s warnings of one step: kept until a step of this vehicle needs them.
+    /// Another RSU ignores them; a batch of no RSU of the scene, repeated or out of order, or
+    /// not finite is counted malformed.
+    fn take_warnings(&self, state: &mut Receiving, sender: &str, batch: WireWarnings) {
+        if !self.warners.iter().any(|w| w == sender) {
+            state.malformed += 1;
+            return;
+        }
+        let Some(rsu) = state.rsus.iter_mut().find(|r| r.id == sender) else { return };
+        if batch.step < after(rsu.through) || !batch.is_finite() {
+            state.malformed += 1;
+            return;
+        }
+        rsu.through = Some(batch.step);
+        rsu.batches.push((batch, unix_ns()));
+    }
+
+    /// Waits (at most [`WARNING_WAIT`]) for every RSU's warnings through `step`, counting the
+    /// batches that did not come, then decides every copy of the batches held through `step`:
+    /// in step order, RSUs in participant order, as virtual time decides them.
+    fn decide_warnings_through<'a>(
+        &'a self,
+        mut state: MutexGuard<'a, Receiving>,
+        step: u64,
+    ) -> MutexGuard<'a, Receiving> {
+        let deadline = Instant::now() + WARNING_WAIT;
+        while !state.has_warnings_through(Some(step)) {
+            let now = Instant::now();
+            if now >= deadline {
+                let receiving = &mut *state;
+                for rsu in &mut receiving.rsus {
+                    let have = after(rsu.through).max(after(rsu.counted));
+                    receiving.warning_batches_late += (step + 1).saturating_sub(have);
+                    rsu.counted = Some(step.max(rsu.counted.unwrap_or(0)));
+                }
+                tracing::warn!("V2X {}: RSU warnings of step {step} not here after {WARNING_WAIT:?}", self.id);
+                break;
+            }
+            state = self.taken.wait_timeout(state, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
+        }
+        let receiving = &mut *state;
+        let mut ready: Vec<(u64, usize, WireWarnings, i64)> = Vec::new();
+        for (index, rsu) in receiving.rsus.iter_mut().enumerate() {
+            let (now, later): (Vec<_>, Vec<_>) = rsu.batches.drain(..).partition(|(b, _)| b.step <= step);
+            rsu.batches = later;
+            ready.extend(now.into_iter().map(|(b, arrived)| (b.step, index, b, arrived)));
+        }
+        ready.sort_by_key(|&(step, index, ..)| (step, index));
+        for (_, index, batch, arrived_unix_ns) in ready {
+            let own = match receiving.own.get(&batch.step) {
+                Some(&Some(own)) => own,
+                // Not in the world when the warnings were made: no copy (as in virtual time).
+                Some(None) => continue,
+                None => {
+                    receiving.stale += 1;
+                    continue;
+                }
+            };
+            let sender = receiving.rsus[index].id.as_str();
+            let distance_m = (batch.from[0] - own.0).hypot(batch.from[1] - own.1);
+            for (seq, object) in (batch.first_seq..).zip(&batch.objects) {
+                let latency_ms = self.channel.warning_latency_ms(sender, seq);
+                let warning = Warning { made_s: batch.made_s, object: *object };
+                let ids = (sender, self.id.as_str());
+                let tally = &mut receiving.tally;
+                if receiving.warnings.decide(&self.channel, ids, seq, distance_m, latency_ms, warning, tally) {
+                    let due_unix_ns = batch.sent_unix_ns.saturating_add((latency_ms * 1e6).round() as i64);
+                    receiving.warnings_late += u64::from(arrived_unix_ns > due_unix_ns);
+                }
+            }
+        }
+        state
     }
 
     /// Applies the channel to this participant's copy of `sender`'s `cam`: counted, and held
@@ -359,6 +458,11 @@ pub struct V2xLayer {
     /// A vehicle's CAM generation; an RSU sends none.
     trigger: Option<CamTrigger>,
     seq: u64,
+    /// An RSU's warnings, when the scene has them, and those it made in a step.
+    warnings: Option<WarningSender>,
+    made: Vec<(u64, PerceivedObject)>,
+    /// What a vehicle's driver is warned of in this step.
+    warned: Vec<PerceivedObject>,
 }
 
 impl V2xLayer {
@@ -375,13 +479,25 @@ impl V2xLayer {
             |key: &str, e: Box<dyn std::error::Error + Send + Sync>| SceneError::Transport(format!("{key}: {e}"));
         let sends = |p: &str| setup.role_of(p).is_ok_and(|role| !matches!(role, Role::Rsu { .. }));
         let peers = setup.participants().into_iter().filter(|p| sends(p) && p != id.as_str());
-        let receiving = Receiving { peers: peers.map(|p| (p, Peer::default())).collect(), ..Receiving::default() };
+        let warners: Vec<String> = match setup.warnings() {
+            true => setup.participants().into_iter().filter(|p| !sends(p)).collect(),
+            false => Vec::new(),
+        };
+        let is_vehicle = sends(id.as_str());
+        let rsus = warners.iter().filter(|_| is_vehicle);
+        let rsus = rsus.map(|w| RsuBatches { id: w.clone(), through: None, counted: None, batches: Vec::new() });
+        let receiving = Receiving {
+            peers: peers.map(|p| (p, Peer::default())).collect(),
+            rsus: rsus.collect(),
+            ..Receiving::default()
+        };
         // Reliable and blocking: every loss is the channel's, none the transport's.
         let publisher = reliable_publisher(session, scene_v2x(site, id))?;
         let inbox = Arc::new(Inbox {
             id: id.to_string(),
             scene: setup.digest(),
             channel,
+            warners,
             state: Mutex::new(receiving),
             wake: Condvar::new(),
             taken: Condvar::new(),
@@ -402,8 +518,19 @@ impl V2xLayer {
                 move || inbox.deliver()
             })
             .map_err(|e| SceneError::Failed { reason: format!("cannot start the V2X delivery thread: {e}") })?;
-        let trigger = sends(id.as_str()).then(CamTrigger::default);
-        Ok(V2xLayer { inbox, _subscriber: subscriber, publisher, deliverer: Some(deliverer), trigger, seq: 0 })
+        let trigger = is_vehicle.then(CamTrigger::default);
+        let warnings = (setup.warnings() && !is_vehicle).then(WarningSender::default);
+        Ok(V2xLayer {
+            inbox,
+            _subscriber: subscriber,
+            publisher,
+            deliverer: Some(deliverer),
+            trigger,
+            seq: 0,
+            warnings,
+            made: Vec::new(),
+            warned: Vec::new(),
+        })
     }
 
     fn put(&self, body: V2xBody) -> Result<(), SceneError> {
@@ -412,11 +539,48 @@ impl V2xLayer {
         self.publisher.put(bytes).wait().map_err(|e| SceneError::Transport(format!("V2X: {e}")))
     }
 
+    /// What a vehicle's driver is warned of in step `truth`, given what it `perceived` (call it
+    /// before the driver acts, and only in steps the vehicle is in the world, as virtual time
+    /// does): the RSUs' warnings through the step before are decided (waiting for them at most
+    /// [`WARNING_WAIT`]), those due are heard. Nothing without warnings, or at an RSU.
+    pub fn warned(&mut self, truth: &Truth, perceived: &[PerceivedObject]) -> &[PerceivedObject] {
+        self.warned.clear();
+        let mut state = lock(&self.inbox.state);
+        if state.rsus.is_empty() {
+            return &self.warned;
+        }
+        if let Some(before) = truth.step.checked_sub(1) {
+            state = self.inbox.decide_warnings_through(state, before);
+        }
+        let receiving = &mut *state;
+        self.warned.extend_from_slice(receiving.warnings.warned(truth.time_s, perceived, &mut receiving.tally));
+        &self.warned
+    }
+
     /// Step `truth`, before it is answered: records this participant's position for the CAMs
-    /// made in it, and sends a CAM if the generation rules say so. Before the answer, so that
-    /// the authority never ends the scene with a CAM of its last step not yet sent.
-    pub fn on_step(&mut self, truth: &Truth, own: Option<CamState>) -> Result<(), SceneError> {
+    /// made in it, sends a CAM if the generation rules say so, and at an RSU of a scene with
+    /// warnings the step's warnings of the hazards it `perceived`. Before the answer, so that
+    /// the authority never ends the scene with a message of its last step not yet sent, and a
+    /// vehicle finds the warnings of a step before the next.
+    pub fn on_step(
+        &mut self,
+        truth: &Truth,
+        own: Option<CamState>,
+        perceived: &[PerceivedObject],
+    ) -> Result<(), SceneError> {
         self.inbox.on_step(truth.step, own.map(|s| (s.x_m, s.y_m)));
+        if let (Some(warnings), Some(mast)) = (&mut self.warnings, own) {
+            warnings.make(truth.time_s, perceived, &mut self.made, &mut lock(&self.inbox.state).tally);
+            let batch = WireWarnings {
+                step: truth.step,
+                made_s: truth.time_s,
+                sent_unix_ns: unix_ns(),
+                from: [mast.x_m, mast.y_m],
+                first_seq: self.made.first().map_or(0, |&(seq, _)| seq),
+                objects: self.made.iter().map(|&(_, o)| o).collect(),
+            };
+            self.put(V2xBody::Warnings(batch))?;
+        }
         let (Some(trigger), Some(state)) = (&mut self.trigger, own) else { return Ok(()) };
         if trigger.check(state).is_none() {
             return Ok(());
@@ -452,6 +616,11 @@ impl V2xLayer {
             }
             state = self.inbox.taken.wait_timeout(state, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
         }
+        // The warnings of the last step are decided (counted), as virtual time decides them;
+        // none is heard any more.
+        if let (false, Some(last)) = (state.rsus.is_empty(), state.latest_step) {
+            state = self.inbox.decide_warnings_through(state, last);
+        }
         state.closed = true;
         drop(state);
         self.inbox.wake.notify_one();
@@ -477,6 +646,8 @@ impl V2xLayer {
             ahead: state.ahead,
             malformed: state.malformed,
             foreign: state.foreign,
+            warnings_late: state.warnings_late,
+            warning_batches_late: state.warning_batches_late,
         };
         let dropped = [
             ("undecided", report.undecided),
@@ -487,6 +658,9 @@ impl V2xLayer {
         ];
         for (what, n) in dropped.into_iter().filter(|(_, n)| *n > 0) {
             tracing::warn!("V2X {id}: {n} CAMs {what}");
+        }
+        if report.warning_batches_late > 0 {
+            tracing::warn!("V2X {id}: {} RSU warning batches late for their step", report.warning_batches_late);
         }
         report
     }
@@ -500,128 +674,4 @@ impl Drop for V2xLayer {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use risktwin_common::v2x::channel::{LinkBudget, PathLoss};
-    use risktwin_common::v2x::latency::Latency;
-    use risktwin_common::v2x::link::V2xChannel;
-
-    const SCENE: u64 = 9;
-
-    /// Receiver `rsu0` of a scene whose vehicles `v0` and `v1` send.
-    fn inbox() -> Inbox {
-        let channel = V2xChannel {
-            model: PathLoss::HighwayLos,
-            budget: LinkBudget::default(),
-            latency: Latency::SIDELINK,
-            bursts: None,
-        };
-        let peers = ["v0", "v1"].map(|p| (p.to_owned(), Peer::default())).into_iter().collect();
-        Inbox {
-            id: "rsu0".into(),
-            scene: SCENE,
-            channel: MessageChannel { channel, seed: 1 },
-            state: Mutex::new(Receiving { peers, ..Receiving::default() }),
-            wake: Condvar::new(),
-            taken: Condvar::new(),
-        }
-    }
-
-    fn message(sender: &str, body: V2xBody) -> Vec<u8> {
-        let message = WireV2x { schema: V2X_SCHEMA, scene: SCENE, sender: sender.into(), body };
-        postcard::to_allocvec(&message).expect("encodes")
-    }
-
-    /// CAM `seq` of step `step`, made 10 m from the receiver's position, sent now.
-    fn cam(seq: u64, step: u64) -> V2xBody {
-        V2xBody::Cam(WireCam { seq, step, made_s: 0.0, sent_unix_ns: unix_ns(), state: [10.0, 0.0, 0.0, 0.0] })
-    }
-
-    fn key(sender: &str) -> String {
-        format!("risktwin/v1/site/scene/v2x/{sender}")
-    }
-
-    #[test]
-    fn every_cam_is_decided_counted_or_waits_and_none_is_dropped_silently() {
-        let inbox = inbox();
-        inbox.on_step(0, Some((0.0, 0.0)));
-        inbox.on_sample(&key("v0"), &message("v0", cam(0, 0)));
-        inbox.on_sample(&key("v0"), &message("v0", cam(0, 0)));
-        inbox.on_sample(&key("v1"), &message("v0", cam(1, 0)));
-        inbox.on_sample(&key("v9"), &message("v9", cam(0, 0)));
-        inbox.on_sample(&key("rsu1"), &message("rsu1", cam(0, 0)));
-        inbox.on_sample(&key("v1"), &[0xFF, 0x13]);
-        let mut nan = cam(5, 0);
-        if let V2xBody::Cam(c) = &mut nan {
-            c.state[0] = f64::NAN;
-        }
-        inbox.on_sample(&key("v1"), &message("v1", nan));
-        let other_scene = WireV2x { schema: V2X_SCHEMA, scene: SCENE + 1, sender: "v1".into(), body: cam(0, 0) };
-        inbox.on_sample(&key("v1"), &postcard::to_allocvec(&other_scene).expect("encodes"));
-        {
-            let state = lock(&inbox.state);
-            assert_eq!(state.tally.copies, 1, "the first CAM only");
-            let why = "a repeat, a sender on another's key, a stranger, an RSU, garbage, NaN";
-            assert_eq!((state.malformed, state.foreign), (6, 1), "{why}");
-        }
-        // Not in the world at step 1: no copy, as in virtual time. Ahead of the own steps: waits,
-        // or beyond the bound, dropped and counted.
-        inbox.on_step(1, None);
-        inbox.on_sample(&key("v0"), &message("v0", cam(1, 1)));
-        inbox.on_sample(&key("v0"), &message("v0", cam(2, 3)));
-        inbox.on_sample(&key("v0"), &message("v0", cam(3, 1 + AHEAD_STEPS + 1)));
-        {
-            let state = lock(&inbox.state);
-            assert_eq!((state.tally.copies, state.waiting.len(), state.ahead), (1, 1, 1));
-            assert!(!state.settled(), "a CAM waits, and no sender announced its end");
-            assert_eq!(state.undecided(), 1, "the waiting CAM; the sequence numbers are all there");
-        }
-        inbox.on_step(3, Some((0.0, 0.0)));
-        // v1's CAMs 0 to 2 were never taken (its NaN one was refused): its end announces 4.
-        inbox.on_sample(&key("v0"), &message("v0", V2xBody::End { cams: 4 }));
-        inbox.on_sample(&key("v1"), &message("v1", V2xBody::End { cams: 4 }));
-        let state = lock(&inbox.state);
-        assert_eq!((state.tally.copies, state.waiting.len()), (2, 0), "the waiting CAM decided at its step");
-        assert!(!state.settled());
-        assert_eq!(state.undecided(), 4, "v1's four: announced, none taken");
-    }
-
-    #[test]
-    fn a_cam_of_a_step_no_longer_held_is_stale_and_hostile_times_neither_panic_nor_hold_for_ever() {
-        let inbox = inbox();
-        for step in 0..=OWN_HISTORY_STEPS + 10 {
-            inbox.on_step(step, Some((0.0, 0.0)));
-        }
-        inbox.on_sample(&key("v0"), &message("v0", cam(0, 3)));
-        assert_eq!(lock(&inbox.state).stale, 1);
-        for (seq, sent_unix_ns) in [(1, i64::MAX), (2, i64::MIN), (3, unix_ns() - 1_000_000_000)] {
-            let body = V2xBody::Cam(WireCam { seq, step: 20, made_s: 0.0, sent_unix_ns, state: [1.0, 0.0, 0.0, 0.0] });
-            inbox.on_sample(&key("v0"), &message("v0", body));
-        }
-        let state = lock(&inbox.state);
-        assert_eq!((state.tally.copies, state.tally.passed), (3, 3), "1 m on a highway");
-        assert_eq!(state.late, 2, "sent long ago: their latency has passed");
-        let latest = state.held.iter().map(|Reverse(h)| h.due).max().expect("held");
-        assert!(latest <= Instant::now() + MAX_HOLD, "a sent time in the far future is held at most {MAX_HOLD:?}");
-    }
-
-    #[test]
-    fn a_v2x_message_round_trips_through_postcard() {
-        let cam = WireCam {
-            seq: 4,
-            step: 17,
-            made_s: 0.85,
-            sent_unix_ns: 1_700_000_000_123_456_789,
-            state: [1.5, -0.0, 3.0, 29.9],
-        };
-        for body in [V2xBody::Cam(cam), V2xBody::End { cams: 12 }] {
-            let message = WireV2x { schema: V2X_SCHEMA, scene: 9, sender: "v1".into(), body };
-            let bytes = postcard::to_allocvec(&message).expect("encodes");
-            let back: WireV2x = postcard::from_bytes(&bytes).expect("decodes");
-            assert_eq!(back, message);
-            if let V2xBody::Cam(cam) = back.body {
-                assert_eq!(cam.state[1].to_bits(), (-0.0f64).to_bits());
-            }
-        }
-    }
-}
+mod tests;

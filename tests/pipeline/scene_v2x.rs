@@ -64,15 +64,18 @@ fn a_participant_with_other_v2x_flags_is_refused_by_name() {
 
 #[test]
 fn bad_v2x_flags_are_refused_with_exit_2() {
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["--v2x-bursts", "0:-5"], "--v2x-bursts \"0:-5\""),
         (&["--v2x-bursts", "0:nan"], "--v2x-bursts \"0:nan\""),
         (&["--v2x-bursts", "0.3"], "expected SHARE:MEAN_BURST"),
         (&["--v2x-latency", "sidelink:50:10"], "--v2x-latency"),
         (&["--v2x-model", "nowhere"], "--v2x-model \"nowhere\""),
+        (&["--v2x-warnings"], "--v2x-warnings needs --v2x-model"),
+        (&["--v2x-cpm"], "--v2x-cpm needs --v2x-model"),
     ];
     for (flags, expected) in cases {
-        let model = if flags[0] == "--v2x-model" { &[][..] } else { &["--v2x-model", "3gpp-urban-nlos"][..] };
+        let without_model = ["--v2x-model", "--v2x-warnings", "--v2x-cpm"].contains(&flags[0]);
+        let model = if without_model { &[][..] } else { &["--v2x-model", "3gpp-urban-nlos"][..] };
         let argv = args(&args(&["scene", "run", "--embedded", "--kind", "cut-in", "--seed", "3"], model), flags);
         let mut p = Proc::spawn("bad v2x", &argv);
         let (status, _) = p.wait_exit(Duration::from_secs(30));
@@ -119,6 +122,14 @@ fn rsu_warnings_prevent_the_crash_of_a_scene_embedded_and_over_a_router() {
         (ego["warnings_passed"].as_u64().expect("a count"), ego["warnings_heard"].as_u64().expect("a count"));
     assert!(heard <= passed && passed <= made && heard > 0, "{ego}");
     assert!(ego["warned_steps"].as_u64().expect("a count") > 0, "{ego}");
+    // CPMs alone (what the RSU perceives, by ETSI's inclusion rules) prevent it too.
+    let cpm = run(&["--v2x-cpm"]);
+    assert_eq!(cpm["metrics"]["collision"], false, "the ego that hears CPMs does not: {cpm}");
+    let (rsu, ego) = (&cpm["v2x"]["rsu0"], &cpm["v2x"]["v0"]);
+    let cpms = rsu["cpms_made"].as_u64().expect("a count");
+    assert!(cpms > 0 && rsu["warnings_made"] == 0, "{rsu}");
+    assert_eq!(ego["cpm_copies"].as_u64(), Some(cpms), "{ego}");
+    assert!(ego["cpm_objects_heard"].as_u64().expect("a count") > 0, "{ego}");
 
     let (_router, locator) = start_router();
     let dir = tempfile::tempdir().expect("a temporary directory");

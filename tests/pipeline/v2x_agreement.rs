@@ -13,9 +13,9 @@ use std::collections::BTreeMap;
 
 /// An emergency braking with the ego, two connected vehicles and four RSUs 150 m apart in urban
 /// NLOS: the RSUs 300 and 450 m along the route hear about 80 % and 30 % of the CAMs. The RSUs
-/// warn: rsu0 and rsu1 of the braked cars standing in their view (81 warnings, each to three
-/// vehicles).
-pub const SCENE: [&str; 13] = [
+/// warn (rsu0 and rsu1 of the braked cars standing in their view) and send CPMs of what they
+/// perceive.
+pub const SCENE: [&str; 14] = [
     "--kind",
     "emergency-braking",
     "--seed",
@@ -29,6 +29,7 @@ pub const SCENE: [&str; 13] = [
     "--v2x-latency",
     "sidelink:4:100",
     "--v2x-warnings",
+    "--v2x-cpm",
 ];
 
 /// V2X counts per participant.
@@ -78,21 +79,29 @@ pub fn assert_agrees(what: &str, real_time: &PerParticipant, virtual_time: &PerP
     assert_warnings_agree(real_time, virtual_time);
 }
 
-/// The RSUs' warnings decided alike in real and virtual time: per participant, made, copies,
-/// passed, heard and warned steps equal; in real time no warning batch came after the step that
-/// needed it, and late copies (batch after the drawn latency) at most 2 % of the passed ones.
+/// The RSUs' warnings and CPMs decided alike in real and virtual time: per participant, made,
+/// copies, passed, heard and warned steps equal; in real time no RSU batch came after the step
+/// that needed it, and late copies (batch after the drawn latency) at most 2 % of the passed
+/// ones.
 pub fn assert_warnings_agree(real_time: &PerParticipant, virtual_time: &PerParticipant) {
     assert_eq!(real_time.keys().collect::<Vec<_>>(), virtual_time.keys().collect::<Vec<_>>(), "participants");
     for (id, virt) in virtual_time {
         let real = &real_time[id];
-        for key in ["warnings_made", "warning_copies", "warnings_passed", "warnings_heard", "warned_steps"] {
+        let keys = ["warnings_made", "warning_copies", "warnings_passed", "warnings_heard", "warned_steps"];
+        let cpm_keys = ["cpms_made", "cpm_objects_sent", "cpm_copies", "cpms_passed", "cpm_objects_heard"];
+        for key in keys.into_iter().chain(cpm_keys) {
             assert_eq!(count(real, key), count(virt, key), "{id}: {key}: {real}");
         }
         assert_eq!(count(real, "warning_batches_late"), 0, "{id}: {real}");
+        assert_eq!(count(real, "warning_batches_lost"), 0, "{id}: {real}");
         let (late, passed) = (count(real, "warnings_late"), count(real, "warnings_passed"));
         let (made, copies, heard) =
             (count(real, "warnings_made"), count(real, "warning_copies"), count(real, "warnings_heard"));
         eprintln!("{id}: warnings made {made}, copies {copies}, passed {passed}, heard {heard}, late {late}");
         assert!(late * 50 <= passed, "{id}: {late} of {passed} passed warnings late: {real}");
+        let (cpms, cpm_copies) = (count(real, "cpms_made"), count(real, "cpm_copies"));
+        let (cpms_passed, cpms_late) = (count(real, "cpms_passed"), count(real, "cpms_late"));
+        eprintln!("{id}: CPMs made {cpms}, copies {cpm_copies}, passed {cpms_passed}, late {cpms_late}");
+        assert!(cpms_late * 50 <= cpms_passed, "{id}: {cpms_late} of {cpms_passed} passed CPMs late: {real}");
     }
 }

@@ -14,11 +14,12 @@ pub const T_GEN_CAM_MIN_S: f64 = 0.1;
 pub const T_GEN_CAM_MAX_S: f64 = 1.0;
 /// CAMs by the time rule after which `T_GenCam` returns to its maximum.
 pub const N_GEN_CAM: u32 = 3;
-const HEADING_CHANGE_RAD: f64 = 4.0 * std::f64::consts::PI / 180.0;
-const POSITION_CHANGE_M: f64 = 4.0;
-const SPEED_CHANGE_MPS: f64 = 0.5;
+/// The dynamics thresholds; a CPM's object inclusion uses the same ones (`super::cpm`).
+pub(super) const HEADING_CHANGE_RAD: f64 = 4.0 * std::f64::consts::PI / 180.0;
+pub(super) const POSITION_CHANGE_M: f64 = 4.0;
+pub(super) const SPEED_CHANGE_MPS: f64 = 0.5;
 /// Slack on time comparisons: a step of 0.05 s summed twice is not quite 0.1 s.
-const TIME_SLACK_S: f64 = 1e-9;
+pub(super) const TIME_SLACK_S: f64 = 1e-9;
 
 /// A vehicle's state as a CAM carries it.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -14,6 +14,7 @@
 use super::awareness::receivers;
 use super::cam::{CamState, CamTrigger};
 use super::channel::LinkBudget;
+use super::cpm::CpmGenerator;
 use super::latency::Latency;
 use super::link::V2xChannel;
 use super::loss::BurstState;
@@ -31,6 +32,9 @@ const COPY_TAG: u8 = 2;
 /// A warning's latency and a copy's fate: an RSU's warnings are numbered apart from CAMs.
 const WARNING_LATENCY_TAG: u8 = 3;
 const WARNING_COPY_TAG: u8 = 4;
+/// A CPM's latency and a copy's fate: an RSU's CPMs are numbered apart from its warnings.
+const CPM_LATENCY_TAG: u8 = 5;
+const CPM_COPY_TAG: u8 = 6;
 
 /// How often a scene's RSU repeats its warnings while a hazard lasts, Hz (the sweep's default).
 pub const SCENE_WARNING_HZ: f64 = 10.0;
@@ -148,6 +152,18 @@ impl MessageChannel {
         let mut rng = Rng::derive(self.seed, stream(WARNING_COPY_TAG, sender, receiver, seq));
         self.channel.receives(distance_m, burst, &mut rng)
     }
+
+    /// When CPM `seq` of RSU `sender` goes out, ms after it is made.
+    pub fn cpm_latency_ms(&self, sender: &str, seq: u64) -> f64 {
+        self.channel.latency_ms(&mut Rng::derive(self.seed, stream(CPM_LATENCY_TAG, sender, "", seq)))
+    }
+
+    /// Whether `receiver`'s copy of CPM `seq` of RSU `sender` arrives over `distance_m`; `burst`
+    /// is the pair's CPM chain, stepped in the sender's CPM order.
+    pub fn cpm_passes(&self, sender: &str, receiver: &str, seq: u64, distance_m: f64, burst: &mut BurstState) -> bool {
+        let mut rng = Rng::derive(self.seed, stream(CPM_COPY_TAG, sender, receiver, seq));
+        self.channel.receives(distance_m, burst, &mut rng)
+    }
 }
 
 /// An RSU's warnings: its repetitions and its warning count, whose sequence numbers the copies'
@@ -186,18 +202,73 @@ impl WarningSender {
     }
 }
 
-/// A vehicle's end of the RSUs' warnings: decides its copies, holds the passed ones until made
-/// + latency and hears them into its [`Heard`].
+/// An RSU's Collective Perception Messages: which objects each includes ([`CpmGenerator`]) and
+/// their count, whose sequence numbers the copies' decisions derive from.
+#[derive(Debug, Clone, Default)]
+pub struct CpmSender {
+    generator: CpmGenerator,
+    seq: u64,
+}
+
+impl CpmSender {
+    /// The CPM made at `now_s` from what the RSU perceived (`seen`): its sequence number, with
+    /// its objects in `out`, or `None` when no object is due (`out` then empty). Counted.
+    pub fn make(
+        &mut self,
+        now_s: f64,
+        seen: &[PerceivedObject],
+        out: &mut Vec<PerceivedObject>,
+        tally: &mut V2xTally,
+    ) -> Option<u64> {
+        self.generator.select(now_s, seen, out);
+        if out.is_empty() {
+            return None;
+        }
+        let seq = self.seq;
+        self.seq += 1;
+        tally.cpms_made += 1;
+        tally.cpm_objects_sent += out.len() as u64;
+        Some(seq)
+    }
+}
+
+/// A held copy: a warning's object or a CPM's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Carrier {
+    Warning,
+    Cpm,
+}
+
+/// A vehicle's end of the RSUs' warnings and CPMs: decides its copies, holds the passed ones
+/// until made + latency and hears their objects into its [`Heard`] (all but the vehicle itself,
+/// which an RSU perceives as any other object).
 #[derive(Debug, Default)]
 pub struct WarningInbox {
-    /// Passed copies on their way: (made, latency ms, warning), in the order they were decided.
-    in_flight: Vec<(f64, f64, Warning)>,
-    /// The pairs' burst chains by RSU, stepped in each RSU's warning order.
+    /// The vehicle's own object id in the truth.
+    own_object: Option<u32>,
+    /// Passed copies on their way: (made, latency ms, object, carrier), in the order they were
+    /// decided.
+    in_flight: Vec<(f64, f64, Warning, Carrier)>,
+    /// The pairs' burst chains by RSU, stepped in each RSU's warning (CPM) order.
     bursts: BTreeMap<String, BurstState>,
+    cpm_bursts: BTreeMap<String, BurstState>,
     heard: Heard,
 }
 
+/// The pair's burst chain with `sender`, made on first use.
+fn chain<'a>(bursts: &'a mut BTreeMap<String, BurstState>, sender: &str) -> &'a mut BurstState {
+    if !bursts.contains_key(sender) {
+        bursts.insert(sender.to_owned(), BurstState::default());
+    }
+    bursts.get_mut(sender).expect("inserted")
+}
+
 impl WarningInbox {
+    /// The inbox of the vehicle that is object `own_object` in the truth.
+    pub fn new(own_object: u32) -> WarningInbox {
+        WarningInbox { own_object: Some(own_object), ..WarningInbox::default() }
+    }
+
     /// `receiver`'s copy of warning `seq` of RSU `sender` over `distance_m`, with the warning's
     /// drawn `latency_ms`: counted, and held if the channel passes it. Decide each RSU's copies
     /// in its sequence order, and copies of one step before those of the next: the order they
@@ -213,15 +284,36 @@ impl WarningInbox {
         warning: Warning,
         tally: &mut V2xTally,
     ) -> bool {
-        let burst = match self.bursts.get_mut(sender) {
-            Some(burst) => burst,
-            None => self.bursts.entry(sender.to_owned()).or_default(),
-        };
         tally.warning_copies += 1;
-        let passes = channel.warning_passes(sender, receiver, seq, distance_m, burst);
+        let passes = channel.warning_passes(sender, receiver, seq, distance_m, chain(&mut self.bursts, sender));
         if passes {
             tally.warnings_passed += 1;
-            self.in_flight.push((warning.made_s, latency_ms, warning));
+            self.in_flight.push((warning.made_s, latency_ms, warning, Carrier::Warning));
+        }
+        passes
+    }
+
+    /// `receiver`'s copy of CPM `seq` of RSU `sender`, made at `made_s` with `objects`, over
+    /// `distance_m` with the CPM's drawn `latency_ms`: counted, and its objects held if the
+    /// channel passes it (one copy, one fate for all). Decide an RSU's CPM of a step after its
+    /// warnings of that step. Whether it passed.
+    #[allow(clippy::too_many_arguments)]
+    pub fn decide_cpm(
+        &mut self,
+        channel: &MessageChannel,
+        (sender, receiver): (&str, &str),
+        seq: u64,
+        distance_m: f64,
+        (made_s, latency_ms): (f64, f64),
+        objects: &[PerceivedObject],
+        tally: &mut V2xTally,
+    ) -> bool {
+        tally.cpm_copies += 1;
+        let passes = channel.cpm_passes(sender, receiver, seq, distance_m, chain(&mut self.cpm_bursts, sender));
+        if passes {
+            tally.cpms_passed += 1;
+            let held = objects.iter().map(|&object| (made_s, latency_ms, Warning { made_s, object }, Carrier::Cpm));
+            self.in_flight.extend(held);
         }
         passes
     }
@@ -229,12 +321,17 @@ impl WarningInbox {
     /// Copies due by `now_s` are heard; what was heard and is not in `perceived`, moved on to
     /// `now_s`: the driver's warned objects. Call once per step, before the driver acts.
     pub fn warned(&mut self, now_s: f64, perceived: &[PerceivedObject], tally: &mut V2xTally) -> &[PerceivedObject] {
-        let heard = &mut self.heard;
-        self.in_flight.retain(|&(made_s, latency_ms, w)| {
+        let (heard, own) = (&mut self.heard, self.own_object);
+        self.in_flight.retain(|&(made_s, latency_ms, w, carrier)| {
             let due = warning_due(made_s, latency_ms, now_s);
             if due {
-                tally.warnings_heard += 1;
-                heard.hear(now_s, w);
+                match carrier {
+                    Carrier::Warning => tally.warnings_heard += 1,
+                    Carrier::Cpm => tally.cpm_objects_heard += 1,
+                }
+                if Some(w.object.id) != own {
+                    heard.hear(now_s, w);
+                }
             }
             !due
         });
@@ -265,8 +362,16 @@ pub struct V2xTally {
     pub warning_copies: u64,
     pub warnings_passed: u64,
     pub warnings_heard: u64,
-    /// Steps whose driver view held a warned object it did not perceive itself.
+    /// Steps whose driver view held a warned object it did not perceive itself (heard of over
+    /// a warning or a CPM).
     pub warned_steps: u64,
+    /// CPMs this participant (an RSU) made, and the objects they carried.
+    pub cpms_made: u64,
+    pub cpm_objects_sent: u64,
+    /// Copies of RSUs' CPMs it decided and passed, and the objects of passed copies heard.
+    pub cpm_copies: u64,
+    pub cpms_passed: u64,
+    pub cpm_objects_heard: u64,
 }
 
 /// What [`V2xTally`] reports.
@@ -286,6 +391,11 @@ pub struct V2xSummary {
     pub warnings_passed: u64,
     pub warnings_heard: u64,
     pub warned_steps: u64,
+    pub cpms_made: u64,
+    pub cpm_objects_sent: u64,
+    pub cpm_copies: u64,
+    pub cpms_passed: u64,
+    pub cpm_objects_heard: u64,
 }
 
 impl V2xTally {
@@ -305,6 +415,11 @@ impl V2xTally {
             warnings_passed: self.warnings_passed,
             warnings_heard: self.warnings_heard,
             warned_steps: self.warned_steps,
+            cpms_made: self.cpms_made,
+            cpm_objects_sent: self.cpm_objects_sent,
+            cpm_copies: self.cpm_copies,
+            cpms_passed: self.cpms_passed,
+            cpm_objects_heard: self.cpm_objects_heard,
         }
     }
 }
@@ -320,9 +435,9 @@ struct Member {
     in_flight: Vec<(f64, u64)>,
     /// Burst chains of the pairs with this member as receiver, by sender.
     bursts: BTreeMap<usize, BurstState>,
-    /// An RSU's warnings (made only with [`VirtualScene::warning`]).
-    sender: Option<WarningSender>,
-    /// A vehicle's warnings received.
+    /// An RSU's warnings and CPMs (made only with [`VirtualScene::warning`], [`VirtualScene::cpm`]).
+    sender: Option<(WarningSender, CpmSender)>,
+    /// A vehicle's warnings and CPMs received.
     inbox: WarningInbox,
 }
 
@@ -331,32 +446,42 @@ pub struct VirtualScene {
     channel: MessageChannel,
     members: Vec<Member>,
     warnings: bool,
-    /// The warnings one RSU makes in one step.
+    cpm: bool,
+    /// The warnings one RSU makes in one step, and its CPM's objects.
     made: Vec<(u64, PerceivedObject)>,
+    cpm_objects: Vec<PerceivedObject>,
 }
 
 impl VirtualScene {
-    /// `members`: each participant's id and whether it sends CAMs (a vehicle) or not (an RSU).
-    pub fn new(channel: MessageChannel, members: &[(String, bool)]) -> VirtualScene {
+    /// `members`: each participant's id and, for a vehicle (it sends CAMs), its object id in the
+    /// truth; `None` for an RSU (it only receives CAMs).
+    pub fn new(channel: MessageChannel, members: &[(String, Option<u32>)]) -> VirtualScene {
         let members = members
             .iter()
-            .map(|(id, sends)| Member {
+            .map(|(id, object)| Member {
                 id: id.clone(),
-                trigger: sends.then(CamTrigger::default),
+                trigger: object.map(|_| CamTrigger::default()),
                 seq: 0,
                 tally: V2xTally::default(),
                 in_flight: Vec::new(),
                 bursts: BTreeMap::new(),
-                sender: (!sends).then(WarningSender::default),
-                inbox: WarningInbox::default(),
+                sender: object.is_none().then(Default::default),
+                inbox: object.map_or_else(WarningInbox::default, WarningInbox::new),
             })
             .collect();
-        VirtualScene { channel, members, warnings: false, made: Vec::new() }
+        let (made, cpm_objects) = (Vec::new(), Vec::new());
+        VirtualScene { channel, members, warnings: false, cpm: false, made, cpm_objects }
     }
 
     /// With `on`, the RSUs warn the vehicles of the hazards they perceive ([`Self::warn`]).
     pub fn warning(mut self, on: bool) -> VirtualScene {
         self.warnings = on;
+        self
+    }
+
+    /// With `on`, the RSUs send CPMs of what they perceive ([`Self::warn`]).
+    pub fn cpm(mut self, on: bool) -> VirtualScene {
+        self.cpm = on;
         self
     }
 
@@ -369,22 +494,30 @@ impl VirtualScene {
     }
 
     /// The RSUs warn at `now_s` of the hazards each perceived in this step (`seen`, per member;
-    /// empty for vehicles), if a repetition is due: each warning goes to every vehicle in the
-    /// world now, decided per copy from the distance between the RSU's and the vehicle's
-    /// states. Nothing without [`Self::warning`].
+    /// empty for vehicles), if a repetition is due, and send a CPM if objects are due: each
+    /// warning and CPM goes to every vehicle in the world now, decided per copy from the
+    /// distance between the RSU's and the vehicle's states. Nothing without [`Self::warning`]
+    /// or [`Self::cpm`].
     pub fn warn(&mut self, now_s: f64, states: &[Option<CamState>], seen: &[&[PerceivedObject]]) {
         assert_eq!(states.len(), self.members.len(), "VirtualScene::warn: one state per member");
         assert_eq!(seen.len(), self.members.len(), "VirtualScene::warn: one perception per member");
-        if !self.warnings {
+        if !self.warnings && !self.cpm {
             return;
         }
         for sender in 0..self.members.len() {
             let member = &mut self.members[sender];
-            let Some(warnings) = &mut member.sender else { continue };
+            let Some((warnings, cpms)) = &mut member.sender else { continue };
             if states[sender].is_none() {
                 continue;
             }
-            warnings.make(now_s, seen[sender], &mut self.made, &mut member.tally);
+            self.made.clear();
+            if self.warnings {
+                warnings.make(now_s, seen[sender], &mut self.made, &mut member.tally);
+            }
+            let cpm = match self.cpm {
+                true => cpms.make(now_s, seen[sender], &mut self.cpm_objects, &mut member.tally),
+                false => None,
+            };
             let sender_id = member.id.clone();
             for &(seq, object) in &self.made {
                 let latency_ms = self.channel.warning_latency_ms(&sender_id, seq);
@@ -395,6 +528,16 @@ impl VirtualScene {
                         let ids = (sender_id.as_str(), id.as_str());
                         inbox.decide(&self.channel, ids, seq, distance_m, latency_ms, warning, tally);
                     }
+                }
+            }
+            let Some(seq) = cpm else { continue };
+            let latency_ms = self.channel.cpm_latency_ms(&sender_id, seq);
+            for (receiver, distance_m) in receivers(states, sender) {
+                let Member { id, trigger, inbox, tally, .. } = &mut self.members[receiver];
+                if trigger.is_some() {
+                    let ids = (sender_id.as_str(), id.as_str());
+                    let objects = &self.cpm_objects;
+                    inbox.decide_cpm(&self.channel, ids, seq, distance_m, (now_s, latency_ms), objects, tally);
                 }
             }
         }
@@ -514,13 +657,13 @@ mod tests {
     #[test]
     #[should_panic(expected = "one state per member")]
     fn a_virtual_scene_refuses_states_that_are_not_one_per_member() {
-        let mut scene = VirtualScene::new(urban(3), &[("v0".to_owned(), true), ("v1".to_owned(), true)]);
+        let mut scene = VirtualScene::new(urban(3), &[("v0".to_owned(), Some(0)), ("v1".to_owned(), Some(1))]);
         scene.step(0.0, &[None]);
     }
 
     #[test]
     fn a_virtual_scene_counts_every_copy_once_and_delivers_after_the_latency() {
-        let members = [("v0".to_owned(), true), ("v1".to_owned(), true), ("rsu0".to_owned(), false)];
+        let members = [("v0".to_owned(), Some(u32::MAX)), ("v1".to_owned(), Some(0)), ("rsu0".to_owned(), None)];
         let mut scene = VirtualScene::new(urban(3), &members);
         let at = |t: f64, x_m: f64| Some(CamState { time_s: t, x_m, y_m: 0.0, heading_rad: 0.0, speed_mps: 0.0 });
         for k in 0..=200 {
@@ -540,7 +683,7 @@ mod tests {
     fn a_virtual_scene_warns_vehicles_of_hazards_from_the_first_step_after_the_latency() {
         use crate::geometry::{Footprint, Obb, Pose, Vec2};
         use crate::sensor::ObjectKind;
-        let members = [("v0".to_owned(), true), ("rsu0".to_owned(), false)];
+        let members = [("v0".to_owned(), Some(u32::MAX)), ("rsu0".to_owned(), None)];
         let pedestrian = PerceivedObject {
             id: 7,
             kind: ObjectKind::Pedestrian,
@@ -573,5 +716,38 @@ mod tests {
         // Kept 1 s after it was heard, then forgotten.
         let steps = s["v0"].warned_steps;
         assert!((20..=21).contains(&steps), "{steps}");
+    }
+
+    #[test]
+    fn a_virtual_scene_cpm_reaches_vehicles_after_its_latency_and_a_vehicle_is_not_told_of_itself() {
+        use crate::geometry::{Footprint, Obb, Pose, Vec2};
+        use crate::sensor::ObjectKind;
+        let object = |id, kind, x_m| PerceivedObject {
+            id,
+            kind,
+            obb: Obb::new(Pose::new(x_m, 0.0, 0.0), Footprint::new(4.5, 1.8)),
+            velocity: Vec2::new(0.0, 0.0),
+            visible_fraction: 1.0,
+        };
+        // v0 is object 5 in the truth; the RSU sees it and a parked car, 7.
+        let seen = [object(5, ObjectKind::Vehicle, 0.0), object(7, ObjectKind::Parked, 40.0)];
+        let members = [("v0".to_owned(), Some(5)), ("rsu0".to_owned(), None)];
+        let at = |t: f64, x_m: f64| Some(CamState { time_s: t, x_m, y_m: 0.0, heading_rad: 0.0, speed_mps: 0.0 });
+        let channel = urban(3);
+        let mut scene = VirtualScene::new(channel, &members).cpm(true);
+        let mut warned = Vec::new();
+        for k in 0..10 {
+            let t = f64::from(k) * 0.05;
+            warned.push(scene.warned(0, t, &[]).iter().map(|o| o.id).collect::<Vec<_>>());
+            scene.warn(t, &[at(t, 0.0), at(t, 20.0)], &[&[], &seen]);
+        }
+        let s = scene.summaries();
+        // New at 0 s, then nothing due before 1 s (standing): one CPM of both objects.
+        assert_eq!((s["rsu0"].cpms_made, s["rsu0"].cpm_objects_sent, s["rsu0"].warnings_made), (1, 2, 0));
+        assert_eq!((s["v0"].cpm_copies, s["v0"].cpms_passed, s["v0"].cpm_objects_heard), (1, 1, 2));
+        let latency_ms = channel.cpm_latency_ms("rsu0", 0);
+        let first = warned.iter().position(|w| !w.is_empty()).expect("heard");
+        assert!(warning_due(0.0, latency_ms, 0.05 * first as f64) && first > 0, "{first}: {latency_ms} ms");
+        assert!(warned[first..].iter().all(|w| w == &[7]), "the parked car, never v0 itself: {warned:?}");
     }
 }

@@ -5,6 +5,7 @@ pub mod awareness;
 pub mod bler;
 pub mod cam;
 pub mod channel;
+pub mod cpm;
 pub mod experiment;
 pub mod latency;
 pub mod link;

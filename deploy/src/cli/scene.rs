@@ -77,10 +77,13 @@ pub struct SceneArgs {
     #[arg(long, value_name = "SHARE:MEAN")]
     pub v2x_bursts: Option<String>,
     /// With --v2x-model: each RSU warns the vehicles of the hazards it perceives (DENM-like,
-    /// 10 Hz while a hazard lasts), and the ego's driver reacts to what it hears. So far only
-    /// with --embedded (virtual time).
+    /// 10 Hz while a hazard lasts), and the ego's driver reacts to what it hears.
     #[arg(long)]
     pub v2x_warnings: bool,
+    /// With --v2x-model: each RSU sends Collective Perception Messages of what it perceives
+    /// (ETSI object inclusion rules, checked at 10 Hz), and the vehicles fuse what they hear.
+    #[arg(long)]
+    pub v2x_cpm: bool,
 }
 
 #[derive(Debug, Args)]

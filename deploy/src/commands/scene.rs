@@ -78,10 +78,12 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
     // The V2X channel is part of the scene (its digest): every role gets it, and a participant
     // started with other V2X flags is refused at the join, as one of another seed.
     let v2x = v2x_of(args, &setup)?;
-    if args.v2x_warnings && v2x.is_none() {
-        return Err(CliError::input("--v2x-warnings needs --v2x-model"));
+    for (flag, on) in [("--v2x-warnings", args.v2x_warnings), ("--v2x-cpm", args.v2x_cpm)] {
+        if on && v2x.is_none() {
+            return Err(CliError::input(format!("{flag} needs --v2x-model")));
+        }
     }
-    Ok(setup.with_v2x(v2x).with_warnings(args.v2x_warnings))
+    Ok(setup.with_v2x(v2x).with_warnings(args.v2x_warnings).with_cpm(args.v2x_cpm))
 }
 
 /// The V2X channel the arguments ask for, seeded by the scene (`None`: no V2X).
@@ -431,8 +433,10 @@ fn scene_argv(args: &SceneArgs) -> Vec<String> {
             argv.extend([flag.to_owned(), value.clone()]);
         }
     }
-    if args.v2x_warnings {
-        argv.push("--v2x-warnings".to_owned());
+    for (flag, on) in [("--v2x-warnings", args.v2x_warnings), ("--v2x-cpm", args.v2x_cpm)] {
+        if on {
+            argv.push(flag.to_owned());
+        }
     }
     argv
 }

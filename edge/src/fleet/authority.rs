@@ -7,7 +7,7 @@ use super::onboard::Onboard;
 use super::physics::SceneWorld;
 use super::v2x::cam_state;
 use super::wire::{SceneEnd, Truth};
-use super::{Role, SceneError, SceneSetup, SceneSource};
+use super::{SceneError, SceneSetup, SceneSource};
 use risktwin_common::digest::{FNV_OFFSET, fnv1a64_step};
 use risktwin_common::episode::run_stepped;
 use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
@@ -41,8 +41,9 @@ impl Embedded {
         let ids = setup.participants();
         let stacks: Vec<Onboard> = ids.iter().map(|id| Onboard::new(setup, id)).collect::<Result<_, _>>()?;
         let v2x = setup.v2x().map(|&channel| {
-            let members: Vec<(String, bool)> = ids.into_iter().zip(&stacks).map(|(id, s)| (id, !is_rsu(s))).collect();
-            (VirtualScene::new(channel, &members).warning(setup.warnings()), Vec::new())
+            let members: Vec<(String, Option<u32>)> =
+                ids.into_iter().zip(&stacks).map(|(id, s)| (id, s.role().object_id())).collect();
+            (VirtualScene::new(channel, &members).warning(setup.warnings()).cpm(setup.cpm()), Vec::new())
         });
         Ok(Embedded { stacks, v2x })
     }
@@ -51,10 +52,6 @@ impl Embedded {
     pub fn v2x_summaries(&self) -> Option<BTreeMap<String, V2xSummary>> {
         self.v2x.as_ref().map(|(scene, _)| scene.summaries())
     }
-}
-
-fn is_rsu(stack: &Onboard) -> bool {
-    matches!(stack.role(), Role::Rsu { .. })
 }
 
 impl Plane for Embedded {

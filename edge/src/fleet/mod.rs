@@ -39,6 +39,7 @@ use risktwin_common::commonroad::twin::RECORDING_SEED;
 use risktwin_common::digest::fnv1a64;
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_common::v2x::messages::MessageChannel;
+use risktwin_common::world::EGO_OBJECT_ID;
 use std::fmt;
 use thiserror::Error;
 
@@ -91,6 +92,18 @@ pub enum Role {
     Rsu { index: u32 },
 }
 
+impl Role {
+    /// A vehicle's object id in the truth (the ego's [`EGO_OBJECT_ID`], a traffic vehicle its
+    /// index); `None` for a roadside unit.
+    pub fn object_id(self) -> Option<u32> {
+        match self {
+            Role::Ego => Some(EGO_OBJECT_ID),
+            Role::Agent { traffic_index } => Some(traffic_index as u32),
+            Role::Rsu { .. } => None,
+        }
+    }
+}
+
 /// What a scene plays.
 #[derive(Debug, Clone, PartialEq)]
 pub enum SceneSource {
@@ -115,6 +128,8 @@ pub struct SceneSetup {
     v2x: Option<MessageChannel>,
     /// With V2X: the RSUs warn the vehicles of the hazards they perceive (DENM-like).
     warnings: bool,
+    /// With V2X: the RSUs send CPMs of what they perceive, which the vehicles fuse.
+    cpm: bool,
 }
 
 impl SceneSetup {
@@ -156,7 +171,7 @@ impl SceneSetup {
             return Err(SceneError::TooManyConnected { asked: connected, needed, available, what, which });
         }
         let agents = candidates[..needed as usize].to_vec();
-        Ok(SceneSetup { source, connected, rsus, agents, without: Vec::new(), v2x: None, warnings: false })
+        Ok(SceneSetup { source, connected, rsus, agents, without: Vec::new(), v2x: None, warnings: false, cpm: false })
     }
 
     /// The same scene with connected traffic vehicles `ids` (`v1`, …) taken out of the world: a
@@ -199,6 +214,23 @@ impl SceneSetup {
     /// Whether the scene's RSUs warn its vehicles over V2X.
     pub fn warnings(&self) -> bool {
         self.warnings && self.v2x.is_some()
+    }
+
+    /// The same scene with its RSUs sending CPMs over the V2X channel (with `on`, and V2X): part
+    /// of the scene's identity, as the channel is.
+    pub fn with_cpm(mut self, on: bool) -> Self {
+        self.cpm = on;
+        self
+    }
+
+    /// Whether the scene's RSUs send CPMs over V2X.
+    pub fn cpm(&self) -> bool {
+        self.cpm && self.v2x.is_some()
+    }
+
+    /// Whether the scene's RSUs send anything over V2X (warnings or CPMs).
+    pub fn rsus_send(&self) -> bool {
+        self.warnings() || self.cpm()
     }
 
     /// The generated scenario whose episode the ego reports to the cloud when the scene ends:
@@ -246,9 +278,9 @@ impl SceneSetup {
         // length, so the tag cannot be read as part of either.
         let v2x = self.v2x.iter().flat_map(|c| b"\0v2x\0".iter().copied().chain(c.digest().to_le_bytes()));
         let warnings = if self.warnings() { &b"\0warn"[..] } else { &[][..] };
-        fnv1a64(
-            head.iter().flatten().copied().chain(without).chain(scenario).chain(v2x).chain(warnings.iter().copied()),
-        )
+        let cpm = if self.cpm() { &b"\0cpm"[..] } else { &[][..] };
+        let rsus = warnings.iter().chain(cpm).copied();
+        fnv1a64(head.iter().flatten().copied().chain(without).chain(scenario).chain(v2x).chain(rsus))
     }
 
     /// The physics step, s: the world's own, as in the library and `risktwin run`.

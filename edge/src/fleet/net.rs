@@ -572,7 +572,7 @@ pub fn run_participant(
         unsent: BTreeMap::new(),
         v2x: None,
     };
-    let waits_for_warnings = setup.warnings() && !matches!(stack.role(), Role::Rsu { .. });
+    let waits_for_warnings = setup.rsus_send() && !matches!(stack.role(), Role::Rsu { .. });
     let v2x = setup.v2x().map(|&channel| V2xLayer::open(physics, site, setup, &participant, channel)).transpose()?;
     let last = Arc::new(Mutex::new(None));
     let answering = Answering {
@@ -631,7 +631,12 @@ pub fn run_participant(
             None if now >= join_deadline => return Err(SceneError::NoAuthority { waited_s: timeouts.join.as_secs() }),
             None => {
                 if now >= next_join {
-                    lock(&answering).outbox.put(join.as_slice()).wait().map_err(transport("join"))?;
+                    let answering = lock(&answering);
+                    // With V2X, the join waits until every V2X sender of the scene is heard.
+                    let ready = answering.v2x.as_ref().map_or(Ok(true), V2xLayer::hello)?;
+                    if ready {
+                        answering.outbox.put(join.as_slice()).wait().map_err(transport("join"))?;
+                    }
                     next_join = now + JOIN_REPEAT;
                 }
                 next_join.min(join_deadline)

@@ -18,15 +18,16 @@
 //! waits (at most [`FINISH_WAIT`]) until it has decided every copy it can still expect; what it
 //! could not is counted `undecided`, never dropped silently.
 //!
-//! With warnings (`--v2x-warnings`), each RSU also sends, every step before it answers, the
-//! DENM-like warnings it made in that step (often none: the batch then says the step is done),
+//! With warnings (`--v2x-warnings`) or CPMs (`--v2x-cpm`), each RSU also sends, every step
+//! before it answers, the DENM-like warnings and the CPM it made in that step (often none: the
+//! batch then says the step is done),
 //! and a vehicle, before its driver acts in step k, waits (at most [`WARNING_WAIT`]) for every
 //! RSU's batch of step k − 1 and decides its copies as virtual time does
 //! (`risktwin_common::v2x::messages::WarningInbox`): from the distance between the mast and its
 //! own position in the step the warning was made, heard from the first step at or after made +
 //! drawn latency. So a warned episode is the embedded one step for step. What real time adds is
-//! counted: copies whose batch came after their drawn latency had passed (`warnings_late`), and
-//! batches that had not come when a step needed them (`warning_batches_late`).
+//! counted: copies whose batch came after their drawn latency had passed (`warnings_late`,
+//! `cpms_late`), and batches that had not come when a step needed them (`warning_batches_late`).
 
 mod wire;
 
@@ -39,7 +40,7 @@ use risktwin_common::histogram::Histogram;
 use risktwin_common::sensor::PerceivedObject;
 use risktwin_common::v2x::cam::{CamState, CamTrigger};
 use risktwin_common::v2x::loss::BurstState;
-use risktwin_common::v2x::messages::{MessageChannel, V2xSummary, V2xTally, WarningInbox, WarningSender};
+use risktwin_common::v2x::messages::{CpmSender, MessageChannel, V2xSummary, V2xTally, WarningInbox, WarningSender};
 use risktwin_common::v2x::warning::Warning;
 use risktwin_transport::keyexpr::{scene_v2x, scene_v2x_all};
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
@@ -53,7 +54,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use wire::V2X_SCHEMA;
-pub use wire::{V2xBody, WireCam, WireV2x, WireWarnings};
+pub use wire::{RsuBatch, V2xBody, WireCam, WireCpm, WireV2x};
 
 /// Steps of its own positions a receiver keeps for CAMs made in them (10 s of scene).
 const OWN_HISTORY_STEPS: u64 = 200;
@@ -123,12 +124,16 @@ pub struct V2xReport {
     pub malformed: u64,
     /// Messages of another scene (or of the same scene with another V2X channel).
     pub foreign: u64,
-    /// Passed warning copies whose batch came after their drawn latency had passed: heard in
-    /// the step virtual time hears them, but real time could not have.
+    /// Passed warning (CPM) copies whose batch came after their drawn latency had passed: heard
+    /// in the step virtual time hears them, but real time could not have.
     pub warnings_late: u64,
+    pub cpms_late: u64,
     /// RSU warning batches that had not come when the step that needed them was answered
     /// (decided later, or never): the episode may then differ from virtual time's.
     pub warning_batches_late: u64,
+    /// RSU warning batches that never came (a later step's came first): their copies were never
+    /// decided.
+    pub warning_batches_lost: u64,
 }
 
 /// One sending participant, as a receiver sees it.
@@ -142,18 +147,22 @@ struct Peer {
     next_seq: u64,
     /// The count its end announced.
     ended: Option<u64>,
+    /// Whether its hello came: its messages reach this participant.
+    hello: bool,
 }
 
 /// One RSU's warning batches, as a vehicle receives them.
 #[derive(Debug)]
 struct RsuBatches {
     id: String,
+    /// Whether its hello came: its messages reach this participant.
+    hello: bool,
     /// The newest step a batch came for.
     through: Option<u64>,
     /// Steps through which missing batches were counted late.
     counted: Option<u64>,
     /// Batches not decided yet, with their arrival, ns since the Unix epoch.
-    batches: Vec<(WireWarnings, i64)>,
+    batches: Vec<(RsuBatch, i64)>,
 }
 
 /// A step number with `None` before step 0, for comparisons.
@@ -194,7 +203,9 @@ struct Receiving {
     rsus: Vec<RsuBatches>,
     warnings: WarningInbox,
     warnings_late: u64,
+    cpms_late: u64,
     warning_batches_late: u64,
+    warning_batches_lost: u64,
 }
 
 impl Receiving {
@@ -205,6 +216,11 @@ impl Receiving {
         self.waiting.is_empty()
             && self.peers.values().all(|p| p.ended.is_some_and(|n| p.taken >= n))
             && self.has_warnings_through(self.latest_step)
+    }
+
+    /// Every participant whose messages this one decides has been heard (its hello came).
+    fn heard_everyone(&self) -> bool {
+        self.peers.values().all(|p| p.hello) && self.rsus.iter().all(|r| r.hello)
     }
 
     /// Every RSU's warning batch of `step` (and before) has come.
@@ -260,8 +276,19 @@ impl Inbox {
         if message.sender == self.id {
             return;
         }
-        if let V2xBody::Warnings(batch) = message.body {
+        if let V2xBody::Rsu(batch) = message.body {
             self.take_warnings(state, &message.sender, batch);
+            return;
+        }
+        if message.body == V2xBody::Hello {
+            let sender = message.sender.as_str();
+            if let Some(peer) = state.peers.get_mut(sender) {
+                peer.hello = true;
+            } else if let Some(rsu) = state.rsus.iter_mut().find(|r| r.id == sender) {
+                rsu.hello = true;
+            } else if !self.warners.iter().any(|w| w == sender) {
+                state.malformed += 1;
+            }
             return;
         }
         let Some(peer) = state.peers.get_mut(&message.sender) else {
@@ -275,7 +302,7 @@ impl Inbox {
                 return;
             }
             V2xBody::Cam(cam) if cam.seq >= peer.next_seq && cam.state.iter().all(|v| v.is_finite()) => cam,
-            V2xBody::End { .. } | V2xBody::Cam(_) | V2xBody::Warnings(_) => {
+            V2xBody::End { .. } | V2xBody::Cam(_) | V2xBody::Rsu(_) | V2xBody::Hello => {
                 state.malformed += 1;
                 return;
             }
@@ -295,7 +322,7 @@ impl Inbox {
     /// RSU `sender`'s warnings of one step: kept until a step of this vehicle needs them.
     /// Another RSU ignores them; a batch of no RSU of the scene, repeated or out of order, or
     /// not finite is counted malformed.
-    fn take_warnings(&self, state: &mut Receiving, sender: &str, batch: WireWarnings) {
+    fn take_warnings(&self, state: &mut Receiving, sender: &str, batch: RsuBatch) {
         if !self.warners.iter().any(|w| w == sender) {
             state.malformed += 1;
             return;
@@ -304,6 +331,17 @@ impl Inbox {
         if batch.step < after(rsu.through) || !batch.is_finite() {
             state.malformed += 1;
             return;
+        }
+        // One publisher's samples come in order: a step skipped is a batch lost.
+        let lost = batch.step - after(rsu.through);
+        if lost > 0 {
+            tracing::warn!(
+                "V2X {}: {sender}'s warning batches of steps {} to {} lost",
+                self.id,
+                after(rsu.through),
+                batch.step - 1
+            );
+            state.warning_batches_lost += lost;
         }
         rsu.through = Some(batch.step);
         rsu.batches.push((batch, unix_ns()));
@@ -333,7 +371,7 @@ impl Inbox {
             state = self.taken.wait_timeout(state, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
         }
         let receiving = &mut *state;
-        let mut ready: Vec<(u64, usize, WireWarnings, i64)> = Vec::new();
+        let mut ready: Vec<(u64, usize, RsuBatch, i64)> = Vec::new();
         for (index, rsu) in receiving.rsus.iter_mut().enumerate() {
             let (now, later): (Vec<_>, Vec<_>) = rsu.batches.drain(..).partition(|(b, _)| b.step <= step);
             rsu.batches = later;
@@ -352,14 +390,25 @@ impl Inbox {
             };
             let sender = receiving.rsus[index].id.as_str();
             let distance_m = (batch.from[0] - own.0).hypot(batch.from[1] - own.1);
+            let ids = (sender, self.id.as_str());
+            let late = |latency_ms: f64| {
+                u64::from(arrived_unix_ns > batch.sent_unix_ns.saturating_add((latency_ms * 1e6).round() as i64))
+            };
             for (seq, object) in (batch.first_seq..).zip(&batch.objects) {
                 let latency_ms = self.channel.warning_latency_ms(sender, seq);
                 let warning = Warning { made_s: batch.made_s, object: *object };
-                let ids = (sender, self.id.as_str());
                 let tally = &mut receiving.tally;
                 if receiving.warnings.decide(&self.channel, ids, seq, distance_m, latency_ms, warning, tally) {
-                    let due_unix_ns = batch.sent_unix_ns.saturating_add((latency_ms * 1e6).round() as i64);
-                    receiving.warnings_late += u64::from(arrived_unix_ns > due_unix_ns);
+                    receiving.warnings_late += late(latency_ms);
+                }
+            }
+            // After the step's warnings, as virtual time decides them.
+            if let Some(cpm) = &batch.cpm {
+                let latency_ms = self.channel.cpm_latency_ms(sender, cpm.seq);
+                let (inbox, tally) = (&mut receiving.warnings, &mut receiving.tally);
+                let made = (batch.made_s, latency_ms);
+                if inbox.decide_cpm(&self.channel, ids, cpm.seq, distance_m, made, &cpm.objects, tally) {
+                    receiving.cpms_late += late(latency_ms);
                 }
             }
         }
@@ -458,9 +507,11 @@ pub struct V2xLayer {
     /// A vehicle's CAM generation; an RSU sends none.
     trigger: Option<CamTrigger>,
     seq: u64,
-    /// An RSU's warnings, when the scene has them, and those it made in a step.
+    /// An RSU's warnings and CPMs, when the scene has them, and those it made in a step.
     warnings: Option<WarningSender>,
+    cpms: Option<CpmSender>,
     made: Vec<(u64, PerceivedObject)>,
+    cpm_objects: Vec<PerceivedObject>,
     /// What a vehicle's driver is warned of in this step.
     warned: Vec<PerceivedObject>,
 }
@@ -479,16 +530,19 @@ impl V2xLayer {
             |key: &str, e: Box<dyn std::error::Error + Send + Sync>| SceneError::Transport(format!("{key}: {e}"));
         let sends = |p: &str| setup.role_of(p).is_ok_and(|role| !matches!(role, Role::Rsu { .. }));
         let peers = setup.participants().into_iter().filter(|p| sends(p) && p != id.as_str());
-        let warners: Vec<String> = match setup.warnings() {
+        let warners: Vec<String> = match setup.rsus_send() {
             true => setup.participants().into_iter().filter(|p| !sends(p)).collect(),
             false => Vec::new(),
         };
         let is_vehicle = sends(id.as_str());
         let rsus = warners.iter().filter(|_| is_vehicle);
-        let rsus = rsus.map(|w| RsuBatches { id: w.clone(), through: None, counted: None, batches: Vec::new() });
+        let rsus =
+            rsus.map(|w| RsuBatches { id: w.clone(), hello: false, through: None, counted: None, batches: Vec::new() });
+        let own_object = setup.role_of(id.as_str()).ok().and_then(Role::object_id);
         let receiving = Receiving {
             peers: peers.map(|p| (p, Peer::default())).collect(),
             rsus: rsus.collect(),
+            warnings: own_object.map_or_else(WarningInbox::default, WarningInbox::new),
             ..Receiving::default()
         };
         // Reliable and blocking: every loss is the channel's, none the transport's.
@@ -520,6 +574,7 @@ impl V2xLayer {
             .map_err(|e| SceneError::Failed { reason: format!("cannot start the V2X delivery thread: {e}") })?;
         let trigger = is_vehicle.then(CamTrigger::default);
         let warnings = (setup.warnings() && !is_vehicle).then(WarningSender::default);
+        let cpms = (setup.cpm() && !is_vehicle).then(CpmSender::default);
         Ok(V2xLayer {
             inbox,
             _subscriber: subscriber,
@@ -528,9 +583,25 @@ impl V2xLayer {
             trigger,
             seq: 0,
             warnings,
+            cpms,
             made: Vec::new(),
+            cpm_objects: Vec::new(),
             warned: Vec::new(),
         })
+    }
+
+    /// Says hello to the scene's participants; whether this one has heard every participant
+    /// whose messages it decides. Repeated until the scene starts, and a participant joins only
+    /// once it has heard everyone: a message sent before its sender's session knew of a
+    /// receiver's subscription never reaches it, so without this a scene's first messages could
+    /// be lost on the way, and not to the channel.
+    pub fn hello(&self) -> Result<bool, SceneError> {
+        if self.trigger.is_some() || self.warnings.is_some() || self.cpms.is_some() {
+            self.put(V2xBody::Hello)?;
+        }
+        let state = lock(&self.inbox.state);
+        // Hearing another scene's messages, it joins anyway: the authority names the mismatch.
+        Ok(state.heard_everyone() || state.foreign > 0)
     }
 
     fn put(&self, body: V2xBody) -> Result<(), SceneError> {
@@ -569,17 +640,28 @@ impl V2xLayer {
         perceived: &[PerceivedObject],
     ) -> Result<(), SceneError> {
         self.inbox.on_step(truth.step, own.map(|s| (s.x_m, s.y_m)));
-        if let (Some(warnings), Some(mast)) = (&mut self.warnings, own) {
-            warnings.make(truth.time_s, perceived, &mut self.made, &mut lock(&self.inbox.state).tally);
-            let batch = WireWarnings {
+        let sends = self.warnings.is_some() || self.cpms.is_some();
+        if let (true, Some(mast)) = (sends, own) {
+            let mut state = lock(&self.inbox.state);
+            self.made.clear();
+            if let Some(warnings) = &mut self.warnings {
+                warnings.make(truth.time_s, perceived, &mut self.made, &mut state.tally);
+            }
+            let cpm = self
+                .cpms
+                .as_mut()
+                .and_then(|c| c.make(truth.time_s, perceived, &mut self.cpm_objects, &mut state.tally));
+            drop(state);
+            let batch = RsuBatch {
                 step: truth.step,
                 made_s: truth.time_s,
                 sent_unix_ns: unix_ns(),
                 from: [mast.x_m, mast.y_m],
                 first_seq: self.made.first().map_or(0, |&(seq, _)| seq),
                 objects: self.made.iter().map(|&(_, o)| o).collect(),
+                cpm: cpm.map(|seq| WireCpm { seq, objects: self.cpm_objects.clone() }),
             };
-            self.put(V2xBody::Warnings(batch))?;
+            self.put(V2xBody::Rsu(batch))?;
         }
         let (Some(trigger), Some(state)) = (&mut self.trigger, own) else { return Ok(()) };
         if trigger.check(state).is_none() {
@@ -647,7 +729,9 @@ impl V2xLayer {
             malformed: state.malformed,
             foreign: state.foreign,
             warnings_late: state.warnings_late,
+            cpms_late: state.cpms_late,
             warning_batches_late: state.warning_batches_late,
+            warning_batches_lost: state.warning_batches_lost,
         };
         let dropped = [
             ("undecided", report.undecided),

@@ -118,7 +118,15 @@ fn pedestrian(id: u32) -> PerceivedObject {
 /// the receiver, sent now.
 fn batch(step: u64, first_seq: u64, objects: Vec<PerceivedObject>) -> V2xBody {
     let made_s = step as f64 * 0.05;
-    V2xBody::Warnings(WireWarnings { step, made_s, sent_unix_ns: unix_ns(), from: [10.0, 0.0], first_seq, objects })
+    V2xBody::Rsu(RsuBatch { step, made_s, sent_unix_ns: unix_ns(), from: [10.0, 0.0], first_seq, objects, cpm: None })
+}
+
+/// `body` (an RSU batch) with a CPM of two pedestrians.
+fn with_cpm(mut body: V2xBody) -> V2xBody {
+    if let V2xBody::Rsu(batch) = &mut body {
+        batch.cpm = Some(WireCpm { seq: 2, objects: vec![pedestrian(4), pedestrian(6)] });
+    }
+    body
 }
 
 /// Vehicle `v0` of a scene with RSUs `rsu0` and `rsu1` warning.
@@ -131,9 +139,21 @@ fn warned_vehicle() -> Inbox {
     state.rsus = inbox
         .warners
         .iter()
-        .map(|w| RsuBatches { id: w.clone(), through: None, counted: None, batches: Vec::new() })
+        .map(|w| RsuBatches { id: w.clone(), hello: false, through: None, counted: None, batches: Vec::new() })
         .collect();
     inbox
+}
+
+#[test]
+fn a_participant_is_ready_once_every_sender_it_decides_said_hello() {
+    let inbox = warned_vehicle();
+    for sender in ["v1", "rsu0", "rsu1"] {
+        assert!(!lock(&inbox.state).heard_everyone(), "before {sender}");
+        inbox.on_sample(&key(sender), &message(sender, V2xBody::Hello));
+    }
+    assert!(lock(&inbox.state).heard_everyone());
+    inbox.on_sample(&key("v7"), &message("v7", V2xBody::Hello));
+    assert_eq!(lock(&inbox.state).malformed, 1, "not of the scene");
 }
 
 #[test]
@@ -149,15 +169,21 @@ fn rsu_warnings_are_decided_in_step_order_and_bad_or_missing_batches_are_counted
     inbox.on_sample(&key("rsu1"), &message("rsu1", batch(0, 0, vec![seen_by_rsu1])));
     inbox.on_sample(&key("rsu0"), &message("rsu0", batch(0, 0, vec![pedestrian(7), pedestrian(8)])));
     inbox.on_sample(&key("rsu0"), &message("rsu0", batch(1, 2, Vec::new())));
-    // Repeated, from a vehicle, of no RSU, not finite: malformed; never decided.
+    // Repeated, from a vehicle, of no RSU, not finite (a warning, a CPM): malformed; never
+    // decided.
     inbox.on_sample(&key("rsu0"), &message("rsu0", batch(1, 2, vec![pedestrian(9)])));
     inbox.on_sample(&key("v1"), &message("v1", batch(0, 0, vec![pedestrian(9)])));
     inbox.on_sample(&key("rsu5"), &message("rsu5", batch(0, 0, vec![pedestrian(9)])));
     let mut nan = pedestrian(9);
     nan.velocity.x = f64::NAN;
     inbox.on_sample(&key("rsu1"), &message("rsu1", batch(1, 1, vec![nan])));
+    let mut nan_cpm = with_cpm(batch(1, 1, Vec::new()));
+    if let V2xBody::Rsu(b) = &mut nan_cpm {
+        b.cpm.as_mut().expect("a CPM").objects[1].obb.half_width_m = f64::INFINITY;
+    }
+    inbox.on_sample(&key("rsu1"), &message("rsu1", nan_cpm));
     let state = inbox.decide_warnings_through(lock(&inbox.state), 0);
-    assert_eq!(state.malformed, 4);
+    assert_eq!(state.malformed, 5);
     assert_eq!((state.tally.warning_copies, state.warning_batches_late), (3, 0), "step 0's three copies");
     assert_eq!(state.rsus[0].batches.len(), 1, "rsu0's step 1 waits for the step that needs it");
     // Decided rsu0 first, as virtual time orders them: of two made at once, rsu1's is heard
@@ -177,6 +203,10 @@ fn rsu_warnings_are_decided_in_step_order_and_bad_or_missing_batches_are_counted
     drop(state);
     let state = inbox.decide_warnings_through(lock(&inbox.state), 1);
     assert_eq!(state.warning_batches_late, 1, "not counted twice");
+    drop(state);
+    // rsu0's step 2 never comes, its step 3 does: one batch lost.
+    inbox.on_sample(&key("rsu0"), &message("rsu0", batch(3, 2, Vec::new())));
+    assert_eq!(lock(&inbox.state).warning_batches_lost, 1);
 }
 
 #[test]
@@ -200,7 +230,7 @@ fn a_v2x_message_round_trips_through_postcard() {
         sent_unix_ns: 1_700_000_000_123_456_789,
         state: [1.5, -0.0, 3.0, 29.9],
     };
-    for body in [V2xBody::Cam(cam), V2xBody::End { cams: 12 }, batch(3, 5, vec![pedestrian(4)])] {
+    for body in [V2xBody::Cam(cam), V2xBody::End { cams: 12 }, with_cpm(batch(3, 5, vec![pedestrian(4)]))] {
         let message = WireV2x { schema: V2X_SCHEMA, scene: 9, sender: "v1".into(), body };
         let bytes = postcard::to_allocvec(&message).expect("encodes");
         let back: WireV2x = postcard::from_bytes(&bytes).expect("decodes");

@@ -27,13 +27,17 @@ pub enum V2xBody {
     End {
         cams: u64,
     },
-    /// An RSU's warnings of one step (with `--v2x-warnings`; every step, often none).
-    Warnings(WireWarnings),
+    /// Sent until the scene starts: the sender's messages reach whoever hears it.
+    Hello,
+    /// An RSU's warnings and CPM of one step (with `--v2x-warnings` or `--v2x-cpm`; every
+    /// step, often empty).
+    Rsu(RsuBatch),
 }
 
-/// The warnings an RSU made in one step: one per hazard it perceived, if a repetition was due.
+/// What an RSU sent in one step: its warnings (one per hazard it perceived, if a repetition was
+/// due) and its CPM (if an object was due).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct WireWarnings {
+pub struct RsuBatch {
     pub step: u64,
     pub made_s: f64,
     /// Wall clock when it was put on the wire, ns since the Unix epoch.
@@ -42,11 +46,20 @@ pub struct WireWarnings {
     pub from: [f64; 2],
     /// The first warning's sequence number; the others follow it.
     pub first_seq: u64,
-    /// The hazards as the RSU perceived them (the CPM-like payload), their numbers exact.
+    /// The hazards as the RSU perceived them, their numbers exact.
+    pub objects: Vec<PerceivedObject>,
+    pub cpm: Option<WireCpm>,
+}
+
+/// A Collective Perception Message: the objects its inclusion rules chose (not ETSI's ASN.1).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WireCpm {
+    /// The RSU's CPM count before this one.
+    pub seq: u64,
     pub objects: Vec<PerceivedObject>,
 }
 
-impl WireWarnings {
+impl RsuBatch {
     /// Every number finite: a warning moves an object the driver brakes for.
     pub(super) fn is_finite(&self) -> bool {
         let numbers = |o: &PerceivedObject| {
@@ -55,7 +68,7 @@ impl WireWarnings {
             vectors.chain([half_length_m, half_width_m, o.visible_fraction])
         };
         self.from.iter().chain(&[self.made_s]).all(|v| v.is_finite())
-            && self.objects.iter().flat_map(numbers).all(f64::is_finite)
+            && self.objects.iter().chain(self.cpm.iter().flat_map(|c| &c.objects)).flat_map(numbers).all(f64::is_finite)
     }
 }
 

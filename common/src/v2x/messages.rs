@@ -324,14 +324,13 @@ impl WarningInbox {
         let (heard, own) = (&mut self.heard, self.own_object);
         self.in_flight.retain(|&(made_s, latency_ms, w, carrier)| {
             let due = warning_due(made_s, latency_ms, now_s);
-            if due {
+            // Its own object is dropped unheard and uncounted.
+            if due && Some(w.object.id) != own {
                 match carrier {
                     Carrier::Warning => tally.warnings_heard += 1,
                     Carrier::Cpm => tally.cpm_objects_heard += 1,
                 }
-                if Some(w.object.id) != own {
-                    heard.hear(now_s, w);
-                }
+                heard.hear(now_s, w);
             }
             !due
         });
@@ -744,10 +743,11 @@ mod tests {
         let s = scene.summaries();
         // New at 0 s, then nothing due before 1 s (standing): one CPM of both objects.
         assert_eq!((s["rsu0"].cpms_made, s["rsu0"].cpm_objects_sent, s["rsu0"].warnings_made), (1, 2, 0));
-        assert_eq!((s["v0"].cpm_copies, s["v0"].cpms_passed, s["v0"].cpm_objects_heard), (1, 1, 2));
+        assert_eq!((s["v0"].cpm_copies, s["v0"].cpms_passed, s["v0"].cpm_objects_heard), (1, 1, 1), "not itself");
         let latency_ms = channel.cpm_latency_ms("rsu0", 0);
         let first = warned.iter().position(|w| !w.is_empty()).expect("heard");
-        assert!(warning_due(0.0, latency_ms, 0.05 * first as f64) && first > 0, "{first}: {latency_ms} ms");
+        let step = |k: usize| 0.05 * k as f64;
+        assert!(warning_due(0.0, latency_ms, step(first)) && !warning_due(0.0, latency_ms, step(first - 1)), "{first}");
         assert!(warned[first..].iter().all(|w| w == &[7]), "the parked car, never v0 itself: {warned:?}");
     }
 }

@@ -73,6 +73,10 @@ pub enum SceneError {
     AuthoritySilent { step: u64, waited_ms: u64 },
     #[error("no authority sent the first step within {waited_s} s")]
     NoAuthority { waited_s: u64 },
+    #[error(
+        "V2X: nothing heard from participant(s) {ids} within {waited_s} s (not started, or their messages do not reach this one), so this one did not join"
+    )]
+    V2xUnheard { ids: String, waited_s: u64 },
     #[error("the scene failed: {reason}")]
     Failed { reason: String },
     #[error("transport: {0}")]
@@ -315,7 +319,9 @@ impl SceneSetup {
             }
         };
         let without: String = self.without.iter().map(|k| format!(" without v{k},")).collect();
-        let v2x = self.v2x.map_or(String::new(), |c| format!(" {},", c.describe()));
+        let rsus_send = [(self.warnings(), " + warnings"), (self.cpm(), " + CPM")];
+        let rsus_send: String = rsus_send.iter().filter(|(on, _)| *on).map(|(_, what)| *what).collect();
+        let v2x = self.v2x.map_or(String::new(), |c| format!(" {}{rsus_send},", c.describe()));
         let (connected, rsus, digest) = (self.connected, self.rsus, self.digest());
         format!("{scenario}, {connected} connected,{without} {rsus} RSU(s),{v2x} scene {digest:016x}")
     }

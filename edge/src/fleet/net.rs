@@ -628,7 +628,14 @@ pub fn run_participant(
         let now = Instant::now();
         let last_step = *lock(&last);
         let wake = match last_step {
-            None if now >= join_deadline => return Err(SceneError::NoAuthority { waited_s: timeouts.join.as_secs() }),
+            None if now >= join_deadline => {
+                let waited_s = timeouts.join.as_secs();
+                let unheard = lock(&answering).v2x.as_ref().map(V2xLayer::unheard).unwrap_or_default();
+                if !unheard.is_empty() {
+                    return Err(SceneError::V2xUnheard { ids: unheard.join(", "), waited_s });
+                }
+                return Err(SceneError::NoAuthority { waited_s });
+            }
             None => {
                 if now >= next_join {
                     let answering = lock(&answering);

@@ -117,7 +117,8 @@ pub struct V2xReport {
     /// CAMs (and warning batches) made in a step whose own position this layer no longer (or
     /// never) held.
     pub stale: u64,
-    /// CAMs dropped for being made too far ahead of this participant's own steps.
+    /// CAMs (and RSU batches) dropped for being made too far ahead of this participant's own
+    /// steps.
     pub ahead: u64,
     /// Messages that did not decode, of another schema, from no sending participant of the
     /// scene, on another participant's key, repeated, or with a non-finite state.
@@ -167,7 +168,7 @@ struct RsuBatches {
 
 /// A step number with `None` before step 0, for comparisons.
 fn after(step: Option<u64>) -> u64 {
-    step.map_or(0, |s| s + 1)
+    step.map_or(0, |s| s.saturating_add(1))
 }
 
 /// A passed copy held until its due time.
@@ -327,9 +328,17 @@ impl Inbox {
             state.malformed += 1;
             return;
         }
+        let horizon = state.latest_step.unwrap_or(0).saturating_add(AHEAD_STEPS);
         let Some(rsu) = state.rsus.iter_mut().find(|r| r.id == sender) else { return };
-        if batch.step < after(rsu.through) || !batch.is_finite() {
+        let seqs_fit = batch.first_seq.checked_add(batch.objects.len() as u64).is_some();
+        if batch.step < after(rsu.through) || !batch.is_finite() || !seqs_fit {
             state.malformed += 1;
+            return;
+        }
+        // A step far ahead (a wrong or hostile sender) must not move `through` past the genuine
+        // batches to come.
+        if batch.step > horizon {
+            state.ahead += 1;
             return;
         }
         // One publisher's samples come in order: a step skipped is a batch lost.
@@ -604,6 +613,13 @@ impl V2xLayer {
         Ok(state.heard_everyone() || state.foreign > 0)
     }
 
+    /// The participants whose hello has not come.
+    pub fn unheard(&self) -> Vec<String> {
+        let state = lock(&self.inbox.state);
+        let peers = state.peers.iter().filter(|(_, p)| !p.hello).map(|(id, _)| id.clone());
+        peers.chain(state.rsus.iter().filter(|r| !r.hello).map(|r| r.id.clone())).collect()
+    }
+
     fn put(&self, body: V2xBody) -> Result<(), SceneError> {
         let message = WireV2x { schema: V2X_SCHEMA, scene: self.inbox.scene, sender: self.inbox.id.clone(), body };
         let bytes = postcard::to_allocvec(&message).map_err(|e| SceneError::Failed { reason: e.to_string() })?;
@@ -639,6 +655,14 @@ impl V2xLayer {
         own: Option<CamState>,
         perceived: &[PerceivedObject],
     ) -> Result<(), SceneError> {
+        // A vehicle out of the world hears nothing, but its copies are decided as virtual time
+        // decides them (none for steps it was out); in the world, `warned` already did.
+        if let Some(before) = truth.step.checked_sub(1) {
+            let state = lock(&self.inbox.state);
+            if !state.rsus.is_empty() {
+                drop(self.inbox.decide_warnings_through(state, before));
+            }
+        }
         self.inbox.on_step(truth.step, own.map(|s| (s.x_m, s.y_m)));
         let sends = self.warnings.is_some() || self.cpms.is_some();
         if let (true, Some(mast)) = (sends, own) {

@@ -157,6 +157,24 @@ fn a_participant_is_ready_once_every_sender_it_decides_said_hello() {
 }
 
 #[test]
+fn a_hostile_rsu_batch_neither_panics_nor_shuts_out_the_genuine_ones() {
+    let inbox = warned_vehicle();
+    inbox.on_step(0, Some((0.0, 0.0)));
+    for step in [u64::MAX, AHEAD_STEPS + 1] {
+        inbox.on_sample(&key("rsu0"), &message("rsu0", batch(step, 0, vec![pedestrian(7)])));
+    }
+    inbox.on_sample(&key("rsu1"), &message("rsu1", batch(0, u64::MAX, vec![pedestrian(7)])));
+    {
+        let state = lock(&inbox.state);
+        assert_eq!((state.ahead, state.malformed), (2, 1), "far ahead twice; sequence numbers that overflow");
+    }
+    inbox.on_sample(&key("rsu0"), &message("rsu0", batch(0, 0, vec![pedestrian(7)])));
+    inbox.on_sample(&key("rsu1"), &message("rsu1", batch(0, 0, Vec::new())));
+    let state = inbox.decide_warnings_through(lock(&inbox.state), 0);
+    assert_eq!((state.tally.warning_copies, state.warning_batches_lost), (1, 0), "the genuine batch decided");
+}
+
+#[test]
 fn rsu_warnings_are_decided_in_step_order_and_bad_or_missing_batches_are_counted() {
     let inbox = warned_vehicle();
     for step in 0..3 {

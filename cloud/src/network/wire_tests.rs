@@ -74,6 +74,33 @@ async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
     router.stop().await;
 }
 
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn forged_sequence_numbers_far_ahead_do_not_cut_the_genuine_stream_off() {
+    // The probe: one forged number far ahead made 1,344 of the next 1,500 genuine states
+    // `too-old`. Forged ones now cost only themselves (`seq-jump`).
+    let router = Router::start().await;
+    let (cloud_stop, cloud) = start_cloud(CloudConfig::new(router.client.clone())).await;
+    let sender = connect(&router.client).await.unwrap();
+    let publisher = state_publisher(&sender, "risktwin/v1/site/veh-1/state".to_owned()).await;
+    let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64;
+    let genuine = 300u64;
+    for seq in 0..genuine {
+        if seq == 100 || seq == 200 {
+            let forged = if seq == 100 { 5_000 } else { 1_000_000_000_000 };
+            publisher.put(encode(&state("veh-1", forged, epoch_ns))).await.unwrap();
+        }
+        publisher.put(encode(&state("veh-1", seq, epoch_ns))).await.unwrap();
+    }
+    drop(publisher);
+    sender.close().await.unwrap();
+    cloud_stop.fire();
+    let summary = timeout(STEP, cloud).await.unwrap().unwrap().unwrap();
+    assert_eq!(summary.ingest.received["veh-1"], BTreeMap::from([("state".to_owned(), genuine)]));
+    assert_eq!(summary.ingest.dropped, BTreeMap::from([("seq-jump".to_owned(), 2)]));
+    assert_eq!(summary.ingest.total_presumed_lost, 0, "{:?}", summary.ingest.presumed_lost);
+    router.stop().await;
+}
+
 #[test]
 fn every_key_is_tagged_with_the_message_the_code_encodes() {
     use risktwin_common::telemetry::{ControlCommand, PolicyUpdate, RoadMap, ScenarioPush, ScenarioResult};

@@ -10,6 +10,19 @@
 //! counted as *recovered*, i.e. reordered). So at any time, per source,
 //! `fresh + presumed_lost = highest − first + 1`, which is what the end-to-end check
 //! "recorded + counted drops = sent" rests on.
+//!
+//! Sequence jumps: a number more than the window away from the highest one — ahead of it, or
+//! older than the window — is not trusted on its own (a forged number far ahead would otherwise
+//! make every genuine number after it too old, and a runaway one inflate the loss count). It is
+//! refused (a jump ahead as `seq-jump`, one behind as `too-old`) and remembered; only when the
+//! source's very next number is the one after it does the source move there (RTP's probation
+//! rule, RFC 3550 Appendix A.1, with `MAX_DROPOUT` = the window and `MIN_SEQUENTIAL` = 2). A
+//! confirmed jump ahead goes on counting (the skipped numbers, the refused one among them, are
+//! presumed lost); a confirmed jump back starts a new incarnation at the confirming number (an
+//! edge that started over unannounced). So one forged or runaway number costs nothing but its
+//! own drop, and a forger must send two consecutive numbers between two genuine ones to move a
+//! source, which the source's next two numbers move back (counted `too-old` once and a restart).
+//! Authentication keeps forgers out altogether; this rule bounds what one can do.
 
 use super::reason::DropReason;
 use super::source::SourceIndex;
@@ -29,6 +42,8 @@ pub enum Verdict {
     Duplicate,
     /// Older than the window (or than the source's first expected number).
     TooOld,
+    /// More than the window ahead of the highest number, not (yet) confirmed by the next one.
+    Jump,
 }
 
 impl Verdict {
@@ -38,6 +53,7 @@ impl Verdict {
             Verdict::Fresh => None,
             Verdict::Duplicate => Some(DropReason::Duplicate),
             Verdict::TooOld => Some(DropReason::TooOld),
+            Verdict::Jump => Some(DropReason::SeqJump),
         }
     }
 }
@@ -48,13 +64,17 @@ pub struct SeqCounts {
     pub fresh: u64,
     pub duplicate: u64,
     pub too_old: u64,
+    /// Numbers refused as unconfirmed jumps ahead ([`Verdict::Jump`]).
+    pub jumps: u64,
     /// Numbers skipped by the highest one and not (yet) seen: presumed lost on the way.
     pub presumed_lost: u64,
     /// Numbers that arrived after a higher one, inside the window (reordered, not lost).
     pub recovered: u64,
     /// New incarnations: after [`Deduper::restart`], the times a number at or below the highest
-    /// showed that the source started over.
+    /// showed that the source started over, and confirmed jumps back.
     pub restarts: u64,
+    /// Confirmed jumps ahead (the source went on counting from a number beyond the window).
+    pub resyncs: u64,
 }
 
 impl SeqCounts {
@@ -62,9 +82,11 @@ impl SeqCounts {
         self.fresh += o.fresh;
         self.duplicate += o.duplicate;
         self.too_old += o.too_old;
+        self.jumps += o.jumps;
         self.presumed_lost = self.presumed_lost.saturating_add(o.presumed_lost);
         self.recovered += o.recovered;
         self.restarts += o.restarts;
+        self.resyncs += o.resyncs;
     }
 }
 
@@ -95,6 +117,8 @@ struct SeqState {
     /// The source may have started over ([`Deduper::restart`]): the next numbers decide, for up
     /// to this many more messages.
     may_restart: u32,
+    /// The last number refused for lying more than the window away: the next one confirms it.
+    probation: Option<u64>,
     counts: SeqCounts,
 }
 
@@ -150,8 +174,20 @@ impl Deduper {
             st.empty = true;
             st.floor = self.first_seq.unwrap_or(seq);
         }
-        let verdict = if seq < st.floor {
+        let confirmed = st.probation.take().is_some_and(|p| p.checked_add(1) == Some(seq));
+        let verdict = if !st.empty && seq < st.highest && st.highest - seq >= window && confirmed {
+            // A confirmed jump back: the source started over from an earlier number.
+            st.counts.restarts += 1;
+            st.floor = seq;
+            st.highest = seq;
+            bits.fill(0);
+            set_bit(bits, window, seq);
+            Verdict::Fresh
+        } else if seq < st.floor {
             Verdict::TooOld
+        } else if !st.empty && seq > st.highest && seq - st.highest > window && !confirmed {
+            st.probation = Some(seq);
+            Verdict::Jump
         } else if st.empty {
             st.empty = false;
             st.highest = seq;
@@ -171,8 +207,12 @@ impl Deduper {
             set_bit(bits, window, seq);
             st.highest = seq;
             st.counts.presumed_lost = st.counts.presumed_lost.saturating_add(gap);
+            if gap >= window {
+                st.counts.resyncs += 1;
+            }
             Verdict::Fresh
         } else if st.highest - seq >= window {
+            st.probation = Some(seq);
             Verdict::TooOld
         } else if get_bit(bits, window, seq) {
             Verdict::Duplicate
@@ -186,6 +226,7 @@ impl Deduper {
             Verdict::Fresh => st.counts.fresh += 1,
             Verdict::Duplicate => st.counts.duplicate += 1,
             Verdict::TooOld => st.counts.too_old += 1,
+            Verdict::Jump => st.counts.jumps += 1,
         }
         verdict
     }
@@ -297,6 +338,66 @@ mod tests {
     }
 
     #[test]
+    fn one_forged_number_far_ahead_costs_only_itself() {
+        // The probe that cut a vehicle off: one forged number far ahead made every genuine one
+        // after it too old. Now it is refused and the genuine stream goes on untouched.
+        for forged in [5_000, 1_000_000_000_000, u64::MAX] {
+            let mut d = dedup(1024);
+            for n in 0..100 {
+                assert_eq!(d.accept(A, n), Verdict::Fresh);
+            }
+            assert_eq!(d.accept(A, forged), Verdict::Jump);
+            for n in 100..1_500 {
+                assert_eq!(d.accept(A, n), Verdict::Fresh, "genuine {n} after forged {forged}");
+            }
+            let c = d.counts(A);
+            assert_eq!((c.fresh, c.jumps, c.presumed_lost, c.too_old), (1_500, 1, 0, 0));
+            assert_eq!(Verdict::Jump.drop_reason(), Some(DropReason::SeqJump));
+        }
+    }
+
+    #[test]
+    fn a_confirmed_jump_ahead_goes_on_counting_and_a_confirmed_jump_back_starts_over() {
+        let mut d = dedup(64);
+        for n in 0..10 {
+            d.accept(A, n);
+        }
+        // A real outage longer than the window: the first number after it waits for the next.
+        assert_eq!(d.accept(A, 500), Verdict::Jump);
+        assert_eq!(d.accept(A, 501), Verdict::Fresh, "501 confirms 500");
+        let c = d.counts(A);
+        assert_eq!((c.fresh, c.presumed_lost, c.resyncs), (11, 491, 1), "10..=500 presumed lost");
+        assert_eq!(c.fresh + c.presumed_lost, d.highest(A).unwrap() + 1, "the span identity holds");
+        // The numbers in between do not confirm anything: 502 after a refused 900 is in range.
+        assert_eq!(d.accept(A, 900), Verdict::Jump);
+        assert_eq!(d.accept(A, 502), Verdict::Fresh);
+        assert_eq!(d.accept(A, 901), Verdict::Jump, "900 was not confirmed by its successor");
+        // Two numbers far below, one after the other: an unannounced new incarnation.
+        assert_eq!(d.accept(A, 3), Verdict::TooOld);
+        assert_eq!(d.accept(A, 4), Verdict::Fresh, "4 confirms 3: the source started over");
+        assert_eq!(d.accept(A, 5), Verdict::Fresh);
+        assert_eq!(d.accept(A, 4), Verdict::Duplicate);
+        assert_eq!(d.counts(A).restarts, 1);
+        assert_eq!(d.highest(A), Some(5));
+    }
+
+    #[test]
+    fn a_forger_with_consecutive_numbers_moves_a_source_only_until_its_next_two_numbers() {
+        let mut d = dedup(1024);
+        for n in 0..100 {
+            d.accept(A, n);
+        }
+        assert_eq!(d.accept(A, 50_000), Verdict::Jump);
+        assert_eq!(d.accept(A, 50_001), Verdict::Fresh, "the forger's pair moves the source");
+        assert_eq!(d.accept(A, 100), Verdict::TooOld, "the genuine next number is refused once");
+        for n in 101..200 {
+            assert_eq!(d.accept(A, n), Verdict::Fresh, "and the source is back at {n}");
+        }
+        let c = d.counts(A);
+        assert_eq!((c.too_old, c.jumps, c.restarts, c.resyncs), (1, 1, 1, 1));
+    }
+
+    #[test]
     fn the_window_slides_without_stale_bits() {
         // Number n and n + W share a slot: after the window moved past n, n + W is fresh.
         let mut d = dedup(64);
@@ -306,10 +407,11 @@ mod tests {
         // A jump of several windows clears everything; numbers just below it are fresh even
         // where their slot was set before the jump (41 and 937 share slot 41).
         assert_eq!(d.accept(A, 41), Verdict::Fresh);
-        assert_eq!(d.accept(A, 1000), Verdict::Fresh);
+        assert_eq!(d.accept(A, 999), Verdict::Jump, "beyond the window: on probation");
+        assert_eq!(d.accept(A, 1000), Verdict::Fresh, "confirmed");
         assert_eq!(d.accept(A, 1000 - 64), Verdict::TooOld);
         assert_eq!(d.accept(A, 1000 - 63), Verdict::Fresh, "slot of 937 was cleared by the jump");
-        assert_eq!(d.accept(A, 1000 - 1), Verdict::Fresh);
+        assert_eq!(d.accept(A, 1000 - 1), Verdict::Fresh, "the refused number is still welcome");
     }
 
     #[test]
@@ -355,8 +457,10 @@ mod tests {
         assert_eq!(d.accept(A, 500), Verdict::Fresh);
         assert_eq!(d.counts(A).presumed_lost, 0);
         assert_eq!(d.accept(A, 499), Verdict::TooOld);
-        assert_eq!(d.accept(A, u64::MAX), Verdict::Fresh);
+        assert_eq!(d.accept(A, u64::MAX - 1), Verdict::Jump);
+        assert_eq!(d.accept(A, u64::MAX), Verdict::Fresh, "confirmed");
         assert_eq!(d.accept(A, u64::MAX), Verdict::Duplicate, "no overflow at the top");
+        assert_eq!(d.accept(A, u64::MAX - 1), Verdict::Fresh, "inside the window now");
     }
 
     #[test]

@@ -5,8 +5,8 @@
 //!    exactly the messages received before `tick + lateness`, see [`super::aligner`]);
 //! 2. an unknown stream or a source beyond the limit is refused (`unknown-stream`,
 //!    `too-many-sources`), before any sequence accounting;
-//! 3. exactly-once: a duplicate or a number older than the reorder window is refused
-//!    (`duplicate`, `too-old`);
+//! 3. exactly-once: a duplicate, a number older than the reorder window or an unconfirmed one
+//!    beyond it is refused (`duplicate`, `too-old`, `seq-jump`; see [`super::dedupe`]);
 //! 4. the capture time is mapped onto the cloud clock with the source's clock estimate (built
 //!    from earlier messages only); a mapping later than `receive + future_tolerance` is refused
 //!    (`future-timestamp`) and not fed to the estimator, whose minimum filter one bad timestamp

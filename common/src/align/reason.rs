@@ -14,6 +14,10 @@ pub enum DropReason {
     /// The sequence number is older than the reorder window: it can no longer be told apart
     /// from a duplicate, so it is refused.
     TooOld,
+    /// The sequence number lies more than the reorder window ahead of the source's highest one
+    /// and the source's next number did not confirm it (a forged or runaway number; see
+    /// [`crate::align::Deduper`]).
+    SeqJump,
     /// The capture time, mapped onto the cloud clock, lies after the receive time plus the
     /// allowed tolerance (network delay cannot be negative).
     FutureTimestamp,
@@ -40,9 +44,10 @@ pub enum DropReason {
 
 impl DropReason {
     /// Every reason, in code order; `DropCounts` is indexed by position in this list.
-    pub const ALL: [DropReason; 12] = [
+    pub const ALL: [DropReason; 13] = [
         DropReason::Duplicate,
         DropReason::TooOld,
+        DropReason::SeqJump,
         DropReason::FutureTimestamp,
         DropReason::TooManySources,
         DropReason::UnknownStream,
@@ -60,6 +65,7 @@ impl DropReason {
         match self {
             DropReason::Duplicate => "duplicate",
             DropReason::TooOld => "too-old",
+            DropReason::SeqJump => "seq-jump",
             DropReason::FutureTimestamp => "future-timestamp",
             DropReason::TooManySources => "too-many-sources",
             DropReason::UnknownStream => "unknown-stream",
@@ -129,6 +135,7 @@ mod tests {
             [
                 "duplicate",
                 "too-old",
+                "seq-jump",
                 "future-timestamp",
                 "too-many-sources",
                 "unknown-stream",

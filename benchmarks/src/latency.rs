@@ -17,13 +17,13 @@
 //! The first [`WARMUP`] samples of each side (clock estimate and connection warm-up) are left out.
 
 use crate::zenoh_throughput::peer_pair;
-use risktwin_cloud::network::{CloudError, LiveIngest};
+use risktwin_cloud::network::{CloudError, LiveIngest, Origin};
 use risktwin_cloud::twin::outputs::TwinOutputs;
 use risktwin_common::align::IngestConfig;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
 use risktwin_protos::encode;
-use risktwin_transport::recovery::{DEFAULT_OUTAGE, is_recovered};
+use risktwin_transport::recovery::DEFAULT_OUTAGE;
 use risktwin_transport::zenoh::Wait;
 use risktwin_transport::zenoh::qos::{CongestionControl, Priority};
 use risktwin_transport::zenoh::sample::Sample;
@@ -249,7 +249,7 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     let on_sample = move |_, sample: &Sample| {
         let payload = sample.payload().to_bytes();
         let mut ingest = ingest_cb.lock().unwrap_or_else(PoisonError::into_inner);
-        if ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, None, is_recovered(sample)).is_err() {
+        if ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, None, Origin::of(sample)).is_err() {
             return;
         }
         let now = Instant::now();

@@ -29,7 +29,7 @@ use crate::latency::{
 use crate::zenoh_throughput::peer_pair;
 use risktwin_cloud::ingest::{AcceptedMessage, ObservedKinematics};
 use risktwin_cloud::network::warning::{self as net_warning, NetworkSink, warning_sink};
-use risktwin_cloud::network::{CloudError, LiveIngest};
+use risktwin_cloud::network::{CloudError, LiveIngest, Origin};
 use risktwin_cloud::twin::outputs::TwinOutputs;
 use risktwin_cloud::twin::risk::{RiskAssessor, RiskConfig};
 use risktwin_cloud::twin::scenario_road;
@@ -41,7 +41,7 @@ use risktwin_common::scenario::ScenarioKind;
 use risktwin_common::telemetry::HazardWarning;
 use risktwin_protos::{decode_tagged, encode};
 use risktwin_transport::keyexpr::{CloudToEdge, cloud_to_edge};
-use risktwin_transport::recovery::{DEFAULT_OUTAGE, is_recovered};
+use risktwin_transport::recovery::DEFAULT_OUTAGE;
 use risktwin_transport::zenoh::Wait;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Delivery, EdgeStream, StreamLoss, StreamPublisher, TransportError, subscribe_edge_streams};
@@ -234,7 +234,7 @@ async fn our_side(config: WarningBenchConfig) -> Result<(Vec<f64>, Vec<f64>, War
         let mut ingest = ingest_cb.lock().unwrap_or_else(PoisonError::into_inner);
         // Under the ingest's lock: no other callback's start can take its place.
         *receipt.lock().unwrap_or_else(PoisonError::into_inner) = Some(start);
-        if let Err(e) = ingest.handle(key, sample.encoding(), &payload, None, is_recovered(sample)) {
+        if let Err(e) = ingest.handle(key, sample.encoding(), &payload, None, Origin::of(sample)) {
             tracing::warn!("bench warning: ingest: {e}");
         }
     };

@@ -20,6 +20,8 @@ pub use keyexpr::{EdgeStream, KeyError, SiteId, SourceId};
 pub use recovery::Delivery;
 pub use session::{Mode, TransportConfig, TransportError, close, connect, listening_locators};
 pub use shutdown::{Shutdown, ShutdownTrigger};
-pub use stream::{Liveness, StreamPublisher, declare_alive, linger, protobuf, retire, watch_liveliness};
+pub use stream::{
+    Liveness, StreamPublisher, declare_alive, declare_alive_within, linger, protobuf, retire, watch_liveliness,
+};
 /// Re-exported so that roles name zenoh types without their own dependency line.
 pub use zenoh;

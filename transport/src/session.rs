@@ -86,6 +86,10 @@ pub enum TransportError {
     Declare { what: &'static str, key: String, reason: String },
     #[error("publishing on {key:?} failed: {reason}")]
     Put { key: String, reason: String },
+    #[error(
+        "another process is alive as {site}/{id} (its liveliness token was still there after {wait:?}); give this one another --id"
+    )]
+    DuplicateId { site: String, id: String, wait: Duration },
     #[error("closing the zenoh session failed: {reason}")]
     Close { reason: String },
 }

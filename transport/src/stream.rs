@@ -193,18 +193,66 @@ pub fn linger<'a>(publishers: impl IntoIterator<Item = &'a StreamPublisher>) -> 
     if publishers.into_iter().any(StreamPublisher::matched) { EXIT_LINGER } else { Duration::ZERO }
 }
 
+/// How long an edge waits for another process's token under its own id to go before it refuses
+/// to start: Zenoh's default lease (10 s, after which a crashed process's token goes) plus slack.
+pub const DUPLICATE_ID_WAIT: Duration = Duration::from_secs(12);
+
+/// How often an edge looks again for a token under its id while it waits.
+const DUPLICATE_ID_POLL: Duration = Duration::from_millis(500);
+
 /// Declares the liveliness token of `source`: the cloud sees the edge as alive while it exists.
+///
+/// Two processes under one id would interleave their sequence numbers, and the cloud would drop
+/// one's messages as duplicates of the other's; so an edge first asks whether a token of its id
+/// is alive. If one is, it waits up to [`DUPLICATE_ID_WAIT`] (a crashed predecessor's token
+/// outlives it by the lease) and then refuses with [`TransportError::DuplicateId`].
 pub async fn declare_alive(
     session: &Session,
     site: &SiteId,
     source: &SourceId,
 ) -> Result<LivelinessToken, TransportError> {
+    declare_alive_within(session, site, source, DUPLICATE_ID_WAIT).await
+}
+
+/// [`declare_alive`] with another wait for a token under the same id to go.
+pub async fn declare_alive_within(
+    session: &Session,
+    site: &SiteId,
+    source: &SourceId,
+    wait: Duration,
+) -> Result<LivelinessToken, TransportError> {
     let key = keyexpr::liveliness_token(site, source);
+    let deadline = tokio::time::Instant::now() + wait;
+    let mut warned = false;
+    while token_alive(session, &key).await? {
+        if tokio::time::Instant::now() >= deadline {
+            return Err(TransportError::DuplicateId { site: site.to_string(), id: source.to_string(), wait });
+        }
+        if !warned {
+            tracing::warn!(
+                "edge {source}: another process holds id {site}/{source}; waiting up to {wait:?} for it to go"
+            );
+            warned = true;
+        }
+        tokio::time::sleep(DUPLICATE_ID_POLL).await;
+    }
     session.liveliness().declare_token(key.clone()).await.map_err(|e| TransportError::Declare {
         what: "liveliness token",
         key,
         reason: e.to_string(),
     })
+}
+
+/// Whether some session holds the liveliness token `key` now.
+async fn token_alive(session: &Session, key: &str) -> Result<bool, TransportError> {
+    let declare = |e: String| TransportError::Declare { what: "liveliness query", key: key.to_owned(), reason: e };
+    let replies = session.liveliness().get(key).timeout(DUPLICATE_ID_POLL).await.map_err(|e| declare(e.to_string()))?;
+    while let Ok(reply) = replies.recv_async().await {
+        if reply.result().is_ok_and(|sample| sample.kind() == SampleKind::Put) {
+            return Ok(true);
+        }
+    }
+    Ok(false)
 }
 
 /// An edge appearing or disappearing, as told by its liveliness token.

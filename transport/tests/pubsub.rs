@@ -4,8 +4,9 @@
 
 use risktwin_transport::recovery::DEFAULT_OUTAGE;
 use risktwin_transport::{
-    Delivery, EdgeStream, Liveness, Mode, SiteId, SourceId, StreamLoss, StreamPublisher, TransportConfig, connect,
-    declare_alive, listening_locators, shutdown, subscribe_edge_streams, watch_liveliness,
+    Delivery, EdgeStream, Liveness, Mode, SiteId, SourceId, StreamLoss, StreamPublisher, TransportConfig,
+    TransportError, connect, declare_alive, declare_alive_within, listening_locators, shutdown, subscribe_edge_streams,
+    watch_liveliness,
 };
 use std::time::Duration;
 use tokio::sync::mpsc;
@@ -72,6 +73,32 @@ async fn streams_arrive_on_their_subscriber_and_liveliness_tracks_the_edge() {
     let left = timeout(STEP, lives.recv()).await.unwrap().unwrap();
     assert_eq!(left, Liveness { site: "s1".into(), source: "veh-7".into(), alive: false });
     assert!(losses.try_recv().is_err(), "nothing is lost on a healthy link");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_second_process_under_a_live_id_is_refused_and_welcome_once_the_first_has_gone() {
+    let (first, second) = peer_pair().await;
+    let site = SiteId::new("s1").unwrap();
+    let id = SourceId::new("veh-7").unwrap();
+    let (live_tx, mut lives) = mpsc::unbounded_channel();
+    let _watch = watch_liveliness(&second, Some(&site), move |change| drop(live_tx.send(change))).await.unwrap();
+    let token = declare_alive(&first, &site, &id).await.unwrap();
+    // The first process has been running a while: the second's side has heard of its token.
+    assert!(timeout(STEP, lives.recv()).await.unwrap().unwrap().alive);
+    let wait = Duration::from_millis(800);
+    match declare_alive_within(&second, &site, &id, wait).await {
+        Err(TransportError::DuplicateId { site, id, .. }) => assert_eq!((site.as_str(), id.as_str()), ("s1", "veh-7")),
+        other => panic!("a second veh-7 must be refused: {:?}", other.map(|_| ())),
+    }
+    // Another id is free, and so is this one once its holder has gone (within the wait).
+    let other = SourceId::new("veh-8").unwrap();
+    let _veh8 = declare_alive_within(&second, &site, &other, wait).await.expect("veh-8 is free");
+    let gone = async {
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        token.undeclare().await.unwrap();
+    };
+    let (taken, ()) = tokio::join!(declare_alive_within(&second, &site, &id, STEP), gone);
+    let _veh7 = taken.expect("veh-7 is free once its first process has gone");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

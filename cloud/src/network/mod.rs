@@ -36,6 +36,7 @@
 pub mod criticality;
 pub mod edges;
 pub mod fleet_loop;
+mod id_conflicts;
 pub mod library;
 pub mod liveliness;
 pub mod loss;
@@ -62,10 +63,9 @@ use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, C
 use fleet_loop::LoopRoleSummary;
 use library::LibrarySummary;
 use liveliness::LivenessLog;
-pub use receive::{IngestSummary, LiveIngest, OUTPUT_SCHEMAS, RecordError, RecordingFile};
+pub use receive::{IngestSummary, LiveIngest, OUTPUT_SCHEMAS, Origin, RecordError, RecordingFile};
 use risktwin_common::road::Road;
 use risktwin_protos::recording::decode_replay_time;
-use risktwin_transport::recovery::is_recovered;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Shutdown, SiteId, StreamLoss, TransportConfig, TransportError, close, connect};
 use serde::Serialize;
@@ -463,8 +463,9 @@ fn ingest_sink(
         let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
         // Drops are counted inside; only a failing recording comes back, and the receive path
         // cannot stop for it: say so and go on counting.
-        let recovered = is_recovered(sample);
-        if let Err(e) = ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, replay_ns, recovered) {
+        if let Err(e) =
+            ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, replay_ns, Origin::of(sample))
+        {
             tracing::error!("cloud: {e}");
         }
     }

@@ -9,6 +9,7 @@
 //! Publishing from inside a Zenoh callback could block it: outputs go to the publisher task
 //! through a channel.
 
+use super::id_conflicts::IdConflicts;
 use super::loss::LossCounts;
 use crate::ingest::{AcceptedMessage, IngestStats, IngestWorker, ObservedKinematics, SnapshotDigest};
 use crate::twin::fidelity::distribution::Distribution;
@@ -23,7 +24,10 @@ use risktwin_protos::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE, r
 use risktwin_protos::recording::{Recorder, RecordingError};
 use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{CloudOutput, SceneTopic, cloud_output, parse_edge_key, scene_topic};
+use risktwin_transport::recovery::is_recovered;
 use risktwin_transport::zenoh::bytes::Encoding;
+use risktwin_transport::zenoh::sample::Sample;
+use risktwin_transport::zenoh::session::ZenohId;
 use risktwin_transport::{EdgeStream, SiteId, StreamLoss, protobuf};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -49,6 +53,22 @@ pub enum GroundTruth {
     Vehicle { source: String, sample: VehicleStateSample },
     /// Every other object's true state (`scene/objects`).
     Objects(ObjectList),
+}
+
+/// Where a sample came from, as its Zenoh metadata tells.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Origin {
+    /// It came from an edge's cache (see [`is_recovered`]).
+    pub recovered: bool,
+    /// The session that published it (its source info), when the sample says.
+    pub publisher: Option<ZenohId>,
+}
+
+impl Origin {
+    /// The origin `sample` tells of.
+    pub fn of(sample: &Sample) -> Origin {
+        Origin { recovered: is_recovered(sample), publisher: sample.source_info().map(|i| i.source_id().zid()) }
+    }
 }
 
 /// Where a recording goes: buffered, since the recorder writes many small records.
@@ -100,6 +120,9 @@ pub struct IngestSummary {
     pub presumed_lost: BTreeMap<String, BTreeMap<String, u64>>,
     /// All presumed-lost sequence numbers.
     pub total_presumed_lost: u64,
+    /// Per source, how often its samples switched between two publishing sessions both alive
+    /// (two processes under one id; see `id_conflicts.rs`). Empty when every id is one process.
+    pub id_conflicts: BTreeMap<String, u64>,
 }
 
 /// A lag's distribution, µs (the 95th percentile to 1 ms, exact up to 2 s).
@@ -183,6 +206,8 @@ pub struct LiveIngest {
     wrong_schema_logged: HashSet<String>,
     /// Samples the edge-stream subscriber reported lost for good.
     losses: LossCounts,
+    /// Sources published by two live sessions at once.
+    conflicts: IdConflicts,
     /// Where the key of each stream's first accepted sample goes, to be declared (see
     /// [`super::routes`]).
     route_keys: Option<UnboundedSender<String>>,
@@ -230,6 +255,7 @@ impl LiveIngest {
             encodings: EdgeStream::ALL.map(|s| protobuf(s.message())),
             wrong_schema_logged: HashSet::new(),
             losses: LossCounts::default(),
+            conflicts: IdConflicts::default(),
             route_keys: None,
             warnings: None,
         })
@@ -321,16 +347,17 @@ impl LiveIngest {
     /// Handles one sample received on `key`; the receive time is read here, once, from the
     /// system clock and never goes backwards (the aligner needs non-decreasing receive times).
     /// `replay_ns` is the message's replay-time attachment, used instead of the clock in
-    /// replay-time mode (and required there). `recovered`: the sample came from the edge's
-    /// cache (`risktwin_transport::recovery::is_recovered`).
+    /// replay-time mode (and required there). `origin`: whether the sample came from the edge's
+    /// cache, and which session published it.
     pub fn handle(
         &mut self,
         key: &str,
         encoding: &Encoding,
         payload: &[u8],
         replay_ns: Option<i64>,
-        recovered: bool,
+        origin: Origin,
     ) -> Result<(), RecordingError> {
+        let recovered = origin.recovered;
         let now = Instant::now();
         self.last_sample = Some(now);
         let wall_ns = match (self.replay_time, replay_ns) {
@@ -347,6 +374,11 @@ impl LiveIngest {
             self.worker.reject(DropReason::BadKey);
             return Ok(());
         };
+        // Before any check: a second process under this id is told by its session, whatever
+        // becomes of its samples (numbered like the first's, most are refused as duplicates).
+        if let Some(publisher) = origin.publisher {
+            self.conflicts.observe(parsed.source, publisher, now);
+        }
         if encoding != &self.encodings[parsed.stream.index()] {
             self.worker.reject(DropReason::WrongSchema);
             if self.wrong_schema_logged.len() < MAX_LOGGED && self.wrong_schema_logged.insert(parsed.source.to_owned())
@@ -567,6 +599,7 @@ impl LiveIngest {
         summary.total_lost = self.losses.total();
         summary.total_presumed_lost = presumed_lost.values().flat_map(BTreeMap::values).sum();
         summary.presumed_lost = presumed_lost;
+        summary.id_conflicts = self.conflicts.summary();
         Ok((summary, self.outputs.as_ref().map(TwinOutputs::summary)))
     }
 }

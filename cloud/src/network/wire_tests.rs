@@ -6,8 +6,9 @@ use super::test_harness::{Router, STEP, start_cloud, state_publisher};
 use risktwin_common::telemetry::VehicleStateSample;
 use risktwin_protos::encode;
 use risktwin_protos::recording::read_messages;
-use risktwin_transport::{connect, protobuf};
+use risktwin_transport::{Delivery, EdgeStream, SiteId, SourceId, StreamPublisher, connect, protobuf, shutdown};
 use std::collections::BTreeMap;
+use std::time::Duration;
 use std::time::{SystemTime, UNIX_EPOCH};
 use tokio::time::timeout;
 
@@ -98,6 +99,43 @@ async fn forged_sequence_numbers_far_ahead_do_not_cut_the_genuine_stream_off() {
     assert_eq!(summary.ingest.received["veh-1"], BTreeMap::from([("state".to_owned(), genuine)]));
     assert_eq!(summary.ingest.dropped, BTreeMap::from([("seq-jump".to_owned(), 2)]));
     assert_eq!(summary.ingest.total_presumed_lost, 0, "{:?}", summary.ingest.presumed_lost);
+    router.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_processes_under_one_id_are_reported() {
+    // Two sessions publish the same vehicle's states, each numbering from 0: the second one's are
+    // refused as duplicates, and the summary says why.
+    let router = Router::start().await;
+    let (cloud_stop, cloud) = start_cloud(CloudConfig::new(router.client.clone())).await;
+    let (site, id) = (SiteId::new("site").unwrap(), SourceId::new("veh-1").unwrap());
+    let (first, second) = (connect(&router.client).await.unwrap(), connect(&router.client).await.unwrap());
+    // The edges' own publishers: numbered, so each sample names its session.
+    let delivery = Delivery::live(50.0, Duration::from_secs(1));
+    let publishers =
+        [&first, &second].map(|s| StreamPublisher::declare(s, &site, &id, EdgeStream::State, delivery).unwrap());
+    for publisher in &publishers {
+        let (_trigger, never) = shutdown::channel();
+        assert!(publisher.wait_for_subscriber(STEP, never).await.unwrap(), "the cloud subscribes");
+    }
+    let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64;
+    for seq in 0..20 {
+        for publisher in &publishers {
+            publisher.put(encode(&state("veh-1", seq, epoch_ns))).unwrap();
+        }
+    }
+    for publisher in publishers {
+        publisher.undeclare().unwrap();
+    }
+    first.close().await.unwrap();
+    second.close().await.unwrap();
+    cloud_stop.fire();
+    let summary = timeout(STEP, cloud).await.unwrap().unwrap().unwrap();
+    assert_eq!(summary.ingest.received["veh-1"]["state"], 20);
+    assert_eq!(summary.ingest.dropped, BTreeMap::from([("duplicate".to_owned(), 20)]));
+    let switches = summary.ingest.id_conflicts.get("veh-1").copied().unwrap_or(0);
+    // Each session's puts may reach the cloud in one batch: at least one switch, whatever the mix.
+    assert!(switches >= 1, "{:?}", summary.ingest.id_conflicts);
     router.stop().await;
 }
 

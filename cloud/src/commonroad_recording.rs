@@ -14,7 +14,7 @@ use risktwin_common::commonroad::twin::{footprint_of, road_from_lanelets};
 use risktwin_common::commonroad::{ObstacleState, Scenario, Shape};
 use risktwin_common::geometry::Pose;
 use risktwin_common::telemetry::{Frame, Header, RoadMap, VehicleStateSample};
-use risktwin_protos::recording::{MessageCursor, Recorder, RecordingError};
+use risktwin_protos::recording::{MessageCursor, Recorder, RecordingError, UnfinishedRecording};
 use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{EdgeStream, edge_map, edge_stream};
 use risktwin_transport::{SiteId, SourceId};
@@ -142,13 +142,15 @@ pub fn write_scenario<W: Write + Seek>(scenario: &Scenario, w: W) -> Result<Impo
 /// Rebuilds the scenario from a recording written by [`write_scenario`], with the collector the
 /// cloud's `criticality` role uses on the live stream ([`ScenarioCollector`]): every state and
 /// map message decoded and validated as the ingest decodes them; here a message that fails is an
-/// error. Topics outside the layout are skipped.
-pub fn read_scenario<R: Read>(source: R) -> Result<Scenario, FleetRecordingError> {
-    let mut cursor = MessageCursor::new(source);
+/// error. Topics outside the layout are skipped. An unfinished recording gives the scenario of
+/// its readable messages, and what could not be read.
+pub fn read_scenario<R: Read>(
+    mut cursor: MessageCursor<R>,
+) -> Result<(Scenario, Option<UnfinishedRecording>), FleetRecordingError> {
     let mut collector = ScenarioCollector::new();
     while let Some(m) = cursor.next_message() {
         let m = m?;
         collector.push(m.topic, m.data)?;
     }
-    Ok(collector.finish()?)
+    Ok((collector.finish()?, cursor.unfinished()))
 }

@@ -60,6 +60,42 @@ pub fn parallel_map<T: Sync, R: Send>(items: &[T], threads: usize, f: impl Fn(&T
 
 /// Samples `count` candidates of each kind under `seed`, filters and evaluates them.
 pub fn generate(kinds: &[ScenarioKind], count: u64, seed: u64, threads: usize) -> Batch {
+    let (mut batch, feasible) = sample_feasible(kinds, count, seed);
+    batch.evaluated = evaluate_all(feasible, threads);
+    batch
+}
+
+/// Scenarios evaluated and committed together by [`generate_into`]: 64, about a second of
+/// evaluation on two cores, so a killed run loses at most that, while a commit (a few ms) per
+/// batch costs nothing next to the evaluation.
+pub const STORE_BATCH: usize = 64;
+
+/// [`generate`] and [`store`] in batches of [`STORE_BATCH`] scenarios, each committed once
+/// evaluated, so a run killed midway keeps every batch it finished: whole scenarios with their
+/// outcomes, in the order (and with the sequence numbers) a whole run gives them. The rejection
+/// counts are committed first. Same report as [`store`].
+pub fn generate_into(
+    library: &mut ScenarioLibrary,
+    kinds: &[ScenarioKind],
+    count: u64,
+    seed: u64,
+    threads: usize,
+) -> Result<GenerateReport, LibraryError> {
+    let (mut batch, feasible) = sample_feasible(kinds, count, seed);
+    library.record_rejections(&rejections(&batch))?;
+    for specs in feasible.chunks(STORE_BATCH) {
+        let evaluated = evaluate_all(specs.to_vec(), threads);
+        let records: Vec<ScenarioRecord> =
+            evaluated.iter().map(|e| ScenarioRecord::sampled(e.spec.clone(), reference_outcome(&e.result))).collect();
+        library.insert_batch(&records)?;
+        batch.evaluated.extend(evaluated);
+    }
+    Ok(report(kinds, &batch))
+}
+
+/// The candidates of [`generate`], sampled and filtered: the counts, and the feasible specs in
+/// sampling order.
+fn sample_feasible(kinds: &[ScenarioKind], count: u64, seed: u64) -> (Batch, Vec<ScenarioSpec>) {
     let mut batch = Batch::default();
     let mut feasible = Vec::new();
     for &kind in kinds {
@@ -72,8 +108,7 @@ pub fn generate(kinds: &[ScenarioKind], count: u64, seed: u64, threads: usize) -
             }
         }
     }
-    batch.evaluated = evaluate_all(feasible, threads);
-    batch
+    (batch, feasible)
 }
 
 /// Evaluates specs with the reference driver on `threads` workers, in order.
@@ -113,13 +148,20 @@ pub fn store(
     let records: Vec<ScenarioRecord> =
         batch.evaluated.iter().map(|e| ScenarioRecord::sampled(e.spec.clone(), reference_outcome(&e.result))).collect();
     library.insert_batch(&records)?;
-    let rejections: Vec<Rejection> = batch
+    library.record_rejections(&rejections(batch))?;
+    Ok(report(kinds, batch))
+}
+
+fn rejections(batch: &Batch) -> Vec<Rejection> {
+    batch
         .rejected
         .iter()
         .map(|(&(kind, reason), &count)| Rejection { kind, reason: reason.to_string(), count })
-        .collect();
-    library.record_rejections(&rejections)?;
+        .collect()
+}
 
+/// The report on a stored batch.
+fn report(kinds: &[ScenarioKind], batch: &Batch) -> GenerateReport {
     let mut report = GenerateReport { generated: batch.sampled, ..GenerateReport::default() };
     for &kind in kinds {
         report.by_kind.insert(kind, KindReport::default());
@@ -134,7 +176,7 @@ pub fn store(
     }
     report.infeasible = report.by_kind.values().map(|k| k.infeasible).sum();
     report.stored = report.by_kind.values().map(|k| k.stored).sum();
-    Ok(report)
+    report
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 //! with its recorded receive time attached (see [`run`]).
 
 use crate::error::EdgeError;
-use risktwin_protos::recording::{MessageCursor, RecordingError, encode_replay_time};
+use risktwin_protos::recording::{MessageCursor, RecordingError, UnfinishedRecording, encode_replay_time};
 use risktwin_transport::keyexpr::{EDGE_MAP_MESSAGE, parse_edge_key, parse_edge_map_key};
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{
@@ -36,19 +36,21 @@ pub struct ReplaySummary {
     pub elapsed_s: f64,
     /// Published messages per second over `elapsed_s`.
     pub msgs_per_s: f64,
+    /// What could not be read of an unfinished recording (a recorder killed): the caller warns.
+    #[serde(skip)]
+    pub unfinished: Option<UnfinishedRecording>,
 }
 
-/// Republishes the edge streams of a recording read from `source` (an MCAP file, streamed: the
-/// recording is never held in memory). Each message carries its recorded receive time as a
+/// Republishes the edge streams of a recording read by `cursor` (an MCAP file, streamed: the
+/// recording is never held in memory; an unfinished one up to its last complete chunk). Each message carries its recorded receive time as a
 /// replay-time attachment ([`encode_replay_time`]), which a cloud run with `--replay-time`
 /// ingests at instead of its own clock, so that it rebuilds the live run's snapshots.
 pub async fn run<R: Read>(
-    source: R,
+    mut cursor: MessageCursor<R>,
     config: &ReplayConfig,
     mut shutdown: Shutdown,
 ) -> Result<ReplaySummary, EdgeError> {
     let bad_file = |e: RecordingError| EdgeError::Recording { reason: e.to_string() };
-    let mut cursor = MessageCursor::new(source);
     let session = connect(&config.transport).await?;
     // By channel id: the publisher of the channel's key, or None for a topic outside the scheme.
     let mut publishers: Vec<Option<Option<StreamPublisher>>> = Vec::new();
@@ -93,6 +95,7 @@ pub async fn run<R: Read>(
         summary.published += 1;
         *summary.by_key.entry(topic).or_default() += 1;
     }
+    summary.unfinished = cursor.unfinished();
     summary.elapsed_s = start.elapsed().as_secs_f64();
     summary.msgs_per_s = summary.published as f64 / summary.elapsed_s.max(1e-9);
     retire(publishers.into_iter().flatten().flatten()).await?;

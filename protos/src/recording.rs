@@ -4,7 +4,17 @@
 //! valid and lets one schema blob serve every message type of a recording).
 //!
 //! The recorder stores bytes as they arrived (the cloud records what it accepted, unchanged);
-//! [`Recorder::record`] encodes a domain message first.
+//! [`Recorder::record`] encodes a domain message first. It closes a chunk at [`CHUNK_BYTES`] or
+//! [`CHUNK_WALL`] after the chunk's first message, whichever comes first, so a recorder killed
+//! without warning loses at most its open chunk ([`read`]: the readers keep the rest).
+
+mod read;
+mod recover;
+pub mod scan;
+
+pub use read::{MessageCursor, MessageRef, RecordedMessage, UnfinishedRecording, read_messages, salvage_messages};
+pub use recover::{Recovery, recover};
+pub use scan::{RECORD_LENGTH_CAP, RecordScanner, Tail};
 
 use crate::WireMessage;
 use crate::convert::foxglove::{
@@ -13,7 +23,16 @@ use crate::convert::foxglove::{
 use risktwin_common::telemetry::{RiskField, VehicleStateSample};
 use std::collections::BTreeMap;
 use std::collections::HashMap;
-use std::io::{Read, Seek, Write};
+use std::io::{Seek, Write};
+use std::time::{Duration, Instant};
+
+/// A chunk is closed once it holds this many uncompressed bytes: 1 MiB, the `mcap` crate's
+/// default, where zstd compresses our messages about as well as it does larger chunks.
+pub const CHUNK_BYTES: u64 = 1 << 20;
+/// A chunk is closed (and the file flushed) this long after its first message: what a killed
+/// recorder can lose. 1 s costs a chunk header and a message index per channel a second (about
+/// a hundred bytes each), against a second of data.
+pub const CHUNK_WALL: Duration = Duration::from_secs(1);
 
 /// Why a recording could not be written or read.
 #[derive(Debug, thiserror::Error)]
@@ -26,6 +45,21 @@ pub enum RecordingError {
     Corrupt { reason: String },
     #[error("topic '{topic}' was first recorded with schema {first}, now with {now}")]
     SchemaChanged { topic: String, first: String, now: String },
+    #[error("not an MCAP file (it does not start with the MCAP magic)")]
+    NotMcap,
+    #[error("record at byte {at_byte} claims {claimed} bytes, {}", match file_len {
+        Some(len) => format!("file has {len}"),
+        None => format!("more than the {RECORD_LENGTH_CAP} a record may have"),
+    })]
+    RecordTooLong { at_byte: u64, claimed: u64, file_len: Option<u64> },
+    #[error(
+        "chunk at byte {at_byte} claims {uncompressed} bytes decompressed, more than the {RECORD_LENGTH_CAP} a chunk may have"
+    )]
+    ChunkTooLarge { at_byte: u64, uncompressed: u64 },
+    #[error("no complete message: {} at byte {} ({} bytes unreadable)", .0.reason, .0.at_byte, .0.unreadable_bytes)]
+    NothingReadable(Tail),
+    #[error("{0}")]
+    Unfinished(Box<UnfinishedRecording>),
 }
 
 /// Writes messages of known protobuf types to an MCAP file.
@@ -34,13 +68,40 @@ pub struct Recorder<W: Write + Seek> {
     schemas: HashMap<&'static str, u16>,
     channels: HashMap<String, (u16, &'static str)>,
     sequence: u32,
+    /// When the open chunk got its first message (`None`: no chunk is open).
+    chunk_opened: Option<Instant>,
 }
 
 impl<W: Write + Seek> Recorder<W> {
     /// A recorder over `w`.
     pub fn new(w: W) -> Result<Self, RecordingError> {
-        let options = mcap::WriteOptions::new().profile("").library(concat!("risktwin ", env!("CARGO_PKG_VERSION")));
-        Ok(Self { writer: options.create(w)?, schemas: HashMap::new(), channels: HashMap::new(), sequence: 0 })
+        let options = mcap::WriteOptions::new()
+            .profile("")
+            .library(concat!("risktwin ", env!("CARGO_PKG_VERSION")))
+            .chunk_size(Some(CHUNK_BYTES));
+        Ok(Self {
+            writer: options.create(w)?,
+            schemas: HashMap::new(),
+            channels: HashMap::new(),
+            sequence: 0,
+            chunk_opened: None,
+        })
+    }
+
+    /// Closes the open chunk and flushes the file when the chunk is [`CHUNK_WALL`] old; for a
+    /// timer of a recorder that may go quiet (a chunk otherwise closes at the next message).
+    pub fn flush_if_due(&mut self) -> Result<(), RecordingError> {
+        if self.chunk_opened.is_some_and(|t| t.elapsed() >= CHUNK_WALL) {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Closes the open chunk and flushes the file: what is written so far survives a kill.
+    pub fn flush(&mut self) -> Result<(), RecordingError> {
+        self.writer.flush()?;
+        self.chunk_opened = None;
+        Ok(())
     }
 
     /// The channel id of `topic` carrying messages of `schema_name` (e.g. `risktwin.v1.VehicleState`).
@@ -85,6 +146,12 @@ impl<W: Write + Seek> Recorder<W> {
         };
         self.sequence = self.sequence.wrapping_add(1);
         self.writer.write_to_known_channel(&header, data)?;
+        // The writer closes a chunk at `CHUNK_BYTES` by itself (it does not say when, so this
+        // clock may have started in an earlier chunk: it flushes early, never late).
+        match self.chunk_opened {
+            None => self.chunk_opened = Some(Instant::now()),
+            Some(_) => self.flush_if_due()?,
+        }
         Ok(())
     }
 
@@ -149,34 +216,6 @@ impl<W: Write + Seek> Recorder<W> {
     }
 }
 
-/// One recorded message.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RecordedMessage {
-    pub topic: String,
-    pub schema_name: String,
-    pub log_time_ns: u64,
-    pub publish_time_ns: u64,
-    pub data: Vec<u8>,
-}
-
-/// All messages of a recording in file order; a truncated or corrupt file is an error. Collects
-/// them: for large recordings iterate with a [`MessageCursor`] instead.
-pub fn read_messages(bytes: &[u8]) -> Result<Vec<RecordedMessage>, RecordingError> {
-    let mut out = Vec::new();
-    let mut cursor = MessageCursor::new(bytes);
-    while let Some(m) = cursor.next_message() {
-        let m = m?;
-        out.push(RecordedMessage {
-            topic: m.topic.to_owned(),
-            schema_name: m.schema_name.to_owned(),
-            log_time_ns: m.log_time_ns,
-            publish_time_ns: m.publish_time_ns,
-            data: m.data.to_vec(),
-        });
-    }
-    Ok(out)
-}
-
 /// Length of a replay-time attachment: an 8-byte tag and the time as little-endian `i64` ns.
 pub const REPLAY_TIME_ATTACHMENT_LEN: usize = 16;
 const REPLAY_TIME_TAG: &[u8; 8] = b"rtlogt01";
@@ -197,165 +236,6 @@ pub fn decode_replay_time(attachment: &[u8]) -> Option<i64> {
         return None;
     }
     Some(i64::from_le_bytes(time.try_into().ok()?))
-}
-
-/// One message lent by a [`MessageCursor`]: valid until the cursor moves on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct MessageRef<'a> {
-    pub topic: &'a str,
-    pub schema_name: &'a str,
-    pub channel_id: u16,
-    pub log_time_ns: u64,
-    pub publish_time_ns: u64,
-    pub data: &'a [u8],
-}
-
-/// A channel as the cursor keeps it: what a message needs to be named.
-#[derive(Debug)]
-struct ChannelName {
-    topic: String,
-    schema_name: String,
-}
-
-/// Bytes of a message record before its data: channel id (2), sequence (4), log time (8),
-/// publish time (8).
-const MESSAGE_HEADER_LEN: usize = 22;
-
-/// Streams the messages of an MCAP recording from any reader (a file, a memory map, a byte
-/// slice) in file order, without collecting them and without an allocation per message: each
-/// message is copied once, out of the decompressed chunk, into one reused buffer and lent out.
-///
-/// Like the `mcap` crate's own streaming reader it reads to the end magic, so a truncated file
-/// is reported after its last whole message; the summary section (which repeats the channels) is
-/// read but not re-checked.
-pub struct MessageCursor<R: Read> {
-    source: R,
-    reader: mcap::sans_io::LinearReader,
-    schemas: HashMap<u16, String>,
-    channels: HashMap<u16, ChannelName>,
-    data: Vec<u8>,
-    past_data_end: bool,
-    done: bool,
-}
-
-/// Reads into `buf` until it is full or the source ends; the count read (0: end of file).
-fn read_some<R: Read>(source: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
-    let mut filled = 0;
-    while filled < buf.len() {
-        match source.read(&mut buf[filled..]) {
-            Ok(0) => break,
-            Ok(n) => filled += n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(filled)
-}
-
-impl<R: Read> MessageCursor<R> {
-    /// A cursor at the start of `source`.
-    pub fn new(source: R) -> Self {
-        Self {
-            source,
-            reader: mcap::sans_io::LinearReader::new(),
-            schemas: HashMap::new(),
-            channels: HashMap::new(),
-            data: Vec::new(),
-            past_data_end: false,
-            done: false,
-        }
-    }
-
-    /// The next message, `None` at the end of the file; after an error, `None` for ever.
-    #[allow(clippy::should_implement_trait)] // a lending iterator: `Iterator` cannot lend
-    pub fn next_message(&mut self) -> Option<Result<MessageRef<'_>, RecordingError>> {
-        if self.done {
-            return None;
-        }
-        match self.advance() {
-            Ok(Some((channel_id, log_time_ns, publish_time_ns))) => {
-                let Some(channel) = self.channels.get(&channel_id) else {
-                    self.done = true;
-                    return Some(Err(RecordingError::Corrupt {
-                        reason: format!("a message on unknown channel {channel_id}"),
-                    }));
-                };
-                Some(Ok(MessageRef {
-                    topic: &channel.topic,
-                    schema_name: &channel.schema_name,
-                    channel_id,
-                    log_time_ns,
-                    publish_time_ns,
-                    data: &self.data,
-                }))
-            }
-            Ok(None) => {
-                self.done = true;
-                None
-            }
-            Err(e) => {
-                self.done = true;
-                Some(Err(e))
-            }
-        }
-    }
-
-    /// Reads up to the next message record, leaving its data in `self.data`.
-    fn advance(&mut self) -> Result<Option<(u16, u64, u64)>, RecordingError> {
-        use mcap::records::{Record, op};
-        use mcap::sans_io::LinearReadEvent;
-        loop {
-            let event = match self.reader.next_event() {
-                None => return Ok(None),
-                Some(event) => event?,
-            };
-            match event {
-                LinearReadEvent::ReadRequest(need) => {
-                    let buf = self.reader.insert(need);
-                    let n = read_some(&mut self.source, buf)?;
-                    self.reader.notify_read(n);
-                }
-                LinearReadEvent::Record { opcode: op::DATA_END, .. } => self.past_data_end = true,
-                LinearReadEvent::Record { .. } if self.past_data_end => {}
-                LinearReadEvent::Record { opcode: op::MESSAGE, data } => {
-                    let Some((head, body)) = data.split_at_checked(MESSAGE_HEADER_LEN) else {
-                        return Err(RecordingError::Corrupt {
-                            reason: format!("a message record of {} bytes (at least {MESSAGE_HEADER_LEN})", data.len()),
-                        });
-                    };
-                    let channel_id = u16::from_le_bytes([head[0], head[1]]);
-                    let word = |at: usize| {
-                        let mut w = [0u8; 8];
-                        w.copy_from_slice(&head[at..at + 8]);
-                        u64::from_le_bytes(w)
-                    };
-                    let (log_time_ns, publish_time_ns) = (word(6), word(14));
-                    self.data.clear();
-                    self.data.extend_from_slice(body);
-                    return Ok(Some((channel_id, log_time_ns, publish_time_ns)));
-                }
-                LinearReadEvent::Record { opcode, data } if opcode == op::SCHEMA || opcode == op::CHANNEL => {
-                    match mcap::parse_record(opcode, data)? {
-                        Record::Schema { header, .. } => {
-                            self.schemas.insert(header.id, header.name);
-                        }
-                        Record::Channel(channel) => {
-                            // Schema id 0 means "no schema".
-                            let schema_name = match channel.schema_id {
-                                0 => String::new(),
-                                id => self.schemas.get(&id).cloned().ok_or_else(|| RecordingError::Corrupt {
-                                    reason: format!("channel {} names unknown schema {id}", channel.id),
-                                })?,
-                            };
-                            self.channels.insert(channel.id, ChannelName { topic: channel.topic, schema_name });
-                        }
-                        _ => {}
-                    }
-                }
-                LinearReadEvent::Record { .. } => {}
-            }
-        }
-    }
 }
 
 #[cfg(test)]
@@ -407,9 +287,13 @@ mod tests {
             let back: VehicleStateSample = decode(&m.data).expect("decodes");
             assert_eq!(format!("{back:?}"), format!("{:?}", state(seq as u64)));
         }
-        // A truncated file is an error, not a panic.
+        // A truncated file is an error to the strict reader, not a panic.
         let truncated = read_messages(&bytes[..bytes.len() / 2]);
         assert!(truncated.is_err(), "a recording cut in half is refused: {:?}", truncated.map(|m| m.len()));
+        let (kept, unfinished) = salvage_messages(&bytes[..bytes.len() / 2]).expect("salvaged");
+        // The second half is the summary (it repeats the large schema): every message is kept.
+        assert!(unfinished.is_some(), "a cut file is reported");
+        assert_eq!(kept, msgs, "the messages before the cut");
         assert!(read_messages(b"not an mcap file").is_err());
 
         // The streaming cursor over the file itself agrees with the collected read.
@@ -423,11 +307,13 @@ mod tests {
         }
         assert_eq!(n, 100);
         let mut cut = MessageCursor::new(&bytes[..bytes.len() / 2]);
-        let mut last = None;
+        let mut read = 0;
         while let Some(m) = cut.next_message() {
-            last = Some(m.map(|_| ()));
+            m.expect("the messages before the cut");
+            read += 1;
         }
-        assert!(matches!(last, Some(Err(_))), "the cursor reports a truncated file");
+        assert_eq!(read, kept.len(), "the cursor keeps what the collected read keeps");
+        assert!(cut.unfinished().is_some(), "the cursor reports a truncated file");
     }
 
     #[test]
@@ -440,3 +326,6 @@ mod tests {
         assert_eq!(decode_replay_time(b"somethingelse!!!"), None);
     }
 }
+
+#[cfg(test)]
+mod salvage_tests;

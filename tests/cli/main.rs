@@ -9,6 +9,7 @@ mod contract_bench;
 mod contract_episode;
 mod contract_scenarios;
 mod criticality;
+mod damaged_recording;
 mod determinism;
 mod floor;
 mod mutate;

@@ -332,6 +332,7 @@ pub async fn run(
         .with_episodes(fleet.is_some().then_some(episodes_tx))
         .with_warnings(warning_sink);
     let ingest = Arc::new(Mutex::new(ingest));
+    let flusher = config.record.is_some().then(|| tokio::spawn(flush_recording(Arc::clone(&ingest), shutdown.clone())));
     let subscriber = if config.has(Role::Ingest) {
         Some(
             risktwin_transport::subscribe_edge_streams(
@@ -402,6 +403,9 @@ pub async fn run(
     if let Some(publishers) = warning_publishers {
         publishers.task.abort();
     }
+    if let Some(flusher) = flusher {
+        flusher.abort();
+    }
     let library_summary = match library_task {
         Some(task) => Some(task.await.map_err(|e| join_error("library", e))??),
         None => None,
@@ -446,6 +450,28 @@ pub async fn run(
         None => None,
     };
     Ok(CloudSummary { ingest, liveliness, twin, library: library_summary, criticality, fleet_loop, warning })
+}
+
+/// How often the recording's open chunk is looked at: a quarter of its time bound
+/// (`risktwin_protos::recording::CHUNK_WALL`), so a quiet cloud's chunk closes within 1.25 s.
+const FLUSH_PERIOD: Duration = Duration::from_millis(250);
+
+/// Closes the recording's chunks of a quiet cloud (see [`LiveIngest::flush_recording_if_due`])
+/// until shutdown; a failed flush is logged once and ends the task (the next write reports it
+/// in the summary).
+async fn flush_recording(ingest: Arc<Mutex<LiveIngest>>, mut shutdown: Shutdown) {
+    let mut every = tokio::time::interval(FLUSH_PERIOD);
+    loop {
+        tokio::select! {
+            _ = every.tick() => {
+                if let Err(e) = ingest.lock().unwrap_or_else(PoisonError::into_inner).flush_recording_if_due() {
+                    tracing::error!("recording: {e}");
+                    return;
+                }
+            }
+            () = shutdown.wait() => return,
+        }
+    }
 }
 
 fn join_error(what: &str, e: tokio::task::JoinError) -> CloudError {

@@ -569,6 +569,15 @@ impl LiveIngest {
     }
 
     /// When the last sample (accepted or not) arrived.
+    /// Closes the recording's open chunk once it is a second old, so a cloud that goes quiet
+    /// and is then killed keeps what it received (a chunk otherwise closes at the next message).
+    pub fn flush_recording_if_due(&mut self) -> Result<(), RecordError> {
+        match self.worker.recorder_mut() {
+            Some(rec) => Ok(rec.flush_if_due()?),
+            None => Ok(()),
+        }
+    }
+
     pub(crate) fn last_sample(&self) -> Option<Instant> {
         self.last_sample
     }

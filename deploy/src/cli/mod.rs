@@ -46,6 +46,8 @@ pub enum Command {
     /// Import recorded traffic as fleet data (an MCAP recording of edge messages).
     #[command(subcommand)]
     Import(ImportCommand),
+    /// Rewrite what is readable of an unfinished or damaged MCAP recording as a finished file.
+    Recover(RecoverArgs),
     /// Throughput benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -269,6 +271,17 @@ pub struct CriticalityArgs {
     /// The ego's dynamic-obstacle id (default: the planning problem's id, else the first obstacle).
     #[arg(long)]
     pub ego: Option<u64>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
+pub struct RecoverArgs {
+    /// The recording to read (e.g. one whose recorder was killed).
+    pub recording: PathBuf,
+    /// The finished MCAP file to write (footer, summary, indexes).
+    #[arg(long)]
+    pub out: PathBuf,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

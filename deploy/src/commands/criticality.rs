@@ -1,6 +1,7 @@
 //! `risktwin criticality`: HW, THW, TTC and a_long,req of a CommonRoad scenario's ego against
 //! every other dynamic obstacle (docs/cli.md), plus PET and minimum distance per pair in JSON.
 
+use super::recover::{open_recording, warn_unfinished};
 use crate::cli::CriticalityArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_table};
@@ -34,10 +35,15 @@ pub fn read_commonroad(path: &std::path::Path) -> CliResult<Scenario> {
 }
 
 /// Rebuilds a scenario from a recording of `risktwin import commonroad`.
+/// An unfinished recording gives the scenario of its readable part, with a warning.
 fn read_recording(path: &std::path::Path) -> CliResult<Scenario> {
-    let file =
-        std::fs::File::open(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
-    read_scenario(std::io::BufReader::new(file)).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
+    let cursor = open_recording(path, 1 << 16)?;
+    let (scenario, unfinished) =
+        read_scenario(cursor).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
+    if let Some(unfinished) = unfinished {
+        warn_unfinished(path, &unfinished);
+    }
+    Ok(scenario)
 }
 
 /// One line per other: the worst value of each measure over the scenario.

@@ -2,6 +2,7 @@
 //! publishing real telemetry) until its count, duration or a signal, and print what it sent per
 //! stream as JSON on stdout.
 
+use super::recover::{open_recording, warn_unfinished};
 use super::router::{transport_config, with_signals};
 use crate::cli::{EdgeArgs, ReplayArgs};
 use crate::error::{CliError, CliResult};
@@ -45,15 +46,18 @@ pub fn replay(args: ReplayArgs) -> CliResult {
     }
     let wait_for_cloud = Duration::try_from_secs_f64(args.wait_for_cloud_s)
         .map_err(|_| CliError::input(format!("--wait-for-cloud-s {} must be non-negative", args.wait_for_cloud_s)))?;
-    let file = std::fs::File::open(&args.recording)
-        .map_err(|e| CliError::input(format!("cannot read {}: {e}", args.recording.display())))?;
+    let cursor = open_recording(&args.recording, 1 << 20)?;
     let config = ReplayConfig { transport: transport_config(args.zenoh)?, speed: args.speed, wait_for_cloud };
+    let path = args.recording.display().to_string();
     let summary = with_signals(|shutdown| async move {
-        replay::run(std::io::BufReader::with_capacity(1 << 20, file), &config, shutdown).await.map_err(|e| match e {
-            EdgeError::Recording { .. } => CliError::input(format!("{}: {e}", args.recording.display())),
+        replay::run(cursor, &config, shutdown).await.map_err(|e| match e {
+            EdgeError::Recording { .. } => CliError::input(format!("{path}: {e}")),
             other => CliError::runtime(other),
         })
     })?;
+    if let Some(unfinished) = &summary.unfinished {
+        warn_unfinished(&args.recording, unfinished);
+    }
     print_json(&summary)
 }
 

@@ -13,6 +13,7 @@ mod floor;
 mod import;
 pub mod push;
 mod recorded;
+pub(crate) mod recover;
 mod regress;
 mod risk_field;
 mod router;
@@ -44,6 +45,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::RiskField(a) => risk_field::risk_field(a),
         Command::Criticality(a) => criticality::criticality(a),
         Command::Import(ImportCommand::Commonroad(a)) => import::commonroad(a),
+        Command::Recover(a) => recover::recover(a),
         Command::Bench(BenchCommand::Sim(a)) => bench::sim(a),
         Command::Bench(BenchCommand::RiskField(a)) => bench::risk_field(a),
         Command::Bench(BenchCommand::Zenoh(a)) => cloud::bench_zenoh(a),

@@ -4,7 +4,7 @@ use super::source::{open_existing_library, parse_kinds};
 use crate::cli::{GenerateArgs, MutateArgs, RankArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
-use risktwin_cloud::generate::{MutationError, generate as generate_batch, mutate_stored, store};
+use risktwin_cloud::generate::{MutationError, generate_into, mutate_stored};
 use risktwin_cloud::library::{
     COMMONROAD_KIND, REPLAY_POLICY, RankOutcome, RankedCase, RankedScenario, ScenarioLibrary,
 };
@@ -23,8 +23,8 @@ pub fn generate(args: GenerateArgs) -> CliResult {
         return Err(CliError::input(format!("--count {} is out of range [1, 1000000]", args.count)));
     }
     let mut library = ScenarioLibrary::open(&args.db).map_err(CliError::input)?;
-    let batch = generate_batch(&kinds, args.count, args.seed, worker_threads());
-    let report = store(&mut library, &kinds, &batch).map_err(CliError::runtime)?;
+    let report =
+        generate_into(&mut library, &kinds, args.count, args.seed, worker_threads()).map_err(CliError::runtime)?;
     match args.format {
         Format::Json => print_json(&report),
         _ => {

@@ -1,0 +1,126 @@
+//! Unfinished and damaged recordings: what the readers keep, and that no length field is trusted.
+
+use super::*;
+
+/// A recording of `n` messages (log time = index) in chunks of about `chunk_bytes`, written by
+/// the `mcap` crate itself, and the byte range and message count of each chunk.
+fn small_chunked(n: u64, chunk_bytes: u64) -> (Vec<u8>, Vec<(u64, u64, u64)>) {
+    let mut w = mcap::WriteOptions::new()
+        .chunk_size(Some(chunk_bytes))
+        .create(std::io::Cursor::new(Vec::new()))
+        .expect("writer");
+    let schema = w.add_schema("risktwin.v1.VehicleState", "protobuf", b"schema").expect("schema");
+    let channel = w.add_channel(schema, "risktwin/v1/s/veh-1/state", "protobuf", &BTreeMap::new()).expect("channel");
+    for seq in 0..n {
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: seq as u32,
+            log_time: seq,
+            publish_time: seq,
+        };
+        w.write_to_known_channel(&header, &[seq as u8; 40]).expect("message");
+    }
+    w.finish().expect("finish");
+    let bytes = w.into_inner().into_inner();
+    let summary = mcap::Summary::read(&bytes).expect("summary").expect("a summary");
+    let chunks = summary
+        .chunk_indexes
+        .iter()
+        .map(|c| {
+            (c.chunk_start_offset, c.chunk_start_offset + c.chunk_length, c.message_end_time - c.message_start_time + 1)
+        })
+        .collect();
+    (bytes, chunks)
+}
+
+/// Every message the cursor yields, and whether it ended in an error.
+fn drain(bytes: &[u8]) -> (Vec<u64>, Option<String>) {
+    let mut cursor = MessageCursor::new(bytes);
+    let mut times = Vec::new();
+    while let Some(m) = cursor.next_message() {
+        match m {
+            Ok(m) => times.push(m.log_time_ns),
+            Err(e) => return (times, Some(e.to_string())),
+        }
+    }
+    (times, None)
+}
+
+#[test]
+fn a_file_cut_anywhere_gives_the_messages_of_its_complete_chunks() {
+    let (bytes, chunks) = small_chunked(60, 400);
+    assert!(chunks.len() >= 4, "several chunks: {chunks:?}");
+    for cut in 0..bytes.len() {
+        let complete: u64 = chunks.iter().filter(|c| c.1 <= cut as u64).map(|c| c.2).sum();
+        let (times, error) = drain(&bytes[..cut]);
+        if complete == 0 {
+            assert!(error.is_some(), "cut at {cut}: nothing complete is an error, got {} messages", times.len());
+            continue;
+        }
+        assert_eq!(error, None, "cut at {cut}: the tail is not an error");
+        assert_eq!(times, (0..complete).collect::<Vec<_>>(), "cut at {cut}");
+    }
+}
+
+#[test]
+fn trailing_garbage_after_complete_chunks_is_a_tail_not_an_error() {
+    let (bytes, chunks) = small_chunked(60, 400);
+    let mut cut = bytes[..chunks[1].1 as usize].to_vec();
+    cut.extend_from_slice(b"garbage!garbage!");
+    let (times, error) = drain(&cut);
+    assert_eq!(error, None);
+    assert_eq!(times.len() as u64, chunks[0].2 + chunks[1].2);
+}
+
+#[test]
+fn a_flipped_length_byte_is_an_error_not_an_allocation() {
+    let (bytes, chunks) = small_chunked(60, 400);
+    // The top byte of the second chunk's record length: it claims 72 PB.
+    let mut flipped = bytes.clone();
+    flipped[chunks[1].0 as usize + 1 + 7] ^= 0x01;
+    let (times, error) = drain(&flipped);
+    let error = error.expect("an error");
+    assert!(error.contains(&format!("record at byte {}", chunks[1].0)), "{error}");
+    assert_eq!(times.len() as u64, chunks[0].2, "the messages before the damage");
+    // The top byte of the second chunk's uncompressed size (after start and end time).
+    let mut flipped = bytes.clone();
+    flipped[chunks[1].0 as usize + 9 + 16 + 7] ^= 0x01;
+    assert!(drain(&flipped).1.is_some(), "a chunk claiming 72 PB uncompressed is an error");
+}
+
+#[test]
+fn no_single_flipped_byte_panics_or_aborts() {
+    let (bytes, _) = small_chunked(12, 200);
+    for at in 0..bytes.len() {
+        for mask in [0x01u8, 0x80, 0xff] {
+            let mut damaged = bytes.clone();
+            damaged[at] ^= mask;
+            let _ = drain(&damaged);
+        }
+    }
+}
+
+#[test]
+fn a_recorder_that_never_finishes_keeps_what_it_flushed() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("killed.mcap");
+    let file = std::fs::File::create(&path).expect("create");
+    let mut rec = Recorder::new(std::io::BufWriter::new(file)).expect("recorder");
+    let channel = rec.channel("risktwin/v1/s/veh-1/state", "risktwin.v1.VehicleState").expect("channel");
+    for t in 0..50 {
+        rec.write(channel, t, t, &[7; 100]).expect("write");
+    }
+    rec.flush().expect("flush");
+    for t in 50..60 {
+        rec.write(channel, t, t, &[7; 100]).expect("write");
+    }
+    // What a kill leaves: no finish, no drop (which would finish the file).
+    std::mem::forget(rec);
+    let bytes = std::fs::read(&path).expect("read");
+    let (kept, unfinished) = salvage_messages(&bytes).expect("salvaged");
+    assert_eq!(kept.iter().map(|m| m.log_time_ns).collect::<Vec<_>>(), (0..50).collect::<Vec<_>>());
+    let unfinished = unfinished.expect("reported as unfinished");
+    assert_eq!((unfinished.messages, unfinished.last_log_time_ns), (50, 49));
+    assert_eq!(unfinished.tail.at_byte + unfinished.tail.unreadable_bytes, bytes.len() as u64);
+    assert!(read_messages(&bytes).is_err(), "the strict reader refuses it");
+}

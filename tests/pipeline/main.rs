@@ -7,6 +7,7 @@
 //! `edge left` lines (liveliness) before it is sent SIGTERM.
 
 mod cloudloop;
+mod crash;
 mod criticality;
 mod faults;
 mod fleet;

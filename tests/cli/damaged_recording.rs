@@ -67,8 +67,45 @@ fn recover_keeps_a_finished_file_whole_and_refuses_one_with_nothing_readable() {
     let bytes = std::fs::read(&rec).expect("read");
     let cut = dir.path().join("cut.mcap");
     std::fs::write(&cut, &bytes[..first_chunk(&bytes) + 100]).expect("write");
+    let fresh = dir.path().join("fresh.mcap");
+    assert_input_error(
+        dir.path(),
+        &["recover", cut.to_str().expect("utf-8"), "--out", fresh.to_str().expect("utf-8")],
+        "nothing readable",
+    );
+    assert!(!fresh.exists(), "no empty file is left to be taken for a recovery");
+    let recovered = std::fs::read(&out).expect("read");
     assert_input_error(dir.path(), &["recover", cut.to_str().expect("utf-8"), "--out", out_s], "nothing readable");
-    assert!(!out.exists(), "no empty file is left to be taken for a recovery");
+    assert_eq!(std::fs::read(&out).expect("read"), recovered, "a refused recovery leaves an existing OUT alone");
+    assert_no_stray_files(dir.path(), &["two_cars.mcap", "out.mcap", "cut.mcap"]);
+}
+
+/// Fails when `dir` holds anything but `names` (a temporary file left behind).
+fn assert_no_stray_files(dir: &Path, names: &[&str]) {
+    let mut found: Vec<String> = std::fs::read_dir(dir)
+        .expect("list")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    found.sort();
+    let mut want: Vec<String> = names.iter().map(|n| n.to_string()).collect();
+    want.sort();
+    assert_eq!(found, want, "files in {}", dir.display());
+}
+
+#[test]
+fn recover_refuses_to_write_over_its_own_input() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let rec = recording(dir.path());
+    let original = std::fs::read(&rec).expect("read");
+    let link = dir.path().join("link.mcap");
+    std::os::unix::fs::symlink(&rec, &link).expect("symlink");
+    let rec_s = rec.to_str().expect("utf-8");
+    // The same path, and another name of the same file.
+    for out in [rec_s, link.to_str().expect("utf-8")] {
+        assert_input_error(dir.path(), &["recover", rec_s, "--out", out], "is the recording itself");
+        assert_eq!(std::fs::read(&rec).expect("read"), original, "--out {out}: the recording is unchanged");
+    }
+    assert_no_stray_files(dir.path(), &["two_cars.mcap", "link.mcap"]);
 }
 
 /// Rows of `table` in the library at `db`, or `None` while it cannot be read yet.

@@ -6,10 +6,13 @@
 use crate::cli::RecoverArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
-use risktwin_protos::recording::{MessageCursor, RecordScanner, UnfinishedRecording, recover as rewrite};
+use risktwin_protos::recording::{
+    MessageCursor, RecordScanner, RecordingError, UnfinishedRecording, recover as rewrite,
+};
 use serde::Serialize;
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufReader, BufWriter};
+use std::os::unix::fs::{MetadataExt, PermissionsExt};
 use std::path::Path;
 
 /// A recording opened for streaming, its length told to the reader (so that a length field past
@@ -55,25 +58,31 @@ struct RecoverReport {
 pub fn recover(args: RecoverArgs) -> CliResult {
     let (file, len) = open(&args.recording)?;
     let input = args.recording.display().to_string();
+    let output = args.out.display().to_string();
+    refuse_same_file(&file, &args.out, &input)?;
+    // OUT is written under a temporary name in its own folder (so the rename cannot cross file
+    // systems) and takes OUT's name only once finished: a refused input, a failed write or a
+    // kill never leaves a partial OUT, nor clobbers one that was there.
+    let cannot_write = |e: std::io::Error| CliError::runtime(format!("cannot write {output}: {e}"));
+    let mut temp = temp_next_to(&args.out).map_err(cannot_write)?;
     let scanner = RecordScanner::new(BufReader::with_capacity(1 << 20, file)).with_source_len(len);
-    let out =
-        File::create(&args.out).map_err(|e| CliError::input(format!("cannot write {}: {e}", args.out.display())))?;
-    let (recovery, _) = rewrite(scanner, std::io::BufWriter::new(out)).map_err(|e| match e {
-        risktwin_protos::recording::RecordingError::NotMcap => CliError::input(format!("{input}: {e}")),
-        other => CliError::runtime(format!("{}: {other}", args.out.display())),
+    let (recovery, written) = rewrite(scanner, BufWriter::new(temp.as_file_mut())).map_err(|e| match e {
+        RecordingError::NotMcap => CliError::input(format!("{input}: {e}")),
+        other => CliError::runtime(format!("{output}: {other}")),
     })?;
+    written.into_inner().map_err(|e| cannot_write(e.into_error()))?;
     if !recovery.kept_anything() {
-        // Nothing to keep: no empty file is left behind to be taken for a recovery.
-        let _ = std::fs::remove_file(&args.out);
+        // Nothing to keep: no empty file is left to be taken for a recovery (`temp` is removed).
         let why = recovery.lost.as_ref().map_or("an empty recording".to_owned(), |t| {
             format!("{} at byte {} ({} bytes unreadable)", t.reason, t.at_byte, t.unreadable_bytes)
         });
         return Err(CliError::input(format!("{input}: nothing readable: {why}")));
     }
+    temp.persist(&args.out).map_err(|e| cannot_write(e.error))?;
     let lost = recovery.lost.clone();
     let report = RecoverReport {
         input,
-        output: args.out.display().to_string(),
+        output,
         unfinished: lost.is_some(),
         messages: recovery.messages,
         schemas: recovery.schemas,
@@ -107,4 +116,34 @@ pub fn recover(args: RecoverArgs) -> CliResult {
             print_table(&["kept", "value"], &rows)
         }
     }
+}
+
+/// Refuses an OUT that is IN itself (the same device and inode: another name, a hard link or a
+/// symbolic link to it included), which the rename would replace by what was readable of it.
+fn refuse_same_file(input: &File, out: &Path, input_name: &str) -> CliResult {
+    let cannot = |e: std::io::Error| CliError::input(format!("cannot read {input_name}: {e}"));
+    let read = input.metadata().map_err(cannot)?;
+    // An OUT that does not exist (or cannot be looked at: creating it fails later) is not IN.
+    let Ok(written) = std::fs::metadata(out) else { return Ok(()) };
+    if (read.dev(), read.ino()) == (written.dev(), written.ino()) {
+        return Err(CliError::input(format!(
+            "--out {} is the recording itself ({input_name}): recover into another file",
+            out.display()
+        )));
+    }
+    Ok(())
+}
+
+/// An empty temporary file in `out`'s folder, removed when dropped unless persisted.
+fn temp_next_to(out: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    let folder = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    tempfile::Builder::new()
+        .prefix(".recover-")
+        .suffix(".mcap.part")
+        // What `File::create` gives (0666 less the umask), not tempfile's private 0600.
+        .permissions(std::fs::Permissions::from_mode(0o666))
+        .tempfile_in(folder)
 }

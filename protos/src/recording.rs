@@ -4,9 +4,11 @@
 //! valid and lets one schema blob serve every message type of a recording).
 //!
 //! The recorder stores bytes as they arrived (the cloud records what it accepted, unchanged);
-//! [`Recorder::record`] encodes a domain message first. It closes a chunk at [`CHUNK_BYTES`] or
-//! [`CHUNK_WALL`] after the chunk's first message, whichever comes first, so a recorder killed
-//! without warning loses at most its open chunk ([`read`]: the readers keep the rest).
+//! [`Recorder::record`] encodes a domain message first. It closes a chunk at [`CHUNK_BYTES`], so
+//! a recorder killed without warning loses at most its open chunk ([`read`]: the readers keep
+//! the rest). A recorder fed in real time ([`Recorder::live`]) also closes it [`CHUNK_WALL`]
+//! after the chunk's first message; an offline one does not, so that its bytes depend on its
+//! input alone (same seed, same bytes).
 
 mod read;
 mod recover;
@@ -29,8 +31,8 @@ use std::time::{Duration, Instant};
 /// A chunk is closed once it holds this many uncompressed bytes: 1 MiB, the `mcap` crate's
 /// default, where zstd compresses our messages about as well as it does larger chunks.
 pub const CHUNK_BYTES: u64 = 1 << 20;
-/// A chunk is closed (and the file flushed) this long after its first message: what a killed
-/// recorder can lose. 1 s costs a chunk header and a message index per channel a second (about
+/// A live recorder's chunk is closed (and the file flushed) this long after its first message:
+/// what a killed recorder can lose. 1 s costs a chunk header and a message index per channel a second (about
 /// a hundred bytes each), against a second of data.
 pub const CHUNK_WALL: Duration = Duration::from_secs(1);
 
@@ -68,12 +70,15 @@ pub struct Recorder<W: Write + Seek> {
     schemas: HashMap<&'static str, u16>,
     channels: HashMap<String, (u16, &'static str)>,
     sequence: u32,
-    /// When the open chunk got its first message (`None`: no chunk is open).
+    /// When the open chunk got its first message (`None`: no chunk is open, or no wall bound).
     chunk_opened: Option<Instant>,
+    /// How long a chunk may stay open by the wall clock; `None` for an offline recorder.
+    wall_bound: Option<Duration>,
 }
 
 impl<W: Write + Seek> Recorder<W> {
-    /// A recorder over `w`.
+    /// An offline recorder over `w`: chunks close at [`CHUNK_BYTES`] only, so the same messages
+    /// give the same bytes however fast they come.
     pub fn new(w: W) -> Result<Self, RecordingError> {
         let options = mcap::WriteOptions::new()
             .profile("")
@@ -85,13 +90,35 @@ impl<W: Write + Seek> Recorder<W> {
             channels: HashMap::new(),
             sequence: 0,
             chunk_opened: None,
+            wall_bound: None,
         })
     }
 
-    /// Closes the open chunk and flushes the file when the chunk is [`CHUNK_WALL`] old; for a
-    /// timer of a recorder that may go quiet (a chunk otherwise closes at the next message).
+    /// A recorder of messages as they arrive in real time over `w`: chunks close at
+    /// [`CHUNK_BYTES`] or [`CHUNK_WALL`] after their first message, what a kill can lose.
+    pub fn live(w: W) -> Result<Self, RecordingError> {
+        Ok(Self::new(w)?.with_wall_bound(CHUNK_WALL))
+    }
+
+    /// Closes each chunk `bound` after its first message (at the next write or
+    /// [`Recorder::flush_if_due`]).
+    pub fn with_wall_bound(mut self, bound: Duration) -> Self {
+        self.wall_bound = Some(bound);
+        self
+    }
+
+    /// How long a chunk may stay open by the wall clock; `None` for an offline recorder.
+    pub fn wall_bound(&self) -> Option<Duration> {
+        self.wall_bound
+    }
+
+    /// Closes the open chunk and flushes the file when the chunk is as old as the wall bound;
+    /// for a timer of a live recorder that may go quiet (a chunk otherwise closes at the next
+    /// message). Does nothing for an offline recorder.
     pub fn flush_if_due(&mut self) -> Result<(), RecordingError> {
-        if self.chunk_opened.is_some_and(|t| t.elapsed() >= CHUNK_WALL) {
+        if let (Some(opened), Some(bound)) = (self.chunk_opened, self.wall_bound)
+            && opened.elapsed() >= bound
+        {
             self.flush()?;
         }
         Ok(())
@@ -149,7 +176,8 @@ impl<W: Write + Seek> Recorder<W> {
         // The writer closes a chunk at `CHUNK_BYTES` by itself (it does not say when, so this
         // clock may have started in an earlier chunk: it flushes early, never late).
         match self.chunk_opened {
-            None => self.chunk_opened = Some(Instant::now()),
+            None if self.wall_bound.is_some() => self.chunk_opened = Some(Instant::now()),
+            None => {}
             Some(_) => self.flush_if_due()?,
         }
         Ok(())
@@ -314,6 +342,37 @@ mod tests {
         }
         assert_eq!(read, kept.len(), "the cursor keeps what the collected read keeps");
         assert!(cut.unfinished().is_some(), "the cursor reports a truncated file");
+    }
+
+    /// `n` state messages written by `rec`, its finished bytes.
+    fn written(mut rec: Recorder<std::io::Cursor<Vec<u8>>>, n: u64) -> Vec<u8> {
+        for seq in 0..n {
+            rec.record("risktwin/v1/site/veh-1/state", 10 * seq, &state(seq)).expect("record");
+        }
+        rec.finish_into_inner().expect("finish").into_inner()
+    }
+
+    fn chunks(bytes: &[u8]) -> usize {
+        mcap::Summary::read(bytes).expect("summary").expect("a summary").chunk_indexes.len()
+    }
+
+    #[test]
+    fn an_offline_recording_has_no_wall_bound_and_its_bytes_follow_its_input() {
+        let offline = || Recorder::new(std::io::Cursor::new(Vec::new())).expect("recorder");
+        assert_eq!(offline().wall_bound(), None, "offline chunks close by size only");
+        let live = Recorder::live(std::io::Cursor::new(Vec::new())).expect("recorder");
+        assert_eq!(live.wall_bound(), Some(CHUNK_WALL));
+        let (a, b) = (written(offline(), 200), written(offline(), 200));
+        assert_eq!(a, b, "the same messages, the same bytes");
+        assert_eq!(chunks(&a), 1, "200 small messages fit one 1 MiB chunk");
+        // A bound that is always due closes a chunk at every second write (the first write after
+        // the bound): what an offline recorder given a wall bound does once a slow machine
+        // crosses it, other bytes for the same input.
+        let bounded =
+            Recorder::new(std::io::Cursor::new(Vec::new())).expect("recorder").with_wall_bound(Duration::ZERO);
+        let bounded = written(bounded, 200);
+        assert_eq!(chunks(&bounded), 100, "two messages a chunk");
+        assert_eq!(read_messages(&bounded).expect("finished"), read_messages(&a).expect("finished"));
     }
 
     #[test]

@@ -233,7 +233,9 @@ impl LiveIngest {
             Some(path) => {
                 let file = File::create(path)
                     .map_err(|source| RecordError::Create { path: path.display().to_string(), source })?;
-                Some(Recorder::new(BufWriter::new(file))?)
+                // Fed in real time: a chunk closes a second after it opened (see
+                // `flush_recording_if_due`), what a killed cloud can lose.
+                Some(Recorder::live(BufWriter::new(file))?)
             }
             None => None,
         };

@@ -23,7 +23,9 @@ pub const TIMELINE_TOPIC: &str = "/deploy/timeline";
 pub const LINK_TOPIC: &str = "/deploy/link/";
 
 /// The file being written. A write that fails stops the recording (logged once) and never the
-/// deployment.
+/// deployment. Its writes are sparse (an event, twice a second the links), so each is flushed
+/// as a chunk of its own: a killed deployment loses at most the write under way, well within
+/// the live recorder's 1 s bound, which would otherwise wait for the next write.
 pub struct NetworkLog {
     recorder: Option<Recorder<BufWriter<File>>>,
 }
@@ -36,12 +38,12 @@ impl NetworkLog {
     /// Starts `path` (replaced if it exists).
     pub fn create(path: &Path) -> Result<NetworkLog, RecordingError> {
         let file = File::create(path)?;
-        Ok(NetworkLog { recorder: Some(Recorder::new(BufWriter::new(file))?) })
+        Ok(NetworkLog { recorder: Some(Recorder::live(BufWriter::new(file))?) })
     }
 
     fn with(&mut self, write: impl FnOnce(&mut Recorder<BufWriter<File>>) -> Result<(), RecordingError>) {
         if let Some(recorder) = self.recorder.as_mut()
-            && let Err(e) = write(recorder)
+            && let Err(e) = write(recorder).and_then(|()| recorder.flush())
         {
             tracing::warn!("network.mcap: {e}; no more is recorded");
             self.recorder = None;

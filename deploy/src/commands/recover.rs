@@ -68,6 +68,8 @@ pub fn recover(args: RecoverArgs) -> CliResult {
     let scanner = RecordScanner::new(BufReader::with_capacity(1 << 20, file)).with_source_len(len);
     let (recovery, written) = rewrite(scanner, BufWriter::new(temp.as_file_mut())).map_err(|e| match e {
         RecordingError::NotMcap => CliError::input(format!("{input}: {e}")),
+        // A read that fails (a disk error) is no damage to recover around: exit 1.
+        RecordingError::Io(_) => CliError::runtime(format!("{input}: {e}")),
         other => CliError::runtime(format!("{output}: {other}")),
     })?;
     written.into_inner().map_err(|e| cannot_write(e.into_error()))?;

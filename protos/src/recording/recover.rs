@@ -35,8 +35,9 @@ impl Recovery {
 }
 
 /// Reads `scanner`'s file to its end or first damage and writes what it read to `out` as a
-/// finished MCAP file. An error only for a file that is not MCAP or for a failing write; a file
-/// with nothing readable gives an empty (but finished) file and a [`Recovery`] that kept nothing.
+/// finished MCAP file. An error only for a file that is not MCAP, a failing read
+/// ([`RecordingError::Io`]) or a failing write ([`RecordingError::Mcap`]); a file with nothing
+/// readable gives an empty (but finished) file and a [`Recovery`] that kept nothing.
 pub fn recover<R: Read, W: Write + Seek>(
     mut scanner: RecordScanner<R>,
     out: W,
@@ -59,7 +60,9 @@ pub fn recover<R: Read, W: Write + Seek>(
                 recovery.lost = scanner.tail().cloned();
                 break;
             }
-            Err(RecordingError::NotMcap) => return Err(RecordingError::NotMcap),
+            // Not a recording, or one that could not be read: not damage to report as lost
+            // (a failing disk would otherwise pass for a file cut short).
+            Err(e @ (RecordingError::NotMcap | RecordingError::Io(_))) => return Err(e),
             Err(e) => {
                 let at_byte = scanner.record_at();
                 let unreadable_bytes = scanner.source_len().map_or(0, |len| len.saturating_sub(at_byte));
@@ -131,4 +134,46 @@ pub fn recover<R: Read, W: Write + Seek>(
     };
     writer.finish()?;
     Ok((recovery, writer.into_inner()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recording::Recorder;
+
+    /// A source that fails (as a failing disk does) after `ok` bytes.
+    struct FailingAfter<'a> {
+        bytes: &'a [u8],
+        ok: usize,
+    }
+
+    impl Read for FailingAfter<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            if self.ok == 0 {
+                return Err(std::io::Error::other("input/output error"));
+            }
+            let n = buf.len().min(self.ok).min(self.bytes.len());
+            buf[..n].copy_from_slice(&self.bytes[..n]);
+            (self.bytes, self.ok) = (&self.bytes[n..], self.ok - n);
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn a_failing_read_is_an_error_not_damage() {
+        let mut rec = Recorder::new(std::io::Cursor::new(Vec::new())).expect("recorder");
+        let channel = rec.channel("risktwin/v1/s/veh-1/state", "risktwin.v1.VehicleState").expect("channel");
+        for t in 0..50 {
+            rec.write(channel, t, t, &[7; 100]).expect("write");
+        }
+        let bytes = rec.finish_into_inner().expect("finish").into_inner();
+        let whole = recover(RecordScanner::new(bytes.as_slice()), std::io::Cursor::new(Vec::new()));
+        assert!(whole.is_ok_and(|(r, _)| r.messages == 50 && r.lost.is_none()), "the whole file is read");
+        let failing = RecordScanner::new(FailingAfter { bytes: &bytes, ok: bytes.len() / 2 });
+        match recover(failing, std::io::Cursor::new(Vec::new())) {
+            Err(RecordingError::Io(e)) => assert_eq!(e.to_string(), "input/output error"),
+            Err(e) => panic!("another error: {e}"),
+            Ok((r, _)) => panic!("a failing read passed for damage: {r:?}"),
+        }
+    }
 }

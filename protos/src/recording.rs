@@ -16,7 +16,7 @@ pub mod scan;
 
 pub use read::{MessageCursor, MessageRef, RecordedMessage, UnfinishedRecording, read_messages, salvage_messages};
 pub use recover::{Recovery, recover};
-pub use scan::{RECORD_LENGTH_CAP, RecordScanner, Tail};
+pub use scan::{CHUNK_UNCOMPRESSED_CAP, RECORD_LENGTH_CAP, RecordScanner, Tail};
 
 use crate::WireMessage;
 use crate::convert::foxglove::{
@@ -49,19 +49,31 @@ pub enum RecordingError {
     SchemaChanged { topic: String, first: String, now: String },
     #[error("not an MCAP file (it does not start with the MCAP magic)")]
     NotMcap,
-    #[error("record at byte {at_byte} claims {claimed} bytes, {}", match file_len {
-        Some(len) => format!("file has {len}"),
-        None => format!("more than the {RECORD_LENGTH_CAP} a record may have"),
-    })]
+    #[error(
+        "record at byte {at_byte} claims {claimed} bytes, above the {RECORD_LENGTH_CAP}-byte cap{}",
+        file_has(*at_byte, *claimed, *file_len)
+    )]
     RecordTooLong { at_byte: u64, claimed: u64, file_len: Option<u64> },
     #[error(
-        "chunk at byte {at_byte} claims {uncompressed} bytes decompressed, more than the {RECORD_LENGTH_CAP} a chunk may have"
+        "chunk at byte {at_byte} claims {uncompressed} bytes decompressed, above the {CHUNK_UNCOMPRESSED_CAP}-byte cap"
     )]
     ChunkTooLarge { at_byte: u64, uncompressed: u64 },
     #[error("no complete message: {} at byte {} ({} bytes unreadable)", .0.reason, .0.at_byte, .0.unreadable_bytes)]
     NothingReadable(Tail),
     #[error("{0}")]
     Unfinished(Box<UnfinishedRecording>),
+}
+
+/// What a [`RecordingError::RecordTooLong`] adds about the file: its length, "only" when the
+/// record would also run past its end.
+fn file_has(at_byte: u64, claimed: u64, file_len: Option<u64>) -> String {
+    match file_len {
+        Some(len) if at_byte.saturating_add(scan::RECORD_HEAD_LEN as u64).saturating_add(claimed) > len => {
+            format!(" (the file has only {len})")
+        }
+        Some(len) => format!(" (the file has {len})"),
+        None => String::new(),
+    }
 }
 
 /// Writes messages of known protobuf types to an MCAP file.

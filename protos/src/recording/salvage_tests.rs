@@ -80,7 +80,8 @@ fn a_flipped_length_byte_is_an_error_not_an_allocation() {
     flipped[chunks[1].0 as usize + 1 + 7] ^= 0x01;
     let (times, error) = drain(&flipped);
     let error = error.expect("an error");
-    assert!(error.contains(&format!("record at byte {}", chunks[1].0)), "{error}");
+    let cap = format!("record at byte {} claims 72057594037928", chunks[1].0);
+    assert!(error.contains(&cap) && error.contains("above the 268435456-byte cap"), "{error}");
     assert_eq!(times.len() as u64, chunks[0].2, "the messages before the damage");
     // The top byte of the second chunk's uncompressed size (after start and end time).
     let mut flipped = bytes.clone();
@@ -123,4 +124,32 @@ fn a_recorder_that_never_finishes_keeps_what_it_flushed() {
     assert_eq!((unfinished.messages, unfinished.last_log_time_ns), (50, 49));
     assert_eq!(unfinished.tail.at_byte + unfinished.tail.unreadable_bytes, bytes.len() as u64);
     assert!(read_messages(&bytes).is_err(), "the strict reader refuses it");
+}
+
+#[test]
+fn a_chunk_claiming_more_than_the_chunk_cap_decompressed_is_refused_before_allocation() {
+    let (bytes, chunks) = small_chunked(60, 400);
+    let size_at = chunks[1].0 as usize + 9 + 16;
+    let mut claimed = bytes.clone();
+    claimed[size_at..size_at + 8].copy_from_slice(&(CHUNK_UNCOMPRESSED_CAP + 1).to_le_bytes());
+    let (times, error) = drain(&claimed);
+    let error = error.expect("an error");
+    assert!(error.contains(&format!("chunk at byte {}", chunks[1].0)), "{error}");
+    assert!(error.contains("above the 67108864-byte cap"), "{error}");
+    assert_eq!(times.len() as u64, chunks[0].2, "the messages before the damage");
+}
+
+#[test]
+fn a_record_above_the_cap_names_the_cap_and_says_only_when_the_file_is_shorter() {
+    let error =
+        |file_len| RecordingError::RecordTooLong { at_byte: 8, claimed: RECORD_LENGTH_CAP + 1, file_len }.to_string();
+    assert_eq!(
+        error(Some(1 << 30)),
+        "record at byte 8 claims 268435457 bytes, above the 268435456-byte cap (the file has 1073741824)"
+    );
+    assert_eq!(
+        error(Some(100)),
+        "record at byte 8 claims 268435457 bytes, above the 268435456-byte cap (the file has only 100)"
+    );
+    assert_eq!(error(None), "record at byte 8 claims 268435457 bytes, above the 268435456-byte cap");
 }

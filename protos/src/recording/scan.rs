@@ -3,15 +3,19 @@
 //!
 //! The file's top-level records are framed here, not by `mcap`'s `LinearReader`: a record's
 //! byte offset is known (errors name it), its length is checked before anything is read, and a
-//! record's bytes are read as they arrive, so memory never exceeds what the file holds. Only a
-//! complete chunk goes to a `LinearReader` (which decompresses it and checks its CRC before
-//! yielding a record), so a chunk is read whole or not at all.
+//! record's bytes are read as they arrive, so a record never takes more memory than the file
+//! holds. Only a complete chunk goes to a `LinearReader` (which decompresses it and checks its
+//! CRC before yielding a record), so a chunk is read whole or not at all. The one length taken
+//! on trust is a complete chunk's decompressed size, which the `LinearReader` allocates (zeroed)
+//! before it decompresses: [`CHUNK_UNCOMPRESSED_CAP`] bounds it, so a small damaged file can
+//! cost that much memory, no more.
 //!
 //! What counts as an unfinished tail ([`Tail`]) and what as damage (an error): a file that ends
 //! inside a record or between records without its footer, the chunk that the `mcap` writer
 //! leaves open with a placeholder length of `u64::MAX` (a recorder killed mid-chunk), and bytes
 //! that do not start with an MCAP opcode (garbage after the last record) are a tail; a length
-//! above [`RECORD_LENGTH_CAP`], a complete chunk that does not decompress or fails its CRC, and
+//! above [`RECORD_LENGTH_CAP`] (a chunk's decompressed size above [`CHUNK_UNCOMPRESSED_CAP`]), a
+//! complete chunk that does not decompress or fails its CRC, and
 //! a file without the MCAP magic are errors.
 
 use super::RecordingError;
@@ -19,13 +23,20 @@ use mcap::records::op;
 use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use std::io::Read;
 
-/// The largest record, and the largest decompressed chunk, a reader takes: 256 MiB. A writer's
-/// chunks are about 1 MiB (ours: see `CHUNK_BYTES`), so only a damaged length claims more; the
-/// cap bounds the memory one record can take (it is held whole while it is read).
+/// The largest record a reader takes: 256 MiB. A writer's chunks are about 1 MiB (ours: see
+/// `CHUNK_BYTES`), so only a damaged length or an outsized attachment claims more; the cap
+/// bounds the memory one record can take (it is held whole, but only as far as the file backs
+/// it: its bytes are read as they arrive).
 pub const RECORD_LENGTH_CAP: u64 = 256 << 20;
 
+/// The largest decompressed size a chunk may claim: 64 MiB. Ours close at 1 MiB, other writers'
+/// defaults are a few MiB (a chunk may outgrow its bound by its last message), so this leaves
+/// room for large messages; unlike a record's length it is allocated up front when the chunk
+/// is decompressed, so it is the memory a 100-byte damaged file can cost.
+pub const CHUNK_UNCOMPRESSED_CAP: u64 = 64 << 20;
+
 /// Bytes of a record before its body: opcode (1) and length (8).
-const RECORD_HEAD_LEN: usize = 9;
+pub(super) const RECORD_HEAD_LEN: usize = 9;
 /// Read size while a record's body comes in: memory grows with the bytes that exist.
 const READ_STEP: u64 = 1 << 20;
 /// Offset of a chunk's uncompressed size in its body: after start and end time.
@@ -235,7 +246,7 @@ impl<R: Read> RecordScanner<R> {
             .and_then(|b| b.try_into().ok())
             .map(u64::from_le_bytes)
             .ok_or_else(|| RecordingError::Corrupt { reason: format!("chunk at byte {at_byte}: a short header") })?;
-        if uncompressed > RECORD_LENGTH_CAP {
+        if uncompressed > CHUNK_UNCOMPRESSED_CAP {
             return Err(RecordingError::ChunkTooLarge { at_byte, uncompressed });
         }
         // No record inside is longer than the chunk holds, decompressed or not.

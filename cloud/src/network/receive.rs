@@ -570,7 +570,6 @@ impl LiveIngest {
         }
     }
 
-    /// When the last sample (accepted or not) arrived.
     /// Closes the recording's open chunk once it is a second old, so a cloud that goes quiet
     /// and is then killed keeps what it received (a chunk otherwise closes at the next message).
     pub fn flush_recording_if_due(&mut self) -> Result<(), RecordError> {
@@ -580,6 +579,7 @@ impl LiveIngest {
         }
     }
 
+    /// When the last sample (accepted or not) arrived.
     pub(crate) fn last_sample(&self) -> Option<Instant> {
         self.last_sample
     }

@@ -2,6 +2,7 @@
 //! contract in `docs/cli.md`.
 
 mod bad_db;
+mod bad_library_rows;
 mod bad_run;
 mod bad_spec;
 mod bad_usage;
@@ -12,6 +13,7 @@ mod criticality;
 mod damaged_recording;
 mod determinism;
 mod floor;
+mod hostile_commonroad;
 mod mutate;
 mod real_data;
 mod recorded;

@@ -20,8 +20,40 @@ pub enum LibraryError {
     UnknownScenario(String),
     #[error("stored scenario {id} is corrupt: {reason}")]
     Corrupt { id: String, reason: String },
+    #[error("library {}: row id {row}: {table}: {reason}", path.display())]
+    BadRow { path: PathBuf, table: &'static str, row: String, reason: String },
+    #[error("{} is a RiskTwin scenario library with the wrong schema: {reason}", path.display())]
+    WrongSchema { path: PathBuf, reason: String },
     #[error("scenario library database error: {0}")]
     Sqlite(#[from] rusqlite::Error),
+}
+
+impl LibraryError {
+    /// Whether the error lies in the file (not SQLite, not a library, a schema or a row that
+    /// this build never writes, a damaged page, a stored value of the wrong type) rather than in
+    /// the run (I/O, a lock held too long): the CLI's bad input (exit 2) against a runtime
+    /// failure (exit 1).
+    pub fn blames_the_file(&self) -> bool {
+        use rusqlite::ErrorCode::{DatabaseCorrupt, NotADatabase};
+        match self {
+            LibraryError::NotSqlite { .. }
+            | LibraryError::NotALibrary { .. }
+            | LibraryError::UnsupportedVersion { .. }
+            | LibraryError::Corrupt { .. }
+            | LibraryError::BadRow { .. }
+            | LibraryError::WrongSchema { .. } => true,
+            LibraryError::Open { source: e, .. } | LibraryError::Sqlite(e) => {
+                matches!(e.sqlite_error_code(), Some(DatabaseCorrupt | NotADatabase))
+                    || matches!(
+                        e,
+                        rusqlite::Error::InvalidColumnType(..)
+                            | rusqlite::Error::FromSqlConversionFailure(..)
+                            | rusqlite::Error::IntegralValueOutOfRange(..)
+                    )
+            }
+            LibraryError::InvalidRecord { .. } | LibraryError::UnknownScenario(_) => false,
+        }
+    }
 }
 
 /// What is wrong with a record offered to the library (checked before anything is written).

@@ -5,10 +5,10 @@
 
 use super::connection::ScenarioLibrary;
 use super::error::LibraryError;
-use super::query::{OUTCOME_COLUMNS, outcome_from_row_at};
 use super::rank::RankedScenario;
 use super::record::{DEFAULT_POLICY, Outcome, validate_outcome};
 use super::store::{insert_outcome, outcome_insert_sql};
+use super::stored::{OUTCOME_COLUMN_COUNT, OUTCOME_COLUMNS, OutcomeRow};
 use risktwin_common::telemetry::PolicyRef;
 use rusqlite::{OptionalExtension, TransactionBehavior, params};
 use std::path::Path;
@@ -50,6 +50,21 @@ pub struct FleetEpisode {
     pub twin_ticks: u64,
     /// Where the edge and the twin disagree, in words; `None` when they agree.
     pub disagreement: Option<String>,
+}
+
+/// A `fleet_episodes` row joined with its outcome rows, before the outcomes are checked.
+struct EpisodeRow {
+    seq: i64,
+    scenario_id: String,
+    site: String,
+    edge: String,
+    policy: Option<PolicyRef>,
+    scene: Option<String>,
+    push_seq: Option<i64>,
+    twin_ticks: u64,
+    disagreement: Option<String>,
+    edge_outcome: OutcomeRow,
+    twin_outcome: Option<OutcomeRow>,
 }
 
 /// A stored fleet episode.
@@ -199,7 +214,12 @@ impl ScenarioLibrary {
 
     /// Every fleet episode, oldest first.
     pub fn fleet_episodes(&self) -> Result<Vec<StoredFleetEpisode>, LibraryError> {
-        let columns_of = |table: &str| OUTCOME_COLUMNS.split(", ").map(|c| format!("{table}.{c}")).collect::<Vec<_>>();
+        let columns_of = |table: &str| {
+            std::iter::once("seq")
+                .chain(OUTCOME_COLUMNS.split(", "))
+                .map(|c| format!("{table}.{c}"))
+                .collect::<Vec<_>>()
+        };
         let (edge_columns, twin_columns) = (columns_of("o").join(", "), columns_of("t").join(", "));
         let mut stmt = self.conn.prepare_cached(&format!(
             "SELECT f.seq, f.scenario_id, f.site, f.edge, f.policy_id, f.policy_version, f.scene, f.push_seq, \
@@ -207,7 +227,7 @@ impl ScenarioLibrary {
              FROM fleet_episodes f JOIN outcomes o ON o.seq = f.edge_outcome_seq \
              LEFT JOIN twin_outcomes t ON t.seq = f.twin_outcome_seq ORDER BY f.seq"
         ))?;
-        let columns = OUTCOME_COLUMNS.split(", ").count();
+        let columns = OUTCOME_COLUMN_COUNT + 1;
         let rows = stmt.query_map([], |r| {
             let policy = match (r.get::<_, Option<String>>(4)?, r.get::<_, Option<i64>>(5)?) {
                 (Some(policy_id), Some(version)) => {
@@ -216,7 +236,8 @@ impl ScenarioLibrary {
                 _ => None,
             };
             let watched: bool = r.get(10)?;
-            let episode = FleetEpisode {
+            Ok(EpisodeRow {
+                seq: r.get(0)?,
                 scenario_id: r.get(1)?,
                 site: r.get(2)?,
                 edge: r.get(3)?,
@@ -225,12 +246,27 @@ impl ScenarioLibrary {
                 push_seq: r.get(7)?,
                 twin_ticks: r.get::<_, i64>(8)?.max(0) as u64,
                 disagreement: r.get(9)?,
-                edge_outcome: outcome_from_row_at(r, 11)?,
-                twin_outcome: if watched { Some(outcome_from_row_at(r, 11 + columns)?) } else { None },
-            };
-            Ok(StoredFleetEpisode { seq: r.get(0)?, episode })
+                edge_outcome: OutcomeRow::read_at(r, 11)?,
+                twin_outcome: if watched { Some(OutcomeRow::read_at(r, 11 + columns)?) } else { None },
+            })
         })?;
-        Ok(rows.collect::<Result<_, _>>()?)
+        rows.map(|row| {
+            let row = row?;
+            let episode = FleetEpisode {
+                scenario_id: row.scenario_id,
+                site: row.site,
+                edge: row.edge,
+                policy: row.policy,
+                scene: row.scene,
+                push_seq: row.push_seq,
+                edge_outcome: row.edge_outcome.checked(&self.path, "outcomes")?,
+                twin_outcome: row.twin_outcome.map(|t| t.checked(&self.path, "twin_outcomes")).transpose()?,
+                twin_ticks: row.twin_ticks,
+                disagreement: row.disagreement,
+            };
+            Ok(StoredFleetEpisode { seq: row.seq, episode })
+        })
+        .collect()
     }
 
     /// Counts of the loop's state.

@@ -51,6 +51,14 @@
 //!   reasons, failures)` and `policy_pushes(version → policies, site, edge)` (version 3): the
 //!   policy versions the trainer produced, the gate's decision, and where each went.
 //!
+//! # Reading back
+//! A file is input: every outcome read back is checked as a write is (risk terms and route
+//! completion in [0, 1], `min_ttc_s` NULL or ≥ 0, distances and speeds ≥ 0, every number finite,
+//! flags 0/1, `steps` ≥ 0), and at open the schema must be this build's to the letter (a table
+//! rebuilt without its CHECKs is refused). A row that fails is [`LibraryError::BadRow`]
+//! (`library FILE: row id SEQ: TABLE: …`), a damaged page SQLite's "malformed" error; both are
+//! the file's fault ([`LibraryError::blames_the_file`]), which the CLI reports as bad input.
+//!
 //! # Versions
 //! `schema::MIGRATIONS[v]` takes a file from version `v` to `v + 1` inside one IMMEDIATE
 //! transaction at open; a new file runs them all, so new and upgraded files are the same.
@@ -67,6 +75,7 @@ mod recorded;
 mod regression;
 mod schema;
 mod store;
+mod stored;
 
 #[cfg(test)]
 mod fixtures;

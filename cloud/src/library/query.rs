@@ -3,53 +3,11 @@
 
 use super::connection::ScenarioLibrary;
 use super::error::LibraryError;
-use super::record::{DEFAULT_POLICY, KindCounts, Origin, Outcome, StoredScenario};
-use risktwin_common::metrics::EpisodeMetrics;
-use risktwin_common::risk::RiskTerms;
+use super::record::{DEFAULT_POLICY, KindCounts, Origin, StoredScenario};
+use super::stored::{OUTCOME_COLUMNS, OutcomeRow};
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
-use rusqlite::{OptionalExtension, Row};
+use rusqlite::OptionalExtension;
 use std::collections::BTreeMap;
-
-/// The outcome columns, in the order `outcome_from_row` reads them.
-pub(super) const OUTCOME_COLUMNS: &str = "policy, collision, offroad, success, route_completion, avg_speed_mps, \
-     steering_smoothness, longitudinal_smoothness, min_ttc_s, min_distance_m, episode_risk_score, reward, steps, \
-     risk_score, risk_ttc, risk_dist, risk_lane, risk_jerk, risk_collision";
-
-pub(super) fn outcome_from_row(r: &Row<'_>) -> rusqlite::Result<Outcome> {
-    outcome_from_row_at(r, 0)
-}
-
-/// The outcome whose [`OUTCOME_COLUMNS`] start at column `first` of the row.
-pub(super) fn outcome_from_row_at(r: &Row<'_>, first: usize) -> rusqlite::Result<Outcome> {
-    let at = |k: usize| first + k;
-    let steps: i64 = r.get(at(12))?;
-    Ok(Outcome {
-        policy: r.get(at(0))?,
-        metrics: EpisodeMetrics {
-            collision: r.get(at(1))?,
-            offroad: r.get(at(2))?,
-            success: r.get(at(3))?,
-            route_completion: r.get(at(4))?,
-            avg_speed_mps: r.get(at(5))?,
-            steering_smoothness: r.get(at(6))?,
-            longitudinal_smoothness: r.get(at(7))?,
-            min_ttc_s: r.get(at(8))?,
-            min_distance_m: r.get(at(9))?,
-            risk_score: r.get(at(10))?,
-            reward: r.get(at(11))?,
-            // The column CHECK keeps steps non-negative.
-            steps: steps.max(0) as u64,
-        },
-        risk: RiskTerms {
-            score: r.get(at(13))?,
-            ttc: r.get(at(14))?,
-            dist: r.get(at(15))?,
-            lane: r.get(at(16))?,
-            jerk: r.get(at(17))?,
-            collision: r.get(at(18))?,
-        },
-    })
-}
 
 /// Rebuilds and re-validates a spec from its columns; a row that fails is reported as corrupt.
 /// Seeds are u64 stored bit for bit in SQLite's signed 64-bit integers.
@@ -93,10 +51,11 @@ impl ScenarioLibrary {
             id: id.to_string(),
             reason: format!("generation {generation} out of range"),
         })?;
-        let mut stmt = self
-            .conn
-            .prepare_cached(&format!("SELECT {OUTCOME_COLUMNS} FROM outcomes WHERE scenario_id = ?1 ORDER BY seq"))?;
-        let outcomes = stmt.query_map([id], outcome_from_row)?.collect::<Result<Vec<_>, _>>()?;
+        let mut stmt = self.conn.prepare_cached(&format!(
+            "SELECT seq, {OUTCOME_COLUMNS} FROM outcomes WHERE scenario_id = ?1 ORDER BY seq"
+        ))?;
+        let rows = stmt.query_map([id], |r| OutcomeRow::read_at(r, 0))?.collect::<Result<Vec<_>, _>>()?;
+        let outcomes = rows.into_iter().map(|o| o.checked(&self.path, "outcomes")).collect::<Result<_, _>>()?;
         Ok(Some(StoredScenario {
             id: id.to_string(),
             spec,

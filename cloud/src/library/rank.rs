@@ -7,7 +7,8 @@
 use super::connection::ScenarioLibrary;
 use super::error::LibraryError;
 use super::query::decode_spec;
-use super::record::DEFAULT_POLICY;
+use super::record::{DEFAULT_POLICY, Outcome};
+use super::stored::{OUTCOME_COLUMNS, OutcomeRow, file_of};
 use risktwin_common::digest::fnv1a64;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::rng::Rng;
@@ -15,6 +16,7 @@ use risktwin_common::scenario::ScenarioKind;
 use rusqlite::Connection;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::path::Path;
 
 /// One element of `scenarios rank --format json` (docs/cli.md), field for field.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -36,7 +38,16 @@ pub struct RankOutcome {
     pub min_distance_m: f64,
 }
 
-type RankRow = (String, String, i64, String, [f64; 6], bool, Option<f64>, f64);
+impl RankOutcome {
+    /// The ranking's part of a (checked) outcome.
+    pub(super) fn of(o: &Outcome) -> Self {
+        Self {
+            collision: o.metrics.collision,
+            min_ttc_s: o.metrics.min_ttc_s,
+            min_distance_m: o.metrics.min_distance_m,
+        }
+    }
+}
 
 impl ScenarioLibrary {
     /// The `top` riskiest scenarios (all when `None`), of one kind or all, by the latest
@@ -63,7 +74,7 @@ impl ScenarioLibrary {
 
     /// [`Self::riskiest_unpushed`] on `conn` (a transaction of the library's connection).
     pub(super) fn riskiest_unpushed_in(conn: &Connection) -> Result<Option<RankedScenario>, LibraryError> {
-        Ok(rank_on(conn, DEFAULT_POLICY, Some(1), None, true)?.pop())
+        Ok(rank_on(conn, &file_of(conn), DEFAULT_POLICY, Some(1), None, true)?.pop())
     }
 
     fn rank_where(
@@ -73,7 +84,7 @@ impl ScenarioLibrary {
         kind: Option<ScenarioKind>,
         unpushed: bool,
     ) -> Result<Vec<RankedScenario>, LibraryError> {
-        rank_on(&self.conn, policy, top, kind, unpushed)
+        rank_on(&self.conn, &self.path, policy, top, kind, unpushed)
     }
 
     /// The `k` riskiest scenarios, to replay through the pipeline.
@@ -103,10 +114,11 @@ impl ScenarioLibrary {
     }
 }
 
-/// The ranking on `conn`: by `policy`'s latest outcome, highest risk first, ties by id; of one
+/// The ranking on `conn` (a library in `file`): by `policy`'s latest outcome, highest risk first, ties by id; of one
 /// kind or all; only scenarios never pushed when `unpushed`.
 fn rank_on(
     conn: &Connection,
+    file: &Path,
     policy: &str,
     top: Option<usize>,
     kind: Option<ScenarioKind>,
@@ -114,55 +126,30 @@ fn rank_on(
 ) -> Result<Vec<RankedScenario>, LibraryError> {
     // SQLite reads a negative LIMIT as "no limit".
     let limit = top.map_or(-1, |k| i64::try_from(k).unwrap_or(i64::MAX));
-    let mut stmt = conn.prepare_cached(
-        "SELECT s.id, s.kind, s.seed, s.params, \
-                    o.risk_score, o.risk_ttc, o.risk_dist, o.risk_lane, o.risk_jerk, o.risk_collision, \
-                    o.collision, o.min_ttc_s, o.min_distance_m \
+    let outcome_columns = OUTCOME_COLUMNS.split(", ").map(|c| format!("o.{c}")).collect::<Vec<_>>().join(", ");
+    let mut stmt = conn.prepare_cached(&format!(
+        "SELECT s.id, s.kind, s.seed, s.params, o.seq, {outcome_columns} \
              FROM outcomes o JOIN scenarios s ON s.id = o.scenario_id \
              WHERE o.policy = ?1 \
                AND o.seq = (SELECT MAX(seq) FROM outcomes WHERE scenario_id = s.id AND policy = ?1) \
                AND (?2 IS NULL OR s.kind = ?2) \
                AND (?4 = 0 OR NOT EXISTS (SELECT 1 FROM pushes p WHERE p.scenario_id = s.id)) \
              ORDER BY o.risk_score DESC, s.id ASC \
-             LIMIT ?3",
-    )?;
-    let rows: Vec<RankRow> = stmt
+             LIMIT ?3"
+    ))?;
+    type Row = (String, String, i64, String, OutcomeRow);
+    let rows: Vec<Row> = stmt
         .query_map(rusqlite::params![policy, kind.map(ScenarioKind::name), limit, unpushed], |r| {
-            Ok((
-                r.get(0)?,
-                r.get(1)?,
-                r.get(2)?,
-                r.get(3)?,
-                [r.get(4)?, r.get(5)?, r.get(6)?, r.get(7)?, r.get(8)?, r.get(9)?],
-                r.get(10)?,
-                r.get(11)?,
-                r.get(12)?,
-            ))
+            Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, OutcomeRow::read_at(r, 4)?))
         })?
         .collect::<Result<_, _>>()?;
     rows.into_iter()
-        .map(
-            |(
-                id,
-                kind,
-                seed,
-                params,
-                [score, ttc, dist, lane, jerk, collision_term],
-                collision,
-                min_ttc_s,
-                min_distance_m,
-            )| {
-                let spec = decode_spec(&id, &kind, seed, &params)?;
-                Ok(RankedScenario {
-                    id,
-                    kind: spec.kind,
-                    seed: spec.seed,
-                    params: spec.params,
-                    risk: RiskTerms { score, ttc, dist, lane, jerk, collision: collision_term },
-                    outcome: RankOutcome { collision, min_ttc_s, min_distance_m },
-                })
-            },
-        )
+        .map(|(id, kind, seed, params, outcome)| {
+            let outcome = outcome.checked(file, "outcomes")?;
+            let spec = decode_spec(&id, &kind, seed, &params)?;
+            let (risk, outcome) = (outcome.risk, RankOutcome::of(&outcome));
+            Ok(RankedScenario { id, kind: spec.kind, seed: spec.seed, params: spec.params, risk, outcome })
+        })
         .collect()
 }
 

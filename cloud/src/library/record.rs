@@ -135,7 +135,7 @@ fn within(field: &'static str, value: f64, min: f64, max: f64) -> Result<(), Rec
 /// contract writes as null, so both become NULL; a negative TTC is an error, not a value.
 pub fn ttc_for_storage(min_ttc_s: Option<f64>) -> Result<Option<f64>, RecordError> {
     match min_ttc_s {
-        Some(t) if t.is_finite() => within("min_ttc_s", t, 0.0, f64::MAX).map(|()| Some(t)),
+        Some(t) if t.is_finite() => within("min_ttc_s", t, 0.0, f64::INFINITY).map(|()| Some(t)),
         Some(t) if t == f64::INFINITY || t.is_nan() => Ok(None),
         Some(t) => Err(RecordError::OutOfRange { field: "min_ttc_s", value: t, min: 0.0, max: f64::INFINITY }),
         None => Ok(None),
@@ -160,8 +160,8 @@ pub fn validate_outcome(o: &Outcome) -> Result<(), RecordError> {
     }
     let m = &o.metrics;
     within("route_completion", m.route_completion, 0.0, 1.0)?;
-    within("avg_speed_mps", m.avg_speed_mps, 0.0, f64::MAX)?;
-    within("min_distance_m", m.min_distance_m, 0.0, f64::MAX)?;
+    within("avg_speed_mps", m.avg_speed_mps, 0.0, f64::INFINITY)?;
+    within("min_distance_m", m.min_distance_m, 0.0, f64::INFINITY)?;
     finite("steering_smoothness", m.steering_smoothness)?;
     finite("longitudinal_smoothness", m.longitudinal_smoothness)?;
     finite("risk_score", m.risk_score)?;

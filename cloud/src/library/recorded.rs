@@ -5,10 +5,10 @@
 
 use super::connection::ScenarioLibrary;
 use super::error::{LibraryError, RecordError};
-use super::query::{OUTCOME_COLUMNS, outcome_from_row};
 use super::rank::RankOutcome;
 use super::record::{Outcome, ttc_for_storage, validate_outcome};
 use super::store::{insert_outcome, outcome_insert_sql};
+use super::stored::{OUTCOME_COLUMNS, OutcomeRow, file_of};
 use risktwin_common::digest::fnv1a64;
 use risktwin_common::risk::RiskTerms;
 use rusqlite::{OptionalExtension, Transaction, TransactionBehavior, params};
@@ -98,11 +98,13 @@ fn append_outcome(tx: &Transaction<'_>, id: &str, outcome: &Outcome) -> Result<b
     validate_outcome(outcome).map_err(|source| LibraryError::InvalidRecord { id: id.to_string(), source })?;
     let latest = tx
         .prepare_cached(&format!(
-            "SELECT {OUTCOME_COLUMNS} FROM recorded_outcomes WHERE case_id = ?1 AND policy = ?2 \
+            "SELECT seq, {OUTCOME_COLUMNS} FROM recorded_outcomes WHERE case_id = ?1 AND policy = ?2 \
              ORDER BY seq DESC LIMIT 1"
         ))?
-        .query_row(params![id, outcome.policy], outcome_from_row)
-        .optional()?;
+        .query_row(params![id, outcome.policy], |r| OutcomeRow::read_at(r, 0))
+        .optional()?
+        .map(|row| row.checked(&file_of(tx), "recorded_outcomes"))
+        .transpose()?;
     // Compare as stored: an infinite TTC comes back as None.
     let mut as_stored = outcome.clone();
     as_stored.metrics.min_ttc_s = ttc_for_storage(outcome.metrics.min_ttc_s)
@@ -116,7 +118,7 @@ fn append_outcome(tx: &Transaction<'_>, id: &str, outcome: &Outcome) -> Result<b
 }
 
 type CaseRow = (String, String, String, i64, String, i64);
-type RankedRow = (String, String, String, i64, String, [f64; 6], bool, Option<f64>, f64);
+type RankedRow = (String, String, String, i64, String, OutcomeRow);
 
 impl ScenarioLibrary {
     /// Stores a recorded case with an outcome (its reference: policy [`REPLAY_POLICY`]) in one
@@ -183,9 +185,11 @@ impl ScenarioLibrary {
             });
         }
         let mut stmt = self.conn.prepare_cached(&format!(
-            "SELECT {OUTCOME_COLUMNS} FROM recorded_outcomes WHERE case_id = ?1 ORDER BY seq"
+            "SELECT seq, {OUTCOME_COLUMNS} FROM recorded_outcomes WHERE case_id = ?1 ORDER BY seq"
         ))?;
-        let outcomes = stmt.query_map([id], outcome_from_row)?.collect::<Result<Vec<_>, _>>()?;
+        let rows = stmt.query_map([id], |r| OutcomeRow::read_at(r, 0))?.collect::<Result<Vec<_>, _>>()?;
+        let outcomes =
+            rows.into_iter().map(|o| o.checked(&self.path, "recorded_outcomes")).collect::<Result<_, _>>()?;
         Ok(Some(StoredCase {
             id: id.to_string(),
             case: RecordedCase { source_name, benchmark_id, ego_id: ego_id as u64, xml },
@@ -199,32 +203,21 @@ impl ScenarioLibrary {
     pub fn rank_recorded(&self, policy: &str, top: Option<usize>) -> Result<Vec<RankedCase>, LibraryError> {
         // SQLite reads a negative LIMIT as "no limit".
         let limit = top.map_or(-1, |k| i64::try_from(k).unwrap_or(i64::MAX));
-        let mut stmt = self.conn.prepare_cached(
-            "SELECT c.id, c.kind, c.benchmark_id, c.ego_id, c.source_name, \
-                    o.risk_score, o.risk_ttc, o.risk_dist, o.risk_lane, o.risk_jerk, o.risk_collision, \
-                    o.collision, o.min_ttc_s, o.min_distance_m \
+        let outcome_columns = OUTCOME_COLUMNS.split(", ").map(|c| format!("o.{c}")).collect::<Vec<_>>().join(", ");
+        let mut stmt = self.conn.prepare_cached(&format!(
+            "SELECT c.id, c.kind, c.benchmark_id, c.ego_id, c.source_name, o.seq, {outcome_columns} \
              FROM recorded_outcomes o JOIN recorded c ON c.id = o.case_id \
              WHERE o.policy = ?1 \
                AND o.seq = (SELECT MAX(seq) FROM recorded_outcomes WHERE case_id = c.id AND policy = ?1) \
              ORDER BY o.risk_score DESC, c.id ASC \
-             LIMIT ?2",
-        )?;
+             LIMIT ?2"
+        ))?;
         let rows = stmt.query_map(params![policy, limit], |r| {
-            Ok((
-                r.get(0)?,
-                r.get(1)?,
-                r.get(2)?,
-                r.get(3)?,
-                r.get(4)?,
-                [r.get(5)?, r.get(6)?, r.get(7)?, r.get(8)?, r.get(9)?, r.get(10)?],
-                r.get(11)?,
-                r.get(12)?,
-                r.get(13)?,
-            ))
+            Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?, OutcomeRow::read_at(r, 5)?))
         })?;
         rows.map(|row| {
-            let (id, kind, benchmark_id, ego_id, source, terms, collision, min_ttc_s, min_distance_m): RankedRow = row?;
-            let [score, ttc, dist, lane, jerk, collision_term] = terms;
+            let (id, kind, benchmark_id, ego_id, source, outcome): RankedRow = row?;
+            let outcome = outcome.checked(&self.path, "recorded_outcomes")?;
             Ok(RankedCase {
                 id,
                 kind,
@@ -232,8 +225,8 @@ impl ScenarioLibrary {
                 ego_id: ego_id as u64,
                 source,
                 params: BTreeMap::new(),
-                risk: RiskTerms { score, ttc, dist, lane, jerk, collision: collision_term },
-                outcome: RankOutcome { collision, min_ttc_s, min_distance_m },
+                risk: outcome.risk,
+                outcome: RankOutcome::of(&outcome),
             })
         })
         .collect()

@@ -236,6 +236,44 @@ pub fn prepare(conn: &mut Connection, path: &Path) -> Result<(), LibraryError> {
         tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
         tx.commit()?;
     }
+    check_schema(conn, path)
+}
+
+/// Every table's and index's SQL, by name, as SQLite keeps it.
+fn objects_of(conn: &Connection) -> rusqlite::Result<Vec<(String, String, Option<String>)>> {
+    let mut stmt =
+        conn.prepare("SELECT type, name, sql FROM sqlite_schema WHERE name NOT LIKE 'sqlite_%' ORDER BY type, name")?;
+    let rows = stmt.query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))?;
+    rows.collect()
+}
+
+/// Refuses a file whose tables and indexes are not this build's to the letter: the CHECKs and
+/// NOT NULLs are what keep the rows in range, and a table rebuilt without them (or an extra
+/// trigger that rewrites rows) is not a library this build wrote. The reference is the
+/// migrations run on an empty in-memory database (new and upgraded files are the same).
+fn check_schema(conn: &Connection, path: &Path) -> Result<(), LibraryError> {
+    let wrong = |reason: String| LibraryError::WrongSchema { path: path.to_path_buf(), reason };
+    let expected = {
+        let reference = Connection::open_in_memory()?;
+        for ddl in MIGRATIONS {
+            reference.execute_batch(ddl)?;
+        }
+        objects_of(&reference)?
+    };
+    let found = objects_of(conn).map_err(|e| read_error(path, e))?;
+    for (kind, name, sql) in &expected {
+        match found.iter().find(|(k, n, _)| k == kind && n == name) {
+            None => return Err(wrong(format!("{kind} {name} is missing"))),
+            Some((_, _, s)) if s != sql => {
+                return Err(wrong(format!("{kind} {name} is not defined as this build defines it")));
+            }
+            Some(_) => {}
+        }
+    }
+    if let Some((kind, name, _)) = found.iter().find(|(k, n, _)| !expected.iter().any(|(ek, en, _)| ek == k && en == n))
+    {
+        return Err(wrong(format!("{kind} {name} is not part of a library")));
+    }
     Ok(())
 }
 
@@ -425,5 +463,33 @@ mod tests {
             matches!(dir_as_file, Err(LibraryError::Open { .. } | LibraryError::NotSqlite { .. })),
             "{dir_as_file:?}"
         );
+    }
+
+    #[test]
+    fn a_table_rebuilt_without_its_checks_or_an_extra_trigger_is_the_wrong_schema() {
+        let cases = [
+            (
+                "CREATE TABLE o2 AS SELECT * FROM outcomes; DROP TABLE outcomes; ALTER TABLE o2 RENAME TO outcomes;",
+                "outcomes",
+            ),
+            ("CREATE TRIGGER t AFTER INSERT ON outcomes BEGIN SELECT 1; END;", "trigger t"),
+            ("DROP INDEX outcomes_latest;", "index outcomes_latest is missing"),
+        ];
+        for (sql, needle) in cases {
+            let (dir, lib) = file_library();
+            drop(lib);
+            let path = dir.path().join("library.db");
+            Connection::open(&path)
+                .expect("raw")
+                .execute_batch(&format!("PRAGMA foreign_keys = OFF; {sql}"))
+                .expect("ddl");
+            match ScenarioLibrary::open(&path) {
+                Err(e @ LibraryError::WrongSchema { .. }) => {
+                    assert!(e.to_string().contains(needle), "{sql}: {e}");
+                    assert!(e.blames_the_file());
+                }
+                other => panic!("{sql}: expected WrongSchema, got {other:?}"),
+            }
+        }
     }
 }

@@ -3,8 +3,9 @@
 
 use super::connection::ScenarioLibrary;
 use super::error::{LibraryError, RecordError};
-use super::query::{OUTCOME_COLUMNS, decode_kind};
+use super::query::decode_kind;
 use super::record::{InsertSummary, Outcome, Rejection, ScenarioRecord, content_id, ttc_for_storage, validate_record};
+use super::stored::OUTCOME_COLUMNS;
 use rusqlite::{OptionalExtension, Statement, TransactionBehavior, params};
 
 impl ScenarioLibrary {

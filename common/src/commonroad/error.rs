@@ -19,6 +19,15 @@ pub enum CommonRoadError {
     /// A structurally valid element whose content is inconsistent.
     #[error("<{element}> (line {line}): {reason}")]
     Invalid { element: String, line: u32, reason: String },
+    /// A document longer than [`super::limits::MAX_XML_BYTES`].
+    #[error("the file is {bytes} bytes, more than the {max} a CommonRoad file may have")]
+    TooLarge { bytes: u64, max: u64 },
+    /// Elements nested deeper than [`super::limits::MAX_DEPTH`].
+    #[error("line {line}: elements nested deeper than {max} levels (CommonRoad nests about 8)")]
+    TooDeep { line: u32, max: usize },
+    /// More XML nodes than [`super::limits::MAX_NODES`].
+    #[error("more than {max} XML nodes (elements and texts)")]
+    TooManyNodes { max: u32 },
     /// Two dynamic obstacles with one id (in a scenario built from parts).
     #[error("dynamic obstacle id {id} appears twice")]
     DuplicateObstacle { id: u64 },

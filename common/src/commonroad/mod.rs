@@ -4,6 +4,8 @@
 //!
 //! - [`parse_scenario`]: XML text → [`Scenario`] (pure, no I/O; errors name the element, its id,
 //!   its line and the reason — [`CommonRoadError`]).
+//! - [`limits`]: the size, nesting depth and node count a document may have (a hostile file is
+//!   an error, not a stack overflow).
 //! - [`to_xml`]: [`Scenario`] → XML text that [`parse_scenario`] reads back equal.
 //! - [`lanelet`]: the lanelet network (bounds → centrelines, widths, adjacency, links, polygons).
 //! - [`model`]: obstacles (type, shape, initial state, trajectory or occupancy set), planning
@@ -24,6 +26,7 @@
 pub mod criticality;
 mod error;
 pub mod lanelet;
+pub mod limits;
 pub mod model;
 mod parse;
 pub mod twin;

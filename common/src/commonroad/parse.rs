@@ -5,6 +5,7 @@
 
 use super::error::CommonRoadError;
 use super::lanelet::{Adjacency, Lanelet, LaneletNetwork};
+use super::limits;
 use super::model::{
     DynamicObstacle, Incoming, Intersection, ObstacleState, Occupancy, PlacedShape, PlanningProblem, Scenario, Shape,
     StaticObstacle,
@@ -14,12 +15,25 @@ use crate::geometry::Vec2;
 use std::collections::{HashMap, HashSet};
 
 /// Parses a CommonRoad XML document.
+///
+/// A document over the [`limits`](super::limits) (size, nesting depth, nodes) is refused
+/// before or while roxmltree reads it.
 pub fn parse_scenario(text: &str) -> Result<Scenario, CommonRoadError> {
+    limits::check_size(text)?;
+    limits::check_depth(text)?;
+    let options = roxmltree::ParsingOptions { allow_dtd: false, nodes_limit: limits::MAX_NODES };
     let source = Source::new(text);
-    let doc = match roxmltree::Document::parse(&source.compact) {
+    let doc = match roxmltree::Document::parse_with_options(&source.compact, options) {
         Ok(doc) => doc,
-        // Report the error with the original's positions.
-        Err(e) => return Err(roxmltree::Document::parse(text).err().unwrap_or(e).into()),
+        Err(roxmltree::Error::NodesLimitReached) => {
+            return Err(CommonRoadError::TooManyNodes { max: limits::MAX_NODES });
+        }
+        // Report the error with the original's positions (the original has more nodes: the
+        // blank runs between tags, so the limit is not applied to it).
+        Err(e) => {
+            let original = roxmltree::ParsingOptions { allow_dtd: false, nodes_limit: u32::MAX };
+            return Err(roxmltree::Document::parse_with_options(text, original).err().unwrap_or(e).into());
+        }
     };
     let root = El::new(&source, doc.root_element());
     if root.node.tag_name().name() != "commonRoad" {

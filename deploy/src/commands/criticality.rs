@@ -29,8 +29,7 @@ pub fn criticality(args: CriticalityArgs) -> CliResult {
 
 /// Reads and parses a CommonRoad file; every problem is an input error naming the file.
 pub fn read_commonroad(path: &std::path::Path) -> CliResult<Scenario> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))?;
+    let text = super::recorded::read_xml(path)?;
     parse_scenario(&text).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
 }
 

@@ -36,7 +36,7 @@ extern "C" fn on_signal(_: libc::c_int) {
 
 /// Reads and checks the topology file; every mistake is the user's (exit 2).
 fn topology(file: &Path) -> CliResult<(String, Topology)> {
-    let text = std::fs::read_to_string(file).map_err(|e| CliError::input(format!("{}: {e}", file.display())))?;
+    let text = super::input_file::read_text_bounded(file, super::input_file::MAX_CONFIG_BYTES, "")?;
     let t = parse(&text).map_err(|e| CliError::input(format!("{}: {e}", file.display())))?;
     Ok((text, t))
 }

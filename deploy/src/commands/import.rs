@@ -63,7 +63,7 @@ pub fn commonroad(args: ImportCommonRoadArgs) -> CliResult {
                 .map_or_else(|| args.scenario.display().to_string(), |name| name.to_string_lossy().into_owned());
             let case =
                 RecordedCase { source_name: source, benchmark_id: input.scenario.benchmark_id.clone(), ego_id, xml };
-            let stored = library.insert_recorded(&case, &outcome_of(&run, REPLAY_POLICY)).map_err(CliError::runtime)?;
+            let stored = library.insert_recorded(&case, &outcome_of(&run, REPLAY_POLICY))?;
             Some(CaseReport {
                 id: stored.id,
                 benchmark_id: case.benchmark_id,

@@ -11,6 +11,7 @@ mod deploy;
 mod edge;
 mod floor;
 mod import;
+mod input_file;
 pub mod push;
 mod recorded;
 pub(crate) mod recover;

@@ -3,10 +3,12 @@
 //! so `simulate` and `risk-field` print the same bytes for either.
 
 use super::criticality::read_commonroad;
+use super::input_file::read_text_bounded;
 use super::source::open_existing_library;
 use crate::cli::ScenarioSource;
 use crate::error::{CliError, CliResult};
 use risktwin_cloud::library::ScenarioLibrary;
+use risktwin_common::commonroad::limits::MAX_XML_BYTES;
 use risktwin_common::commonroad::{Scenario, parse_scenario};
 use std::path::Path;
 
@@ -31,9 +33,10 @@ impl CommonRoadInput {
     }
 }
 
-/// Reads a whole CommonRoad file as text.
+/// Reads a whole CommonRoad file as text, refusing one over [`MAX_XML_BYTES`] before reading
+/// it (and reading no more than that from a file that grows or never ends, such as a FIFO).
 pub fn read_xml(path: &Path) -> CliResult<String> {
-    std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read {}: {e}", path.display())))
+    read_text_bounded(path, MAX_XML_BYTES as u64, "")
 }
 
 /// The CommonRoad scenario `source` names: `--commonroad FILE`, or `--db/--id` of a recorded case;

@@ -1,6 +1,7 @@
 //! `risktwin run`: the main job. Reads the config and flags, calls the pipeline
 //! ([`risktwin_pipeline::run`]), shows its progress on stderr and prints the summary.
 
+use super::input_file::{MAX_CONFIG_BYTES, read_text_bounded};
 use super::run_progress::ProgressBar;
 use super::scenarios::worker_threads;
 use crate::cli::RunArgs;
@@ -14,8 +15,7 @@ use std::path::PathBuf;
 fn load_config(args: &RunArgs) -> CliResult<RunConfig> {
     let mut config = match &args.config {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| CliError::input(format!("cannot read config {}: {e}", path.display())))?;
+            let text = read_text_bounded(path, MAX_CONFIG_BYTES, "config ")?;
             RunConfig::from_json(&text).map_err(|e| CliError::input(format!("config {}: {e}", path.display())))?
         }
         None if args.quick => RunConfig::quick(),

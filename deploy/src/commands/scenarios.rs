@@ -23,8 +23,7 @@ pub fn generate(args: GenerateArgs) -> CliResult {
         return Err(CliError::input(format!("--count {} is out of range [1, 1000000]", args.count)));
     }
     let mut library = ScenarioLibrary::open(&args.db).map_err(CliError::input)?;
-    let report =
-        generate_into(&mut library, &kinds, args.count, args.seed, worker_threads()).map_err(CliError::runtime)?;
+    let report = generate_into(&mut library, &kinds, args.count, args.seed, worker_threads())?;
     match args.format {
         Format::Json => print_json(&report),
         _ => {
@@ -83,14 +82,14 @@ pub fn rank(args: RankArgs) -> CliResult {
         Some(COMMONROAD_KIND) => {
             // Recorded cases, by S_risk of their reference outcome (the replayed ego).
             let library = open_existing_library(&args.db)?;
-            let ranked = library.rank_recorded(REPLAY_POLICY, args.top).map_err(CliError::runtime)?;
+            let ranked = library.rank_recorded(REPLAY_POLICY, args.top)?;
             return print_ranked(&ranked, args.format);
         }
         None | Some("all") => None,
         Some(k) => Some(parse_kinds(k)?[0]),
     };
     let library = open_existing_library(&args.db)?;
-    let ranked = library.rank(args.top, kind).map_err(CliError::runtime)?;
+    let ranked = library.rank(args.top, kind)?;
     print_ranked(&ranked, args.format)
 }
 

@@ -37,7 +37,7 @@ pub fn simulate(args: &SimulateArgs, input: &mut CommonRoadInput) -> CliResult<R
     }
     let run = resimulate_input(input, &args.policy)?;
     if let Some((library, id)) = &mut input.case {
-        library.add_recorded_outcome(id, &outcome_of(&run, &args.policy)).map_err(CliError::runtime)?;
+        library.add_recorded_outcome(id, &outcome_of(&run, &args.policy))?;
     }
     Ok(run)
 }

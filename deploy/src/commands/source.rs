@@ -1,5 +1,6 @@
 //! Loading a scenario from `--spec FILE` or `--db FILE --id ID`, validated and feasible.
 
+use super::input_file::{MAX_CONFIG_BYTES, read_text_bounded};
 use crate::cli::ScenarioSource;
 use crate::error::{CliError, CliResult};
 use risktwin_cloud::library::ScenarioLibrary;
@@ -20,7 +21,7 @@ struct SpecFile {
 /// Reads and validates a spec file; every problem is an input error naming the file.
 pub fn read_spec_file(path: &Path) -> CliResult<ScenarioSpec> {
     let shown = path.display();
-    let text = std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read spec {shown}: {e}")))?;
+    let text = read_text_bounded(path, MAX_CONFIG_BYTES, "spec ")?;
     let raw: SpecFile = serde_json::from_str(&text).map_err(|e| CliError::input(format!("spec {shown}: {e}")))?;
     let kind: ScenarioKind = raw.kind.parse().map_err(|e| CliError::input(format!("spec {shown}: {e}")))?;
     let spec =
@@ -34,7 +35,7 @@ pub fn open_existing_library(path: &Path) -> CliResult<ScenarioLibrary> {
     if !path.is_file() {
         return Err(CliError::input(format!("no scenario library at {}", path.display())));
     }
-    ScenarioLibrary::open(path).map_err(CliError::input)
+    Ok(ScenarioLibrary::open(path)?)
 }
 
 /// The scenario a `--spec` or `--db/--id` pair names.

@@ -1,6 +1,7 @@
 //! `risktwin v2x channel`: the sidelink channel of `risktwin_common::v2x::channel` by distance;
 //! `risktwin v2x sweep`: a grid of V2X experiments in virtual time (`risktwin_pipeline::v2x_sweep`).
 
+use super::input_file::{MAX_CONFIG_BYTES, read_text_bounded};
 use crate::cli::{V2xChannelArgs, V2xSweepArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
@@ -75,8 +76,7 @@ pub fn channel(args: V2xChannelArgs) -> CliResult {
 pub fn sweep(args: V2xSweepArgs) -> CliResult {
     let config = match &args.config {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| CliError::input(format!("cannot read config {}: {e}", path.display())))?;
+            let text = read_text_bounded(path, MAX_CONFIG_BYTES, "config ")?;
             serde_json::from_str::<SweepConfig>(&text)
                 .map_err(|e| CliError::input(format!("config {}: {e}", path.display())))?
         }

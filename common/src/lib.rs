@@ -29,6 +29,7 @@ pub mod histogram;
 pub mod metrics;
 pub mod net;
 pub mod planner;
+pub mod policy_signature;
 pub mod risk;
 pub mod rng;
 pub mod road;

@@ -203,6 +203,12 @@ pub struct PolicyUpdate {
     pub algo: String,
     /// The weights as safetensors bytes.
     pub weights: Vec<u8>,
+    /// `SITE/ID` of the vehicle it is for: part of what is signed, so a copy sent to another
+    /// vehicle does not verify there (empty: addressed to none).
+    pub target: String,
+    /// The cloud's ed25519 signature over the weights and the fields above
+    /// ([`crate::policy_signature`]); empty: unsigned, and refused by every vehicle.
+    pub signature: Vec<u8>,
 }
 
 /// Cloud to edge: run this scenario.

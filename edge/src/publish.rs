@@ -49,6 +49,9 @@ pub struct EdgeConfig {
     pub kind: risktwin_common::scenario::ScenarioKind,
     /// Run seed of the scenario sample.
     pub scenario_seed: u64,
+    /// The key whose signature a vehicle needs on a policy update (`--trust-key`); `None`: it
+    /// takes no policy from the network.
+    pub trust_key: Option<risktwin_common::policy_signature::PolicyVerifyingKey>,
 }
 
 impl EdgeConfig {
@@ -67,6 +70,7 @@ impl EdgeConfig {
             clock_steps: None,
             kind: risktwin_common::scenario::ScenarioKind::CutIn,
             scenario_seed: 0,
+            trust_key: None,
         }
     }
 }

@@ -23,7 +23,7 @@ use crate::error::EdgeError;
 use crate::publish::{EdgeConfig, Producer, Stamper, run_producer};
 use crate::scene::{ActivePolicy, Scene, Tape, detected, feasible_spec};
 use crate::summary::SentSummary;
-use push::{PushSummary, ResultLine};
+use push::{PolicyTrust, PushSummary, ResultLine};
 use risktwin_common::telemetry::{CAN_DLC, CanFrame, DetectedObject, ObjectList, ScenarioResult};
 use risktwin_protos::encode;
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport};
@@ -66,6 +66,8 @@ pub struct Vehicle {
     /// What the ego perceived at the start of the last step.
     perceived: Vec<DetectedObject>,
     pushes: PushSummary,
+    /// Whose policy updates it takes.
+    trust: PolicyTrust,
     reports: Vec<(EdgeReport, Vec<u8>)>,
     results_sent: u64,
 }
@@ -93,6 +95,10 @@ impl Vehicle {
             segment,
             perceived: Vec::new(),
             pushes: PushSummary::default(),
+            trust: PolicyTrust {
+                key: config.trust_key.clone(),
+                target: format!("{}/{}", config.site.as_str(), config.id.as_str()),
+            },
             reports: Vec::new(),
             results_sent: 0,
         })
@@ -208,7 +214,7 @@ impl Producer for Vehicle {
                 }
             }
             CloudToEdge::Policy => {
-                if let Some(policy) = self.pushes.policy(encoding, payload) {
+                if let Some(policy) = self.pushes.policy(encoding, payload, &self.trust) {
                     let kind = policy.net.kind().algo();
                     tracing::info!(
                         "edge: driving with policy {} version {} ({kind})",

@@ -15,6 +15,7 @@
 
 use risktwin_cloud::network::push::{EdgeLink, PushError, PushTarget, ScenarioPushReport};
 use risktwin_cloud::network::{CloudConfig, CloudSummary};
+use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_edge::publish::run_producer;
 use risktwin_edge::vehicle::push::{PolicyLine, PushSummary};
@@ -245,6 +246,10 @@ async fn roles(
     let (edge_stop, edge_shutdown) = channel();
     let mut edge_config = EdgeConfig::new(site.clone(), edge_id.clone(), RATE_HZ);
     edge_config.transport = transport.clone();
+    // Both ends are this run's: a key made for it alone signs the update, and the edge trusts
+    // its public half, so the policy goes through the same verification as a fleet's.
+    let signer = ephemeral_key()?;
+    edge_config.trust_key = Some(signer.verifying_key());
     let target = PushTarget { transport, site, edge: edge_id, wait_for_edge: WAIT };
     let outcome = async {
         bounded("the ingest role was not ready", WAIT, ready_rx).await?.map_err(|_| LoopError::IngestNotReady)?;
@@ -254,7 +259,7 @@ async fn roles(
         let (seen_tx, seen_rx) = watch::channel(PushSummary::default());
         let mut edge = spawn_edge(edge_config, seen_tx, edge_shutdown)?;
         let pushed = tokio::select! {
-            pushed = pushes(request, &target, shutdown, seen_rx, progress) => pushed,
+            pushed = pushes(request, &target, &signer, shutdown, seen_rx, progress) => pushed,
             ended = &mut edge => {
                 return Err(match ended {
                     Ok(Ok(_)) => LoopError::EdgeStoppedEarly,
@@ -326,6 +331,7 @@ struct Pushed {
 async fn pushes(
     request: &LoopRequest,
     target: &PushTarget,
+    signer: &PolicySigningKey,
     shutdown: &Shutdown,
     mut seen: watch::Receiver<PushSummary>,
     progress: &mut dyn FnMut(&str),
@@ -335,17 +341,26 @@ async fn pushes(
     // for the edge's liveliness token, which the edge declares after its push subscribers (the
     // ingest role's wildcard subscription makes matching status alone unreliable).
     let link = EdgeLink::open(target).await.map_err(LoopError::OpenSession)?;
-    let pushed = push_rounds(request, &link, shutdown, &mut seen, progress).await;
+    let pushed = push_rounds(request, &link, signer, shutdown, &mut seen, progress).await;
     let closed = link.close().await.map_err(LoopError::CloseSession);
     let pushed = pushed?;
     closed?;
     Ok(pushed)
 }
 
+/// A signing key for this run alone, from the operating system's random source.
+fn ephemeral_key() -> Result<PolicySigningKey, LoopError> {
+    let mut seed = [0u8; 32];
+    getrandom::getrandom(&mut seed)
+        .map_err(|e| LoopError::Start { what: "random source for the policy key", source: std::io::Error::other(e) })?;
+    Ok(PolicySigningKey::from_seed(seed))
+}
+
 /// Scenarios under the reference driver, the policy, the scenarios again.
 async fn push_rounds(
     request: &LoopRequest,
     link: &EdgeLink,
+    signer: &PolicySigningKey,
     shutdown: &Shutdown,
     seen: &mut watch::Receiver<PushSummary>,
     progress: &mut dyn FnMut(&str),
@@ -353,7 +368,8 @@ async fn push_rounds(
     let by_reference = push_all(request, link, shutdown, progress, "reference driver").await?;
 
     let refused_before: u64 = seen.borrow().policies_refused.values().sum();
-    link.policy(&request.policy_id, request.version, &request.algo, request.weights.clone(), shutdown.clone())
+    let weights = request.weights.clone();
+    link.policy(&request.policy_id, request.version, &request.algo, weights, Some(signer), shutdown.clone())
         .await
         .map_err(|source| LoopError::PushPolicy { policy_id: request.policy_id.clone(), source })?;
     let holds = |p: &PushSummary| {

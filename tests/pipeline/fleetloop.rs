@@ -7,7 +7,7 @@
 //! recording holds the loop's events. The ego's episodes of distributed scenes are kept the
 //! same way, scored by the twin on the whole scene.
 
-use crate::support::{Proc, run_json, start_router};
+use crate::support::{Proc, keys, run_json, start_router};
 use prost::Message;
 use risktwin_protos::recording::read_messages;
 use risktwin_protos::v1;
@@ -297,12 +297,19 @@ fn trainer_run(dir: &std::path::Path, locator: &str, trainer: &[&str]) -> (Proc,
         generate(&db, kind);
     }
     let report = dir.join("loop.md").to_str().expect("a UTF-8 path").to_owned();
+    // The loop signs what it pushes; the vehicles trust its key.
+    let (signing_key, verifying_key) = keys(dir, "keys");
     let mut args = vec!["cloud", "--roles", "ingest,twin,loop,trainer", "--db", &db, "--connect", locator];
     args.extend(["--loop-report", &report, "--mutants-per-failure", "0", "--retrain-failures", "2"]);
+    args.extend(["--signing-key", &signing_key]);
     args.extend(trainer);
     let mut cloud = Proc::spawn("cloud", &args);
     cloud.wait_line(STEP, |l| l == "ready");
-    let edge = |id: &str| Proc::spawn(id, &["edge", "vehicle", "--id", id, "--site", "fleet", "--connect", locator]);
+    let edge = |id: &str| {
+        let args =
+            ["edge", "vehicle", "--id", id, "--site", "fleet", "--connect", locator, "--trust-key", &verifying_key];
+        Proc::spawn(id, &args)
+    };
     (cloud, edge("v1"), edge("v2"), db)
 }
 

@@ -20,5 +20,6 @@ mod python_zenoh;
 mod scene;
 mod scene_v2x;
 mod shm_gateway;
+mod signed_policy;
 mod support;
 mod v2x_agreement;

@@ -5,7 +5,7 @@
 //! driven by that policy version (the result says which), and its streams, found in the
 //! recording by their sequence numbers, trace a different trajectory.
 
-use crate::support::{Proc, cut_in_library, run_json, start_router};
+use crate::support::{Proc, cut_in_library, keys, run_json, start_router};
 use risktwin_common::telemetry::VehicleStateSample;
 use risktwin_common::world::STEP_S;
 use risktwin_edge::vehicle::DEFAULT_STATE_RATE_HZ;
@@ -45,9 +45,24 @@ fn a_trained_policy_pushed_to_the_edge_drives_the_next_pushed_scenario() {
     let mut cloud = Proc::spawn("cloud", &["cloud", "--roles", "ingest", "--record", path, "--connect", &locator]);
     cloud.wait_line(STEP, |l| l == "ready");
     // 10× real time: a 15 s episode plays in 1.5 s.
+    // The cloud's key signs the update; the vehicle trusts its public half.
+    let (signing_key, verifying_key) = keys(dir.path(), "keys");
     let mut vehicle = Proc::spawn(
         "veh",
-        &["edge", "vehicle", "--id", "veh-l", "--site", "loop", "--connect", &locator, "--rate-hz", "500"],
+        &[
+            "edge",
+            "vehicle",
+            "--id",
+            "veh-l",
+            "--site",
+            "loop",
+            "--connect",
+            &locator,
+            "--rate-hz",
+            "500",
+            "--trust-key",
+            &verifying_key,
+        ],
     );
     vehicle.wait_line(STEP, |l| l == "edge veh-l: publishing");
     let to = ["--to", "veh-l", "--site", "loop", "--connect", &locator];
@@ -66,6 +81,7 @@ fn a_trained_policy_pushed_to_the_edge_drives_the_next_pushed_scenario() {
     let weights = out.join("policy.safetensors");
     let mut args = vec!["push", "policy", "--weights", weights.to_str().expect("a UTF-8 path")];
     args.extend_from_slice(&["--policy-id", "ppo-loop", "--version", "1", "--algo", "ppo"]);
+    args.extend_from_slice(&["--signing-key", &signing_key]);
     args.extend_from_slice(&to);
     assert_eq!(run_json(&args)["delivered"], true);
     vehicle.wait_line(STEP, |l| l.starts_with("edge: driving with policy ppo-loop version 1"));

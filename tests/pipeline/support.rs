@@ -199,3 +199,11 @@ pub async fn session(router: &str) -> risktwin_transport::zenoh::Session {
     let config = risktwin_transport::TransportConfig { connect: vec![router.to_owned()], ..Default::default() };
     risktwin_transport::connect(&config).await.expect("the test session joins the router")
 }
+
+/// `risktwin keys generate --out dir/name`: (signing key file, verifying key file).
+pub fn keys(dir: &std::path::Path, name: &str) -> (String, String) {
+    let out = dir.join(name);
+    let printed = run_json(&["keys", "generate", "--out", out.to_str().expect("a UTF-8 path")]);
+    let file = |k: &str| printed[k].as_str().expect("a key path").to_owned();
+    (file("signing_key"), file("verifying_key"))
+}

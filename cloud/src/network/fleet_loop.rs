@@ -10,16 +10,17 @@
 //! A result that does not decode, or whose header names another source than its key, is
 //! counted and dropped.
 
-use super::CloudError;
 use super::liveliness::LivenessLog;
 use super::push::header;
 use super::receive::LiveIngest;
+use super::{CloudConfig, CloudError};
 use crate::fleet_loop::trainer::TrainJob;
 use crate::fleet_loop::{FleetLoop, LoopSummary, PolicyOrder, PushOrder};
 use crate::library::PolicyVersion;
 use crate::trainer::TrainerError;
 use crate::trainer::gate::GateReport;
 use crate::twin::watch::WatchedEpisode;
+use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::telemetry::{PolicyUpdate, ScenarioPush, ScenarioResult};
 use risktwin_protos::{decode_tagged, encode, v1};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report_all, parse_edge_report_key};
@@ -92,13 +93,15 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 /// Starts the loop role: the result subscriber and the task running `fleet`.
 pub(crate) async fn start(
     session: &Session,
-    site: Option<&SiteId>,
+    config: &CloudConfig,
     fleet: FleetLoop,
     ingest: Arc<Mutex<LiveIngest>>,
     liveness: Arc<Mutex<LivenessLog>>,
     episodes: UnboundedReceiver<WatchedEpisode>,
     shutdown: Shutdown,
 ) -> Result<LoopRole, CloudError> {
+    // The config's site (`None`: every site) and the key policy updates are signed with.
+    let (site, signer) = (config.site.as_ref(), config.signing_key.clone());
     let counts = Arc::new(ResultCounts::default());
     let key = edge_report_all(site, EdgeReport::ScenarioResult);
     let results = {
@@ -127,7 +130,8 @@ pub(crate) async fn start(
             .await
             .map_err(|e| TransportError::Declare { what: "subscriber", key, reason: e.to_string() })?
     };
-    let task = tokio::spawn(drive(session.clone(), fleet, ingest, liveness, episodes, shutdown));
+    let pushes = Pushes { session: session.clone(), publishers: HashMap::new(), sent: 0, signer };
+    let task = tokio::spawn(drive(pushes, fleet, ingest, liveness, episodes, shutdown));
     Ok(LoopRole { results, task, counts })
 }
 
@@ -148,14 +152,13 @@ fn start_training(job: TrainJob) -> Training {
 
 /// The loop's task, until `shutdown` fires.
 async fn drive(
-    session: Session,
+    mut pushes: Pushes,
     mut fleet: FleetLoop,
     ingest: Arc<Mutex<LiveIngest>>,
     liveness: Arc<Mutex<LivenessLog>>,
     mut episodes: UnboundedReceiver<WatchedEpisode>,
     mut shutdown: Shutdown,
 ) -> Result<LoopSummary, CloudError> {
-    let mut pushes = Pushes { session, publishers: HashMap::new(), sent: 0 };
     let mut idle = tokio::time::interval(IDLE_PERIOD);
     let mut training: Option<Training> = None;
     // The header seq of the loop's recorded events.
@@ -269,6 +272,8 @@ struct Pushes {
     session: Session,
     publishers: HashMap<(String, String, CloudToEdge), Publisher<'static>>,
     sent: u64,
+    /// Signs each policy update for the vehicle it goes to.
+    signer: Option<PolicySigningKey>,
 }
 
 impl Pushes {
@@ -288,15 +293,20 @@ impl Pushes {
         Ok(())
     }
 
-    /// Sends a policy version.
+    /// Sends a policy version, signed for its vehicle when the loop has a key.
     async fn policy(&mut self, order: &PolicyOrder) -> Result<(), CloudError> {
-        let update = PolicyUpdate {
+        let mut update = PolicyUpdate {
             header: header(self.sent),
             policy_id: order.policy_id.clone(),
             version: order.version,
             algo: order.algo.clone(),
             weights: order.weights.clone(),
+            target: format!("{}/{}", order.site, order.edge),
+            signature: Vec::new(),
         };
+        if let Some(signer) = &self.signer {
+            signer.sign(&mut update);
+        }
         self.put(&order.site, &order.edge, CloudToEdge::Policy, encode(&update)).await?;
         tracing::info!(
             "loop: pushed policy {} version {} to {}/{}",

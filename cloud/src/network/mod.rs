@@ -64,6 +64,7 @@ use fleet_loop::LoopRoleSummary;
 use library::LibrarySummary;
 use liveliness::LivenessLog;
 pub use receive::{IngestSummary, LiveIngest, OUTPUT_SCHEMAS, Origin, RecordError, RecordingFile};
+use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::road::Road;
 use risktwin_protos::recording::decode_replay_time;
 use risktwin_transport::zenoh::sample::Sample;
@@ -187,6 +188,9 @@ pub struct CloudConfig {
     pub trainer: TrainerConfig,
     /// When the `warning` role finds a pair critical, and how often it warns.
     pub warning: WarningConfig,
+    /// The key the `loop` role signs each policy update with, per vehicle (`--signing-key`);
+    /// `None`: updates go unsigned and vehicles refuse them.
+    pub signing_key: Option<PolicySigningKey>,
 }
 
 impl CloudConfig {
@@ -208,6 +212,7 @@ impl CloudConfig {
             fleet_loop: LoopConfig::default(),
             trainer: TrainerConfig::default(),
             warning: WarningConfig::default(),
+            signing_key: None,
         }
     }
 
@@ -368,8 +373,8 @@ pub async fn run(
     let loop_role = match fleet {
         Some(fleet) => {
             let (ingest, liveness) = (Arc::clone(&ingest), Arc::clone(&liveness));
-            let site = config.site.as_ref();
-            Some(fleet_loop::start(&session, site, fleet, ingest, liveness, episodes_rx, shutdown.clone()).await?)
+            let role = fleet_loop::start(&session, config, fleet, ingest, liveness, episodes_rx, shutdown.clone());
+            Some(role.await?)
         }
         None => None,
     };

@@ -5,6 +5,7 @@
 //! awaited on `…/<id>/scenario_result`.
 
 use risktwin_common::metrics::EpisodeMetrics;
+use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{Frame, Header, PolicyRef, PolicyUpdate, ScenarioPush, ScenarioResult};
@@ -220,15 +221,21 @@ impl EdgeLink {
         version: u32,
         algo: &str,
         weights: Vec<u8>,
+        signer: Option<&PolicySigningKey>,
         shutdown: Shutdown,
     ) -> Result<PolicyPushReport, PushError> {
-        let update = PolicyUpdate {
+        let mut update = PolicyUpdate {
             header: header(u64::from(version)),
             policy_id: policy_id.to_owned(),
             version,
             algo: algo.to_owned(),
             weights,
+            target: format!("{}/{}", self.target.site.as_str(), self.target.edge.as_str()),
+            signature: Vec::new(),
         };
+        if let Some(signer) = signer {
+            signer.sign(&mut update);
+        }
         deliver(&self.session, &self.target, &self.alive, CloudToEdge::Policy, encode(&update), shutdown).await?;
         Ok(PolicyPushReport {
             site: self.target.site.to_string(),
@@ -280,9 +287,10 @@ pub async fn push_policy(
     version: u32,
     algo: &str,
     weights: Vec<u8>,
+    signer: Option<&PolicySigningKey>,
     shutdown: Shutdown,
 ) -> Result<PolicyPushReport, PushError> {
     let link = EdgeLink::open(target).await?;
-    let report = link.policy(policy_id, version, algo, weights, shutdown).await;
+    let report = link.policy(policy_id, version, algo, weights, signer, shutdown).await;
     link.close_after(report).await
 }

@@ -70,6 +70,23 @@ pub enum Command {
     /// V2X: the sidelink radio channel of 3GPP TR 37.885.
     #[command(subcommand)]
     V2x(V2xCommand),
+    /// The cloud's policy-signing key pair (docs/signing.md).
+    #[command(subcommand)]
+    Keys(KeysCommand),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum KeysCommand {
+    /// Writes a new ed25519 key pair: DIR/policy-signing.key (the cloud's secret, mode 0600) and
+    /// DIR/policy-verifying.key (for `edge vehicle --trust-key`); never overwrites a key.
+    Generate(KeysGenerateArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct KeysGenerateArgs {
+    /// The folder to write the two key files into (created if needed).
+    #[arg(long)]
+    pub out: PathBuf,
 }
 
 #[derive(Debug, Args)]

@@ -52,6 +52,10 @@ pub struct PushPolicyArgs {
     /// `ppo` or `sac`.
     #[arg(long)]
     pub algo: String,
+    /// The cloud's signing key (`risktwin keys generate`): the update is signed for the target
+    /// vehicle. Without it the update goes unsigned, and a vehicle refuses it.
+    #[arg(long)]
+    pub signing_key: Option<PathBuf>,
     #[command(flatten)]
     pub to: PushTo,
 }

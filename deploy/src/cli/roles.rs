@@ -106,6 +106,11 @@ pub struct EdgeArgs {
     /// clock (a deployment's `clock_step` events write it).
     #[arg(long)]
     pub clock_steps: Option<std::path::PathBuf>,
+    /// `edge vehicle`: the cloud's verifying key (`risktwin keys generate`); a policy update
+    /// is driven with only when signed by it for this vehicle. Without it, every policy from
+    /// the network is refused (`unverifiable`).
+    #[arg(long)]
+    pub trust_key: Option<std::path::PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -158,6 +163,11 @@ pub struct CloudArgs {
     /// Seed of the trainer's held-out set and runs (version V trains with seed + V).
     #[arg(long, default_value_t = 1)]
     pub train_seed: u64,
+    /// The loop role signs every policy update it pushes with this key, for the vehicle it goes
+    /// to (`risktwin keys generate`; vehicles trust its public half with `--trust-key`). Without
+    /// it the updates go unsigned and every vehicle refuses them.
+    #[arg(long)]
+    pub signing_key: Option<std::path::PathBuf>,
     /// The warning role warns about a pair whose time to collision lies below this, s (default
     /// 2; needs the warning role).
     #[arg(long)]

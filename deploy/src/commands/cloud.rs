@@ -74,6 +74,10 @@ pub fn cloud(args: CloudArgs) -> CliResult {
         held_out_per_kind: args.held_out_per_kind,
         seed: args.train_seed,
     };
+    if args.signing_key.is_some() && !config.roles.contains(&Role::Loop) {
+        return Err(CliError::input("--signing-key needs the loop role (it signs the policies the loop pushes)"));
+    }
+    config.signing_key = args.signing_key.as_deref().map(super::keys::read_signing_key).transpose()?;
     if args.loop_report.is_some() && !config.roles.contains(&Role::Loop) {
         return Err(CliError::input("--loop-report needs the loop role (--roles ingest,twin,loop --db FILE)"));
     }

@@ -91,5 +91,6 @@ fn edge_config(args: EdgeArgs, default_rate_hz: f64) -> CliResult<EdgeConfig> {
     config.wait_for_cloud = seconds("--wait-for-cloud-s", args.wait_for_cloud_s)?;
     config.cache_span = seconds("--cache-s", args.cache_s)?;
     config.clock_steps = args.clock_steps;
+    config.trust_key = args.trust_key.as_deref().map(super::keys::read_trust_key).transpose()?;
     Ok(config)
 }

@@ -12,6 +12,7 @@ mod edge;
 mod floor;
 mod import;
 mod input_file;
+pub mod keys;
 pub mod push;
 mod recorded;
 pub(crate) mod recover;
@@ -29,7 +30,8 @@ mod train;
 mod v2x;
 
 use crate::cli::{
-    BenchCommand, Cli, Command, DeployCommand, EdgeCommand, ImportCommand, ScenariosCommand, SceneCommand, V2xCommand,
+    BenchCommand, Cli, Command, DeployCommand, EdgeCommand, ImportCommand, KeysCommand, ScenariosCommand, SceneCommand,
+    V2xCommand,
 };
 use crate::error::CliResult;
 
@@ -74,5 +76,6 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Deploy(DeployCommand::Run(a)) => deploy::run(a),
         Command::V2x(V2xCommand::Channel(a)) => v2x::channel(a),
         Command::V2x(V2xCommand::Sweep(a)) => v2x::sweep(a),
+        Command::Keys(KeysCommand::Generate(a)) => keys::generate(a),
     }
 }

@@ -4,6 +4,7 @@
 //! update (`--weights FILE.safetensors`) is delivered; the edge validates it and reports what it
 //! holds in its own summary.
 
+use super::input_file::read_bounded;
 use super::router::{transport_config, with_signals};
 use super::source;
 use crate::cli::{PushCommand, PushPolicyArgs, PushScenarioArgs, PushTo};
@@ -11,6 +12,7 @@ use crate::error::{CliError, CliResult};
 use crate::output::print_json;
 use risktwin_cloud::library::content_id;
 use risktwin_cloud::network::push::{PushError, PushTarget, push_policy, push_scenario};
+use risktwin_edge::vehicle::push::MAX_WEIGHTS_BYTES;
 use risktwin_transport::{SiteId, SourceId};
 use std::time::Duration;
 
@@ -52,12 +54,13 @@ fn scenario(args: PushScenarioArgs) -> CliResult {
 }
 
 fn policy(args: PushPolicyArgs) -> CliResult {
-    let weights = std::fs::read(&args.weights)
-        .map_err(|e| CliError::input(format!("cannot read {}: {e}", args.weights.display())))?;
+    // Refused (exit 2) when larger than a vehicle takes, before it is read whole.
+    let weights = read_bounded(&args.weights, MAX_WEIGHTS_BYTES as u64, "weights ")?;
+    let signer = args.signing_key.as_deref().map(super::keys::read_signing_key).transpose()?;
     let target = target(args.to)?;
     let (id, version, algo) = (args.policy_id, args.version, args.algo);
     let report = with_signals(|shutdown| async move {
-        push_policy(&target, &id, version, &algo, weights, shutdown).await.map_err(runtime)
+        push_policy(&target, &id, version, &algo, weights, signer.as_ref(), shutdown).await.map_err(runtime)
     })?;
     print_json(&report)
 }

@@ -3,13 +3,19 @@
 //! (decodable, a known algorithm, weights of sane size that load as a policy of this build's
 //! observation and action sizes and decision rate — `common::net::HostPolicy`; a file without
 //! a decision rate predates the field and is taken as 20 Hz — and whose file names the same
-//! algorithm, a monotonic version per policy id) and then drive the vehicle. A refused push is
+//! algorithm, a monotonic version per policy id) and then drive the vehicle. Before any of that,
+//! a policy update must carry the cloud's ed25519 signature over its weights and metadata,
+//! addressed to this vehicle ([`PolicyTrust`], `common::policy_signature`): without a trusted
+//! key every update is refused (`unverifiable`), an unsigned one is `unsigned`, one that does
+//! not verify `bad-signature`, one signed for another vehicle `wrong-vehicle`; refused weights
+//! are never loaded. A refused push is
 //! counted by reason and logged; the vehicle keeps running what it was running. A hazard
 //! warning addressed to the vehicle is handed on to its driver (see [`super`]); one that does
 //! not decode, or that names another vehicle (`wrong-vehicle`), is refused by reason.
 
 use crate::scene::ActivePolicy;
 use risktwin_common::net::HostPolicy;
+use risktwin_common::policy_signature::{PolicyVerifyingKey, SignatureError};
 use risktwin_common::scenario::check_feasible;
 use risktwin_common::telemetry::{HazardWarning, PolicyRef, PolicyUpdate, ScenarioPush};
 use risktwin_protos::decode_tagged;
@@ -21,6 +27,34 @@ use std::sync::Arc;
 pub const KNOWN_ALGOS: [&str; 2] = ["ppo", "sac"];
 /// Largest accepted weights file, bytes.
 pub const MAX_WEIGHTS_BYTES: usize = 64 << 20;
+
+/// Whose policy updates a vehicle takes: signed by the holder of `key`'s secret half for this
+/// vehicle (`target`, `SITE/ID`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PolicyTrust {
+    /// The key the vehicle trusts (`--trust-key`); `None`: it takes no policy from the network.
+    pub key: Option<PolicyVerifyingKey>,
+    /// `SITE/ID` of this vehicle, as the signed update must name it.
+    pub target: String,
+}
+
+impl PolicyTrust {
+    /// Why `update` is refused before its weights are looked at, if it is.
+    fn refusal(&self, update: &PolicyUpdate) -> Option<(&'static str, String)> {
+        let Some(key) = &self.key else {
+            return Some(("unverifiable", "no trusted key (--trust-key): no policy from the network is taken".into()));
+        };
+        match key.verify(update) {
+            Err(SignatureError::Unsigned) => Some(("unsigned", "the update carries no signature".into())),
+            Err(e) => Some(("bad-signature", e.to_string())),
+            // Verified: the target is the signer's, so a mismatch is a copy sent to the wrong car.
+            Ok(()) if update.target != self.target => {
+                Some(("wrong-vehicle", format!("signed for {:?}, this is {:?}", update.target, self.target)))
+            }
+            Ok(()) => None,
+        }
+    }
+}
 
 /// A pushed scenario's outcome, as the vehicle reports it in its summary.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -112,9 +146,10 @@ impl PushSummary {
         Some(w)
     }
 
-    /// Validates a policy update (`payload` tagged `encoding`) and loads its weights; the policy
-    /// to drive with when valid and newer than the one held.
-    pub fn policy(&mut self, encoding: &str, payload: &[u8]) -> Option<ActivePolicy> {
+    /// Validates a policy update (`payload` tagged `encoding`): its signature against `trust`,
+    /// then its weights, which it loads; the policy to drive with when valid and newer than the
+    /// one held.
+    pub fn policy(&mut self, encoding: &str, payload: &[u8], trust: &PolicyTrust) -> Option<ActivePolicy> {
         let update = match decode_tagged::<PolicyUpdate>(encoding, payload) {
             Ok(u) => u,
             Err(e) => {
@@ -122,6 +157,10 @@ impl PushSummary {
                 return None;
             }
         };
+        if let Some((reason, detail)) = trust.refusal(&update) {
+            Self::refuse(&mut self.policies_refused, "policy update", reason, &detail);
+            return None;
+        }
         match self.check_policy(&update) {
             Ok(net) => {
                 self.policy = Some(PolicyLine {
@@ -167,6 +206,7 @@ mod tests {
     use super::*;
     use risktwin_common::env::OBS_DIM;
     use risktwin_common::net::PolicyKind;
+    use risktwin_common::policy_signature::PolicySigningKey;
     use risktwin_common::scenario::ScenarioKind;
     use risktwin_common::telemetry::{Frame, Header};
     use risktwin_protos::{encode, encoding_of};
@@ -182,8 +222,61 @@ mod tests {
         crate::scene::tests::policy_file(PolicyKind::Gaussian, &[0.0; 3])
     }
 
+    const ME: &str = "site0/veh-1";
+
+    fn cloud_key() -> PolicySigningKey {
+        PolicySigningKey::from_seed([7; 32])
+    }
+
+    fn trusting() -> PolicyTrust {
+        PolicyTrust { key: Some(cloud_key().verifying_key()), target: ME.into() }
+    }
+
+    fn unsigned(version: u32, algo: &str, weights: Vec<u8>) -> PolicyUpdate {
+        PolicyUpdate {
+            header: header(),
+            policy_id: "p".into(),
+            version,
+            algo: algo.into(),
+            weights,
+            target: ME.into(),
+            signature: Vec::new(),
+        }
+    }
+
+    /// An update signed by the cloud's key for this vehicle.
     fn policy(version: u32, algo: &str, weights: Vec<u8>) -> Vec<u8> {
-        encode(&PolicyUpdate { header: header(), policy_id: "p".into(), version, algo: algo.into(), weights })
+        let mut u = unsigned(version, algo, weights);
+        cloud_key().sign(&mut u);
+        encode(&u)
+    }
+
+    #[test]
+    fn only_updates_signed_for_this_vehicle_by_the_trusted_key_are_loaded() {
+        let mut log = PushSummary::default();
+        let nobody = PolicyTrust { key: None, target: ME.into() };
+        assert!(log.policy(POLICY, &policy(1, "ppo", weights()), &nobody).is_none(), "no trusted key");
+        assert!(log.policy(POLICY, &encode(&unsigned(1, "ppo", weights())), &trusting()).is_none());
+        let mut flipped = unsigned(1, "ppo", weights());
+        cloud_key().sign(&mut flipped);
+        let last = flipped.weights.len() - 1;
+        flipped.weights[last] ^= 1;
+        assert!(log.policy(POLICY, &encode(&flipped), &trusting()).is_none(), "a flipped weights byte");
+        let mut renamed = unsigned(1, "ppo", weights());
+        cloud_key().sign(&mut renamed);
+        renamed.version = 9;
+        assert!(log.policy(POLICY, &encode(&renamed), &trusting()).is_none(), "metadata changed");
+        let mut stranger = unsigned(1, "ppo", weights());
+        PolicySigningKey::from_seed([8; 32]).sign(&mut stranger);
+        assert!(log.policy(POLICY, &encode(&stranger), &trusting()).is_none(), "another key");
+        let mut elsewhere = unsigned(1, "ppo", weights());
+        elsewhere.target = "site0/veh-2".into();
+        cloud_key().sign(&mut elsewhere);
+        assert!(log.policy(POLICY, &encode(&elsewhere), &trusting()).is_none(), "for another vehicle");
+        assert_eq!(log.policy, None, "nothing refused was loaded");
+        assert!(log.policy(POLICY, &policy(1, "ppo", weights()), &trusting()).is_some());
+        let reasons: Vec<(&str, u64)> = log.policies_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        assert_eq!(reasons, [("bad-signature", 3), ("unsigned", 1), ("unverifiable", 1), ("wrong-vehicle", 1)]);
     }
 
     #[test]
@@ -236,20 +329,20 @@ mod tests {
     #[test]
     fn policies_must_be_known_loadable_and_newer() {
         let mut log = PushSummary::default();
-        let first = log.policy(POLICY, &policy(1, "ppo", weights())).expect("accepted");
+        let first = log.policy(POLICY, &policy(1, "ppo", weights()), &trusting()).expect("accepted");
         assert_eq!(first.id, PolicyRef { policy_id: "p".into(), version: 1 });
-        assert!(log.policy(POLICY, &policy(1, "ppo", weights())).is_none(), "same version again");
-        assert!(log.policy(POLICY, &policy(0, "ppo", weights())).is_none(), "older");
-        assert!(log.policy(POLICY, &policy(2, "dqn", weights())).is_none());
-        assert!(log.policy(POLICY, &policy(2, "sac", vec![9; 12])).is_none(), "not safetensors");
-        assert!(log.policy(POLICY, &policy(2, "sac", weights())).is_none(), "a ppo file pushed as sac");
+        assert!(log.policy(POLICY, &policy(1, "ppo", weights()), &trusting()).is_none(), "same version again");
+        assert!(log.policy(POLICY, &policy(0, "ppo", weights()), &trusting()).is_none(), "older");
+        assert!(log.policy(POLICY, &policy(2, "dqn", weights()), &trusting()).is_none());
+        assert!(log.policy(POLICY, &policy(2, "sac", vec![9; 12]), &trusting()).is_none(), "not safetensors");
+        assert!(log.policy(POLICY, &policy(2, "sac", weights()), &trusting()).is_none(), "a ppo file pushed as sac");
         // A file whose observation width is not this build's: refused, never a panic.
         let mut wide = weights();
         let key = format!(r#""obs_dim":"{OBS_DIM}""#).into_bytes();
         let at = wide.windows(key.len()).position(|w| w == key).expect("the metadata holds obs_dim");
         // Same length, another width: the last digit changed.
         wide[at + key.len() - 2] ^= 1;
-        assert!(log.policy(POLICY, &policy(2, "ppo", wide)).is_none(), "wrong observation width");
+        assert!(log.policy(POLICY, &policy(2, "ppo", wide), &trusting()).is_none(), "wrong observation width");
         // Trained at another decision rate: refused; from before the field: taken as 20 Hz.
         let rate = br#""decision_rate_hz":"20""#;
         // The metadata's order varies between files: each is searched.
@@ -260,15 +353,18 @@ mod tests {
         let mut fast = weights();
         let end = rate_at(&fast);
         fast[end - 3] = b'5';
-        assert!(log.policy(POLICY, &policy(2, "ppo", fast)).is_none(), "a 50 Hz policy");
+        assert!(log.policy(POLICY, &policy(2, "ppo", fast), &trusting()).is_none(), "a 50 Hz policy");
         let mut older = weights();
         let end = rate_at(&older);
         older[end - 8..end - 6].copy_from_slice(b"xx");
-        assert!(log.policy(POLICY, &policy(2, "ppo", older)).is_some(), "a file without the rate");
+        assert!(log.policy(POLICY, &policy(2, "ppo", older), &trusting()).is_some(), "a file without the rate");
         let sac = crate::scene::tests::policy_file(PolicyKind::Squashed, &[0.0; 6]);
-        assert!(log.policy(POLICY, &policy(3, "sac", sac)).is_some());
+        assert!(log.policy(POLICY, &policy(3, "sac", sac), &trusting()).is_some());
         assert_eq!(log.policy.as_ref().map(|p| (p.version, p.algo.as_str())), Some((3, "sac")));
-        assert!(log.policy("application/protobuf;risktwin.v1.ScenarioPush", &policy(4, "ppo", weights())).is_none());
+        assert!(
+            log.policy("application/protobuf;risktwin.v1.ScenarioPush", &policy(4, "ppo", weights()), &trusting())
+                .is_none()
+        );
         let reasons: Vec<(&str, u64)> = log.policies_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
         assert_eq!(
             reasons,

@@ -169,6 +169,8 @@ impl From<&PolicyUpdate> for v1::PolicyUpdate {
             version: p.version,
             algo: p.algo.clone(),
             weights_safetensors: p.weights.clone(),
+            target: p.target.clone(),
+            signature: p.signature.clone(),
         }
     }
 }
@@ -186,6 +188,8 @@ impl TryFrom<v1::PolicyUpdate> for PolicyUpdate {
             version: p.version,
             algo: non_empty(M, "algo", p.algo)?,
             weights: p.weights_safetensors,
+            target: p.target,
+            signature: p.signature,
         })
     }
 }

@@ -154,6 +154,8 @@ fn every_message_round_trips_bit_exactly() {
         version: 4,
         algo: "ppo".into(),
         weights: vec![1, 2, 3, 0, 255],
+        target: "site0/veh-1".into(),
+        signature: vec![7; 64],
     });
     for kind in ScenarioKind::ALL {
         round_trip(&ScenarioPush { header: hdr(12), spec_id: format!("{kind}-1"), spec: sample(7, kind, 3) });
@@ -274,7 +276,15 @@ fn missing_sub_messages_and_ids_are_rejected() {
     );
     let push = ScenarioPush { header: hdr(1), spec_id: "a".into(), spec: sample(1, ScenarioKind::LowFriction, 0) };
     rejects(&push, |p| p.spec = None, missing("ScenarioPush", "spec"));
-    let pol = PolicyUpdate { header: hdr(1), policy_id: "p".into(), version: 1, algo: "sac".into(), weights: vec![1] };
+    let pol = PolicyUpdate {
+        header: hdr(1),
+        policy_id: "p".into(),
+        version: 1,
+        algo: "sac".into(),
+        weights: vec![1],
+        target: String::new(),
+        signature: Vec::new(),
+    };
     rejects(&pol, |p| p.weights_safetensors.clear(), missing("PolicyUpdate", "weights_safetensors"));
     rejects(&road_map(), |p| p.lanes.clear(), missing("RoadMap", "lanes"));
 }

@@ -13,8 +13,10 @@
 //! format version) never verifies as a policy update's. The weights enter as their SHA-512 (the
 //! hash ed25519 itself uses): the cloud signs one update per vehicle, each naming its target,
 //! without hashing 64 MiB of weights through ed25519 twice per vehicle. The header (sequence
-//! number, clocks) is transport bookkeeping and not signed: a replayed update is the same
-//! policy, and the vehicle refuses a version it already holds.
+//! number, clocks) is transport bookkeeping and not signed, so a recorded update can be sent
+//! again and still verifies: the vehicle refuses any version of a policy id at or below the
+//! highest it accepted of that id (even after driving another policy since), for as long as its
+//! process runs; a restarted vehicle takes a replayed update again.
 //!
 //! Keys travel as text files (this module formats and parses them; the binary reads and writes
 //! them): one line naming the kind, one line of 64 hex digits (the ed25519 seed of a signing key,

@@ -3,15 +3,16 @@
 //! (decodable, a known algorithm, weights of sane size that load as a policy of this build's
 //! observation and action sizes and decision rate — `common::net::HostPolicy`; a file without
 //! a decision rate predates the field and is taken as 20 Hz — and whose file names the same
-//! algorithm, a monotonic version per policy id) and then drive the vehicle. Before any of that,
-//! a policy update must carry the cloud's ed25519 signature over its weights and metadata,
-//! addressed to this vehicle ([`PolicyTrust`], `common::policy_signature`): without a trusted
-//! key every update is refused (`unverifiable`), an unsigned one is `unsigned`, one that does
-//! not verify `bad-signature`, one signed for another vehicle `wrong-vehicle`; refused weights
-//! are never loaded. A refused push is
-//! counted by reason and logged; the vehicle keeps running what it was running. A hazard
-//! warning addressed to the vehicle is handed on to its driver (see [`super`]); one that does
-//! not decode, or that names another vehicle (`wrong-vehicle`), is refused by reason.
+//! algorithm, a version above every one accepted of its policy id while this process runs, also
+//! after another policy drove since) and then drive the vehicle. Before any of that, a policy
+//! update must carry the cloud's ed25519 signature over its weights and metadata, addressed to
+//! this vehicle ([`PolicyTrust`], `common::policy_signature`): without a trusted key every
+//! update is refused (`unverifiable`), an unsigned one is `unsigned`, one that does not verify
+//! `bad-signature`, one signed for another vehicle `wrong-vehicle`; refused weights are never
+//! loaded. A refused push is counted by reason and logged; the vehicle keeps running what it was
+//! running. A hazard warning addressed to the vehicle is handed on to its driver (see
+//! [`super`]); one that does not decode, or that names another vehicle (`wrong-vehicle`), is
+//! refused by reason.
 
 use crate::scene::ActivePolicy;
 use risktwin_common::net::HostPolicy;
@@ -100,6 +101,10 @@ pub struct PushSummary {
     pub warnings_on_tape: u64,
     /// Warnings refused, by reason.
     pub warnings_refused: BTreeMap<String, u64>,
+    /// The highest version accepted of each policy id, kept when another policy takes over, so
+    /// a recorded older update cannot roll the vehicle back. Held for the process's life only.
+    #[serde(skip)]
+    highest_versions: BTreeMap<String, u32>,
 }
 
 impl PushSummary {
@@ -163,6 +168,7 @@ impl PushSummary {
         }
         match self.check_policy(&update) {
             Ok(net) => {
+                self.highest_versions.insert(update.policy_id.clone(), update.version);
                 self.policy = Some(PolicyLine {
                     policy_id: update.policy_id.clone(),
                     version: update.version,
@@ -187,10 +193,13 @@ impl PushSummary {
         if update.weights.len() > MAX_WEIGHTS_BYTES {
             return Err(("too_large", format!("{} bytes > {MAX_WEIGHTS_BYTES}", update.weights.len())));
         }
-        if let Some(held) = self.policy.as_ref().filter(|p| p.policy_id == update.policy_id)
-            && update.version <= held.version
+        // Against every version accepted so far, not only the one driving now: replaying an
+        // older signed update of another id first must not open the way back to this one's.
+        if let Some(&highest) = self.highest_versions.get(&update.policy_id)
+            && update.version <= highest
         {
-            return Err(("stale_version", format!("version {} ≤ held {}", update.version, held.version)));
+            let detail = format!("{:?} version {} ≤ {highest} accepted before", update.policy_id, update.version);
+            return Err(("stale_version", detail));
         }
         let net = HostPolicy::from_safetensors(&update.weights).map_err(|e| (e.reason(), e.to_string()))?;
         if net.kind().algo() != update.algo {
@@ -233,9 +242,13 @@ mod tests {
     }
 
     fn unsigned(version: u32, algo: &str, weights: Vec<u8>) -> PolicyUpdate {
+        unsigned_id("p", version, algo, weights)
+    }
+
+    fn unsigned_id(policy_id: &str, version: u32, algo: &str, weights: Vec<u8>) -> PolicyUpdate {
         PolicyUpdate {
             header: header(),
-            policy_id: "p".into(),
+            policy_id: policy_id.into(),
             version,
             algo: algo.into(),
             weights,
@@ -277,6 +290,25 @@ mod tests {
         assert!(log.policy(POLICY, &policy(1, "ppo", weights()), &trusting()).is_some());
         let reasons: Vec<(&str, u64)> = log.policies_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
         assert_eq!(reasons, [("bad-signature", 3), ("unsigned", 1), ("unverifiable", 1), ("wrong-vehicle", 1)]);
+    }
+
+    #[test]
+    fn a_recorded_older_update_cannot_roll_the_vehicle_back_through_another_policy() {
+        let signed = |id: &str, version: u32| {
+            let mut u = unsigned_id(id, version, "ppo", weights());
+            cloud_key().sign(&mut u);
+            encode(&u)
+        };
+        let mut log = PushSummary::default();
+        assert!(log.policy(POLICY, &signed("p", 2), &trusting()).is_some());
+        assert!(log.policy(POLICY, &signed("q", 1), &trusting()).is_some(), "another policy takes over");
+        assert!(log.policy(POLICY, &signed("p", 1), &trusting()).is_none(), "p v1 replayed after p v2");
+        assert!(log.policy(POLICY, &signed("p", 2), &trusting()).is_none(), "p v2 replayed");
+        assert_eq!(log.policy.as_ref().map(|p| (p.policy_id.as_str(), p.version)), Some(("q", 1)));
+        assert!(log.policy(POLICY, &signed("p", 3), &trusting()).is_some(), "a newer p is taken");
+        assert!(log.policy(POLICY, &signed("q", 1), &trusting()).is_none(), "q v1 replayed");
+        let reasons: Vec<(&str, u64)> = log.policies_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        assert_eq!(reasons, [("stale_version", 3)]);
     }
 
     #[test]

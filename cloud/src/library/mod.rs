@@ -54,8 +54,9 @@
 //! # Reading back
 //! A file is input: every outcome read back is checked as a write is (risk terms and route
 //! completion in [0, 1], `min_ttc_s` NULL or ≥ 0, distances and speeds ≥ 0, every number finite,
-//! flags 0/1, `steps` ≥ 0), and at open the schema must be this build's to the letter (a table
-//! rebuilt without its CHECKs is refused). A row that fails is [`LibraryError::BadRow`]
+//! flags 0/1, `steps` ≥ 0), and at open the schema must be that of the file's version to the
+//! letter, whitespace aside (a table rebuilt without its CHECKs is refused), checked before any
+//! migration or pragma writes to the file. A row that fails is [`LibraryError::BadRow`]
 //! (`library FILE: row id SEQ: TABLE: …`), a damaged page SQLite's "malformed" error; both are
 //! the file's fault ([`LibraryError::blames_the_file`]), which the CLI reports as bad input.
 //!

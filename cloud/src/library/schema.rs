@@ -180,10 +180,12 @@ fn read_error(path: &Path, err: rusqlite::Error) -> LibraryError {
     }
 }
 
-/// Checks what the file holds, creates the schema in an empty one, then sets the connection up.
+/// Checks what the file holds, creates the schema in an empty one (or upgrades an older one),
+/// then sets the connection up.
 ///
-/// Nothing is written before the file is known to be empty or ours, so opening a foreign
-/// database by mistake leaves it untouched.
+/// Nothing is written before the file is known to be empty or ours, its tables and indexes
+/// those of its version included, so opening a foreign or altered database by mistake leaves it
+/// untouched.
 pub fn prepare(conn: &mut Connection, path: &Path) -> Result<(), LibraryError> {
     // The first statement reads the header: garbage and text files fail here (SQLITE_NOTADB).
     let app_id: i32 = conn.pragma_query_value(None, "application_id", |r| r.get(0)).map_err(|e| read_error(path, e))?;
@@ -202,6 +204,7 @@ pub fn prepare(conn: &mut Connection, path: &Path) -> Result<(), LibraryError> {
         if !(1..=SCHEMA_VERSION).contains(&version) {
             return Err(unsupported(version));
         }
+        check_schema(conn, path, version)?;
     } else if app_id != 0 || version != 0 || !objects.is_empty() {
         let shown: Vec<&str> = objects.iter().take(5).map(String::as_str).collect();
         return Err(LibraryError::NotALibrary {
@@ -235,8 +238,9 @@ pub fn prepare(conn: &mut Connection, path: &Path) -> Result<(), LibraryError> {
         }
         tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
         tx.commit()?;
+        check_schema(conn, path, SCHEMA_VERSION)?;
     }
-    check_schema(conn, path)
+    Ok(())
 }
 
 /// Every table's and index's SQL, by name, as SQLite keeps it.
@@ -247,15 +251,23 @@ fn objects_of(conn: &Connection) -> rusqlite::Result<Vec<(String, String, Option
     rows.collect()
 }
 
-/// Refuses a file whose tables and indexes are not this build's to the letter: the CHECKs and
-/// NOT NULLs are what keep the rows in range, and a table rebuilt without them (or an extra
-/// trigger that rewrites rows) is not a library this build wrote. The reference is the
-/// migrations run on an empty in-memory database (new and upgraded files are the same).
-fn check_schema(conn: &Connection, path: &Path) -> Result<(), LibraryError> {
+/// A statement's SQL with every run of whitespace made one space: SQLite keeps a `CREATE` as
+/// it was written, and builds that laid the same DDL out differently wrote the same schema.
+fn normalised(sql: &str) -> String {
+    sql.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Refuses a file whose tables and indexes are not those of schema `version` to the letter
+/// (whitespace aside): the CHECKs and NOT NULLs are what keep the rows in range, and a table
+/// rebuilt without them (or an extra trigger that rewrites rows) is not a library a RiskTwin
+/// build wrote. The reference is the first `version` migrations run on an empty in-memory
+/// database (new and upgraded files are the same).
+fn check_schema(conn: &Connection, path: &Path, version: i64) -> Result<(), LibraryError> {
     let wrong = |reason: String| LibraryError::WrongSchema { path: path.to_path_buf(), reason };
     let expected = {
         let reference = Connection::open_in_memory()?;
-        for ddl in MIGRATIONS {
+        let count = usize::try_from(version).unwrap_or(0).min(MIGRATIONS.len());
+        for ddl in &MIGRATIONS[..count] {
             reference.execute_batch(ddl)?;
         }
         objects_of(&reference)?
@@ -264,7 +276,7 @@ fn check_schema(conn: &Connection, path: &Path) -> Result<(), LibraryError> {
     for (kind, name, sql) in &expected {
         match found.iter().find(|(k, n, _)| k == kind && n == name) {
             None => return Err(wrong(format!("{kind} {name} is missing"))),
-            Some((_, _, s)) if s != sql => {
+            Some((_, _, s)) if s.as_deref().map(normalised) != sql.as_deref().map(normalised) => {
                 return Err(wrong(format!("{kind} {name} is not defined as this build defines it")));
             }
             Some(_) => {}
@@ -364,17 +376,20 @@ mod tests {
         stmt.query_map([], |r| Ok((r.get(0)?, r.get(1)?))).expect("rows").collect::<Result<_, _>>().expect("read")
     }
 
+    /// A version-1 file at `path` made of `ddl` (one batch) and that version's pragmas.
+    fn version_1_file(path: &Path, ddl: &str) {
+        let raw = Connection::open(path).expect("raw");
+        raw.execute_batch(ddl).expect("the ddl");
+        raw.pragma_update(None, "application_id", APPLICATION_ID).expect("app id");
+        raw.pragma_update(None, "user_version", 1).expect("version");
+    }
+
     #[test]
     fn a_version_1_file_is_upgraded_and_keeps_its_rows() {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("v1.db");
-        {
-            // A version-1 file as that build wrote it: its DDL, its pragmas, one scenario.
-            let raw = Connection::open(&path).expect("raw");
-            raw.execute_batch(V1_DDL).expect("v1 ddl");
-            raw.pragma_update(None, "application_id", APPLICATION_ID).expect("app id");
-            raw.pragma_update(None, "user_version", 1).expect("version");
-        }
+        // A version-1 file as that build wrote it: its DDL, its pragmas, one scenario.
+        version_1_file(&path, V1_DDL);
         let rec = sampled(ScenarioKind::CutIn, 0, 0.625, true);
         {
             // Write the row through a v1-shaped connection: the library would upgrade first.
@@ -401,6 +416,41 @@ mod tests {
         // Opening again runs nothing more.
         let again = ScenarioLibrary::open(&path).expect("reopen");
         assert_eq!(again.rank(None, None).expect("rank").len(), 0, "the v1 row has no outcome");
+    }
+
+    #[test]
+    fn a_version_1_file_of_the_first_build_opens_and_is_upgraded() {
+        // The first build's DDL laid the outcome columns out without the blank line that
+        // `outcome_columns!` puts in front of them now: the same schema, other whitespace.
+        let first_build = include_str!("testdata/v1_ddl_f57daa8.sql");
+        assert!(!first_build.contains("REFERENCES scenarios(id),\n\n"), "the fixture is the old text");
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("v1-first.db");
+        version_1_file(&path, first_build);
+        let lib = ScenarioLibrary::open(&path).expect("a version-1 file of the first build opens");
+        let version: i64 = lib.conn.pragma_query_value(None, "user_version", |r| r.get(0)).expect("pragma");
+        assert_eq!(version, SCHEMA_VERSION);
+        drop(lib);
+        ScenarioLibrary::open(&path).expect("and opens again");
+    }
+
+    #[test]
+    fn an_older_file_with_the_wrong_schema_is_refused_before_anything_is_written() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("v1-altered.db");
+        // Version 1 by its pragmas, but `outcomes` rebuilt without its CHECKs.
+        let altered = format!(
+            "{V1_DDL} DROP TABLE outcomes; CREATE TABLE outcomes (seq INTEGER PRIMARY KEY, scenario_id TEXT);
+             CREATE INDEX outcomes_latest ON outcomes(scenario_id, seq);"
+        );
+        version_1_file(&path, &altered);
+        let before = std::fs::read(&path).expect("read");
+        match ScenarioLibrary::open(&path) {
+            Err(e @ LibraryError::WrongSchema { .. }) => assert!(e.to_string().contains("outcomes"), "{e}"),
+            other => panic!("expected WrongSchema, got {other:?}"),
+        }
+        assert_eq!(std::fs::read(&path).expect("read back"), before, "no migration, no journal mode written");
+        assert!(!dir.path().join("v1-altered.db-wal").exists());
     }
 
     #[test]

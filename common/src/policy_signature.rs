@@ -23,7 +23,7 @@
 //! the point of a verifying key).
 
 use crate::telemetry::PolicyUpdate;
-use ed25519_dalek::{Signature, Signer, SigningKey, Verifier, VerifyingKey};
+use ed25519_dalek::{Signature, Signer, SigningKey, VerifyingKey};
 use sha2::{Digest, Sha512};
 
 /// Domain separation of the signed message (see the module doc); a new layout gets a new one.
@@ -42,6 +42,8 @@ pub enum SignatureError {
     BadKeyText { found: usize },
     #[error("the key is not a valid ed25519 public key")]
     BadPoint,
+    #[error("the key is a small-order (weak) ed25519 point, under which forged signatures verify")]
+    WeakKey,
     #[error("the update carries no signature")]
     Unsigned,
     #[error("the signature is {found} bytes, not 64")]
@@ -120,7 +122,11 @@ impl PolicyVerifyingKey {
             .as_slice()
             .try_into()
             .map_err(|_| SignatureError::BadLength { found: update.signature.len() })?;
-        self.0.verify(&signed_message(update), &Signature::from_bytes(&bytes)).map_err(|_| SignatureError::Mismatch)
+        // Strict: no small-order key or R, canonical s (RFC 8032 §5.1.7 plus the checks that
+        // keep a signature from verifying under more than one message or key).
+        self.0
+            .verify_strict(&signed_message(update), &Signature::from_bytes(&bytes))
+            .map_err(|_| SignatureError::Mismatch)
     }
 
     /// The key file's text.
@@ -131,7 +137,11 @@ impl PolicyVerifyingKey {
     /// A key file's text back as a key.
     pub fn from_text(text: &str) -> Result<Self, SignatureError> {
         let bytes = key_line(text, VERIFYING_KEY_HEADER)?;
-        VerifyingKey::from_bytes(&bytes).map(Self).map_err(|_| SignatureError::BadPoint)
+        let key = VerifyingKey::from_bytes(&bytes).map_err(|_| SignatureError::BadPoint)?;
+        if key.is_weak() {
+            return Err(SignatureError::WeakKey);
+        }
+        Ok(Self(key))
     }
 }
 
@@ -148,7 +158,8 @@ fn key_line(text: &str, header: &'static str) -> Result<[u8; 32], SignatureError
     }
     let key = lines.next().unwrap_or_default().trim();
     let bad = || SignatureError::BadKeyText { found: key.chars().count() };
-    if key.len() != 64 || !key.is_ascii() {
+    // Hex digits only: `from_str_radix` alone would take a sign ("+f").
+    if key.len() != 64 || !key.bytes().all(|b| b.is_ascii_hexdigit()) {
         return Err(bad());
     }
     let mut out = [0u8; 32];
@@ -239,6 +250,24 @@ mod tests {
     }
 
     #[test]
+    fn small_order_trust_keys_are_refused_and_never_verify() {
+        // All zeros (a point of order 4) and the identity: valid encodings, weak keys.
+        let identity = format!("01{}", "0".repeat(62));
+        for point in ["0".repeat(64), identity] {
+            let text = format!("{VERIFYING_KEY_HEADER}\n{point}\n");
+            assert_eq!(PolicyVerifyingKey::from_text(&text), Err(SignatureError::WeakKey), "{point}");
+        }
+        // Under the identity key, R = identity and s = 0 pass the plain ed25519 equation for any
+        // message; the strict check refuses it.
+        let mut identity = [0u8; 32];
+        identity[0] = 1;
+        let weak = PolicyVerifyingKey(VerifyingKey::from_bytes(&identity).expect("the identity point"));
+        let mut u = update();
+        u.signature = [1].into_iter().chain([0; 63]).collect();
+        assert_eq!(weak.verify(&u), Err(SignatureError::Mismatch));
+    }
+
+    #[test]
     fn key_files_round_trip_and_bad_ones_are_named() {
         let k = key(5);
         let back = PolicySigningKey::from_text(&k.to_text()).expect("signing key");
@@ -253,6 +282,8 @@ mod tests {
         let not_hex = format!("{SIGNING_KEY_HEADER}\n{}\n", "zz".repeat(32));
         assert_eq!(PolicySigningKey::from_text(&not_hex).unwrap_err(), SignatureError::BadKeyText { found: 64 });
         assert!(PolicySigningKey::from_text("").is_err());
+        let signed = format!("{SIGNING_KEY_HEADER}\n{}\n", "+f".repeat(32));
+        assert_eq!(PolicySigningKey::from_text(&signed).unwrap_err(), SignatureError::BadKeyText { found: 64 });
         assert!(!format!("{k:?}").contains(&hex(&[5; 32])), "Debug shows no secret");
     }
 }

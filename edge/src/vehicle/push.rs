@@ -28,6 +28,11 @@ use std::sync::Arc;
 pub const KNOWN_ALGOS: [&str; 2] = ["ppo", "sac"];
 /// Largest accepted weights file, bytes.
 pub const MAX_WEIGHTS_BYTES: usize = 64 << 20;
+/// Refusals of one reason logged as warnings before they thin out to one in [`LOG_EVERY`]: a
+/// peer flooding refused pushes must not flood the log too.
+const LOGGED_IN_FULL: u64 = 10;
+/// After the first [`LOGGED_IN_FULL`], one refusal of a reason in this many is logged.
+const LOG_EVERY: u64 = 1000;
 
 /// Whose policy updates a vehicle takes: signed by the holder of `key`'s secret half for this
 /// vehicle (`target`, `SITE/ID`).
@@ -55,6 +60,11 @@ impl PolicyTrust {
             Ok(()) => None,
         }
     }
+}
+
+/// Whether the `count`-th refusal of a reason past the first [`LOGGED_IN_FULL`] is logged.
+fn thinned_out_logged(count: u64) -> bool {
+    count.is_multiple_of(LOG_EVERY)
 }
 
 /// A pushed scenario's outcome, as the vehicle reports it in its summary.
@@ -108,9 +118,18 @@ pub struct PushSummary {
 }
 
 impl PushSummary {
+    /// Counts a refusal by reason and logs it: the first [`LOGGED_IN_FULL`] of each reason,
+    /// then one in [`LOG_EVERY`] with the count so far (every one at debug level).
     fn refuse(map: &mut BTreeMap<String, u64>, what: &str, reason: &str, detail: &str) {
-        tracing::warn!("edge: refused {what}: {reason}: {detail}");
-        *map.entry(reason.to_owned()).or_default() += 1;
+        let count = map.entry(reason.to_owned()).or_default();
+        *count += 1;
+        if *count <= LOGGED_IN_FULL {
+            tracing::warn!("edge: refused {what}: {reason}: {detail}");
+        } else if thinned_out_logged(*count) {
+            tracing::warn!("edge: refused {what}: {reason}: {detail} ({count} so far, one in {LOG_EVERY} logged)");
+        } else {
+            tracing::debug!("edge: refused {what}: {reason}: {detail}");
+        }
     }
 
     /// A valid, feasible scenario push (`payload` tagged `encoding`), or `None` (counted and
@@ -162,6 +181,12 @@ impl PushSummary {
                 return None;
             }
         };
+        // Before the signature is checked, whose message hashes all of the weights.
+        if update.weights.len() > MAX_WEIGHTS_BYTES {
+            let detail = format!("{} bytes > {MAX_WEIGHTS_BYTES}", update.weights.len());
+            Self::refuse(&mut self.policies_refused, "policy update", "too_large", &detail);
+            return None;
+        }
         if let Some((reason, detail)) = trust.refusal(&update) {
             Self::refuse(&mut self.policies_refused, "policy update", reason, &detail);
             return None;
@@ -189,9 +214,6 @@ impl PushSummary {
     fn check_policy(&self, update: &PolicyUpdate) -> Result<HostPolicy, (&'static str, String)> {
         if !KNOWN_ALGOS.contains(&update.algo.as_str()) {
             return Err(("unknown_algo", format!("algo {:?}, known {KNOWN_ALGOS:?}", update.algo)));
-        }
-        if update.weights.len() > MAX_WEIGHTS_BYTES {
-            return Err(("too_large", format!("{} bytes > {MAX_WEIGHTS_BYTES}", update.weights.len())));
         }
         // Against every version accepted so far, not only the one driving now: replaying an
         // older signed update of another id first must not open the way back to this one's.
@@ -286,10 +308,16 @@ mod tests {
         elsewhere.target = "site0/veh-2".into();
         cloud_key().sign(&mut elsewhere);
         assert!(log.policy(POLICY, &encode(&elsewhere), &trusting()).is_none(), "for another vehicle");
+        let mut huge = unsigned(1, "ppo", vec![0; MAX_WEIGHTS_BYTES + 1]);
+        huge.signature = vec![0; 64];
+        assert!(log.policy(POLICY, &encode(&huge), &trusting()).is_none(), "too large to hash");
         assert_eq!(log.policy, None, "nothing refused was loaded");
         assert!(log.policy(POLICY, &policy(1, "ppo", weights()), &trusting()).is_some());
         let reasons: Vec<(&str, u64)> = log.policies_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
-        assert_eq!(reasons, [("bad-signature", 3), ("unsigned", 1), ("unverifiable", 1), ("wrong-vehicle", 1)]);
+        assert_eq!(
+            reasons,
+            [("bad-signature", 3), ("too_large", 1), ("unsigned", 1), ("unverifiable", 1), ("wrong-vehicle", 1)]
+        );
     }
 
     #[test]
@@ -309,6 +337,17 @@ mod tests {
         assert!(log.policy(POLICY, &signed("q", 1), &trusting()).is_none(), "q v1 replayed");
         let reasons: Vec<(&str, u64)> = log.policies_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
         assert_eq!(reasons, [("stale_version", 3)]);
+    }
+
+    #[test]
+    fn a_flood_of_refusals_is_counted_in_full_and_logged_thinned_out() {
+        let mut log = PushSummary::default();
+        for _ in 0..2500 {
+            assert!(log.scenario(SCENARIO, b"\xff\xff garbage").is_none());
+        }
+        assert_eq!(log.scenarios_refused.get("malformed"), Some(&2500));
+        let logged = (1..=2500).filter(|&n| n <= LOGGED_IN_FULL || thinned_out_logged(n)).count();
+        assert_eq!(logged, 12, "the first ten, the 1000th and the 2000th");
     }
 
     #[test]

@@ -173,3 +173,26 @@ fn warning_flags_without_the_warning_role_are_refused() {
         "--warning-ttc-s 0 must lie in (0, 10]",
     );
 }
+
+#[test]
+fn push_policy_without_a_signing_key_is_refused_before_sending() {
+    let dir = tempdir().unwrap();
+    let weights = write_file(dir.path(), "w.safetensors", "not read");
+    let weights = weights.to_str().unwrap();
+    let args = ["push", "policy", "--weights", weights, "--policy-id", "p", "--version", "1", "--algo", "ppo"];
+    let line = assert_input_error(dir.path(), &[&args[..], &["--to", "veh-1"]].concat(), "--signing-key");
+    assert!(line.contains("required"), "{line}");
+}
+
+#[test]
+fn a_small_order_trust_key_is_refused() {
+    let dir = tempdir().unwrap();
+    let text = format!("risktwin policy verifying key (ed25519, hex)\n{}\n", "0".repeat(64));
+    let key = write_file(dir.path(), "zeros.key", &text);
+    let line = assert_input_error(
+        dir.path(),
+        &["edge", "vehicle", "--id", "veh-1", "--trust-key", key.to_str().unwrap()],
+        "--trust-key",
+    );
+    assert!(line.contains("small-order"), "{line}");
+}

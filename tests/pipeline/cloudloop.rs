@@ -3,7 +3,7 @@
 //! library queryable answering a real Zenoh get. The test's own Zenoh session (a peer connected
 //! to the router) subscribes, publishes bad pushes (garbage, untagged) and queries.
 
-use crate::support::{Proc, cut_in_library, run_json, runtime, session, start_router};
+use crate::support::{Proc, cut_in_library, keys, run_json, runtime, session, start_router};
 use prost::Message;
 use risktwin_common::telemetry::RiskReport;
 use risktwin_protos::foxglove::Grid;
@@ -123,6 +123,7 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
     let id = ranked[0]["id"].as_str().expect("a ranked id").to_owned();
 
     // 10× real time, so that a 15 s episode plays in 1.5 s; no cloud, so no waiting for one.
+    let (signing_key, verifying_key) = keys(dir.path(), "cloud");
     let mut vehicle = Proc::spawn(
         "veh",
         &[
@@ -138,6 +139,8 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
             "500",
             "--wait-for-cloud-s",
             "0",
+            "--trust-key",
+            &verifying_key,
         ],
     );
     vehicle.wait_line(STEP, |l| l == "edge veh-p: publishing");
@@ -209,6 +212,8 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
             "veh-p",
             "--site",
             "track",
+            "--signing-key",
+            &signing_key,
             "--connect",
             &locator,
         ];

@@ -25,13 +25,10 @@ fn vehicle(id: &str, locator: &str, trust: Option<&str>) -> Proc {
     v
 }
 
-/// `risktwin push policy` of `weights` (version 1) to `to`, signed with `key` when given.
-fn push(locator: &str, to: &str, weights: &str, key: Option<&str>) {
+/// `risktwin push policy` of `weights` (version 1) to `to`, signed with `key`.
+fn push(locator: &str, to: &str, weights: &str, key: &str) {
     let mut args = vec!["push", "policy", "--weights", weights, "--policy-id", "ppo-s", "--version", "1"];
-    args.extend(["--algo", "ppo", "--to", to, "--site", SITE, "--connect", locator]);
-    if let Some(key) = key {
-        args.extend(["--signing-key", key]);
-    }
+    args.extend(["--algo", "ppo", "--to", to, "--site", SITE, "--signing-key", key, "--connect", locator]);
     assert_eq!(crate::support::run_json(&args)["delivered"], true);
 }
 
@@ -122,13 +119,16 @@ fn only_updates_signed_by_the_trusted_key_for_the_vehicle_are_driven_with() {
     put_raw(&locator, "veh-u", &update);
     refused(&mut untrusting, "unverifiable", 1);
 
-    push(&locator, "veh-t", weights, Some(&stranger_key));
+    push(&locator, "veh-t", weights, &stranger_key);
     refused(&mut trusting, "bad-signature", 3);
-    push(&locator, "veh-t", weights, None);
+    // `push policy` signs always (it requires --signing-key); an unsigned update on the wire:
+    let mut bare = update.clone();
+    bare.signature.clear();
+    put_raw(&locator, "veh-t", &bare);
     refused(&mut trusting, "unsigned", 1);
-    push(&locator, "veh-u", weights, Some(&cloud_key));
+    push(&locator, "veh-u", weights, &cloud_key);
     refused(&mut untrusting, "unverifiable", 2);
-    push(&locator, "veh-t", weights, Some(&cloud_key));
+    push(&locator, "veh-t", weights, &cloud_key);
     trusting.wait_line(STEP, |l| l.starts_with("edge: driving with policy ppo-s version 1"));
 
     let summaries: Vec<serde_json::Value> = [trusting, untrusting]

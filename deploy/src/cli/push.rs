@@ -52,8 +52,8 @@ pub struct PushPolicyArgs {
     /// `ppo` or `sac`.
     #[arg(long)]
     pub algo: String,
-    /// The cloud's signing key (`risktwin keys generate`): the update is signed for the target
-    /// vehicle. Without it the update goes unsigned, and a vehicle refuses it.
+    /// The cloud's signing key (`risktwin keys generate`), required: the update is signed for
+    /// the target vehicle, which refuses unsigned ones.
     #[arg(long)]
     pub signing_key: Option<PathBuf>,
     #[command(flatten)]

@@ -78,6 +78,12 @@ pub fn cloud(args: CloudArgs) -> CliResult {
         return Err(CliError::input("--signing-key needs the loop role (it signs the policies the loop pushes)"));
     }
     config.signing_key = args.signing_key.as_deref().map(super::keys::read_signing_key).transpose()?;
+    if config.signing_key.is_none() && config.roles.contains(&Role::Trainer) {
+        tracing::warn!(
+            "cloud: no --signing-key: the policies the trainer lets through are pushed unsigned, and every \
+             vehicle refuses them (docs/signing.md)"
+        );
+    }
     if args.loop_report.is_some() && !config.roles.contains(&Role::Loop) {
         return Err(CliError::input("--loop-report needs the loop role (--roles ingest,twin,loop --db FILE)"));
     }

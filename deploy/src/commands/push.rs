@@ -54,13 +54,21 @@ fn scenario(args: PushScenarioArgs) -> CliResult {
 }
 
 fn policy(args: PushPolicyArgs) -> CliResult {
+    // Every vehicle refuses an unsigned update: sending one would report a delivery that
+    // changes nothing.
+    let Some(key_file) = args.signing_key.as_deref() else {
+        return Err(CliError::input(
+            "--signing-key FILE is required: vehicles refuse unsigned policy updates (make a key pair with \
+             `risktwin keys generate`, docs/signing.md)",
+        ));
+    };
+    let signer = super::keys::read_signing_key(key_file)?;
     // Refused (exit 2) when larger than a vehicle takes, before it is read whole.
     let weights = read_bounded(&args.weights, MAX_WEIGHTS_BYTES as u64, "weights ")?;
-    let signer = args.signing_key.as_deref().map(super::keys::read_signing_key).transpose()?;
     let target = target(args.to)?;
     let (id, version, algo) = (args.policy_id, args.version, args.algo);
     let report = with_signals(|shutdown| async move {
-        push_policy(&target, &id, version, &algo, weights, signer.as_ref(), shutdown).await.map_err(runtime)
+        push_policy(&target, &id, version, &algo, weights, Some(&signer), shutdown).await.map_err(runtime)
     })?;
     print_json(&report)
 }

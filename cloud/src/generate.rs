@@ -23,7 +23,7 @@ pub struct Evaluated {
 pub struct Batch {
     pub evaluated: Vec<Evaluated>,
     /// Rejected candidates by kind and reason code.
-    pub rejected: BTreeMap<(ScenarioKind, &'static str), u64>,
+    pub rejected: RejectionCounts,
     pub sampled: u64,
 }
 
@@ -60,8 +60,8 @@ pub fn parallel_map<T: Sync, R: Send>(items: &[T], threads: usize, f: impl Fn(&T
 
 /// Samples `count` candidates of each kind under `seed`, filters and evaluates them.
 pub fn generate(kinds: &[ScenarioKind], count: u64, seed: u64, threads: usize) -> Batch {
-    let (mut batch, feasible) = sample_feasible(kinds, count, seed);
-    batch.evaluated = evaluate_all(feasible, threads);
+    let (mut batch, sampled) = sample_feasible(kinds, count, seed);
+    batch.evaluated = evaluate_all(sampled.feasible, threads);
     batch
 }
 
@@ -72,8 +72,10 @@ pub const STORE_BATCH: usize = 64;
 
 /// [`generate`] and [`store`] in batches of [`STORE_BATCH`] scenarios, each committed once
 /// evaluated, so a run killed midway keeps every batch it finished: whole scenarios with their
-/// outcomes, in the order (and with the sequence numbers) a whole run gives them. The rejection
-/// counts are committed first. Same report as [`store`].
+/// outcomes, in the order (and with the sequence numbers) a whole run gives them. Each batch's
+/// transaction also holds the rejection counts of the candidates sampled since the previous
+/// batch (the last batch: all that are left), so a killed run's counts match its scenarios.
+/// Same report as [`store`].
 pub fn generate_into(
     library: &mut ScenarioLibrary,
     kinds: &[ScenarioKind],
@@ -81,34 +83,68 @@ pub fn generate_into(
     seed: u64,
     threads: usize,
 ) -> Result<GenerateReport, LibraryError> {
-    let (mut batch, feasible) = sample_feasible(kinds, count, seed);
-    library.record_rejections(&rejections(&batch))?;
-    for specs in feasible.chunks(STORE_BATCH) {
-        let evaluated = evaluate_all(specs.to_vec(), threads);
+    let (mut batch, sampled) = sample_feasible(kinds, count, seed);
+    let mut rejected = rejections_by_batch(&sampled.rejected_at, sampled.feasible.len()).into_iter();
+    let mut specs = sampled.feasible.chunks(STORE_BATCH);
+    loop {
+        let (chunk, counts) = (specs.next().unwrap_or(&[]), rejected.next().unwrap_or_default());
+        let evaluated = evaluate_all(chunk.to_vec(), threads);
         let records: Vec<ScenarioRecord> =
             evaluated.iter().map(|e| ScenarioRecord::sampled(e.spec.clone(), reference_outcome(&e.result))).collect();
-        library.insert_batch(&records)?;
+        library.insert_with_rejections(&records, &as_rejections(&counts))?;
         batch.evaluated.extend(evaluated);
+        if specs.len() == 0 {
+            break;
+        }
     }
     Ok(report(kinds, &batch))
 }
 
-/// The candidates of [`generate`], sampled and filtered: the counts, and the feasible specs in
-/// sampling order.
-fn sample_feasible(kinds: &[ScenarioKind], count: u64, seed: u64) -> (Batch, Vec<ScenarioSpec>) {
+/// Rejection counts by kind and reason code.
+pub type RejectionCounts = BTreeMap<(ScenarioKind, &'static str), u64>;
+
+/// The candidates of [`generate`], sampled and filtered.
+struct Sampled {
+    /// The feasible specs, in sampling order.
+    feasible: Vec<ScenarioSpec>,
+    /// Each rejected candidate, in sampling order: how many feasible specs were sampled before
+    /// it, its kind and its reason code.
+    rejected_at: Vec<(usize, ScenarioKind, &'static str)>,
+}
+
+/// The rejections of each [`STORE_BATCH`] of `feasible` specs (at least one batch): batch `k`
+/// takes those sampled before its last spec and after the previous batch's, the last batch
+/// also those sampled after it.
+fn rejections_by_batch(rejected_at: &[(usize, ScenarioKind, &'static str)], feasible: usize) -> Vec<RejectionCounts> {
+    let batches = feasible.div_ceil(STORE_BATCH).max(1);
+    let mut out = vec![RejectionCounts::new(); batches];
+    for &(before, kind, code) in rejected_at {
+        let k = (before / STORE_BATCH).min(batches - 1);
+        *out[k].entry((kind, code)).or_default() += 1;
+    }
+    out
+}
+
+/// Samples `count` candidates of each kind under `seed` and filters them: the counts, and
+/// what was kept and refused in sampling order.
+fn sample_feasible(kinds: &[ScenarioKind], count: u64, seed: u64) -> (Batch, Sampled) {
     let mut batch = Batch::default();
-    let mut feasible = Vec::new();
+    let mut sampled = Sampled { feasible: Vec::new(), rejected_at: Vec::new() };
     for &kind in kinds {
         for index in 0..count {
             let spec = sample(seed, kind, index);
             batch.sampled += 1;
             match check_feasible(&spec) {
-                Ok(()) => feasible.push(spec),
-                Err(why) => *batch.rejected.entry((kind, Infeasible::code(&why))).or_default() += 1,
+                Ok(()) => sampled.feasible.push(spec),
+                Err(why) => {
+                    let code = Infeasible::code(&why);
+                    *batch.rejected.entry((kind, code)).or_default() += 1;
+                    sampled.rejected_at.push((sampled.feasible.len(), kind, code));
+                }
             }
         }
     }
-    (batch, feasible)
+    (batch, sampled)
 }
 
 /// Evaluates specs with the reference driver on `threads` workers, in order.
@@ -147,17 +183,12 @@ pub fn store(
 ) -> Result<GenerateReport, LibraryError> {
     let records: Vec<ScenarioRecord> =
         batch.evaluated.iter().map(|e| ScenarioRecord::sampled(e.spec.clone(), reference_outcome(&e.result))).collect();
-    library.insert_batch(&records)?;
-    library.record_rejections(&rejections(batch))?;
+    library.insert_with_rejections(&records, &as_rejections(&batch.rejected))?;
     Ok(report(kinds, batch))
 }
 
-fn rejections(batch: &Batch) -> Vec<Rejection> {
-    batch
-        .rejected
-        .iter()
-        .map(|(&(kind, reason), &count)| Rejection { kind, reason: reason.to_string(), count })
-        .collect()
+fn as_rejections(counts: &RejectionCounts) -> Vec<Rejection> {
+    counts.iter().map(|(&(kind, reason), &count)| Rejection { kind, reason: reason.to_string(), count }).collect()
 }
 
 /// The report on a stored batch.
@@ -181,7 +212,33 @@ fn report(kinds: &[ScenarioKind], batch: &Batch) -> GenerateReport {
 
 #[cfg(test)]
 mod tests {
-    use super::parallel_map;
+    use super::*;
+
+    #[test]
+    fn each_batch_commits_the_rejections_sampled_since_the_previous_one() {
+        let (batch, sampled) = sample_feasible(&ScenarioKind::ALL, 60, 3);
+        let feasible = sampled.feasible.len();
+        assert!(feasible > 2 * STORE_BATCH && !sampled.rejected_at.is_empty(), "{feasible} feasible");
+        let by_batch = rejections_by_batch(&sampled.rejected_at, feasible);
+        assert_eq!(by_batch.len(), feasible.div_ceil(STORE_BATCH));
+        // Together: exactly the run's counts.
+        let mut total = RejectionCounts::new();
+        for counts in &by_batch {
+            for (&key, &n) in counts {
+                *total.entry(key).or_default() += n;
+            }
+        }
+        assert_eq!(total, batch.rejected);
+        // A run killed after its first batch keeps the rejections sampled before that batch's
+        // last scenario, no later ones.
+        let first: u64 = by_batch[0].values().sum();
+        let before = sampled.rejected_at.iter().filter(|&&(at, _, _)| at < STORE_BATCH).count() as u64;
+        assert_eq!(first, before);
+        // Nothing feasible: one commit holds every rejection.
+        let only = rejections_by_batch(&sampled.rejected_at[..3], 0);
+        assert_eq!(only.len(), 1);
+        assert_eq!(only[0].values().sum::<u64>(), 3);
+    }
 
     #[test]
     fn parallel_map_keeps_input_order_whatever_the_threads_and_the_cost() {

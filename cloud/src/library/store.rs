@@ -15,6 +15,17 @@ impl ScenarioLibrary {
     /// already stored keeps its first row (lineage included); its new outcome is still added.
     /// Outcomes with a collision mark their scenario as a regression case.
     pub fn insert_batch(&mut self, records: &[ScenarioRecord]) -> Result<InsertSummary, LibraryError> {
+        self.insert_with_rejections(records, &[])
+    }
+
+    /// [`ScenarioLibrary::insert_batch`] and [`ScenarioLibrary::record_rejections`] in one
+    /// transaction: a generator that commits the candidates it rejected together with the
+    /// scenarios sampled beside them never leaves counts for scenarios a killed run did not store.
+    pub fn insert_with_rejections(
+        &mut self,
+        records: &[ScenarioRecord],
+        rejections: &[Rejection],
+    ) -> Result<InsertSummary, LibraryError> {
         let ids = records
             .iter()
             .map(|rec| {
@@ -87,6 +98,13 @@ impl ScenarioLibrary {
                     }
                 }
             }
+            let mut rejected_stmt = tx.prepare_cached(
+                "INSERT INTO rejected (kind, reason, count) VALUES (?1, ?2, ?3) \
+                 ON CONFLICT (kind, reason) DO UPDATE SET count = count + excluded.count",
+            )?;
+            for r in rejections {
+                rejected_stmt.execute(params![r.kind.name(), r.reason, r.count as i64])?;
+            }
         }
         tx.commit()?;
         Ok(summary)
@@ -94,18 +112,7 @@ impl ScenarioLibrary {
 
     /// Adds rejected-candidate counts (by kind and `Infeasible::code`) in one transaction.
     pub fn record_rejections(&mut self, rejections: &[Rejection]) -> Result<(), LibraryError> {
-        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
-        {
-            let mut stmt = tx.prepare_cached(
-                "INSERT INTO rejected (kind, reason, count) VALUES (?1, ?2, ?3) \
-                 ON CONFLICT (kind, reason) DO UPDATE SET count = count + excluded.count",
-            )?;
-            for r in rejections {
-                stmt.execute(params![r.kind.name(), r.reason, r.count as i64])?;
-            }
-        }
-        tx.commit()?;
-        Ok(())
+        self.insert_with_rejections(&[], rejections).map(|_| ())
     }
 
     /// Every rejection count, by kind then reason.

@@ -219,7 +219,7 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
         ];
         assert_eq!(run_json(&policy)["delivered"], true);
     }
-    vehicle.wait_line(STEP, |l| l.starts_with("edge: refused policy update: stale_version"));
+    vehicle.wait_line(STEP, |l| l.starts_with("edge: refused policy update: stale-version"));
 
     vehicle.terminate();
     let summary = vehicle.exit_json(STEP);
@@ -233,7 +233,7 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
         pushes["policy"],
         serde_json::json!({"policy_id": "ppo-1", "version": 3, "algo": "ppo", "weights_bytes": weights_bytes})
     );
-    assert_eq!(pushes["policies_refused"], serde_json::json!({"stale_version": 1}));
+    assert_eq!(pushes["policies_refused"], serde_json::json!({"stale-version": 1}));
     assert!(summary["sent"]["state"].as_u64().is_some_and(|n| n > 100), "the vehicle kept publishing: {summary}");
 }
 

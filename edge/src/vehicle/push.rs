@@ -184,7 +184,7 @@ impl PushSummary {
         // Before the signature is checked, whose message hashes all of the weights.
         if update.weights.len() > MAX_WEIGHTS_BYTES {
             let detail = format!("{} bytes > {MAX_WEIGHTS_BYTES}", update.weights.len());
-            Self::refuse(&mut self.policies_refused, "policy update", "too_large", &detail);
+            Self::refuse(&mut self.policies_refused, "policy update", "too-large", &detail);
             return None;
         }
         if let Some((reason, detail)) = trust.refusal(&update) {
@@ -213,7 +213,7 @@ impl PushSummary {
     /// The loaded policy of a decoded update, or why it is refused.
     fn check_policy(&self, update: &PolicyUpdate) -> Result<HostPolicy, (&'static str, String)> {
         if !KNOWN_ALGOS.contains(&update.algo.as_str()) {
-            return Err(("unknown_algo", format!("algo {:?}, known {KNOWN_ALGOS:?}", update.algo)));
+            return Err(("unknown-algo", format!("algo {:?}, known {KNOWN_ALGOS:?}", update.algo)));
         }
         // Against every version accepted so far, not only the one driving now: replaying an
         // older signed update of another id first must not open the way back to this one's.
@@ -221,12 +221,12 @@ impl PushSummary {
             && update.version <= highest
         {
             let detail = format!("{:?} version {} ≤ {highest} accepted before", update.policy_id, update.version);
-            return Err(("stale_version", detail));
+            return Err(("stale-version", detail));
         }
         let net = HostPolicy::from_safetensors(&update.weights).map_err(|e| (e.reason(), e.to_string()))?;
         if net.kind().algo() != update.algo {
             let detail = format!("update says {:?}, its weights are a {} policy", update.algo, net.kind().algo());
-            return Err(("algo_mismatch", detail));
+            return Err(("algo-mismatch", detail));
         }
         Ok(net)
     }
@@ -316,7 +316,7 @@ mod tests {
         let reasons: Vec<(&str, u64)> = log.policies_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
         assert_eq!(
             reasons,
-            [("bad-signature", 3), ("too_large", 1), ("unsigned", 1), ("unverifiable", 1), ("wrong-vehicle", 1)]
+            [("bad-signature", 3), ("too-large", 1), ("unsigned", 1), ("unverifiable", 1), ("wrong-vehicle", 1)]
         );
     }
 
@@ -336,7 +336,7 @@ mod tests {
         assert!(log.policy(POLICY, &signed("p", 3), &trusting()).is_some(), "a newer p is taken");
         assert!(log.policy(POLICY, &signed("q", 1), &trusting()).is_none(), "q v1 replayed");
         let reasons: Vec<(&str, u64)> = log.policies_refused.iter().map(|(k, v)| (k.as_str(), *v)).collect();
-        assert_eq!(reasons, [("stale_version", 3)]);
+        assert_eq!(reasons, [("stale-version", 3)]);
     }
 
     #[test]
@@ -440,10 +440,10 @@ mod tests {
         assert_eq!(
             reasons,
             [
-                ("algo_mismatch", 1),
-                ("not_safetensors", 1),
-                ("stale_version", 2),
-                ("unknown_algo", 1),
+                ("algo-mismatch", 1),
+                ("not-safetensors", 1),
+                ("stale-version", 2),
+                ("unknown-algo", 1),
                 ("wrong-schema", 1),
                 ("wrong_decision_rate", 1),
                 ("wrong_dims", 1)

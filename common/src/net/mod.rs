@@ -65,16 +65,16 @@ impl NetError {
     /// A short stable name for counting refusals by reason.
     pub fn reason(&self) -> &'static str {
         match self {
-            NetError::Safetensors(_) => "not_safetensors",
-            NetError::MissingMetadata(_) | NetError::FormatVersion { .. } | NetError::BadHidden(_) => "bad_metadata",
-            NetError::Dimension { .. } | NetError::PolicyShape { .. } | NetError::Chain { .. } => "wrong_dims",
-            NetError::DecisionRate { .. } => "wrong_decision_rate",
-            NetError::UnknownAlgo(_) | NetError::Recurrent(_) => "unsupported_algo",
-            NetError::MissingTensor(_) => "missing_tensor",
+            NetError::Safetensors(_) => "not-safetensors",
+            NetError::MissingMetadata(_) | NetError::FormatVersion { .. } | NetError::BadHidden(_) => "bad-metadata",
+            NetError::Dimension { .. } | NetError::PolicyShape { .. } | NetError::Chain { .. } => "wrong-dims",
+            NetError::DecisionRate { .. } => "wrong-decision-rate",
+            NetError::UnknownAlgo(_) | NetError::Recurrent(_) => "unsupported-algo",
+            NetError::MissingTensor(_) => "missing-tensor",
             NetError::Dtype { .. } | NetError::TensorShape { .. } | NetError::LayerSize { .. } | NetError::NoLayers => {
-                "bad_tensor"
+                "bad-tensor"
             }
-            NetError::NonFinite { .. } => "non_finite",
+            NetError::NonFinite { .. } => "non-finite",
         }
     }
 }

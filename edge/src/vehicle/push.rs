@@ -445,8 +445,8 @@ mod tests {
                 ("stale-version", 2),
                 ("unknown-algo", 1),
                 ("wrong-schema", 1),
-                ("wrong_decision_rate", 1),
-                ("wrong_dims", 1)
+                ("wrong-decision-rate", 1),
+                ("wrong-dims", 1)
             ]
         );
     }

@@ -58,22 +58,22 @@ fn bad_policy_files_are_refused_with_their_reason() {
     let p = policy(PolicyKind::Gaussian, 2, &[0.0; ACT_DIM]);
     let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
     let cases: Vec<(Vec<u8>, &str)> = vec![
-        (b"\x05\0\0\0\0\0\0\0{}".to_vec(), "not_safetensors"),
-        (vec![0xff; 4], "not_safetensors"),
-        (altered(&p, &[("obs_dim", "13")], None), "wrong_dims"),
-        (altered(&p, &[("act_dim", "2")], None), "wrong_dims"),
-        (altered(&p, &[("version", "9")], None), "bad_metadata"),
-        (altered(&p, &[("hidden", "8,x")], None), "bad_metadata"),
-        (altered(&p, &[("hidden", "16")], None), "bad_tensor"),
-        (altered(&p, &[("algo", "dqn")], None), "unsupported_algo"),
-        (altered(&p, &[("algo", "ppo-gru")], None), "unsupported_algo"),
-        (altered(&p, &[("algo", "sac")], None), "missing_tensor"),
-        (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![1, 3], Vec::new()))), "missing_tensor"),
-        (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![3], f32s(&[0.0; 3])))), "bad_tensor"),
-        (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F64, vec![1, 3], vec![0; 24]))), "bad_tensor"),
+        (b"\x05\0\0\0\0\0\0\0{}".to_vec(), "not-safetensors"),
+        (vec![0xff; 4], "not-safetensors"),
+        (altered(&p, &[("obs_dim", "13")], None), "wrong-dims"),
+        (altered(&p, &[("act_dim", "2")], None), "wrong-dims"),
+        (altered(&p, &[("version", "9")], None), "bad-metadata"),
+        (altered(&p, &[("hidden", "8,x")], None), "bad-metadata"),
+        (altered(&p, &[("hidden", "16")], None), "bad-tensor"),
+        (altered(&p, &[("algo", "dqn")], None), "unsupported-algo"),
+        (altered(&p, &[("algo", "ppo-gru")], None), "unsupported-algo"),
+        (altered(&p, &[("algo", "sac")], None), "missing-tensor"),
+        (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![1, 3], Vec::new()))), "missing-tensor"),
+        (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![3], f32s(&[0.0; 3])))), "bad-tensor"),
+        (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F64, vec![1, 3], vec![0; 24]))), "bad-tensor"),
         (
             altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![1, 3], f32s(&[0.0, f32::NAN, 0.0])))),
-            "non_finite",
+            "non-finite",
         ),
     ];
     for (i, (bytes, reason)) in cases.iter().enumerate() {
@@ -99,7 +99,7 @@ fn the_decision_rate_is_written_checked_and_absent_means_20_hz() {
             ("", read) => assert_eq!(read.expect("an older file is accepted"), p),
             (_, Ok(_)) => panic!("a {other} Hz file accepted"),
             (_, Err(e)) => {
-                assert_eq!(e.reason(), "wrong_decision_rate");
+                assert_eq!(e.reason(), "wrong-decision-rate");
                 let text = e.to_string();
                 assert!(text.contains(&format!("{other} Hz")) && text.contains("20 Hz"), "{text}");
             }

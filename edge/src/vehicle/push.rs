@@ -444,9 +444,9 @@ mod tests {
                 ("not-safetensors", 1),
                 ("stale-version", 2),
                 ("unknown-algo", 1),
-                ("wrong-schema", 1),
                 ("wrong-decision-rate", 1),
-                ("wrong-dims", 1)
+                ("wrong-dims", 1),
+                ("wrong-schema", 1)
             ]
         );
     }

@@ -90,8 +90,9 @@ fn an_oversized_sample_is_counted_too_large_and_the_genuine_stream_is_unharmed()
     let mut cloud = cloud(&locator);
     let mut edge = vehicle("veh-o", &locator, &["--count", "200", "--rate-hz", "100"]);
     edge.wait_line(STEP, |l| l == "edge veh-o: publishing");
-    // A raw publisher on the vehicle's state key, tagged as a state: 64 KiB + 1 and 8 MiB.
-    let sizes = [64 * 1024 + 1, 8 << 20];
+    // A raw publisher on the vehicle's state key, tagged as a state: 64 KiB + 1, and 100 MB
+    // (below Zenoh's bound, `risktwin_transport::session::MAX_MESSAGE_BYTES`).
+    let sizes = [64 * 1024 + 1, 100_000_000];
     let rt = runtime();
     // Kept open until the cloud has printed its summary: the puts return once queued.
     let session = rt.block_on(async {

@@ -105,12 +105,13 @@ impl Presence {
         if was && !is {
             self.gone_since = Some(now);
             tracing::warn!("cloud gone ({:.1} s after the start)", now.duration_since(start).as_secs_f64());
-        } else if !was && is {
-            if let Some(since) = self.gone_since.take() {
-                let gone = now.duration_since(since);
-                self.close(since, gone, start);
-                tracing::info!("cloud back after {:.1} s", gone.as_secs_f64());
-            }
+        } else if !was
+            && is
+            && let Some(since) = self.gone_since.take()
+        {
+            let gone = now.duration_since(since);
+            self.close(since, gone, start);
+            tracing::info!("cloud back after {:.1} s", gone.as_secs_f64());
         }
     }
 

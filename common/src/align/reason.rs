@@ -155,7 +155,8 @@ mod tests {
                 "missing-field",
                 "invalid-field",
                 "source-mismatch",
-                "wrong-schema"
+                "wrong-schema",
+                "too-large"
             ]
         );
         for r in DropReason::ALL {

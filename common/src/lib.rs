@@ -20,6 +20,7 @@
 
 pub mod align;
 pub mod commonroad;
+pub mod delivery;
 pub mod digest;
 pub mod driver;
 pub mod env;

@@ -10,6 +10,7 @@
 
 pub mod cadence;
 pub mod clock;
+pub mod delivery;
 mod error;
 pub mod fleet;
 pub mod gateway;

@@ -5,8 +5,10 @@
 //! (`risktwin/v1/<site>/<id>/{scenario,policy,…}`) and its reports about them are published.
 
 use crate::clock::{CLOCK_STEPS_EVERY, ClockModel, ClockSteps, EdgeClock};
+use crate::delivery::{DeliveryWatch, StreamSent};
 use crate::error::EdgeError;
 use crate::summary::SentSummary;
+use risktwin_common::align::MAX_EDGE_PAYLOAD_BYTES;
 use risktwin_common::telemetry::{Frame, Header};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report};
 use risktwin_transport::recovery::DEFAULT_OUTAGE;
@@ -52,6 +54,10 @@ pub struct EdgeConfig {
     /// The key whose signature a vehicle needs on a policy update (`--trust-key`); `None`: it
     /// takes no policy from the network.
     pub trust_key: Option<risktwin_common::policy_signature::PolicyVerifyingKey>,
+    /// Watch the cloud's delivery acknowledgements and its liveliness, wait for them at the end
+    /// and report what was not delivered ([`crate::delivery`]); off (`--no-ack`) for an edge
+    /// that publishes without a RiskTwin cloud on purpose.
+    pub ack: bool,
 }
 
 impl EdgeConfig {
@@ -71,6 +77,7 @@ impl EdgeConfig {
             kind: risktwin_common::scenario::ScenarioKind::CutIn,
             scenario_seed: 0,
             trust_key: None,
+            ack: true,
         }
     }
 }
@@ -165,7 +172,7 @@ pub async fn run_producer(
     let mut stop = shutdown.clone();
     let session = tokio::select! {
         opened = connect(&config.transport) => opened?,
-        _ = stop.wait() => return Ok(SentSummary::new(config, streams.iter().map(|s| (*s, 0)))),
+        _ = stop.wait() => return Ok(SentSummary::new(config, streams.iter().map(|s| (*s, 0)), None)),
     };
     let mut publishers = Vec::with_capacity(streams.len());
     for stream in &streams {
@@ -191,6 +198,8 @@ pub async fn run_producer(
     // `new_transport_unicast_face`). So wherever the token is seen, the subscribers reached the
     // same node first.
     let token = declare_alive(&session, &config.site, &config.id).await?;
+    // Before the wait for a subscriber, so that the cloud's token is seen from the start.
+    let watch = if config.ack { Some(DeliveryWatch::start(&session, &config.site, &config.id).await?) } else { None };
     let mut report_publishers: Vec<(EdgeReport, Publisher<'static>)> = Vec::new();
     let mut reports = Vec::new();
     for publisher in &publishers {
@@ -208,6 +217,8 @@ pub async fn run_producer(
     let mut steps_read = start;
     let mut seq = [0u64; EdgeStream::ALL.len()];
     let mut sent = [0u64; EdgeStream::ALL.len()];
+    // The numbers of messages refused as too large, per stream.
+    let mut refused: [Vec<u64>; EdgeStream::ALL.len()] = Default::default();
     let base = streams[0].index();
     let mut out = Vec::new();
     let mut result = Ok(());
@@ -272,6 +283,19 @@ pub async fn run_producer(
         }
         for (stream, payload) in out.drain(..) {
             let Some(publisher) = publishers.iter().find(|p| p.stream() == Some(stream)) else { continue };
+            let i = stream.index();
+            if payload.len() > MAX_EDGE_PAYLOAD_BYTES {
+                // Its number is the next one of the stream: every message takes one, in order.
+                let seq = sent[i] + refused[i].len() as u64;
+                tracing::error!(
+                    "edge {}: {} message {seq} is {} bytes, more than {MAX_EDGE_PAYLOAD_BYTES}: not sent",
+                    config.id,
+                    stream.as_str(),
+                    payload.len()
+                );
+                refused[i].push(seq);
+                continue;
+            }
             if let Err(e) = publisher.put(payload) {
                 result = Err(e.into());
                 break;
@@ -287,8 +311,27 @@ pub async fn run_producer(
         tick += 1;
     }
 
-    let summary = SentSummary::new(config, streams.iter().map(|s| (*s, sent[s.index()])));
-    retire(publishers).await?;
+    let numbers: Vec<(EdgeStream, StreamSent)> = streams
+        .iter()
+        .map(|s| {
+            let (sent, refused) = (sent[s.index()], std::mem::take(&mut refused[s.index()]));
+            (*s, StreamSent { numbered: sent + refused.len() as u64, sent, refused })
+        })
+        .collect();
+    // The publishers (and their caches) stay while the edge waits: the cloud may still fetch.
+    let delivery = match watch {
+        Some(watch) => Some(watch.settle(&numbers).await?),
+        None => None,
+    };
+    let summary = SentSummary::new(config, numbers.iter().map(|(s, n)| (*s, n.sent)), delivery);
+    if summary.delivery.as_ref().is_some_and(|d| d.total_undelivered() == 0) {
+        // All accounted for: nothing left for the cloud to fetch, no need to linger.
+        for publisher in publishers {
+            publisher.undeclare()?;
+        }
+    } else {
+        retire(publishers).await?;
+    }
     for (_, subscriber) in push_subscribers {
         subscriber.undeclare().await.map_err(|e| EdgeError::Shutdown { reason: e.to_string() })?;
     }
@@ -301,12 +344,18 @@ pub async fn run_producer(
 }
 
 impl SentSummary {
-    /// The summary of what the edge of `config` sent, per stream.
-    pub(crate) fn new(config: &EdgeConfig, sent: impl IntoIterator<Item = (EdgeStream, u64)>) -> Self {
+    /// The summary of what the edge of `config` sent, per stream, and what became of it when
+    /// the edge watched its delivery.
+    pub(crate) fn new(
+        config: &EdgeConfig,
+        sent: impl IntoIterator<Item = (EdgeStream, u64)>,
+        delivery: Option<crate::delivery::DeliverySummary>,
+    ) -> Self {
         SentSummary {
             site: config.site.to_string(),
             source: config.id.to_string(),
             sent: sent.into_iter().map(|(s, n)| (s.as_str().to_owned(), n)).collect(),
+            delivery,
         }
     }
 }

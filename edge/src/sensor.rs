@@ -216,5 +216,5 @@ async fn publish_loop(config: &EdgeConfig, sensor: &mut Sensor, mut stop: Shutdo
 
 fn summary(config: &EdgeConfig, counters: &Counters) -> SentSummary {
     let streams = [EdgeStream::State, EdgeStream::Can, EdgeStream::Perception];
-    SentSummary::new(config, streams.map(|s| (s, counters.sent(s))))
+    SentSummary::new(config, streams.map(|s| (s, counters.sent(s))), None)
 }

@@ -227,7 +227,7 @@ impl Producer for Vehicle {
                 }
             }
             CloudToEdge::Warning => self.warning(encoding, payload),
-            CloudToEdge::Control => {}
+            CloudToEdge::Control | CloudToEdge::Ack => {}
         }
     }
 

@@ -122,7 +122,8 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
     let (db, ranked) = cut_in_library(dir.path(), 6);
     let id = ranked[0]["id"].as_str().expect("a ranked id").to_owned();
 
-    // 10× real time, so that a 15 s episode plays in 1.5 s; no cloud, so no waiting for one.
+    // 10× real time, so that a 15 s episode plays in 1.5 s; no cloud, so no waiting for one
+    // and no acknowledgements (--no-ack).
     let (signing_key, verifying_key) = keys(dir.path(), "cloud");
     let mut vehicle = Proc::spawn(
         "veh",
@@ -139,6 +140,7 @@ fn a_pushed_scenario_runs_on_the_vehicle_and_bad_pushes_do_not_stop_it() {
             "500",
             "--wait-for-cloud-s",
             "0",
+            "--no-ack",
             "--trust-key",
             &verifying_key,
         ],

@@ -99,7 +99,11 @@ fn a_cloud_killed_while_recording_leaves_a_file_that_replays_recovers_and_opens_
     let (status, _) = cloud.wait_exit(STEP);
     assert_eq!(status.code(), None, "the cloud died of the signal, without a summary");
     edge.terminate();
-    let sent = edge.exit_json(STEP);
+    // What it sent after the kill was never acknowledged: its summary, then exit 1.
+    let (status, stdout) = edge.wait_exit(STEP);
+    assert_eq!(status.code(), Some(1), "{stdout}\n{}", edge.drain_stderr());
+    let sent: serde_json::Value = serde_json::from_str(&stdout).expect("the edge's summary");
+    assert!(sent["undelivered"]["state"].as_u64().is_some_and(|n| n > 0), "{sent}");
 
     // The file as the kill left it: no footer, every closed chunk readable.
     let bytes = std::fs::read(&killed).expect("the killed cloud's recording");

@@ -156,8 +156,9 @@ fn run_with_fault(cache_s: &str, fault: Fault, mode: &str) -> Outcome {
     outcome
 }
 
-/// One edge stream's counts: what the edge sent, and what the cloud received (of it, recovered
-/// from the edge's cache), lost and presumed lost.
+/// One edge stream's counts: what the edge sent, what the cloud received (of it, recovered
+/// from the edge's cache), lost and presumed lost, and what the edge was told was acknowledged
+/// and lost, and found undelivered.
 #[derive(Debug)]
 struct Row {
     name: String,
@@ -166,6 +167,9 @@ struct Row {
     recovered: u64,
     lost: u64,
     presumed: u64,
+    acknowledged: u64,
+    edge_lost: u64,
+    undelivered: u64,
 }
 
 fn per_stream(outcome: &Outcome) -> Vec<Row> {
@@ -175,6 +179,7 @@ fn per_stream(outcome: &Outcome) -> Vec<Row> {
         let source = edge["source"].as_str().expect("source in the edge summary");
         for (stream, n) in edge["sent"].as_object().expect("sent per stream") {
             let count = |field: &str| cloud[field][source][stream].as_u64().unwrap_or(0);
+            let told = |field: &str| edge[field][stream].as_u64().unwrap_or_else(|| panic!("{field} in {edge}"));
             rows.push(Row {
                 name: format!("{source}/{stream}"),
                 sent: n.as_u64().expect("a count"),
@@ -182,6 +187,9 @@ fn per_stream(outcome: &Outcome) -> Vec<Row> {
                 recovered: count("recovered"),
                 lost: count("lost"),
                 presumed: count("presumed_lost"),
+                acknowledged: told("acknowledged"),
+                edge_lost: told("lost"),
+                undelivered: told("undelivered"),
             });
         }
     }
@@ -210,15 +218,17 @@ fn assert_held_back(outcome: &Outcome, outage: Duration) {
     assert!(state.recovered + state.lost >= during, "{state:?}: at least {during} samples held back");
 }
 
-/// received + lost = sent per stream, nothing dropped, the two loss counts agree, and the totals
-/// are the sums.
+/// received + lost = sent per stream, nothing dropped, the two loss counts agree, the edge was
+/// told as much (acknowledged = received, its lost = the cloud's, nothing undelivered), and the
+/// totals are the sums.
 fn assert_counts(outcome: &Outcome) {
     let cloud = &outcome.cloud;
     assert_eq!(cloud["total_dropped"], 0, "drops: {cloud}");
     let rows = per_stream(outcome);
     assert_eq!(rows.len(), 5, "3 vehicle streams + 2 RSU streams: {rows:?}");
-    for Row { name, sent, received, lost, presumed, .. } in &rows {
+    for Row { name, sent, received, lost, presumed, acknowledged, edge_lost, undelivered, .. } in &rows {
         assert!(*sent > 0, "{name} sent nothing");
+        assert_eq!((acknowledged, edge_lost, *undelivered), (received, lost, 0), "{name}: the edge's acknowledgements");
         assert_eq!(received + lost, *sent, "{name}: received {received} + lost {lost} != sent {sent}; {cloud}");
         assert_eq!(lost, presumed, "{name}: the transport's and the sequence numbers' loss counts agree");
     }
@@ -260,6 +270,7 @@ fn a_stalled_cloud_loses_nothing_within_the_cache() {
     assert_accounted(&outcome, stall);
     let rows = per_stream(&outcome);
     assert!(rows.iter().all(|r| r.lost == 0), "a 3 s stall within a 30 s cache loses nothing: {rows:?}");
+    assert!(rows.iter().all(|r| r.acknowledged == r.sent), "the edges were told: {rows:?}");
 }
 
 #[test]

@@ -81,7 +81,11 @@ fn the_loop_pushes_stores_fleet_outcomes_and_resumes_after_a_crash() {
 
     let record = |name: &str| dir.path().join(name).to_str().expect("a UTF-8 path").to_owned();
     let cloud = start_cloud("cloud", &db, &locator, &report, &record("first.mcap"));
-    let edge = |id: &str| Proc::spawn(id, &["edge", "vehicle", "--id", id, "--site", "fleet", "--connect", &locator]);
+    // The cloud stops (and is killed) before its vehicles: what they send meanwhile goes
+    // unacknowledged, which is not this test's subject (--no-ack; tests/pipeline/delivery.rs).
+    let edge = |id: &str| {
+        Proc::spawn(id, &["edge", "vehicle", "--id", id, "--site", "fleet", "--connect", &locator, "--no-ack"])
+    };
     let (v1, v2) = (edge("v1"), edge("v2"));
 
     // Unattended: both vehicles get pushes, play them and report; the cloud stores each.
@@ -306,8 +310,20 @@ fn trainer_run(dir: &std::path::Path, locator: &str, trainer: &[&str]) -> (Proc,
     let mut cloud = Proc::spawn("cloud", &args);
     cloud.wait_line(STEP, |l| l == "ready");
     let edge = |id: &str| {
-        let args =
-            ["edge", "vehicle", "--id", id, "--site", "fleet", "--connect", locator, "--trust-key", &verifying_key];
+        // The cloud stops before its vehicles (see above): --no-ack.
+        let args = [
+            "edge",
+            "vehicle",
+            "--id",
+            id,
+            "--site",
+            "fleet",
+            "--connect",
+            locator,
+            "--trust-key",
+            &verifying_key,
+            "--no-ack",
+        ];
         Proc::spawn(id, &args)
     };
     (cloud, edge("v1"), edge("v2"), db)

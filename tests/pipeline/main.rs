@@ -9,6 +9,7 @@
 mod cloudloop;
 mod crash;
 mod criticality;
+mod delivery;
 mod faults;
 mod fleet;
 mod fleetloop;

@@ -29,8 +29,10 @@ fn a_python_zenoh_subscriber_decodes_our_stream() {
         .stdout(Stdio::piped())
         .spawn()
         .expect("python starts");
-    // The edge waits for a matching subscriber before it publishes.
-    let mut edge = Proc::spawn("edge", &["edge", "vehicle", "--id", "veh-py", "--connect", &locator, "--count", "20"]);
+    // The edge waits for a matching subscriber before it publishes; no RiskTwin cloud
+    // acknowledges it (--no-ack).
+    let args = ["edge", "vehicle", "--id", "veh-py", "--connect", &locator, "--count", "20", "--no-ack"];
+    let mut edge = Proc::spawn("edge", &args);
     let sent = edge.exit_json(Duration::from_secs(60));
     let out = subscriber.wait_with_output().expect("python ends (it waits at most 30 s)");
     router.terminate();

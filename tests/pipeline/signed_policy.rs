@@ -16,7 +16,8 @@ const SITE: &str = "sig";
 
 fn vehicle(id: &str, locator: &str, trust: Option<&str>) -> Proc {
     let mut args = vec!["edge", "vehicle", "--id", id, "--site", SITE, "--connect", locator, "--rate-hz", "500"];
-    args.extend(["--wait-for-cloud-s", "0"]);
+    // No cloud: pushes come from the test, nobody acknowledges (--no-ack).
+    args.extend(["--wait-for-cloud-s", "0", "--no-ack"]);
     if let Some(key) = trust {
         args.extend(["--trust-key", key]);
     }

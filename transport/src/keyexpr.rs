@@ -169,6 +169,9 @@ pub enum CloudToEdge {
     Control,
     /// A hazard warning (`HazardWarning`) about another vehicle, from the cloud's warning role.
     Warning,
+    /// A delivery acknowledgement (`DeliveryAck`): how far the cloud's ingest has accounted for
+    /// the edge's streams.
+    Ack,
 }
 
 impl CloudToEdge {
@@ -179,6 +182,7 @@ impl CloudToEdge {
             CloudToEdge::Policy => "policy",
             CloudToEdge::Control => "control",
             CloudToEdge::Warning => "warning",
+            CloudToEdge::Ack => "ack",
         }
     }
 
@@ -189,6 +193,7 @@ impl CloudToEdge {
             CloudToEdge::Policy => "risktwin.v1.PolicyUpdate",
             CloudToEdge::Control => "risktwin.v1.ControlCommand",
             CloudToEdge::Warning => "risktwin.v1.HazardWarning",
+            CloudToEdge::Ack => "risktwin.v1.DeliveryAck",
         }
     }
 }
@@ -428,6 +433,13 @@ pub fn liveliness_all(site: Option<&SiteId>) -> String {
     format!("{ROOT}/{}/{ALIVE_CHUNK}/*", site_or_star(site))
 }
 
+/// `risktwin/v1/<site|*>/alive/cloud`: the liveliness token of a cloud whose ingest serves
+/// `site` (every site: `*`), which edges watch to know the cloud is there. `cloud` is never a
+/// source id, so the token is no edge's.
+pub fn cloud_liveliness(site: Option<&SiteId>) -> String {
+    format!("{ROOT}/{}/{ALIVE_CHUNK}/{CLOUD_CHUNK}", site_or_star(site))
+}
+
 fn site_or_star(site: Option<&SiteId>) -> &str {
     site.map_or("*", SiteId::as_str)
 }
@@ -462,12 +474,14 @@ pub fn try_parse_edge_key(key: &str) -> Result<EdgeKey<'_>, KeyError> {
     parse_edge_key(key).ok_or_else(|| KeyError::NotEdgeStream { key: key.to_owned() })
 }
 
-/// The source id of a liveliness token key `risktwin/v1/<site>/alive/<source>`.
+/// The site and source id of an edge's liveliness token key `risktwin/v1/<site>/alive/<source>`
+/// (`None` for the cloud's, [`cloud_liveliness`]).
 pub fn parse_liveliness_key(key: &str) -> Option<(&str, &str)> {
     let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
     let mut chunks = rest.split('/');
     let (site, alive, source) = (chunks.next()?, chunks.next()?, chunks.next()?);
-    (alive == ALIVE_CHUNK && chunks.next().is_none() && !source.is_empty()).then_some((site, source))
+    let edge = !source.is_empty() && source != CLOUD_CHUNK;
+    (alive == ALIVE_CHUNK && chunks.next().is_none() && edge).then_some((site, source))
 }
 
 #[cfg(test)]
@@ -588,5 +602,10 @@ mod tests {
         assert_eq!(try_parse_edge_key("x/y"), Err(KeyError::NotEdgeStream { key: "x/y".into() }));
         assert_eq!(parse_liveliness_key(&liveliness_token(&site, &src)), Some(("track-1", "veh_0.a")));
         assert_eq!(parse_liveliness_key("risktwin/v1/track-1/veh/state"), None);
+        assert_eq!(cloud_liveliness(Some(&site)), "risktwin/v1/track-1/alive/cloud");
+        assert_eq!(cloud_liveliness(None), "risktwin/v1/*/alive/cloud");
+        assert_eq!(parse_liveliness_key(&cloud_liveliness(Some(&site))), None, "the cloud is no edge");
+        assert_eq!(cloud_to_edge(&site, &src, CloudToEdge::Ack), "risktwin/v1/track-1/veh_0.a/ack");
+        assert_eq!(parse_edge_key(&cloud_to_edge(&site, &src, CloudToEdge::Ack)), None, "not an ingest stream");
     }
 }

@@ -14,6 +14,14 @@ use zenoh::{Config, Session};
 /// flow resumes at most this long after the router is back.
 pub const RECONNECT_PERIOD: Duration = Duration::from_millis(500);
 
+/// The largest message a session takes in, bytes (Zenoh's `transport/link/rx/max_message_size`,
+/// its defragmentation buffer; Zenoh's default is 1 GiB). Set on every role, routers included,
+/// so that anything up to it reaches our code to be counted (an edge stream's sample above 64 KiB
+/// as `too-large`), and room is left for the largest message we send (a policy update, at most
+/// 64 MiB of weights). A larger message is dropped by the first Zenoh hop that defragments it,
+/// logged only at trace level: beyond this bound nothing can count it (docs/keyexpr.md).
+pub const MAX_MESSAGE_BYTES: usize = 128 << 20;
+
 /// The Zenoh role of a session.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Mode {
@@ -134,6 +142,7 @@ impl TransportConfig {
         if !self.listen.is_empty() {
             set(&mut config, "listen/endpoints", json_list(&self.listen))?;
         }
+        set(&mut config, "transport/link/rx/max_message_size", MAX_MESSAGE_BYTES.to_string())?;
         Ok(config)
     }
 
@@ -218,6 +227,7 @@ mod tests {
         let router = TransportConfig { mode: Mode::Router, ..TransportConfig::default() }.to_zenoh().unwrap();
         assert_eq!(router.get_json("timestamping/enabled").unwrap(), "false");
         assert_eq!(z.get_json("connect/exit_on_failure").unwrap(), "true");
+        assert_eq!(z.get_json("transport/link/rx/max_message_size").unwrap(), MAX_MESSAGE_BYTES.to_string());
     }
 
     #[test]

@@ -10,8 +10,8 @@
 use super::sample::{ObservedKinematics, TwinSample};
 use super::stream::{aligner_index, aligner_specs, proto_name};
 use risktwin_common::align::{
-    DropReason, Incoming, IngestConfig, IngestCore, PushOutcome, SequenceScope, Snapshot, SourceIndex, SourceTable,
-    StreamIndex,
+    DropReason, Incoming, IngestConfig, IngestCore, PushOutcome, SeqProgress, SequenceScope, Snapshot, SourceIndex,
+    SourceTable, StreamIndex,
 };
 use risktwin_common::telemetry::{CanFrame, Header, ObjectList, RsuObservation, SignalPhase, VehicleStateSample};
 use risktwin_protos::recording::{Recorder, RecordingError};
@@ -242,6 +242,16 @@ impl<W: Write + Seek> IngestWorker<W> {
             }
         }
         lost
+    }
+
+    /// How far each stream of `source`'s current incarnation is accounted for (streams with no
+    /// accepted number left out); nothing with one sequence per source.
+    pub fn progress(&self, source: &str) -> Vec<(EdgeStream, SeqProgress)> {
+        let Some(index) = self.sources.get(source) else { return Vec::new() };
+        if self.core.sequence_scope() == SequenceScope::PerSource {
+            return Vec::new();
+        }
+        EdgeStream::ALL.iter().filter_map(|s| Some((*s, self.core.progress(index, aligner_index(*s))?))).collect()
     }
 
     /// Closes the recording (summary and footer written) and returns the final counts and the

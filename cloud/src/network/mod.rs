@@ -33,6 +33,7 @@
 //! With `--record`, the twin's scene and risk outputs are recorded next to the accepted edge
 //! messages, under their keys.
 
+mod ack;
 pub mod criticality;
 pub mod edges;
 pub mod fleet_loop;
@@ -367,6 +368,19 @@ pub async fn run(
     } else {
         None
     };
+    // After the subscriber: an edge that sees the token may count on its samples being taken
+    // and acknowledged.
+    let (cloud_token, acks) =
+        match subscriber.as_ref() {
+            Some(_) => {
+                let key = risktwin_transport::keyexpr::cloud_liveliness(config.site.as_ref());
+                let token = session.liveliness().declare_token(key.clone()).await.map_err(|e| {
+                    TransportError::Declare { what: "cloud liveliness token", key, reason: e.to_string() }
+                })?;
+                (Some(token), Some(ack::spawn_acks(session.clone(), Arc::clone(&ingest))))
+            }
+            None => (None, None),
+        };
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
     let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness), Arc::clone(&ingest)).await?;
     let library_task = queryable.map(|(q, lib)| tokio::spawn(library::serve(q, lib, shutdown.clone())));
@@ -387,6 +401,12 @@ pub async fn run(
             ingest.max(crit.lock().unwrap_or_else(PoisonError::into_inner).last_sample())
         };
         drain(last_sample, config.drain_quiet, config.drain_max).await;
+    }
+    if let Some(acks) = acks {
+        acks.abort();
+    }
+    if let Some(token) = cloud_token {
+        token.undeclare().await.map_err(|e| undeclare_error("cloud liveliness token", e))?;
     }
 
     if let Some(subscriber) = subscriber {

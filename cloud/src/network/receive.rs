@@ -9,6 +9,7 @@
 //! Publishing from inside a Zenoh callback could block it: outputs go to the publisher task
 //! through a channel.
 
+use super::ack::AckSources;
 use super::id_conflicts::IdConflicts;
 use super::loss::LossCounts;
 use crate::ingest::{AcceptedMessage, IngestStats, IngestWorker, ObservedKinematics, SnapshotDigest};
@@ -17,7 +18,7 @@ use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
 use crate::twin::watch::{WatchCounts, WatchedEpisode};
 use crate::warning::{HazardWarner, WarningSink, WarningSummary};
-use risktwin_common::align::{DropReason, IngestConfig};
+use risktwin_common::align::{DropReason, IngestConfig, MAX_EDGE_PAYLOAD_BYTES, SeqProgress};
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{ObjectList, RiskReport, ScenarioResult, VehicleStateSample};
 use risktwin_protos::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE, risk_grid, vehicle_boxes};
@@ -204,6 +205,8 @@ pub struct LiveIngest {
     encodings: [Encoding; STREAMS],
     /// Sources whose wrong-schema samples were already logged (once each).
     wrong_schema_logged: HashSet<String>,
+    /// Sources whose too-large samples were already logged (once each).
+    too_large_logged: HashSet<String>,
     /// Samples the edge-stream subscriber reported lost for good.
     losses: LossCounts,
     /// Sources published by two live sessions at once.
@@ -214,6 +217,8 @@ pub struct LiveIngest {
     /// The warning role: every accepted state re-assesses its pairs, and warnings go to the sink
     /// at once, before the tick work the message triggers and before it is recorded.
     warnings: Option<(HazardWarner, Box<dyn WarningSink>)>,
+    /// The sources to acknowledge ([`super::ack`]).
+    acks: AckSources,
 }
 
 impl LiveIngest {
@@ -256,10 +261,12 @@ impl LiveIngest {
             replay_time: false,
             encodings: EdgeStream::ALL.map(|s| protobuf(s.message())),
             wrong_schema_logged: HashSet::new(),
+            too_large_logged: HashSet::new(),
             losses: LossCounts::default(),
             conflicts: IdConflicts::default(),
             route_keys: None,
             warnings: None,
+            acks: AckSources::default(),
         })
     }
 
@@ -381,6 +388,17 @@ impl LiveIngest {
         if let Some(publisher) = origin.publisher {
             self.conflicts.observe(parsed.source, publisher, now);
         }
+        // Before anything reads it: no edge stream is that large (see MAX_EDGE_PAYLOAD_BYTES).
+        if payload.len() > MAX_EDGE_PAYLOAD_BYTES {
+            self.worker.reject(DropReason::TooLarge);
+            if self.too_large_logged.len() < MAX_LOGGED && self.too_large_logged.insert(parsed.source.to_owned()) {
+                tracing::warn!(
+                    "ingest: refused {key}: {} bytes, more than {MAX_EDGE_PAYLOAD_BYTES} (counted too-large)",
+                    payload.len()
+                );
+            }
+            return Ok(());
+        }
         if encoding != &self.encodings[parsed.stream.index()] {
             self.worker.reject(DropReason::WrongSchema);
             if self.wrong_schema_logged.len() < MAX_LOGGED && self.wrong_schema_logged.insert(parsed.source.to_owned())
@@ -418,6 +436,7 @@ impl LiveIngest {
             self.watch_state(parsed.site, parsed.source, payload);
         }
         if accepted {
+            self.acks.touch(parsed.site, parsed.source, origin.publisher, now);
             if !self.sites.contains_key(parsed.source) {
                 self.sites.insert(parsed.source.to_owned(), parsed.site.to_owned());
             }
@@ -577,6 +596,16 @@ impl LiveIngest {
             Some(rec) => Ok(rec.flush_if_due()?),
             None => Ok(()),
         }
+    }
+
+    /// The sources to acknowledge.
+    pub(crate) fn acks_mut(&mut self) -> &mut AckSources {
+        &mut self.acks
+    }
+
+    /// How far each stream of `source` is accounted for ([`IngestWorker::progress`]).
+    pub(crate) fn progress(&self, source: &str) -> Vec<(EdgeStream, SeqProgress)> {
+        self.worker.progress(source)
     }
 
     /// When the last sample (accepted or not) arrived.

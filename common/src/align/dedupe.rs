@@ -120,6 +120,22 @@ struct SeqState {
     /// The last number refused for lying more than the window away: the next one confirms it.
     probation: Option<u64>,
     counts: SeqCounts,
+    /// `counts.fresh` and `counts.presumed_lost` when the current incarnation started, so that
+    /// [`Deduper::progress`] tells of this incarnation alone.
+    base_fresh: u64,
+    base_lost: u64,
+}
+
+/// How far the current incarnation of a source has been accounted for: what a delivery
+/// acknowledgement tells the edge.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SeqProgress {
+    /// Every number below this one was accepted or is counted presumed lost.
+    pub next_seq: u64,
+    /// Numbers accepted.
+    pub received: u64,
+    /// Numbers skipped and not (yet) seen (those before the first accepted one included).
+    pub lost: u64,
 }
 
 /// The per-source sequence windows; memory is `W/8` bytes per source, allocated once per source.
@@ -170,6 +186,8 @@ impl Deduper {
             }
         }
         if !st.started {
+            st.base_fresh = st.counts.fresh;
+            st.base_lost = st.counts.presumed_lost;
             st.started = true;
             st.empty = true;
             st.floor = self.first_seq.unwrap_or(seq);
@@ -178,6 +196,8 @@ impl Deduper {
         let verdict = if !st.empty && seq < st.highest && st.highest - seq >= window && confirmed {
             // A confirmed jump back: the source started over from an earlier number.
             st.counts.restarts += 1;
+            st.base_fresh = st.counts.fresh;
+            st.base_lost = st.counts.presumed_lost;
             st.floor = seq;
             st.highest = seq;
             bits.fill(0);
@@ -251,6 +271,17 @@ impl Deduper {
     /// The highest sequence number accepted from `source`, if any.
     pub fn highest(&self, source: SourceIndex) -> Option<u64> {
         self.states.get(source.as_usize()).filter(|s| s.started && !s.empty).map(|s| s.highest)
+    }
+
+    /// How far `source`'s current incarnation is accounted for; `None` before its first
+    /// accepted number.
+    pub fn progress(&self, source: SourceIndex) -> Option<SeqProgress> {
+        let st = self.states.get(source.as_usize()).filter(|s| s.started && !s.empty)?;
+        Some(SeqProgress {
+            next_seq: st.highest.saturating_add(1),
+            received: st.counts.fresh - st.base_fresh,
+            lost: st.counts.presumed_lost.saturating_sub(st.base_lost),
+        })
     }
 
     /// The counters summed over all sources.
@@ -493,5 +524,20 @@ mod tests {
         assert_eq!(d.accept(A, 3), Verdict::Duplicate, "the same incarnation after the grace");
         assert_eq!(d.counts(A).presumed_lost, 0);
         assert_eq!(d.counts(A).restarts, 2, "coming back is not starting over");
+    }
+
+    #[test]
+    fn progress_tells_of_the_current_incarnation_only() {
+        let mut d = dedup(64);
+        assert_eq!(d.progress(A), None, "nothing accepted yet");
+        for seq in [2, 3, 5, 4, 7] {
+            assert_eq!(d.accept(A, seq), Verdict::Fresh);
+        }
+        assert_eq!(d.progress(A), Some(SeqProgress { next_seq: 8, received: 5, lost: 3 }), "0, 1 and 6 missing");
+        d.restart(A);
+        assert_eq!(d.accept(A, 0), Verdict::Fresh, "a new process");
+        assert_eq!(d.accept(A, 2), Verdict::Fresh);
+        assert_eq!(d.progress(A), Some(SeqProgress { next_seq: 3, received: 2, lost: 1 }));
+        assert_eq!(d.counts(A).fresh, 7, "the counters go on summing");
     }
 }

@@ -21,7 +21,7 @@
 
 use super::aligner::{AlignConfig, Aligner, PushOutcome, StreamSpec};
 use super::clock::{ClockConfig, ClockEstimator};
-use super::dedupe::{DedupConfig, Deduper, SeqCounts};
+use super::dedupe::{DedupConfig, Deduper, SeqCounts, SeqProgress};
 use super::interp::Interpolate;
 use super::reason::{DropCounts, DropReason};
 use super::snapshot::{Snapshot, StreamIndex};
@@ -267,6 +267,18 @@ impl<T: Clone> IngestCore<T> {
             SequenceScope::PerStream => {
                 let key = source.as_usize().saturating_mul(self.aligner.streams()).saturating_add(stream.as_usize());
                 u32::try_from(key).map(|k| self.dedup.counts(SourceIndex(k))).unwrap_or_default()
+            }
+        }
+    }
+
+    /// How far the current incarnation of `stream` of `source` is accounted for (the source's
+    /// one sequence with [`SequenceScope::PerSource`]); `None` before its first accepted number.
+    pub fn progress(&self, source: SourceIndex, stream: StreamIndex) -> Option<SeqProgress> {
+        match self.cfg.sequence_scope {
+            SequenceScope::PerSource => self.dedup.progress(source),
+            SequenceScope::PerStream => {
+                let key = source.as_usize().saturating_mul(self.aligner.streams()).saturating_add(stream.as_usize());
+                u32::try_from(key).ok().and_then(|k| self.dedup.progress(SourceIndex(k)))
             }
         }
     }

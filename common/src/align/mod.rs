@@ -23,10 +23,10 @@ pub mod source;
 
 pub use aligner::{AlignConfig, AlignCounts, Aligner, DEFAULT_LATENESS_NS, PushOutcome, StreamMode, StreamSpec};
 pub use clock::{ClockConfig, ClockEstimator};
-pub use dedupe::{DedupConfig, Deduper, SeqCounts, Verdict};
+pub use dedupe::{DedupConfig, Deduper, SeqCounts, SeqProgress, Verdict};
 pub use ingest::{Accepted, Incoming, IngestConfig, IngestCore, SequenceScope};
 pub use interp::{Interpolate, lerp_angle};
-pub use reason::{DropCounts, DropReason};
+pub use reason::{DropCounts, DropReason, MAX_EDGE_PAYLOAD_BYTES};
 pub use snapshot::{Aligned, Snapshot, StreamIndex, ValueStatus};
 pub use source::{SourceIndex, SourceTable, TooManySources};
 

@@ -40,11 +40,19 @@ pub enum DropReason {
     /// The sample's encoding names another schema than the stream's (another message type or
     /// schema version), or none: it is not read as the stream's type.
     WrongSchema,
+    /// The payload is larger than an edge stream's maximum ([`MAX_EDGE_PAYLOAD_BYTES`]): refused
+    /// before it is decoded.
+    TooLarge,
 }
+
+/// The largest payload an edge stream may carry, bytes. The real messages are far smaller
+/// (docs/keyexpr.md: a state ≈ 112 B, a perception list ≈ 161 B, an RSU object list ≈ 260 B),
+/// so the cap only refuses a broken or hostile publisher, long before Zenoh's own limit.
+pub const MAX_EDGE_PAYLOAD_BYTES: usize = 64 * 1024;
 
 impl DropReason {
     /// Every reason, in code order; `DropCounts` is indexed by position in this list.
-    pub const ALL: [DropReason; 13] = [
+    pub const ALL: [DropReason; 14] = [
         DropReason::Duplicate,
         DropReason::TooOld,
         DropReason::SeqJump,
@@ -58,6 +66,7 @@ impl DropReason {
         DropReason::InvalidField,
         DropReason::SourceMismatch,
         DropReason::WrongSchema,
+        DropReason::TooLarge,
     ];
 
     /// The stable, kebab-case code used in counters, logs and reports.
@@ -76,6 +85,7 @@ impl DropReason {
             DropReason::InvalidField => "invalid-field",
             DropReason::SourceMismatch => "source-mismatch",
             DropReason::WrongSchema => "wrong-schema",
+            DropReason::TooLarge => "too-large",
         }
     }
 
@@ -145,7 +155,8 @@ mod tests {
                 "missing-field",
                 "invalid-field",
                 "source-mismatch",
-                "wrong-schema"
+                "wrong-schema",
+                "too-large"
             ]
         );
         for r in DropReason::ALL {

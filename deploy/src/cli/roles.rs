@@ -111,6 +111,11 @@ pub struct EdgeArgs {
     /// the network is refused (`unverifiable`).
     #[arg(long)]
     pub trust_key: Option<std::path::PathBuf>,
+    /// Publish without waiting for (or reporting) the cloud's delivery acknowledgements: for an
+    /// edge with no RiskTwin cloud on purpose (another subscriber, a capture). Without it, an
+    /// edge whose messages were not all acknowledged exits 1 (docs/keyexpr.md).
+    #[arg(long)]
+    pub no_ack: bool,
 }
 
 #[derive(Debug, Args)]

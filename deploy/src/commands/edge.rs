@@ -16,7 +16,16 @@ pub fn vehicle(args: EdgeArgs) -> CliResult {
     let config = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ)?;
     let summary =
         with_signals(|shutdown| async move { vehicle::run(&config, shutdown).await.map_err(CliError::runtime) })?;
-    print_json(&summary)
+    print_json(&summary)?;
+    delivered(&summary.sent)
+}
+
+/// Exit 1 (after the summary) when messages sent were not all delivered or some were refused.
+fn delivered(summary: &risktwin_edge::SentSummary) -> CliResult {
+    match summary.failure() {
+        Some(why) => Err(CliError::runtime(why)),
+        None => Ok(()),
+    }
 }
 
 pub fn sensor(args: EdgeArgs) -> CliResult {
@@ -37,7 +46,8 @@ pub fn gateway(args: EdgeArgs) -> CliResult {
 pub fn rsu(args: EdgeArgs) -> CliResult {
     let config = edge_config(args, rsu::DEFAULT_RATE_HZ)?;
     let summary = with_signals(|shutdown| async move { rsu::run(&config, shutdown).await.map_err(CliError::runtime) })?;
-    print_json(&summary)
+    print_json(&summary)?;
+    delivered(&summary)
 }
 
 pub fn replay(args: ReplayArgs) -> CliResult {
@@ -91,6 +101,7 @@ fn edge_config(args: EdgeArgs, default_rate_hz: f64) -> CliResult<EdgeConfig> {
     config.wait_for_cloud = seconds("--wait-for-cloud-s", args.wait_for_cloud_s)?;
     config.cache_span = seconds("--cache-s", args.cache_s)?;
     config.clock_steps = args.clock_steps;
+    config.ack = !args.no_ack;
     config.trust_key = args.trust_key.as_deref().map(super::keys::read_trust_key).transpose()?;
     Ok(config)
 }

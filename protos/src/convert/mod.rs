@@ -9,6 +9,7 @@
 //! Numbers survive a round trip bit for bit, with one exception: `-0.0` arrives as `+0.0`, since
 //! proto3 does not send a field equal to its default and prost compares floats with `== 0.0`.
 
+mod delivery;
 pub mod foxglove;
 mod geometry;
 mod map;
@@ -151,6 +152,7 @@ wire_message!(telemetry::PolicyUpdate, crate::v1::PolicyUpdate, "risktwin.v1.Pol
 wire_message!(telemetry::ScenarioPush, crate::v1::ScenarioPush, "risktwin.v1.ScenarioPush");
 wire_message!(telemetry::ScenarioResult, crate::v1::ScenarioResult, "risktwin.v1.ScenarioResult");
 wire_message!(telemetry::HazardWarning, crate::v1::HazardWarning, "risktwin.v1.HazardWarning");
+wire_message!(risktwin_common::delivery::DeliveryAck, crate::v1::DeliveryAck, "risktwin.v1.DeliveryAck");
 
 // Validation helpers shared by the per-family files.
 

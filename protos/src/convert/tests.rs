@@ -558,3 +558,20 @@ fn a_message_tagged_with_another_schema_is_refused_by_name() {
 fn scene_of(p: &mut crate::v1::ScenarioResult) -> &mut crate::v1::SceneRef {
     p.scene.as_mut().expect("a scene")
 }
+
+#[test]
+fn delivery_acks_round_trip_and_impossible_ones_are_rejected() {
+    use risktwin_common::delivery::{DeliveryAck, StreamAck};
+    let stream = |name: &str, next_seq, received, lost| StreamAck { stream: name.into(), next_seq, received, lost };
+    let ack = DeliveryAck {
+        header: hdr(3),
+        edge_source: "veh-1".into(),
+        edge_session: "a1b2".into(),
+        cloud_session: "c3d4".into(),
+        streams: vec![stream("state", 10, 9, 1), stream("can", 40, 40, 0)],
+    };
+    round_trip(&ack);
+    rejects(&ack, |p| p.edge_session.clear(), missing("DeliveryAck", "edge_session"));
+    rejects(&ack, |p| p.streams[0].stream.clear(), missing("StreamAck", "stream"));
+    rejects(&ack, |p| p.streams[1].received = 41, bad("StreamAck", "received", "41 above next_seq 40"));
+}

@@ -1,0 +1,240 @@
+//! What became of an edge's messages: the cloud's delivery acknowledgements on the edge's own
+//! `ack` key and the cloud's liveliness token, watched while the edge publishes; at its end the
+//! edge waits (at most [`ACK_WAIT`]) for acknowledgements that cover what it sent, and reports
+//! per stream what was acknowledged, what the cloud counts lost and what stayed undelivered,
+//! and when the cloud was gone (docs/keyexpr.md, "Delivery acknowledgements").
+
+use risktwin_common::delivery::{DeliveryAck, DeliveryLedger};
+use risktwin_protos::decode_tagged;
+use risktwin_transport::keyexpr::{CloudToEdge, cloud_liveliness, cloud_to_edge};
+use risktwin_transport::zenoh::Session;
+use risktwin_transport::zenoh::pubsub::Subscriber;
+use risktwin_transport::zenoh::sample::SampleKind;
+use risktwin_transport::{EdgeStream, SiteId, SourceId, TransportError};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
+use tokio::sync::Notify;
+
+/// How long an ending edge waits for acknowledgements of what it sent: the cloud acknowledges
+/// every 500 ms, so this leaves room for five of them and a recovery of the last samples.
+pub const ACK_WAIT: Duration = Duration::from_secs(3);
+
+/// Gone-periods of the cloud kept in a summary; later ones are only summed.
+const MAX_GONE_LISTED: usize = 32;
+
+/// One stream's numbers as the edge knows them.
+#[derive(Debug, Clone, Default)]
+pub struct StreamSent {
+    /// Sequence numbers handed out (0..numbered).
+    pub numbered: u64,
+    /// Messages put.
+    pub sent: u64,
+    /// Numbers of the messages refused (too large), not put.
+    pub refused: Vec<u64>,
+}
+
+/// A period when no cloud's liveliness token was seen.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CloudGone {
+    /// Seconds after the watch started (the edge's start) that the cloud went.
+    pub at_s: f64,
+    /// Seconds it stayed gone (until it came back, or the edge ended).
+    pub for_s: f64,
+}
+
+/// What the edge says of the cloud in its summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CloudSeen {
+    /// Whether a cloud's token or an acknowledgement was ever seen.
+    pub seen: bool,
+    /// Whether a cloud's token was there when the edge ended.
+    pub alive_at_exit: bool,
+    /// How many cloud sessions acknowledged this edge (two after a cloud restart).
+    pub acknowledged_by: usize,
+    /// The periods it was gone after it was first seen (at most 32 listed).
+    pub gone: Vec<CloudGone>,
+    /// All of them, seconds.
+    pub gone_s: f64,
+}
+
+/// Per stream, what became of what the edge sent (flattened into the edge's summary).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DeliverySummary {
+    /// Received by a cloud, per stream.
+    pub acknowledged: BTreeMap<String, u64>,
+    /// Counted lost by the cloud, per stream.
+    pub lost: BTreeMap<String, u64>,
+    /// Never accounted for by a cloud, per stream.
+    pub undelivered: BTreeMap<String, u64>,
+    /// Refused by the edge as larger than an edge stream may be, per stream (never sent).
+    pub too_large: BTreeMap<String, u64>,
+    pub cloud: CloudSeen,
+}
+
+impl DeliverySummary {
+    /// All undelivered messages.
+    pub fn total_undelivered(&self) -> u64 {
+        self.undelivered.values().sum()
+    }
+}
+
+#[derive(Debug, Default)]
+struct Presence {
+    /// Tokens alive now, by key (a cloud serving every site has its own).
+    alive: BTreeMap<String, bool>,
+    seen: bool,
+    gone_since: Option<Instant>,
+    gone: Vec<CloudGone>,
+    gone_total: Duration,
+}
+
+impl Presence {
+    fn any_alive(&self) -> bool {
+        self.alive.values().any(|a| *a)
+    }
+
+    fn update(&mut self, key: &str, alive: bool, start: Instant, now: Instant) {
+        let was = self.any_alive();
+        self.alive.insert(key.to_owned(), alive);
+        let is = self.any_alive();
+        if is {
+            self.seen = true;
+        }
+        if was && !is {
+            self.gone_since = Some(now);
+            tracing::warn!("cloud gone ({:.1} s after the start)", now.duration_since(start).as_secs_f64());
+        } else if !was
+            && is
+            && let Some(since) = self.gone_since.take()
+        {
+            let gone = now.duration_since(since);
+            self.close(since, gone, start);
+            tracing::info!("cloud back after {:.1} s", gone.as_secs_f64());
+        }
+    }
+
+    fn close(&mut self, since: Instant, gone: Duration, start: Instant) {
+        self.gone_total += gone;
+        if self.gone.len() < MAX_GONE_LISTED {
+            let at_s = since.duration_since(start).as_secs_f64();
+            self.gone.push(CloudGone { at_s, for_s: gone.as_secs_f64() });
+        }
+    }
+}
+
+/// The edge's watch on acknowledgements and on the cloud's presence.
+pub struct DeliveryWatch {
+    start: Instant,
+    ledger: Arc<Mutex<DeliveryLedger>>,
+    presence: Arc<Mutex<Presence>>,
+    changed: Arc<Notify>,
+    subscribers: [Subscriber<()>; 2],
+}
+
+impl DeliveryWatch {
+    /// Subscribes to the acknowledgements of `source` at `site` and to the cloud's token.
+    pub async fn start(session: &Session, site: &SiteId, source: &SourceId) -> Result<Self, TransportError> {
+        let start = Instant::now();
+        let ledger = Arc::new(Mutex::new(DeliveryLedger::new(session.zid().to_string())));
+        let presence = Arc::new(Mutex::new(Presence::default()));
+        let changed = Arc::new(Notify::new());
+        let key = cloud_to_edge(site, source, CloudToEdge::Ack);
+        let (acks, notify) = (Arc::clone(&ledger), Arc::clone(&changed));
+        let ack_subscriber = session
+            .declare_subscriber(key.clone())
+            .callback(move |sample| {
+                match decode_tagged::<DeliveryAck>(&sample.encoding().to_string(), &sample.payload().to_bytes()) {
+                    Ok(ack) => {
+                        acks.lock().unwrap_or_else(PoisonError::into_inner).apply(ack);
+                        notify.notify_one();
+                    }
+                    Err(e) => tracing::warn!("acknowledgement on {} refused: {e}", sample.key_expr()),
+                }
+            })
+            .await
+            .map_err(|e| TransportError::Declare { what: "subscriber", key, reason: e.to_string() })?;
+        // The token of a cloud serving this site, or every site (`*`): both intersect this key.
+        let key = cloud_liveliness(Some(site));
+        let (seen, notify) = (Arc::clone(&presence), Arc::clone(&changed));
+        let cloud_subscriber = session
+            .liveliness()
+            .declare_subscriber(key.clone())
+            .history(true)
+            .callback(move |sample| {
+                let alive = sample.kind() == SampleKind::Put;
+                let mut presence = seen.lock().unwrap_or_else(PoisonError::into_inner);
+                presence.update(sample.key_expr().as_str(), alive, start, Instant::now());
+                notify.notify_one();
+            })
+            .await
+            .map_err(|e| TransportError::Declare { what: "liveliness subscriber", key, reason: e.to_string() })?;
+        Ok(DeliveryWatch { start, ledger, presence, changed, subscribers: [ack_subscriber, cloud_subscriber] })
+    }
+
+    /// Waits until acknowledgements cover every stream of `sent`, no cloud's token is there, or
+    /// [`ACK_WAIT`] has passed; then undeclares the watch and tells what became of `sent`.
+    pub async fn settle(self, sent: &[(EdgeStream, StreamSent)]) -> Result<DeliverySummary, TransportError> {
+        let deadline = tokio::time::Instant::now() + ACK_WAIT;
+        loop {
+            // Registered before the state is read, so that no change falls between the two.
+            let changed = self.changed.notified();
+            let summary = self.summary(sent);
+            let covered = summary.total_undelivered() == 0;
+            let alive = self.presence.lock().unwrap_or_else(PoisonError::into_inner).any_alive();
+            if covered || !alive || tokio::time::Instant::now() >= deadline {
+                for subscriber in self.subscribers {
+                    subscriber.undeclare().await.map_err(|e| TransportError::Declare {
+                        what: "undeclare",
+                        key: "(delivery watch)".to_owned(),
+                        reason: e.to_string(),
+                    })?;
+                }
+                return Ok(summary);
+            }
+            let _ = tokio::time::timeout_at(deadline, changed).await;
+        }
+    }
+
+    fn summary(&self, sent: &[(EdgeStream, StreamSent)]) -> DeliverySummary {
+        let ledger = self.ledger.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut summary = DeliverySummary {
+            acknowledged: BTreeMap::new(),
+            lost: BTreeMap::new(),
+            undelivered: BTreeMap::new(),
+            too_large: BTreeMap::new(),
+            cloud: self.cloud_seen(ledger.heard(), ledger.clouds()),
+        };
+        for (stream, s) in sent {
+            let d = ledger.stream(stream.as_str(), s.numbered, s.sent, &s.refused);
+            let name = stream.as_str().to_owned();
+            summary.acknowledged.insert(name.clone(), d.acknowledged);
+            summary.lost.insert(name.clone(), d.lost);
+            summary.undelivered.insert(name.clone(), d.undelivered);
+            summary.too_large.insert(name, s.refused.len() as u64);
+        }
+        summary
+    }
+
+    fn cloud_seen(&self, acknowledged: bool, clouds: usize) -> CloudSeen {
+        let presence = self.presence.lock().unwrap_or_else(PoisonError::into_inner);
+        let now = Instant::now();
+        let mut gone = presence.gone.clone();
+        let mut gone_total = presence.gone_total;
+        if let Some(since) = presence.gone_since {
+            gone_total += now.duration_since(since);
+            if gone.len() < MAX_GONE_LISTED {
+                let at_s = since.duration_since(self.start).as_secs_f64();
+                gone.push(CloudGone { at_s, for_s: now.duration_since(since).as_secs_f64() });
+            }
+        }
+        CloudSeen {
+            seen: presence.seen || acknowledged,
+            alive_at_exit: presence.any_alive(),
+            acknowledged_by: clouds,
+            gone,
+            gone_s: gone_total.as_secs_f64(),
+        }
+    }
+}

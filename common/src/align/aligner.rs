@@ -327,10 +327,11 @@ impl<T: Clone> Aligner<T> {
         let Some(left) = idx.checked_sub(1).map(|i| &ring[i]) else {
             return Aligned::default();
         };
-        let age_ns = t_ns - left.t_ns;
+        // Saturating: a source may stamp anything, and an age past i64::MAX is just stale.
+        let age_ns = t_ns.saturating_sub(left.t_ns);
         let bound_ns = spec.period_ns.saturating_mul(i64::from(self.cfg.stale_periods));
         if let (StreamMode::Interpolated, Some(lerp), Some(right)) = (spec.mode, self.lerp, ring.get(idx)) {
-            let gap_ns = right.t_ns - left.t_ns;
+            let gap_ns = right.t_ns.saturating_sub(left.t_ns);
             if gap_ns <= bound_ns {
                 let frac = age_ns as f64 / gap_ns as f64;
                 return Aligned {

@@ -160,6 +160,23 @@ fn a_sample_stamped_at_the_far_past_is_stale_not_fresh() {
     assert_eq!(at(1_100).get(S0, POSE).expect("s0").status, ValueStatus::AsOf);
 }
 
+/// Found by the `ingest` fuzz target: a first receive time near `i64::MAX` (a replay-time
+/// attachment claims it) overflowed the next tick; wrapped, the aligner stepped from the far
+/// past, past any catch-up limit.
+#[test]
+fn a_receive_time_at_the_end_of_i64_emits_nothing_and_does_not_overflow() {
+    let mut a: Aligner<f64> = Aligner::new(cfg(), &specs());
+    let limit = u64::from(cfg().max_catch_up_ticks);
+    let mut emitted = 0u64;
+    for now_ns in [i64::MAX - 1, i64::MAX, i64::MIN] {
+        a.advance(now_ns, |_| {
+            emitted += 1;
+            assert!(emitted <= limit, "more ticks than the catch-up limit");
+        });
+    }
+    assert_eq!(emitted, 0);
+}
+
 #[test]
 fn rings_stay_bounded_and_evict_the_oldest_when_flooded() {
     let mut a: Aligner<f64> = Aligner::new(AlignConfig { capacity: 4, ..cfg() }, &specs());

@@ -8,7 +8,9 @@ mod error;
 mod logging;
 mod output;
 mod process_tuning;
-mod topology;
+
+// The topology parser lives in the library half of this package (see src/lib.rs).
+use risktwin_deploy::topology;
 
 use clap::Parser;
 use std::process::ExitCode;

@@ -8,6 +8,7 @@ use crate::nn::{HALF_LN_TAU, Mlp, Param, const_param, load_params, matrix};
 use candle_core::{Device, Tensor};
 use risktwin_common::env::{ACT_DIM, OBS_DIM};
 use risktwin_common::rng::Rng;
+use safetensors::SafeTensors;
 use std::fmt;
 use std::path::Path;
 use std::str::FromStr;
@@ -85,12 +86,7 @@ impl PolicyNet {
         if hidden.is_empty() || hidden.contains(&0) {
             return Err(LearnError::BadConfig(format!("hidden sizes {hidden:?} must be non-empty and positive")));
         }
-        let sizes = |input: usize, rest: &[usize], out: usize| {
-            let mut v = vec![input];
-            v.extend_from_slice(rest);
-            v.push(out);
-            v
-        };
+        let sizes = layer_sizes;
         let log_std = || const_param("actor.log_std".into(), (1, ACT_DIM), INITIAL_LOG_STD);
         let body = match algo {
             Algo::Ppo => Body::Gaussian {
@@ -237,13 +233,69 @@ impl PolicyNet {
     /// Loads a policy saved by [`PolicyNet::save`], checking version and dimensions.
     pub fn load(path: &Path) -> Result<Self, LearnError> {
         let bytes = std::fs::read(path).map_err(|e| LearnError::Io(path.display().to_string(), e.to_string()))?;
-        let meta = read_meta(&bytes).map_err(|e| LearnError::BadPolicyFile(format!("{}: {e}", path.display())))?;
+        Self::from_bytes(&bytes).map_err(|e| match e {
+            LearnError::BadPolicyFile(m) => LearnError::BadPolicyFile(format!("{}: {m}", path.display())),
+            e => e,
+        })
+    }
+
+    /// The policy of a policy file's bytes (what [`PolicyNet::load`] reads), checking version
+    /// and dimensions.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, LearnError> {
+        let meta = read_meta(bytes).map_err(|e| LearnError::BadPolicyFile(e.to_string()))?;
         let (algo, hidden): (Algo, _) = (meta.algo.parse()?, meta.hidden);
+        // The net is built before its tensors are loaded into it, with the widths the file
+        // names: a file must hold at least the values they imply, or a few bytes of metadata
+        // would allocate without bound.
+        let stored = stored_values(bytes)?;
+        match param_count(algo, &hidden) {
+            Some(needed) if needed <= stored => {}
+            needed => {
+                let needed = needed.map_or_else(|| "more than usize::MAX".to_string(), |n| n.to_string());
+                return Err(LearnError::BadPolicyFile(format!(
+                    "its metadata (hidden {hidden:?}) implies {needed} parameters, its tensors hold {stored} values"
+                )));
+            }
+        }
         let net = PolicyNet::new(algo, &hidden, &mut Rng::new(0))?;
-        let tensors = candle_core::safetensors::load_buffer(&bytes, &Device::Cpu)?;
+        let tensors = candle_core::safetensors::load_buffer(bytes, &Device::Cpu)?;
         load_params(net.params(), &tensors)?;
         Ok(net)
     }
+}
+
+/// `[input, rest…, out]`: the layer widths of an MLP.
+fn layer_sizes(input: usize, rest: &[usize], out: usize) -> Vec<usize> {
+    let mut v = vec![input];
+    v.extend_from_slice(rest);
+    v.push(out);
+    v
+}
+
+/// The parameters (values) of a policy of `algo` with `hidden` layers as [`PolicyNet::new`]
+/// builds it; `None` when they overflow `usize` or `hidden` is empty.
+fn param_count(algo: Algo, hidden: &[usize]) -> Option<usize> {
+    // Weights (in × out) and bias (1 × out) per layer.
+    let mlp = |sizes: Vec<usize>| {
+        sizes.windows(2).try_fold(0usize, |n, io| n.checked_add(io[0].checked_mul(io[1])?.checked_add(io[1])?))
+    };
+    match algo {
+        Algo::Ppo => mlp(layer_sizes(OBS_DIM, hidden, ACT_DIM))?.checked_add(ACT_DIM),
+        Algo::PpoGru => {
+            let h = *hidden.first()?;
+            // GruCell: w_x (in × 3h), w_h (h × 3h), b_x and b_h (1 × 3h).
+            let cell = OBS_DIM.checked_add(h)?.checked_add(2)?.checked_mul(h.checked_mul(3)?)?;
+            cell.checked_add(mlp(layer_sizes(h, &hidden[1..], ACT_DIM))?)?.checked_add(ACT_DIM)
+        }
+        Algo::Sac => mlp(layer_sizes(OBS_DIM, hidden, 2 * ACT_DIM)),
+    }
+}
+
+/// The values a safetensors file's tensors hold (their shapes, which the parser checked
+/// against the bytes they span).
+fn stored_values(bytes: &[u8]) -> Result<usize, LearnError> {
+    let (_, header) = SafeTensors::read_metadata(bytes).map_err(|e| LearnError::BadPolicyFile(e.to_string()))?;
+    Ok(header.tensors().values().map(|t| t.shape.iter().product::<usize>()).sum())
 }
 
 /// Log-density of `x` under N(mean, exp(log_std)²), summed over the action dimensions, per row
@@ -257,4 +309,59 @@ pub fn gaussian_log_prob(x: &[f32], mean: &[f32], log_std: &[f32]) -> f32 {
             -0.5 * z * z - ls - HALF_LN_TAU
         })
         .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn policy_bytes(net: &PolicyNet, meta_hidden: &[usize]) -> Vec<u8> {
+        let tensors: Vec<(String, Tensor)> =
+            net.params().iter().map(|p| (p.name.clone(), p.var.as_tensor().clone())).collect();
+        let meta = metadata(net.algo().name(), meta_hidden);
+        safetensors::serialize(tensors.iter().map(|(n, t)| (n.as_str(), t)), Some(meta)).expect("serialises")
+    }
+
+    #[test]
+    fn param_count_is_what_new_builds() {
+        for algo in Algo::ALL {
+            for hidden in [&[8][..], &[8, 4], &[5, 3, 2]] {
+                let net = PolicyNet::new(algo, hidden, &mut Rng::new(1)).expect("a net");
+                let built: usize = net.params().iter().map(|p| p.var.as_tensor().elem_count()).sum();
+                assert_eq!(param_count(algo, hidden), Some(built), "{algo:?} {hidden:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_saved_policy_reads_back() {
+        for algo in Algo::ALL {
+            let net = PolicyNet::new(algo, &[8, 4], &mut Rng::new(3)).expect("a net");
+            let back = PolicyNet::from_bytes(&policy_bytes(&net, &[8, 4])).expect("reads back");
+            assert_eq!(back.hidden, net.hidden);
+            let (a, b) = (net.params(), back.params());
+            for (a, b) in a.iter().zip(&b) {
+                let (a, b) = (a.var.as_tensor().flatten_all(), b.var.as_tensor().flatten_all());
+                let (a, b) = (a.and_then(|t| t.to_vec1::<f32>()), b.and_then(|t| t.to_vec1::<f32>()));
+                assert_eq!(a.expect("values"), b.expect("values"));
+            }
+        }
+    }
+
+    /// A file of a small net whose metadata names huge layers is refused before anything of
+    /// their size is allocated (it used to be built first: a capacity-overflow panic, or tens
+    /// of GB filled with random weights for widths in the hundreds of thousands).
+    #[test]
+    fn metadata_naming_layers_larger_than_the_file_is_refused() {
+        for algo in Algo::ALL {
+            let net = PolicyNet::new(algo, &[8], &mut Rng::new(4)).expect("a net");
+            for claimed in [&[4_000_000_000, 4_000_000_000][..], &[200_000, 200_000], &[9], &[usize::MAX]] {
+                match PolicyNet::from_bytes(&policy_bytes(&net, claimed)) {
+                    Err(LearnError::BadPolicyFile(m)) => assert!(m.contains("implies"), "{algo:?} {claimed:?}: {m}"),
+                    Err(e) => panic!("{algo:?} {claimed:?}: refused for another reason: {e}"),
+                    Ok(_) => panic!("{algo:?} {claimed:?}: accepted"),
+                }
+            }
+        }
+    }
 }

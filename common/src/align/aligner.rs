@@ -272,6 +272,7 @@ impl<T: Clone> Aligner<T> {
     /// reached; returns how many. Call it with a message's receive time *before* pushing that
     /// message (and from a timer when idle).
     pub fn advance(&mut self, now_ns: i64, mut on_snapshot: impl FnMut(&Snapshot<T>)) -> u64 {
+        let now_ns = now_ns.clamp(-CLOCK_LIMIT_NS, CLOCK_LIMIT_NS);
         let now_ns = self.now_ns.map_or(now_ns, |n| n.max(now_ns));
         self.now_ns = Some(now_ns);
         let tick = self.cfg.tick_ns;
@@ -327,10 +328,11 @@ impl<T: Clone> Aligner<T> {
         let Some(left) = idx.checked_sub(1).map(|i| &ring[i]) else {
             return Aligned::default();
         };
-        let age_ns = t_ns - left.t_ns;
+        // Saturating: a source may stamp anything, and an age past i64::MAX is just stale.
+        let age_ns = t_ns.saturating_sub(left.t_ns);
         let bound_ns = spec.period_ns.saturating_mul(i64::from(self.cfg.stale_periods));
         if let (StreamMode::Interpolated, Some(lerp), Some(right)) = (spec.mode, self.lerp, ring.get(idx)) {
-            let gap_ns = right.t_ns - left.t_ns;
+            let gap_ns = right.t_ns.saturating_sub(left.t_ns);
             if gap_ns <= bound_ns {
                 let frac = age_ns as f64 / gap_ns as f64;
                 return Aligned {
@@ -354,6 +356,11 @@ impl<T: Clone> Aligner<T> {
         }
     }
 }
+
+/// The aligner's clock keeps within ±146 years of the epoch (ns): a receive time beyond (a
+/// replay-time attachment may claim any) is clamped, so the tick arithmetic (the next tick, the
+/// catch-up, the tick after) cannot overflow.
+const CLOCK_LIMIT_NS: i64 = i64::MAX / 2;
 
 /// The smallest multiple of `step` at or after `t`.
 fn ceil_to(t: i64, step: i64) -> i64 {

@@ -143,6 +143,40 @@ fn a_silent_source_goes_stale_and_long_gaps_are_not_interpolated() {
     assert_eq!(at(1_300).sources(), 2);
 }
 
+/// Found by the `ingest` fuzz target: a sample stamped near `i64::MIN` (a source may stamp
+/// anything) made the age and the gap to the next sample overflow; in a release build they
+/// wrapped negative, and an ancient value was served as fresh or interpolated from.
+#[test]
+fn a_sample_stamped_at_the_far_past_is_stale_not_fresh() {
+    let mut a: Aligner<f64> = Aligner::new(cfg(), &specs());
+    let mut out = Vec::new();
+    feed(&mut a, &mut out, 1_000 * MS, S0, POSE, i64::MIN + 1, 1.0);
+    feed(&mut a, &mut out, 1_001 * MS, S0, POSE, 1_100 * MS, 2.0);
+    a.advance(1_450 * MS, |s| out.push(s.clone()));
+    let at = |tick_ms: i64| out.iter().find(|s| s.tick_ns == tick_ms * MS).expect("tick emitted");
+    // Tick 1050: the gap to the 1100 ms sample is beyond any bound: held, and stale.
+    let v = at(1_050).get(S0, POSE).expect("s0").clone();
+    assert_eq!((v.value, v.status, v.age_ns), (Some(1.0), ValueStatus::Stale, i64::MAX));
+    assert_eq!(at(1_100).get(S0, POSE).expect("s0").status, ValueStatus::AsOf);
+}
+
+/// Found by the `ingest` fuzz target: a first receive time near `i64::MAX` (a replay-time
+/// attachment claims it) overflowed the next tick; wrapped, the aligner stepped from the far
+/// past, past any catch-up limit.
+#[test]
+fn a_receive_time_at_the_end_of_i64_emits_nothing_and_does_not_overflow() {
+    let mut a: Aligner<f64> = Aligner::new(cfg(), &specs());
+    let limit = u64::from(cfg().max_catch_up_ticks);
+    let mut emitted = 0u64;
+    for now_ns in [i64::MAX - 1, i64::MAX, i64::MIN] {
+        a.advance(now_ns, |_| {
+            emitted += 1;
+            assert!(emitted <= limit, "more ticks than the catch-up limit");
+        });
+    }
+    assert_eq!(emitted, 0);
+}
+
 #[test]
 fn rings_stay_bounded_and_evict_the_oldest_when_flooded() {
     let mut a: Aligner<f64> = Aligner::new(AlignConfig { capacity: 4, ..cfg() }, &specs());

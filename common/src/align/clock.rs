@@ -168,13 +168,15 @@ impl ClockEstimator {
         let n = self.ring.len() as f64;
         let (mut sx, mut sy) = (0.0, 0.0);
         for b in &self.ring {
-            sx += (b.at_capture_ns - ref_ns) as f64;
+            // Saturating, like every difference of a source's stamps here: they may span more
+            // than i64 (a hostile or broken clock), which a fit may get wrong but not overflow.
+            sx += b.at_capture_ns.saturating_sub(ref_ns) as f64;
             sy += b.min_delta_ns as f64;
         }
         let (mx, my) = (sx / n, sy / n);
         let (mut sxx, mut sxy) = (0.0, 0.0);
         for b in &self.ring {
-            let dx = (b.at_capture_ns - ref_ns) as f64 - mx;
+            let dx = b.at_capture_ns.saturating_sub(ref_ns) as f64 - mx;
             sxx += dx * dx;
             sxy += dx * (b.min_delta_ns as f64 - my);
         }
@@ -184,7 +186,7 @@ impl ClockEstimator {
         let offset_ns = self
             .ring
             .iter()
-            .map(|b| b.min_delta_ns as f64 - slope * (b.at_capture_ns - ref_ns) as f64)
+            .map(|b| b.min_delta_ns as f64 - slope * b.at_capture_ns.saturating_sub(ref_ns) as f64)
             .fold(f64::INFINITY, f64::min);
         self.line = Some(Line { ref_ns, offset_ns, slope });
     }

@@ -28,6 +28,7 @@ pub mod fanout;
 pub mod fleet_ingest;
 pub mod latency;
 pub mod replay;
+pub mod secure_throughput;
 pub mod standin;
 pub mod standin_ingest;
 pub mod synth;

@@ -97,7 +97,7 @@ pub async fn throughput(config: BenchConfig) -> Result<BenchReport, CloudError> 
     })
 }
 
-fn median(values: &[f64]) -> f64 {
+pub(crate) fn median(values: &[f64]) -> f64 {
     let mut v = values.to_vec();
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied().unwrap_or(0.0)
@@ -149,7 +149,7 @@ impl Finish {
     }
 }
 
-fn bench_error(reason: String) -> CloudError {
+pub(crate) fn bench_error(reason: String) -> CloudError {
     CloudError::Transport(TransportError::Put { key: "bench".into(), reason })
 }
 
@@ -188,6 +188,13 @@ async fn raw_round(config: BenchConfig, subscribe_key: &str) -> Result<f64, Clou
 
 async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
     let (sub_side, pub_side) = peer_pair().await?;
+    state_path_round(config, sub_side, pub_side).await
+}
+
+/// One measurement of our state path between two sessions (closed at the end): the edge's
+/// stream publisher on `pub_side` as source `bench/veh-0`, the cloud's edge-stream subscriber
+/// and stand-in ingest on `sub_side`.
+pub(crate) async fn state_path_round(config: BenchConfig, sub_side: Session, pub_side: Session) -> Result<f64, CloudError> {
     let site = SiteId::new("bench").map_err(|e| bench_error(e.to_string()))?;
     let source = SourceId::new("veh-0").map_err(|e| bench_error(e.to_string()))?;
     let counters = Arc::new(Mutex::new(StandInCounters::default()));

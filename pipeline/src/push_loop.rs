@@ -202,7 +202,7 @@ async fn roles(
     let (router_stop, router_shutdown) = channel();
     let (listening_tx, listening_rx) = oneshot::channel();
     let router = tokio::spawn(async move {
-        let config = RouterConfig { listen: vec!["tcp/127.0.0.1:0".to_owned()], connect: Vec::new() };
+        let config = RouterConfig { listen: vec!["tcp/127.0.0.1:0".to_owned()], ..RouterConfig::default() };
         risktwin_transport::router::run(&config, router_shutdown, |locators| {
             let _ = listening_tx.send(locators.to_vec());
         })

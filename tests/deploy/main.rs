@@ -233,6 +233,26 @@ fn three_hosts_over_a_20_ms_link_lose_nothing_and_see_its_delay() {
 }
 
 #[test]
+fn a_tls_deployment_gives_every_process_a_certificate_and_loses_nothing() {
+    let d = Deployment::new(&format!("tls = true\n{THREE_HOSTS}"));
+    let report = d.run("60s");
+    // Every link mutual TLS through the relays, the routers' access rules on: still all of it.
+    assert_nothing_missing(&report, 5);
+    let certs = d.out().join("certs");
+    let mut names: Vec<String> = std::fs::read_dir(&certs)
+        .expect("the run's certificates")
+        .map(|e| e.expect("an entry").file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".pem") && !n.ends_with("-key.pem"))
+        .collect();
+    names.sort();
+    let expected = ["ca.pem", "cloud:cloud-0.cloud.pem", "edge:edge:car-1.pem", "edge:edge:rsu-1.pem"];
+    assert!(expected.iter().all(|n| names.contains(&(*n).to_owned())), "{names:?}");
+    assert_eq!(names.iter().filter(|n| n.starts_with("router:")).count(), 2, "one per site router: {names:?}");
+    let command = std::fs::read_to_string(d.out().join("hosts/car-1/vehicle.cmd")).expect("the vehicle's command");
+    assert!(command.contains("--connect tls/") && command.contains("--identity edge:edge:car-1"), "{command}");
+}
+
+#[test]
 fn a_partition_of_the_edge_site_holds_its_data_until_the_heal() {
     let partitioned = THREE_HOSTS.replace("\"--count\", \"300\"", "\"--count\", \"400\"")
         + "\n[[event]]\nat_s = 2\npartition = \"edge\"\nfor_s = 3\n";

@@ -6,7 +6,7 @@
 //! cloud's recording stamps every message with its receive time. As peers (which meet directly
 //! through the router's gossip), a router restart interrupts nothing, and nothing is lost.
 
-use crate::support::{Proc, start_router, start_router_at};
+use crate::support::{Certs, Proc, start_router_with};
 use risktwin_protos::recording::read_messages;
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -28,7 +28,7 @@ fn unix_ns() -> u64 {
 }
 
 /// What one run with a router restart gave.
-struct Outcome {
+pub(crate) struct Outcome {
     /// Each edge's JSON summary.
     sent: Vec<Value>,
     /// The cloud's JSON summary.
@@ -41,7 +41,7 @@ struct Outcome {
 
 /// What goes wrong mid-run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Fault {
+pub(crate) enum Fault {
     /// The router is killed (SIGKILL) and restarted on its port after this long.
     RouterRestart(Duration),
     /// The cloud is stopped (SIGSTOP) for this long, then continued.
@@ -56,19 +56,30 @@ fn signal(pid: u32, signal: &str) {
 
 /// Runs the edges with `--cache-s cache_s` as clients of the router and injects `fault`.
 fn run_with_router_restart(cache_s: &str, outage: Duration) -> Outcome {
-    run_with_fault(cache_s, Fault::RouterRestart(outage), "client")
+    run_with_fault(cache_s, Fault::RouterRestart(outage), "client", None)
 }
 
+/// A process's TLS flags as `identity` under `certs` (none without).
+fn tls_flags<'a>(certs: Option<&'a Certs>, identity: &'a str) -> Vec<&'a str> {
+    certs.map(|c| c.flags(identity).to_vec()).unwrap_or_default()
+}
+
+/// The identities a TLS run of `run_with_fault` needs.
+pub(crate) const TLS_IDENTITIES: [&str; 4] = ["router:r", "cloud:c", "edge:track:veh-f", "edge:track:rsu-f"];
+
 /// Runs the edges with `--cache-s cache_s`, every process in Zenoh `mode` with the router as its
-/// endpoint, and injects `fault`.
-fn run_with_fault(cache_s: &str, fault: Fault, mode: &str) -> Outcome {
-    let (mut router, locator) = start_router();
+/// endpoint, and injects `fault`; under TLS with the access rules when `certs` are given.
+pub(crate) fn run_with_fault(cache_s: &str, fault: Fault, mode: &str, certs: Option<&Certs>) -> Outcome {
+    let listen = if certs.is_some() { "tls/127.0.0.1:0" } else { "tcp/127.0.0.1:0" };
+    let router_flags = tls_flags(certs, "router:r");
+    let (mut router, locator) = start_router_with(listen, &router_flags);
     let dir = tempfile::tempdir().expect("a temporary directory");
     let recording = dir.path().join("faults.mcap");
     let record = recording.to_str().expect("a UTF-8 path");
     let client = ["--mode", mode, "--connect", &locator];
     let mut cloud_args = vec!["cloud", "--roles", "ingest", "--record", record];
     cloud_args.extend(client);
+    cloud_args.extend(tls_flags(certs, "cloud:c"));
     let mut cloud = Proc::spawn("cloud", &cloud_args);
     cloud.wait_line(STEP, |l| l == "ready");
     let mut edges: Vec<Proc> = EDGES
@@ -77,6 +88,8 @@ fn run_with_fault(cache_s: &str, fault: Fault, mode: &str) -> Outcome {
             // No --duration: stopped once back (a fixed run could end before the router is up).
             let mut args = vec!["edge", kind, "--id", id, "--site", "track", "--cache-s", cache_s];
             args.extend(client);
+            let identity = format!("edge:track:{id}");
+            args.extend(tls_flags(certs, &identity));
             Proc::spawn(id, &args)
         })
         .collect();
@@ -94,7 +107,7 @@ fn run_with_fault(cache_s: &str, fault: Fault, mode: &str) -> Outcome {
             // Measured from the new router's start (its process start-up included): an upper bound.
             let up_ns = unix_ns();
             let back_at;
-            (router, back_at) = start_router_at(&locator);
+            (router, back_at) = start_router_with(&locator, &router_flags);
             assert_eq!(back_at, locator, "the router is back on the same port");
             if mode == "client" {
                 for (_, id) in EDGES {
@@ -160,19 +173,19 @@ fn run_with_fault(cache_s: &str, fault: Fault, mode: &str) -> Outcome {
 /// from the edge's cache), lost and presumed lost, and what the edge was told was acknowledged
 /// and lost, and found undelivered.
 #[derive(Debug)]
-struct Row {
-    name: String,
-    sent: u64,
-    received: u64,
-    recovered: u64,
-    lost: u64,
+pub(crate) struct Row {
+    pub name: String,
+    pub sent: u64,
+    pub received: u64,
+    pub recovered: u64,
+    pub lost: u64,
     presumed: u64,
     acknowledged: u64,
     edge_lost: u64,
     undelivered: u64,
 }
 
-fn per_stream(outcome: &Outcome) -> Vec<Row> {
+pub(crate) fn per_stream(outcome: &Outcome) -> Vec<Row> {
     let cloud = &outcome.cloud;
     let mut rows = Vec::new();
     for edge in &outcome.sent {
@@ -198,7 +211,7 @@ fn per_stream(outcome: &Outcome) -> Vec<Row> {
 
 /// The common checks: the outage was real, flow resumed in time, received + lost = sent per
 /// stream, the two loss counts agree, and the totals are the sums.
-fn assert_accounted(outcome: &Outcome, outage: Duration) {
+pub(crate) fn assert_accounted(outcome: &Outcome, outage: Duration) {
     assert_counts(outcome);
     for (id, pause_s) in &outcome.longest_pause_s {
         assert!(*pause_s >= outage.as_secs_f64() * 0.5, "{id}: no pause in the data, was the router down? {pause_s} s");
@@ -211,7 +224,7 @@ fn assert_accounted(outcome: &Outcome, outage: Duration) {
 /// The vehicle's state (50 Hz) published through a router's outage: all of that came from its
 /// cache, or was lost with it. (A stalled cloud's samples may also wait in the socket buffers
 /// and the router's queue, and arrive late rather than from the cache.)
-fn assert_held_back(outcome: &Outcome, outage: Duration) {
+pub(crate) fn assert_held_back(outcome: &Outcome, outage: Duration) {
     let rows = per_stream(outcome);
     let state = rows.iter().find(|r| r.name.ends_with("/state")).expect("a vehicle state stream");
     let during = (50.0 * outage.as_secs_f64() * 0.5) as u64;
@@ -266,7 +279,7 @@ fn a_stalled_cloud_loses_nothing_within_the_cache() {
     // SIGSTOP for 3 s (the benchmark's 15 s is longer than Zenoh's lease: the router drops the
     // cloud's session, which reconnects and asks again; docs/keyexpr.md, "Surviving faults").
     let stall = Duration::from_millis(3000);
-    let outcome = run_with_fault("30", Fault::CloudStall(stall), "client");
+    let outcome = run_with_fault("30", Fault::CloudStall(stall), "client", None);
     assert_accounted(&outcome, stall);
     let rows = per_stream(&outcome);
     assert!(rows.iter().all(|r| r.lost == 0), "a 3 s stall within a 30 s cache loses nothing: {rows:?}");
@@ -277,7 +290,7 @@ fn a_stalled_cloud_loses_nothing_within_the_cache() {
 fn a_router_restart_under_peers_loses_nothing() {
     // Peers meet directly once the router's gossip has told them of each other: its crash
     // interrupts no data path, and its return changes nothing.
-    let outcome = run_with_fault("30", Fault::RouterRestart(Duration::from_millis(1300)), "peer");
+    let outcome = run_with_fault("30", Fault::RouterRestart(Duration::from_millis(1300)), "peer", None);
     assert_counts(&outcome);
     let rows = per_stream(&outcome);
     assert!(rows.iter().all(|r| r.lost == 0), "{rows:?}");

@@ -23,4 +23,5 @@ mod scene_v2x;
 mod shm_gateway;
 mod signed_policy;
 mod support;
+mod tls;
 mod v2x_agreement;

@@ -167,8 +167,18 @@ pub fn start_router() -> (Proc, String) {
 /// Starts a router listening on `listen` (`:0`: a free port) and returns it with the locator
 /// it listens on, once it does.
 pub fn start_router_at(listen: &str) -> (Proc, String) {
-    let mut router = Proc::spawn("router", &["router", "--listen", listen]);
-    let line = router.wait_line(Duration::from_secs(30), |l| l.starts_with("listening on tcp/127.0.0.1:"));
+    start_router_with(listen, &[])
+}
+
+/// Starts a router listening on `listen` (`tcp/…` or `tls/…`) with `extra` arguments (its TLS
+/// flags) and returns it with the locator it listens on, once it does.
+pub fn start_router_with(listen: &str, extra: &[&str]) -> (Proc, String) {
+    let mut args = vec!["router", "--listen", listen];
+    args.extend(extra);
+    let mut router = Proc::spawn("router", &args);
+    let protocol = listen.split('/').next().expect("a protocol");
+    let prefix = format!("listening on {protocol}/127.0.0.1:");
+    let line = router.wait_line(Duration::from_secs(30), |l| l.starts_with(&prefix));
     let locator = line.trim_start_matches("listening on ").to_owned();
     assert!(!locator.ends_with(":0"), "the router reported port 0: {line}");
     (router, locator)
@@ -189,6 +199,44 @@ pub fn cut_in_library(dir: &std::path::Path, count: usize) -> (String, Value) {
     (db, ranked)
 }
 
+/// A TLS deployment's certificates (`risktwin certs init`) in a temporary folder.
+pub struct Certs {
+    pub dir: tempfile::TempDir,
+}
+
+impl Certs {
+    /// A CA and a certificate for each of `identities` (`edge:<site>:<id>`, `cloud:<name>`, …).
+    pub fn init(identities: &[&str]) -> Certs {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let mut args = vec!["certs", "init", dir.path().to_str().expect("a UTF-8 path")];
+        for identity in identities {
+            args.extend(["--identity", identity]);
+        }
+        run_json(&args);
+        Certs { dir }
+    }
+
+    /// The folder as an argument.
+    pub fn path(&self) -> &str {
+        self.dir.path().to_str().expect("a UTF-8 path")
+    }
+
+    /// `--tls-dir DIR --identity NAME`.
+    pub fn flags<'a>(&'a self, identity: &'a str) -> [&'a str; 4] {
+        ["--tls-dir", self.path(), "--identity", identity]
+    }
+
+    /// The files of `identity`, for a test's own session.
+    pub fn security(&self, identity: &str) -> risktwin_transport::Security {
+        risktwin_transport::Security::Tls(risktwin_transport::TlsFiles::in_dir(self.dir.path(), identity))
+    }
+
+    /// A router under TLS with the access rules of every identity here, on a free port.
+    pub fn start_router(&self, identity: &str) -> (Proc, String) {
+        start_router_with("tls/127.0.0.1:0", &self.flags(identity))
+    }
+}
+
 /// A runtime for a test's own Zenoh session.
 pub fn runtime() -> tokio::runtime::Runtime {
     tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().expect("a tokio runtime")
@@ -198,6 +246,21 @@ pub fn runtime() -> tokio::runtime::Runtime {
 pub async fn session(router: &str) -> risktwin_transport::zenoh::Session {
     let config = risktwin_transport::TransportConfig { connect: vec![router.to_owned()], ..Default::default() };
     risktwin_transport::connect(&config).await.expect("the test session joins the router")
+}
+
+/// The test's own Zenoh session as a client of the router at `router`, secured by `security`.
+pub async fn session_as(
+    router: &str,
+    security: risktwin_transport::Security,
+) -> Result<risktwin_transport::zenoh::Session, risktwin_transport::TransportError> {
+    let config = risktwin_transport::TransportConfig {
+        mode: risktwin_transport::Mode::Client,
+        connect: vec![router.to_owned()],
+        connect_timeout: Duration::from_secs(5),
+        security,
+        ..Default::default()
+    };
+    risktwin_transport::connect(&config).await
 }
 
 /// `risktwin keys generate --out dir/name`: (signing key file, verifying key file).

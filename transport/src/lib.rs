@@ -14,14 +14,16 @@ pub mod router;
 pub mod session;
 pub mod shutdown;
 pub mod stream;
+pub mod tls;
 
 pub use edge_subscriber::{EdgeStreamSubscriber, StreamLoss, subscribe_edge_streams};
 pub use keyexpr::{EdgeStream, KeyError, SiteId, SourceId};
 pub use recovery::Delivery;
-pub use session::{Mode, TransportConfig, TransportError, close, connect, listening_locators};
+pub use session::{DEFAULT_ROUTER_PORT, Mode, TransportConfig, TransportError, close, connect, listening_locators};
 pub use shutdown::{Shutdown, ShutdownTrigger};
 pub use stream::{
     Liveness, StreamPublisher, declare_alive, declare_alive_within, linger, protobuf, retire, watch_liveliness,
 };
+pub use tls::{Identity, Security, TlsError, TlsFiles};
 /// Re-exported so that roles name zenoh types without their own dependency line.
 pub use zenoh;

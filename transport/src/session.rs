@@ -6,6 +6,7 @@
 //! stops a test run from joining whatever Zenoh network happens to share the LAN. Gossip
 //! scouting (peers learning about each other through the router) keeps Zenoh's default.
 
+use crate::tls::{self, Identity, Security, TlsError};
 use std::time::Duration;
 use thiserror::Error;
 use zenoh::{Config, Session};
@@ -53,7 +54,8 @@ pub struct TransportConfig {
     pub mode: Mode,
     /// Locators to connect to (`tcp/127.0.0.1:7447`).
     pub connect: Vec<String>,
-    /// Locators to listen on; empty keeps Zenoh's default for the mode.
+    /// Locators to listen on; empty: loopback only (`DEFAULT_ROUTER_PORT` for a router, a port
+    /// the OS picks for a peer, none under TLS or for a client).
     pub listen: Vec<String>,
     /// Multicast scouting on UDP 224.0.0.224:7446; off unless asked for.
     pub multicast_scouting: bool,
@@ -64,7 +66,15 @@ pub struct TransportConfig {
     /// may not be reachable yet, for what must not wait for the network (a scene's data beside
     /// its physics). A client cannot: it opens only once its router answers.
     pub detached: bool,
+    /// Plain TCP or mutual TLS on every link (docs/security.md).
+    pub security: Security,
+    /// Access rules this session enforces on its links (a router under TLS): those of these
+    /// identities, everything else denied.
+    pub acl: Option<Vec<Identity>>,
 }
+
+/// The port a router listens on when not told where (Zenoh's usual one), on loopback.
+pub const DEFAULT_ROUTER_PORT: u16 = 7447;
 
 impl Default for TransportConfig {
     fn default() -> Self {
@@ -75,6 +85,8 @@ impl Default for TransportConfig {
             multicast_scouting: false,
             connect_timeout: Duration::from_secs(10),
             detached: false,
+            security: Security::Insecure,
+            acl: None,
         }
     }
 }
@@ -100,14 +112,27 @@ pub enum TransportError {
     DuplicateId { site: String, id: String, wait: Duration },
     #[error("closing the zenoh session failed: {reason}")]
     Close { reason: String },
+    #[error(transparent)]
+    Tls(#[from] TlsError),
 }
 
 impl TransportConfig {
     /// The zenoh configuration this stands for.
     pub fn to_zenoh(&self) -> Result<Config, TransportError> {
         let mut config = Config::default();
+        let tls = match &self.security {
+            Security::Tls(files) => Some(files),
+            Security::Insecure => None,
+        };
         for endpoint in self.connect.iter().chain(&self.listen) {
             check_endpoint(endpoint)?;
+            check_protocol(endpoint, tls.is_some())?;
+        }
+        if tls.is_some() && self.mode != Mode::Router && !self.listen.is_empty() {
+            let reason = "under TLS only routers listen: every other session reaches the rest through a router, \
+                          whose access rules it must not bypass"
+                .to_owned();
+            return Err(TransportError::Config { key: "listen/endpoints", value: self.listen.join(","), reason });
         }
         set(&mut config, "mode", json_str(self.mode_str()))?;
         set(&mut config, "scouting/multicast/enabled", self.multicast_scouting.to_string())?;
@@ -139,11 +164,53 @@ impl TransportConfig {
             // (two publishers' samples can leave the router out of stamp order).
             set(&mut config, "timestamping/enabled", "false".to_owned())?;
         }
-        if !self.listen.is_empty() {
-            set(&mut config, "listen/endpoints", json_list(&self.listen))?;
+        set(&mut config, "listen/endpoints", json_list(&self.listen_endpoints()))?;
+        if let Some(files) = tls {
+            let path = |key: &'static str, p: &std::path::Path| match p.to_str() {
+                Some(p) => Ok(json_str(p)),
+                None => Err(TransportError::Config { key, value: p.display().to_string(), reason: "not UTF-8".into() }),
+            };
+            const TLS: &str = "transport/link/tls";
+            set(&mut config, "transport/link/tls/root_ca_certificate", path(TLS, &files.ca_cert)?)?;
+            for key in ["transport/link/tls/listen_certificate", "transport/link/tls/connect_certificate"] {
+                set(&mut config, key, path(TLS, &files.cert)?)?;
+            }
+            for key in ["transport/link/tls/listen_private_key", "transport/link/tls/connect_private_key"] {
+                set(&mut config, key, path(TLS, &files.key)?)?;
+            }
+            // Mutual: a router accepts only links whose certificate its CA signed, and the name
+            // in that certificate is what its access rules match.
+            set(&mut config, "transport/link/tls/enable_mtls", "true".to_owned())?;
+            set(&mut config, "transport/link/tls/verify_name_on_connect", "true".to_owned())?;
+        }
+        if let Some(identities) = &self.acl {
+            set(&mut config, "access_control", tls::acl::access_control(identities).to_string())?;
         }
         set(&mut config, "transport/link/rx/max_message_size", MAX_MESSAGE_BYTES.to_string())?;
         Ok(config)
+    }
+
+    /// The endpoints listened on: those given, else loopback only (never every interface by
+    /// surprise): a router on `DEFAULT_ROUTER_PORT`, a plain peer on a port the OS picks.
+    pub fn listen_endpoints(&self) -> Vec<String> {
+        if !self.listen.is_empty() {
+            return self.listen.clone();
+        }
+        match (self.mode, &self.security) {
+            (Mode::Router, Security::Insecure) => vec![format!("tcp/127.0.0.1:{DEFAULT_ROUTER_PORT}")],
+            (Mode::Router, Security::Tls(_)) => vec![format!("tls/127.0.0.1:{DEFAULT_ROUTER_PORT}")],
+            (Mode::Peer, Security::Insecure) => vec!["tcp/127.0.0.1:0".to_owned()],
+            _ => Vec::new(),
+        }
+    }
+
+    /// The first endpoint that plain TCP would take off this host (not loopback), if any:
+    /// such a session should say once that it is insecure.
+    pub fn insecure_endpoint(&self) -> Option<&str> {
+        if self.security != Security::Insecure {
+            return None;
+        }
+        self.connect.iter().chain(&self.listen).map(String::as_str).find(|e| !is_loopback(e))
     }
 
     fn mode_str(&self) -> &'static str {
@@ -167,6 +234,26 @@ fn check_endpoint(endpoint: &str) -> Result<(), TransportError> {
     }
     endpoint.parse::<zenoh::config::EndPoint>().map_err(|e| bad(&e.to_string()))?;
     Ok(())
+}
+
+/// Under TLS every endpoint is `tls/`; without it none is (a `tls/` link needs certificates).
+fn check_protocol(endpoint: &str, tls: bool) -> Result<(), TransportError> {
+    let is_tls = endpoint.starts_with("tls/");
+    let reason = match (tls, is_tls) {
+        (true, false) => "TLS is on: only tls/ endpoints, plain links are refused",
+        (false, true) => "a tls/ endpoint needs a certificate (--tls-dir and --identity, or --tls-ca/--tls-cert/--tls-key)",
+        _ => return Ok(()),
+    };
+    Err(TransportError::BadEndpoint { endpoint: endpoint.to_owned(), reason: reason.to_owned() })
+}
+
+/// Whether a locator's host is this machine only (`127.0.0.0/8`, `::1`, `localhost`).
+fn is_loopback(endpoint: &str) -> bool {
+    let address = endpoint.split_once('/').map_or(endpoint, |(_, a)| a);
+    let address = address.split(['?', '#']).next().unwrap_or(address);
+    let host = address.rsplit_once(':').map_or(address, |(h, _)| h);
+    let host = host.trim_start_matches('[').trim_end_matches(']');
+    host == "localhost" || host.parse::<std::net::IpAddr>().is_ok_and(|ip| ip.is_loopback())
 }
 
 fn set(config: &mut Config, key: &'static str, value: String) -> Result<(), TransportError> {
@@ -255,5 +342,48 @@ mod tests {
         }
         assert!(matches!("bridge".parse::<Mode>(), Err(TransportError::BadMode { mode }) if mode == "bridge"));
         assert_eq!("router".parse::<Mode>().unwrap(), Mode::Router);
+    }
+
+    #[test]
+    fn listeners_default_to_loopback_and_plain_tcp_off_this_host_is_flagged() {
+        let peer = TransportConfig::default();
+        assert_eq!(peer.to_zenoh().unwrap().get_json("listen/endpoints").unwrap(), r#"["tcp/127.0.0.1:0"]"#);
+        let router = TransportConfig { mode: Mode::Router, ..TransportConfig::default() };
+        assert_eq!(router.listen_endpoints(), vec!["tcp/127.0.0.1:7447".to_owned()]);
+        let client = TransportConfig { mode: Mode::Client, ..TransportConfig::default() };
+        assert_eq!(client.to_zenoh().unwrap().get_json("listen/endpoints").unwrap(), "[]");
+        assert_eq!(peer.insecure_endpoint(), None);
+        for local in ["tcp/127.0.0.1:7447", "tcp/[::1]:7447", "tcp/localhost:1"] {
+            let cfg = TransportConfig { connect: vec![local.into()], ..TransportConfig::default() };
+            assert_eq!(cfg.insecure_endpoint(), None, "{local}");
+        }
+        let wide = TransportConfig { listen: vec!["tcp/[::]:7447".into()], ..TransportConfig::default() };
+        assert_eq!(wide.insecure_endpoint(), Some("tcp/[::]:7447"));
+    }
+
+    #[test]
+    fn tls_takes_tls_endpoints_only_and_only_routers_listen() {
+        let files = tls::TlsFiles::in_dir(std::path::Path::new("/certs"), "edge:s:v");
+        let tls = Security::Tls(files);
+        let client = TransportConfig {
+            mode: Mode::Client,
+            connect: vec!["tls/127.0.0.1:7447".into()],
+            security: tls.clone(),
+            ..TransportConfig::default()
+        };
+        let z = client.to_zenoh().unwrap();
+        assert_eq!(z.get_json("transport/link/tls/enable_mtls").unwrap(), "true");
+        assert_eq!(z.get_json("transport/link/tls/connect_certificate").unwrap(), r#""/certs/edge:s:v.pem""#);
+        assert_eq!(z.get_json("transport/link/tls/root_ca_certificate").unwrap(), r#""/certs/ca.pem""#);
+        let plain = TransportConfig { connect: vec!["tcp/127.0.0.1:7447".into()], ..client.clone() };
+        assert!(matches!(plain.to_zenoh(), Err(TransportError::BadEndpoint { .. })));
+        let listening = TransportConfig { listen: vec!["tls/127.0.0.1:0".into()], ..client.clone() };
+        assert!(matches!(listening.to_zenoh(), Err(TransportError::Config { key: "listen/endpoints", .. })));
+        let peer = TransportConfig { mode: Mode::Peer, ..client.clone() };
+        assert_eq!(peer.to_zenoh().unwrap().get_json("listen/endpoints").unwrap(), "[]");
+        let router = TransportConfig { mode: Mode::Router, connect: vec![], ..client };
+        assert_eq!(router.listen_endpoints(), vec!["tls/127.0.0.1:7447".to_owned()]);
+        let tls_without_files = TransportConfig { connect: vec!["tls/127.0.0.1:1".into()], ..TransportConfig::default() };
+        assert!(matches!(tls_without_files.to_zenoh(), Err(TransportError::BadEndpoint { .. })));
     }
 }

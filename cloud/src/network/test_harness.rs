@@ -28,7 +28,7 @@ impl Router {
     pub(super) async fn start() -> Router {
         let (stop, router_shutdown) = shutdown::channel();
         let (port_tx, port_rx) = oneshot::channel();
-        let config = RouterConfig { listen: vec!["tcp/127.0.0.1:0".into()], connect: vec![] };
+        let config = RouterConfig { listen: vec!["tcp/127.0.0.1:0".into()], ..RouterConfig::default() };
         let task = tokio::spawn(async move {
             run_router(&config, router_shutdown, |locators| {
                 let _ = port_tx.send(locators.to_vec());

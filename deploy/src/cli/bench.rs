@@ -68,6 +68,10 @@ pub struct BenchZenohArgs {
     /// Measurements per side, alternating; medians are compared.
     #[arg(long, default_value_t = 3)]
     pub rounds: usize,
+    /// Instead of ours against raw Zenoh: our state path through a router over plain TCP
+    /// against mutual TLS with the routers' access rules (docs/security.md).
+    #[arg(long)]
+    pub vs_tls: bool,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

@@ -2,6 +2,7 @@
 //! else. Command modules import the grammar; the grammar imports no command.
 
 mod bench;
+mod certs;
 mod deploy;
 mod push;
 mod roles;
@@ -10,6 +11,7 @@ mod source;
 mod v2x;
 
 pub use bench::*;
+pub use certs::*;
 pub use deploy::*;
 pub use push::*;
 pub use roles::*;
@@ -73,6 +75,9 @@ pub enum Command {
     /// The cloud's policy-signing key pair (docs/signing.md).
     #[command(subcommand)]
     Keys(KeysCommand),
+    /// The TLS deployment's CA and its certificates, one per identity (docs/security.md).
+    #[command(subcommand)]
+    Certs(CertsCommand),
 }
 
 #[derive(Debug, Subcommand)]

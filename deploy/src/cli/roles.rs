@@ -10,7 +10,8 @@ pub struct ZenohArgs {
     /// Zenoh locator to connect to (`tcp/127.0.0.1:7447`); repeatable.
     #[arg(long = "connect", value_name = "ENDPOINT")]
     pub connect: Vec<String>,
-    /// Zenoh locator to listen on; repeatable.
+    /// Zenoh locator to listen on; repeatable (default: a peer on loopback, a port the OS
+    /// picks; none under TLS, where only routers listen).
     #[arg(long = "listen", value_name = "ENDPOINT")]
     pub listen: Vec<String>,
     /// `peer` or `client`.
@@ -19,16 +20,44 @@ pub struct ZenohArgs {
     /// Turn on UDP multicast scouting (off by default, see docs/keyexpr.md).
     #[arg(long)]
     pub multicast_scouting: bool,
+    #[command(flatten)]
+    pub tls: TlsArgs,
+}
+
+/// TLS with mutual authentication (docs/security.md); without these flags links are plain TCP.
+#[derive(Debug, Args, Default, Clone)]
+pub struct TlsArgs {
+    /// A `risktwin certs` folder: use its CA and the certificate of --identity.
+    #[arg(long, value_name = "DIR")]
+    pub tls_dir: Option<PathBuf>,
+    /// The identity to present from --tls-dir: `edge:<site>:<id>`, `cloud:<name>` or
+    /// `router:<name>` (its certificate's common name).
+    #[arg(long, value_name = "NAME", requires = "tls_dir")]
+    pub identity: Option<String>,
+    /// The CA certificate (PEM), instead of --tls-dir; with --tls-cert and --tls-key.
+    #[arg(long, value_name = "FILE", conflicts_with = "tls_dir", requires_all = ["tls_cert", "tls_key"])]
+    pub tls_ca: Option<PathBuf>,
+    /// This process's certificate (PEM), signed by the CA.
+    #[arg(long, value_name = "FILE", requires = "tls_ca")]
+    pub tls_cert: Option<PathBuf>,
+    /// This process's private key (PEM, PKCS#8).
+    #[arg(long, value_name = "FILE", requires = "tls_ca")]
+    pub tls_key: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
 pub struct RouterArgs {
-    /// Zenoh locator to listen on (`tcp/127.0.0.1:0` picks a free port); repeatable.
+    /// Zenoh locator to listen on (`tcp/127.0.0.1:0` picks a free port); repeatable (default:
+    /// `tcp/127.0.0.1:7447`, `tls/…` under TLS: loopback only).
     #[arg(long = "listen", value_name = "ENDPOINT")]
     pub listen: Vec<String>,
     /// Another router to connect to; repeatable.
     #[arg(long = "connect", value_name = "ENDPOINT")]
     pub connect: Vec<String>,
+    /// Under TLS the router enforces access rules for the identities whose certificates lie
+    /// beside the CA certificate when it starts (docs/security.md).
+    #[command(flatten)]
+    pub tls: TlsArgs,
 }
 
 #[derive(Debug, Subcommand)]

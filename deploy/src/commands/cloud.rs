@@ -16,6 +16,7 @@ use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_bench::latency::{LatencyConfig, latency};
 use risktwin_bench::warning::{WarningBenchConfig, warning};
+use risktwin_bench::secure_throughput::secure_throughput;
 use risktwin_bench::zenoh_throughput::{BenchConfig, throughput};
 use risktwin_cloud::fleet_loop::trainer::TrainerConfig;
 use risktwin_cloud::network::criticality::{CriticalityConfig, CriticalityRoleError};
@@ -130,6 +131,9 @@ pub fn bench_zenoh(args: BenchZenohArgs) -> CliResult {
         return Err(CliError::input("--messages and --rounds must be positive"));
     }
     let config = BenchConfig { messages: args.messages, payload_bytes: args.payload_bytes, rounds: args.rounds };
+    if args.vs_tls {
+        return bench_tls(config, args.format);
+    }
     // The benchmark ends by itself; a signal still stops the process the usual way.
     let report = with_signals(|_shutdown| async move { throughput(config).await.map_err(CliError::runtime) })?;
     match args.format {
@@ -154,6 +158,30 @@ pub fn bench_zenoh(args: BenchZenohArgs) -> CliResult {
                 ],
                 vec!["ratio ours/raw".into(), format!("{:.3}", report.ratio), String::new()],
                 vec!["ratio ours/raw wildcard".into(), format!("{:.3}", report.ratio_vs_wildcard), String::new()],
+            ],
+        ),
+    }
+}
+
+/// `bench zenoh --vs-tls`: the state path over plain TCP and over TLS with access rules.
+fn bench_tls(config: BenchConfig, format: Format) -> CliResult {
+    let report = with_signals(|_shutdown| async move { secure_throughput(config).await.map_err(CliError::runtime) })?;
+    match format {
+        Format::Json => print_json(&report),
+        _ => print_table(
+            &["side", "msgs_per_s (median)", "all rounds"],
+            &[
+                vec![
+                    "state path, plain TCP".into(),
+                    format!("{:.0}", report.plain_median_msgs_per_s),
+                    format!("{:.0?}", report.plain_msgs_per_s),
+                ],
+                vec![
+                    "state path, TLS + ACL".into(),
+                    format!("{:.0}", report.tls_acl_median_msgs_per_s),
+                    format!("{:.0?}", report.tls_acl_msgs_per_s),
+                ],
+                vec!["ratio TLS+ACL/plain".into(), format!("{:.3}", report.ratio), String::new()],
             ],
         ),
     }

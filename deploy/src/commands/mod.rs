@@ -5,6 +5,7 @@ mod bench_fanout;
 pub(crate) mod bench_ingest;
 mod bench_link;
 pub(crate) mod bench_replay;
+mod certs;
 pub mod cloud;
 mod criticality;
 mod deploy;
@@ -30,7 +31,7 @@ mod train;
 mod v2x;
 
 use crate::cli::{
-    BenchCommand, Cli, Command, DeployCommand, EdgeCommand, ImportCommand, KeysCommand, ScenariosCommand, SceneCommand,
+    BenchCommand, CertsCommand, Cli, Command, DeployCommand, EdgeCommand, ImportCommand, KeysCommand, ScenariosCommand, SceneCommand,
     V2xCommand,
 };
 use crate::error::CliResult;
@@ -77,5 +78,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::V2x(V2xCommand::Channel(a)) => v2x::channel(a),
         Command::V2x(V2xCommand::Sweep(a)) => v2x::sweep(a),
         Command::Keys(KeysCommand::Generate(a)) => keys::generate(a),
+        Command::Certs(CertsCommand::Init(a)) => certs::init(a),
+        Command::Certs(CertsCommand::Issue(a)) => certs::issue(a),
     }
 }

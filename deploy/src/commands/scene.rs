@@ -385,6 +385,7 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         listen: vec![LOOPBACK.into()],
         mode: "peer".into(),
         multicast_scouting: false,
+        tls: Default::default(),
     };
     let (_runtime, physics, data) = open_planes(&transport_config(zenoh)?, data.as_ref())?;
     let report = authority_on(&physics, &data, &site, &setup, clock);

@@ -11,11 +11,13 @@ use super::plan::{CLOCK_STEPS_FILE, Hop, Planned, argv, file_stem, is_edge, plan
 use super::relay::{self, LinkShape, LinkState, Relay, RelayCounts};
 use super::report::{self, Report, TimelineEntry};
 use super::supervise::Supervised;
+use super::tls;
 use crate::topology::{Action, Link, Target, Topology};
 use risktwin_common::digest::fnv1a64;
 use std::cell::RefCell;
+use std::collections::BTreeMap;
 use std::io::Write as _;
-use std::net::{Ipv4Addr, SocketAddr, TcpListener, TcpStream};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -189,7 +191,7 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
     // What a crashed run of the same file left goes first (the caller holds its lock: no
     // supervisor of it runs), and so does an earlier run's output.
     sweep(&tag);
-    for old in ["hosts", "status.json", "report.json", "report.md", "topology.toml", "network.mcap"] {
+    for old in ["hosts", "status.json", "report.json", "report.md", "topology.toml", "network.mcap", tls::CERTS_DIR] {
         let path = o.out.join(old);
         let _ = if path.is_dir() { std::fs::remove_dir_all(path) } else { std::fs::remove_file(path) };
     }
@@ -256,16 +258,38 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
         }
         route_addr.push(upstream);
     }
+    // Under TLS: a certificate per process, a router's naming every address it is dialled on.
+    let certs_dir = o.out.join(tls::CERTS_DIR);
+    let proto = if t.tls { "tls" } else { "tcp" };
+    if t.tls {
+        let mut identities: BTreeMap<String, Vec<IpAddr>> = BTreeMap::new();
+        for p in &plan.processes {
+            let sans = identities.entry(tls::identity(p, &plan.machines[p.machine].name)).or_default();
+            if p.role == "router" {
+                sans.extend(router_addr[p.machine].map(|a| a.ip()));
+                let routes = plan.routes.iter().zip(&route_addr).filter(|(r, _)| r.to == p.machine);
+                sans.extend(routes.map(|(_, a)| a.ip()));
+                sans.sort();
+                sans.dedup();
+            }
+        }
+        tls::make(&certs_dir, &identities).map_err(runtime)?;
+        note(format!("tls: {} certificates in {}", identities.len(), certs_dir.display()));
+    }
     let mut processes: Vec<(Planned, Supervised)> = Vec::new();
     for p in &plan.processes {
         let machine = &plan.machines[p.machine];
         let dir = o.out.join("hosts").join(&machine.name);
         std::fs::create_dir_all(&dir).map_err(runtime)?;
-        let connect: Vec<String> = p.routes.iter().map(|&r| format!("tcp/{}", route_addr[r])).collect();
-        let listen = router_addr[p.machine].filter(|_| p.role == "router").map(|a| format!("tcp/{a}"));
+        let connect: Vec<String> = p.routes.iter().map(|&r| format!("{proto}/{}", route_addr[r])).collect();
+        let listen = router_addr[p.machine].filter(|_| p.role == "router").map(|a| format!("{proto}/{a}"));
         let mut command = net.exec_prefix(p.machine);
         command.push(o.exe.display().to_string());
         command.extend(argv(p, &connect, listen.as_deref()));
+        if t.tls {
+            let dir = std::path::absolute(&certs_dir).map_err(runtime)?.display().to_string();
+            command.extend(["--tls-dir".to_owned(), dir, "--identity".to_owned(), tls::identity(p, &machine.name)]);
+        }
         let stem = dir.join(file_stem(p));
         processes.push((p.clone(), Supervised::new(p.name.clone(), command, dir, stem, p.restart)));
     }

@@ -9,3 +9,4 @@ pub mod plan;
 pub mod relay;
 pub mod report;
 pub mod supervise;
+pub mod tls;

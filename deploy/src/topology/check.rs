@@ -20,6 +20,9 @@ pub(super) const MAX_BANDWIDTH_MBPS: f64 = 1e6;
 /// A checked topology.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Topology {
+    /// Mutual TLS and access rules on every link: the deployment makes a CA and a certificate
+    /// per process.
+    pub tls: bool,
     pub sites: Vec<Site>,
     pub hosts: Vec<Host>,
     pub links: Vec<Link>,
@@ -51,8 +54,20 @@ pub struct Process {
 }
 
 /// Arguments the deployment gives: addresses are assigned, never written.
-const GIVEN_ARGS: [&str; 7] =
-    ["--connect", "--listen", "--router", "--data-router", "--mode", "--multicast-scouting", "--clock-steps"];
+const GIVEN_ARGS: [&str; 12] = [
+    "--connect",
+    "--listen",
+    "--router",
+    "--data-router",
+    "--mode",
+    "--multicast-scouting",
+    "--clock-steps",
+    "--tls-dir",
+    "--identity",
+    "--tls-ca",
+    "--tls-cert",
+    "--tls-key",
+];
 /// One end of a link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Endpoint {
@@ -135,6 +150,10 @@ pub fn parse(text: &str) -> Result<Topology, TopologyError> {
             if let Some(arg) = given {
                 let message = format!("{arg}: the deployment gives this argument (addresses are assigned)");
                 return Err(at(p.role.span(), message));
+            }
+            if file.tls && *role == "scene" {
+                // A scene meets on its own plain loopback router and peers (docs/security.md).
+                return Err(at(p.role.span(), "a scene does not run under `tls = true` yet".to_owned()));
             }
             let restart = p.restart.as_ref().map_or(Restart::default(), |r| *r.get_ref());
             run.push(Process { role, args: p.args.clone(), restart });
@@ -220,7 +239,7 @@ pub fn parse(text: &str) -> Result<Topology, TopologyError> {
         events.push(check_event(e, &names, &sites, &hosts, &links, &at)?);
     }
     events.sort_by_key(|e: &Event| e.at);
-    let topology = Topology { sites, hosts, links, events };
+    let topology = Topology { tls: file.tls, sites, hosts, links, events };
     if let Some(k) = topology.unreachable_host() {
         let h = &file.host[k];
         let message =

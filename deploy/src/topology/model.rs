@@ -10,6 +10,10 @@ pub const ROLES: [&str; 6] = ["router", "cloud", "vehicle", "rsu", "replay", "sc
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct File {
+    /// Mutual TLS with the routers' access rules on every link (docs/security.md); off: plain
+    /// TCP.
+    #[serde(default)]
+    pub tls: bool,
     #[serde(default)]
     pub site: Vec<SiteDef>,
     #[serde(default)]

@@ -72,7 +72,8 @@ async fn round(config: BenchConfig, tls_dir: Option<&Path>) -> Result<f64, Cloud
         None => Security::Insecure,
     };
     let listen = if tls_dir.is_some() { "tls/127.0.0.1:0" } else { "tcp/127.0.0.1:0" };
-    let router_config = RouterConfig { listen: vec![listen.to_owned()], connect: Vec::new(), security: security(ROUTER) };
+    let router_config =
+        RouterConfig { listen: vec![listen.to_owned()], connect: Vec::new(), security: security(ROUTER) };
     let router = connect(&router_config.transport()?).await?;
     let locators = listening_locators(&router).await;
     let client = |identity: &str| TransportConfig {

@@ -194,7 +194,11 @@ async fn our_round(config: BenchConfig) -> Result<f64, CloudError> {
 /// One measurement of our state path between two sessions (closed at the end): the edge's
 /// stream publisher on `pub_side` as source `bench/veh-0`, the cloud's edge-stream subscriber
 /// and stand-in ingest on `sub_side`.
-pub(crate) async fn state_path_round(config: BenchConfig, sub_side: Session, pub_side: Session) -> Result<f64, CloudError> {
+pub(crate) async fn state_path_round(
+    config: BenchConfig,
+    sub_side: Session,
+    pub_side: Session,
+) -> Result<f64, CloudError> {
     let site = SiteId::new("bench").map_err(|e| bench_error(e.to_string()))?;
     let source = SourceId::new("veh-0").map_err(|e| bench_error(e.to_string()))?;
     let counters = Arc::new(Mutex::new(StandInCounters::default()));

@@ -241,7 +241,9 @@ fn check_protocol(endpoint: &str, tls: bool) -> Result<(), TransportError> {
     let is_tls = endpoint.starts_with("tls/");
     let reason = match (tls, is_tls) {
         (true, false) => "TLS is on: only tls/ endpoints, plain links are refused",
-        (false, true) => "a tls/ endpoint needs a certificate (--tls-dir and --identity, or --tls-ca/--tls-cert/--tls-key)",
+        (false, true) => {
+            "a tls/ endpoint needs a certificate (--tls-dir and --identity, or --tls-ca/--tls-cert/--tls-key)"
+        }
         _ => return Ok(()),
     };
     Err(TransportError::BadEndpoint { endpoint: endpoint.to_owned(), reason: reason.to_owned() })
@@ -383,7 +385,8 @@ mod tests {
         assert_eq!(peer.to_zenoh().unwrap().get_json("listen/endpoints").unwrap(), "[]");
         let router = TransportConfig { mode: Mode::Router, connect: vec![], ..client };
         assert_eq!(router.listen_endpoints(), vec!["tls/127.0.0.1:7447".to_owned()]);
-        let tls_without_files = TransportConfig { connect: vec!["tls/127.0.0.1:1".into()], ..TransportConfig::default() };
+        let tls_without_files =
+            TransportConfig { connect: vec!["tls/127.0.0.1:1".into()], ..TransportConfig::default() };
         assert!(matches!(tls_without_files.to_zenoh(), Err(TransportError::BadEndpoint { .. })));
     }
 }

@@ -26,7 +26,9 @@ pub fn issue(args: CertsIssueArgs) -> CliResult {
             id: SourceId::new(id.as_str()).map_err(CliError::input)?,
         },
         ("edge", ..) => return Err(CliError::input("--role edge takes --site and --id (not --name)")),
-        (role @ ("cloud" | "router"), None, None, Some(name)) => Identity::named(role, name).map_err(CliError::input)?,
+        (role @ ("cloud" | "router"), None, None, Some(name)) => {
+            Identity::named(role, name).map_err(CliError::input)?
+        }
         ("cloud" | "router", ..) => return Err(CliError::input("--role cloud|router takes --name (not --site/--id)")),
         (other, ..) => return Err(CliError::input(format!("--role {other:?} is not one of edge, cloud, router"))),
     };

@@ -31,8 +31,8 @@ mod train;
 mod v2x;
 
 use crate::cli::{
-    BenchCommand, CertsCommand, Cli, Command, DeployCommand, EdgeCommand, ImportCommand, KeysCommand, ScenariosCommand, SceneCommand,
-    V2xCommand,
+    BenchCommand, CertsCommand, Cli, Command, DeployCommand, EdgeCommand, ImportCommand, KeysCommand, ScenariosCommand,
+    SceneCommand, V2xCommand,
 };
 use crate::error::CliResult;
 

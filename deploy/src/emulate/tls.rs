@@ -3,8 +3,8 @@
 //! `--tls-dir` (the routers build their access rules from it; docs/security.md).
 
 use super::plan::{Planned, file_stem};
-use risktwin_transport::{Identity, TlsError};
 use risktwin_transport::tls::certs;
+use risktwin_transport::{Identity, TlsError};
 use std::collections::BTreeMap;
 use std::net::IpAddr;
 use std::path::Path;

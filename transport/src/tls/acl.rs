@@ -60,10 +60,11 @@ pub fn access_control(identities: &[Identity]) -> Value {
         own.push(keyexpr::edge_report(site, id, EdgeReport::ScenarioResult));
         let own_adv: Vec<String> = own.iter().map(|k| format!("{k}/{ADV}")).collect();
         let alive = keyexpr::liveliness_token(site, id);
-        let pushes: Vec<String> = [CloudToEdge::Scenario, CloudToEdge::Policy, CloudToEdge::Control, CloudToEdge::Warning]
-            .iter()
-            .map(|p| keyexpr::cloud_to_edge(site, id, *p))
-            .collect();
+        let pushes: Vec<String> =
+            [CloudToEdge::Scenario, CloudToEdge::Policy, CloudToEdge::Control, CloudToEdge::Warning]
+                .iter()
+                .map(|p| keyexpr::cloud_to_edge(site, id, *p))
+                .collect();
         let edge_rules = [
             // Its own streams: samples, cache answers, heartbeats, tokens, cache queryables.
             ("publish", &["put", "reply", "liveliness_token"][..], "ingress", [own.clone(), own_adv.clone()].concat()),

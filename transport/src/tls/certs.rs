@@ -28,7 +28,8 @@ pub const LOOPBACK_NAMES: [&str; 3] = ["localhost", "127.0.0.1", "::1"];
 /// for each identity; routers answer to `LOOPBACK_NAMES` plus their extra names. Returns the
 /// files written.
 pub fn init(dir: &Path, identities: &[(Identity, Vec<String>)]) -> Result<Vec<PathBuf>, TlsError> {
-    let write_err = |path: &Path, e: &dyn std::fmt::Display| TlsError::Write { path: path.to_owned(), reason: e.to_string() };
+    let write_err =
+        |path: &Path, e: &dyn std::fmt::Display| TlsError::Write { path: path.to_owned(), reason: e.to_string() };
     std::fs::create_dir_all(dir).map_err(|e| write_err(dir, &e))?;
     let generate = |e: rcgen::Error| TlsError::Generate { name: CA_NAME.to_owned(), reason: e.to_string() };
     let mut params = CertificateParams::default();

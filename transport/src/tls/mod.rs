@@ -53,7 +53,8 @@ impl TlsFiles {
     /// user's mistake, told before any link is tried.
     pub fn check(&self) -> Result<(), TlsError> {
         for (path, label) in [(&self.ca_cert, "CERTIFICATE"), (&self.cert, "CERTIFICATE"), (&self.key, "PRIVATE KEY")] {
-            let text = std::fs::read_to_string(path).map_err(|e| TlsError::Read { path: path.clone(), reason: e.to_string() })?;
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| TlsError::Read { path: path.clone(), reason: e.to_string() })?;
             if !text.contains(&format!("-----BEGIN {label}-----")) {
                 return Err(TlsError::NotPem { path: path.clone(), expected: label });
             }

@@ -128,8 +128,13 @@ fn only_a_cloud_identity_pushes_and_an_edge_publishes_only_under_its_own_keys() 
     // veh-b's certificate publishing as veh-a: every sample refused by the router.
     let forger_args = ["--count", "60", "--rate-hz", "100", "--wait-for-cloud-s", "5"];
     let mut forger = vehicle("forger", "veh-a", &locator, &certs.flags("edge:track:veh-b"), &forger_args);
-    let forged = forger.exit_json(STEP);
+    // It is told: no acknowledgement reaches it (veh-a's ack key is not its own), so all it
+    // sent is undelivered and it exits 1.
+    let (status, stdout) = forger.wait_exit(STEP);
+    assert_eq!(status.code(), Some(1), "the forger's undelivered samples fail it:\n{stdout}");
+    let forged: serde_json::Value = serde_json::from_str(&stdout).expect("the forger's summary");
     assert!(forged["sent"]["state"].as_u64() > Some(0), "the forger did publish: {forged}");
+    assert_eq!(forged["undelivered"]["state"], forged["sent"]["state"], "{forged}");
 
     // Pushes to veh-a: an edge identity's, through the CLI (it cannot even see veh-a) and raw
     // (it sees the subscriber, but its put is refused); an anonymous one (no link); the cloud's.

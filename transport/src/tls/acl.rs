@@ -60,22 +60,27 @@ pub fn access_control(identities: &[Identity]) -> Value {
         own.push(keyexpr::edge_report(site, id, EdgeReport::ScenarioResult));
         let own_adv: Vec<String> = own.iter().map(|k| format!("{k}/{ADV}")).collect();
         let alive = keyexpr::liveliness_token(site, id);
+        // Its pushes and its delivery acknowledgements.
         let pushes: Vec<String> =
-            [CloudToEdge::Scenario, CloudToEdge::Policy, CloudToEdge::Control, CloudToEdge::Warning]
+            [CloudToEdge::Scenario, CloudToEdge::Policy, CloudToEdge::Control, CloudToEdge::Warning, CloudToEdge::Ack]
                 .iter()
                 .map(|p| keyexpr::cloud_to_edge(site, id, *p))
                 .collect();
+        // The cloud's token, held per site or for every site (`*`).
+        let cloud_alive = vec![keyexpr::cloud_liveliness(Some(site)), keyexpr::cloud_liveliness(None)];
         let edge_rules = [
             // Its own streams: samples, cache answers, heartbeats, tokens, cache queryables.
             ("publish", &["put", "reply", "liveliness_token"][..], "ingress", [own.clone(), own_adv.clone()].concat()),
             ("cache", &["declare_queryable"][..], "ingress", own_adv),
             ("alive", &["liveliness_token", "liveliness_query"][..], "ingress", vec![alive.clone()]),
             ("listen", &["declare_subscriber"][..], "ingress", pushes.clone()),
+            ("watch-cloud", &["declare_liveliness_subscriber", "liveliness_query"][..], "ingress", cloud_alive.clone()),
             // What it may be sent: its pushes, the answer to its duplicate-id question, and
             // the metadata a publisher needs (who subscribes: matching; the cloud's recovery
             // queries to its cache, which name the cloud's wildcard, not the edge's key).
             ("receive", &["put"][..], "egress", pushes),
             ("told-alive", &["liveliness_token"][..], "egress", vec![alive]),
+            ("cloud-alive", &["liveliness_token", "reply"][..], "egress", cloud_alive),
             (
                 "matched",
                 &["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"][..],
@@ -125,6 +130,11 @@ mod tests {
         assert!(keys.iter().all(|k| k.starts_with("risktwin/v1/s1/v1/")), "{keys:?}");
         assert!(!keys.iter().any(|k| k.ends_with("/policy") || k.ends_with("/scenario")), "{keys:?}");
         assert_eq!(rule("edge:s1:v1/receive")["flows"], json!(["egress"]));
+        // Its delivery acknowledgements and the cloud's token reach it.
+        assert!(rule("edge:s1:v1/receive")["key_exprs"].as_array().unwrap().contains(&json!("risktwin/v1/s1/v1/ack")));
+        assert!(rule("edge:s1:v1/listen")["key_exprs"].as_array().unwrap().contains(&json!("risktwin/v1/s1/v1/ack")));
+        let watch = rule("edge:s1:v1/watch-cloud");
+        assert_eq!(watch["key_exprs"], json!(["risktwin/v1/s1/alive/cloud", "risktwin/v1/*/alive/cloud"]));
         assert_eq!(acl["subjects"][0]["cert_common_names"], json!(["cloud:c"]));
         assert_eq!(acl["default_permission"], "deny");
     }

@@ -46,6 +46,7 @@ pub mod push;
 mod receive;
 pub mod routes;
 mod scene;
+mod summary;
 #[cfg(test)]
 mod test_harness;
 pub mod warning;
@@ -64,7 +65,7 @@ use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, C
 use fleet_loop::LoopRoleSummary;
 use library::LibrarySummary;
 use liveliness::LivenessLog;
-pub use receive::{IngestSummary, LiveIngest, OUTPUT_SCHEMAS, Origin, RecordError, RecordingFile};
+pub use receive::{LiveIngest, OUTPUT_SCHEMAS, Origin, RecordError, RecordingFile};
 use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::road::Road;
 use risktwin_protos::recording::decode_replay_time;
@@ -74,6 +75,7 @@ use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
+pub use summary::IngestSummary;
 use thiserror::Error;
 
 /// A cloud worker role (docs/cli.md: `--roles ingest,twin,risk,library,criticality,trainer`).

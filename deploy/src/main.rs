@@ -17,10 +17,8 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     logging::init();
-    // Like any Unix filter, stop quietly when the reader of stdout goes away (`| head`).
     // SAFETY: called once at start-up, before any other thread exists.
     unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
         process_tuning::apply();
     }
     let args = match cli::Cli::try_parse() {
@@ -40,6 +38,15 @@ fn main() -> ExitCode {
             return ExitCode::from(error::BAD_INPUT_EXIT);
         }
     };
+    if !args.command.uses_the_network() {
+        // Like any Unix filter, stop quietly when the reader of stdout goes away (`| head`).
+        // Never for a role with sockets: a TLS write to a peer that reset the connection
+        // (`writev`, which has no MSG_NOSIGNAL) would kill it instead of failing the write.
+        // SAFETY: still single-threaded (parsing arguments starts no thread).
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        }
+    }
     match commands::dispatch(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

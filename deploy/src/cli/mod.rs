@@ -80,6 +80,33 @@ pub enum Command {
     Certs(CertsCommand),
 }
 
+impl Command {
+    /// Whether the command opens sockets (Zenoh sessions, a router, a deployment): such a
+    /// process must never die of SIGPIPE (see `main`). Exhaustive, so a new command decides.
+    pub fn uses_the_network(&self) -> bool {
+        match self {
+            Command::Run(_)
+            | Command::Bench(_)
+            | Command::Router(_)
+            | Command::Edge(_)
+            | Command::Cloud(_)
+            | Command::Push(_)
+            | Command::Scene(_)
+            | Command::Deploy(_) => true,
+            Command::Scenarios(_)
+            | Command::Simulate(_)
+            | Command::Train(_)
+            | Command::RiskField(_)
+            | Command::Criticality(_)
+            | Command::Import(_)
+            | Command::Recover(_)
+            | Command::V2x(_)
+            | Command::Keys(_)
+            | Command::Certs(_) => false,
+        }
+    }
+}
+
 #[derive(Debug, Subcommand)]
 pub enum KeysCommand {
     /// Writes a new ed25519 key pair: DIR/policy-signing.key (the cloud's secret, mode 0600) and

@@ -16,7 +16,7 @@ set -euo pipefail
 bin=${1:-target/release/risktwin}
 n=${2:-100}
 stall_s=${3:-30}
-cache_s=${4:-30}
+cache_s=${4:-45}
 dir=$(mktemp -d)
 pids=()
 cleanup() {

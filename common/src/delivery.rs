@@ -9,6 +9,7 @@
 //! cloud restarted mid-run adds to what the first one received instead of replacing it.
 
 use crate::telemetry::Header;
+use std::ops::Range;
 
 /// One stream's progress in a [`DeliveryAck`].
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -105,20 +106,21 @@ impl DeliveryLedger {
     }
 
     /// The outcome of `stream`, of which the edge numbered `numbered` messages (0..numbered),
-    /// sent `sent` and refused those in `refused` (their numbers; the cloud counts them lost).
+    /// sent `sent` and never sent those in `unsent` (disjoint ranges of numbers: refused, or
+    /// skipped; the cloud counts them lost).
     ///
     /// Covered are the numbers below the highest `next_seq` of any cloud. The received counts
     /// of several clouds are summed, capped at what is covered: a restarted cloud receives
     /// what came after the first one stopped (or, asking an edge's cache, a suffix of the
     /// stream), so the sum overstates only where both received the same numbers, which the
     /// cap removes as long as the first cloud's numbers come before the second's.
-    pub fn stream(&self, stream: &str, numbered: u64, sent: u64, refused: &[u64]) -> StreamDelivery {
+    pub fn stream(&self, stream: &str, numbered: u64, sent: u64, unsent: &[Range<u64>]) -> StreamDelivery {
         let acks = self.clouds.iter().filter_map(|(_, _, streams)| streams.iter().find(|s| s.stream == stream));
         let (covered, received) =
             acks.fold((0u64, 0u64), |(c, r), a| (c.max(a.next_seq), r.saturating_add(a.received)));
         let covered = covered.min(numbered);
-        let refused_covered = refused.iter().filter(|n| **n < covered).count() as u64;
-        let sent_covered = covered.saturating_sub(refused_covered).min(sent);
+        let unsent_covered: u64 = unsent.iter().map(|r| r.end.min(covered).saturating_sub(r.start)).sum();
+        let sent_covered = covered.saturating_sub(unsent_covered).min(sent);
         let acknowledged = received.min(sent_covered);
         let lost = sent_covered - acknowledged;
         StreamDelivery { acknowledged, lost, undelivered: sent - sent_covered }
@@ -180,7 +182,16 @@ mod tests {
         let mut ledger = DeliveryLedger::new("e1");
         // Number 3 was refused (too large): the cloud skipped it and counts it lost.
         ledger.apply(ack("e1", "c1", 0, &[("rsu", 6, 5, 1)]));
-        let d = ledger.stream("rsu", 8, 7, &[3]);
+        let d = ledger.stream("rsu", 8, 7, &[3..4]);
         assert_eq!(d, StreamDelivery { acknowledged: 5, lost: 0, undelivered: 2 });
+    }
+
+    #[test]
+    fn a_stream_that_starts_late_has_its_first_numbers_unsent() {
+        let mut ledger = DeliveryLedger::new("e1");
+        // A replay of a recording that begins at number 1000 and skips 1500..1600.
+        ledger.apply(ack("e1", "c1", 0, &[("state", 1800, 700, 1100)]));
+        let d = ledger.stream("state", 2000, 900, &[0..1000, 1500..1600]);
+        assert_eq!(d, StreamDelivery { acknowledged: 700, lost: 0, undelivered: 200 });
     }
 }

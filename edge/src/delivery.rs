@@ -13,6 +13,7 @@ use risktwin_transport::zenoh::sample::SampleKind;
 use risktwin_transport::{EdgeStream, SiteId, SourceId, TransportError};
 use serde::Serialize;
 use std::collections::BTreeMap;
+use std::ops::Range;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 use tokio::sync::Notify;
@@ -24,6 +25,10 @@ pub const ACK_WAIT: Duration = Duration::from_secs(3);
 /// Gone-periods of the cloud kept in a summary; later ones are only summed.
 const MAX_GONE_LISTED: usize = 32;
 
+/// Ranges of numbers skipped that one [`Numbering`] remembers; beyond them a skipped number
+/// counts as undelivered (conservative: a source that skips this often is broken anyway).
+const MAX_SKIPPED_RANGES: usize = 4096;
+
 /// One stream's numbers as the edge knows them.
 #[derive(Debug, Clone, Default)]
 pub struct StreamSent {
@@ -33,6 +38,37 @@ pub struct StreamSent {
     pub sent: u64,
     /// Numbers of the messages refused (too large), not put.
     pub refused: Vec<u64>,
+    /// Numbers never put for another reason (ranges, disjoint and below `numbered`): samples
+    /// a gateway rejected, numbers missing from a replayed recording.
+    pub skipped: Vec<Range<u64>>,
+}
+
+/// The numbers of one stream an edge forwards rather than numbers itself (a gateway, a
+/// replay): numbers arrive in increasing order, and one jumped over was not sent.
+#[derive(Debug, Default)]
+pub(crate) struct Numbering {
+    next: u64,
+    sent: u64,
+    skipped: Vec<Range<u64>>,
+}
+
+impl Numbering {
+    /// Counts number `seq` as sent (one below the last is sent but changes no range).
+    pub(crate) fn sent(&mut self, seq: u64) {
+        if seq > self.next && self.skipped.len() < MAX_SKIPPED_RANGES {
+            self.skipped.push(self.next..seq);
+        }
+        self.next = self.next.max(seq.saturating_add(1));
+        self.sent += 1;
+    }
+
+    pub(crate) fn count(&self) -> u64 {
+        self.sent
+    }
+
+    pub(crate) fn stream_sent(&self) -> StreamSent {
+        StreamSent { numbered: self.next, sent: self.sent, refused: Vec::new(), skipped: self.skipped.clone() }
+    }
 }
 
 /// A period when no cloud's liveliness token was seen.
@@ -207,7 +243,9 @@ impl DeliveryWatch {
             cloud: self.cloud_seen(ledger.heard(), ledger.clouds()),
         };
         for (stream, s) in sent {
-            let d = ledger.stream(stream.as_str(), s.numbered, s.sent, &s.refused);
+            let unsent: Vec<Range<u64>> =
+                s.refused.iter().map(|n| *n..n.saturating_add(1)).chain(s.skipped.iter().cloned()).collect();
+            let d = ledger.stream(stream.as_str(), s.numbered, s.sent, &unsent);
             let name = stream.as_str().to_owned();
             summary.acknowledged.insert(name.clone(), d.acknowledged);
             summary.lost.insert(name.clone(), d.lost);
@@ -236,5 +274,36 @@ impl DeliveryWatch {
             gone,
             gone_s: gone_total.as_secs_f64(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_number_jumped_over_is_not_sent() {
+        let mut n = Numbering::default();
+        for seq in [0, 1, 3, 4, 7] {
+            n.sent(seq);
+        }
+        let sent = n.stream_sent();
+        assert_eq!((sent.numbered, sent.sent, sent.skipped), (8, 5, vec![2..3, 5..7]));
+    }
+
+    #[test]
+    fn a_stream_that_starts_late_and_runs_away_stays_bounded() {
+        let mut n = Numbering::default();
+        n.sent(1000);
+        n.sent(u64::MAX - 1);
+        n.sent(u64::MAX);
+        let sent = n.stream_sent();
+        assert_eq!(sent.skipped, vec![0..1000, 1001..u64::MAX - 1]);
+        assert_eq!((sent.numbered, sent.sent), (u64::MAX, 3));
+        let mut n = Numbering::default();
+        for seq in (0..2 * MAX_SKIPPED_RANGES as u64).map(|i| 2 * i + 1) {
+            n.sent(seq);
+        }
+        assert_eq!(n.stream_sent().skipped.len(), MAX_SKIPPED_RANGES);
     }
 }

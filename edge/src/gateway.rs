@@ -11,9 +11,15 @@
 //! keeps forwarding for up to [`STOP_GRACE`] waiting for that end (a signal to the process group
 //! stops the producer too, which then ends its stream), then forwards what is queued and stops;
 //! a producer still running learns that its gateway left.
+//!
+//! Like `edge vehicle`, the gateway watches the cloud's delivery acknowledgements of its
+//! vehicle's streams ([`crate::delivery`]) and reports what no cloud accounted for; a sequence
+//! number the producer used but the gateway did not forward (a rejected sample) is reported as
+//! never sent, not as undelivered.
 
 use crate::cadence::messages_per_state;
 use crate::clock::EdgeClock;
+use crate::delivery::{DeliverySummary, DeliveryWatch, Numbering, StreamSent};
 use crate::error::EdgeError;
 use crate::publish::EdgeConfig;
 use crate::scene::{Scene, detected, feasible_spec};
@@ -70,7 +76,7 @@ pub enum ShmRoleError {
 }
 
 /// What a gateway forwarded and rejected per stream, printed as JSON on exit.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GatewaySummary {
     /// The vehicle's site.
     pub site: String,
@@ -82,6 +88,17 @@ pub struct GatewaySummary {
     pub rejected: BTreeMap<String, u64>,
     /// Whether the producer signalled the end of its stream (else a signal stopped the gateway).
     pub end_of_stream: bool,
+    /// What became of the forwarded messages, when the gateway watched the cloud's
+    /// acknowledgements.
+    #[serde(flatten)]
+    pub delivery: Option<DeliverySummary>,
+}
+
+impl GatewaySummary {
+    /// Why this run cannot count as a success, if it cannot (see [`DeliverySummary::failure`]).
+    pub fn failure(&self) -> Option<String> {
+        self.delivery.as_ref()?.failure(&self.source, self.forwarded.values().sum())
+    }
 }
 
 /// The Zenoh stream of a shared-memory payload and its conversion to the wire message.
@@ -151,7 +168,7 @@ struct Reader {
     model: Vehicle,
     objects: Vec<PerceivedObject>,
     rejected: [u64; STREAMS.len()],
-    tx: mpsc::Sender<(EdgeStream, Vec<u8>)>,
+    tx: mpsc::Sender<(EdgeStream, u64, Vec<u8>)>,
 }
 
 /// What the reader thread ends with.
@@ -198,10 +215,11 @@ impl Reader {
         };
         match sample.encode(self) {
             Ok(bytes) => {
+                let seq = sample.seq();
                 // Released before the (possibly waiting) hand-over so that the producer gets its
                 // chunk back as early as possible.
                 drop(sample);
-                if self.tx.blocking_send((T::EDGE, bytes)).is_err() {
+                if self.tx.blocking_send((T::EDGE, seq, bytes)).is_err() {
                     return Err(ShmRoleError::ForwarderStopped);
                 }
             }
@@ -297,9 +315,10 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
     let mut stop = shutdown.clone();
     let session = tokio::select! {
         opened = connect(&config.transport) => opened?,
-        _ = stop.wait() => return Ok(summary(config, [0; 3], [0; 3], false)),
+        _ = stop.wait() => return Ok(summary(config, [0; 3], [0; 3], false, None)),
     };
     let token = declare_alive(&session, &config.site, &config.id).await?;
+    let watch = if config.ack { Some(DeliveryWatch::start(&session, &config.site, &config.id).await?) } else { None };
     let mut publishers = Vec::with_capacity(STREAMS.len());
     for stream in STREAMS {
         // The sensor's cadence, at the gateway's rate (the sensor's, unless told otherwise).
@@ -337,18 +356,18 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
         Err(_) => return Err(ShmRoleError::ReaderPanicked),
     }
 
-    let mut forwarded = [0u64; STREAMS.len()];
+    let mut numbering: [Numbering; STREAMS.len()] = Default::default();
     let mut result: Result<(), TransportError> = Ok(());
     loop {
         tokio::select! {
             message = rx.recv() => {
-                let Some((stream, bytes)) = message else { break };
+                let Some((stream, seq, bytes)) = message else { break };
                 let slot = Reader::slot(stream);
                 if let Err(e) = publishers[slot].put(bytes) {
                     result = Err(e);
                     break;
                 }
-                forwarded[slot] += 1;
+                numbering[slot].sent(seq);
             }
             _ = stop.wait(), if !stop_flag.load(Ordering::Acquire) => stop_flag.store(true, Ordering::Release),
         }
@@ -360,15 +379,29 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
         .map_err(|_| ShmRoleError::ReaderPanicked)?
         .map_err(|_| ShmRoleError::ReaderPanicked)?;
 
+    let sent: Vec<(EdgeStream, StreamSent)> =
+        STREAMS.iter().zip(&numbering).map(|(s, n)| (*s, n.stream_sent())).collect();
+    // The publishers (and their caches) stay while the gateway waits: the cloud may still fetch.
+    let delivery = match watch {
+        Some(watch) if result.is_ok() => Some(watch.settle(&sent).await?),
+        _ => None,
+    };
     retire(publishers).await?;
     token.undeclare().await.map_err(|e| EdgeError::Shutdown { reason: e.to_string() })?;
     close(session).await?;
     result?;
     let end = end?;
-    Ok(summary(config, forwarded, end.rejected, end.end_of_stream))
+    let forwarded = numbering.map(|n| n.count());
+    Ok(summary(config, forwarded, end.rejected, end.end_of_stream, delivery))
 }
 
-fn summary(config: &EdgeConfig, forwarded: [u64; 3], rejected: [u64; 3], end_of_stream: bool) -> GatewaySummary {
+fn summary(
+    config: &EdgeConfig,
+    forwarded: [u64; 3],
+    rejected: [u64; 3],
+    end_of_stream: bool,
+    delivery: Option<DeliverySummary>,
+) -> GatewaySummary {
     let named = |counts: [u64; 3]| STREAMS.iter().zip(counts).map(|(s, n)| (s.as_str().to_owned(), n)).collect();
     GatewaySummary {
         site: config.site.to_string(),
@@ -376,5 +409,6 @@ fn summary(config: &EdgeConfig, forwarded: [u64; 3], rejected: [u64; 3], end_of_
         forwarded: named(forwarded),
         rejected: named(rejected),
         end_of_stream,
+        delivery,
     }
 }

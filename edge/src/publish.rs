@@ -315,7 +315,7 @@ pub async fn run_producer(
         .iter()
         .map(|s| {
             let (sent, refused) = (sent[s.index()], std::mem::take(&mut refused[s.index()]));
-            (*s, StreamSent { numbered: sent + refused.len() as u64, sent, refused })
+            (*s, StreamSent { numbered: sent + refused.len() as u64, sent, refused, skipped: Vec::new() })
         })
         .collect();
     // The publishers (and their caches) stay while the edge waits: the cloud may still fetch.

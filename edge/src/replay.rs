@@ -2,13 +2,20 @@
 //! an MCAP file (a cloud `--record`ing, `risktwin import commonroad` output, or any file with the
 //! same key scheme as topics) is republished on its recorded key, in file order, paced by its log time divided by `speed` (0: as fast as the transport takes it),
 //! with its recorded receive time attached (see [`run`]).
+//!
+//! Like a live edge, a replay watches the cloud's delivery acknowledgements, for every source it
+//! replays, and reports per source what no cloud accounted for ([`crate::delivery`]): the
+//! numbers of a stream come from the recorded headers, so a number the recording lacks (lost on
+//! the way to the recorder, or before it started) is counted as never sent, not as undelivered.
 
+use crate::delivery::{DeliverySummary, DeliveryWatch, Numbering, StreamSent};
 use crate::error::EdgeError;
+use risktwin_protos::header_seq;
 use risktwin_protos::recording::{MessageCursor, RecordingError, UnfinishedRecording, encode_replay_time};
 use risktwin_transport::keyexpr::{EDGE_MAP_MESSAGE, parse_edge_key, parse_edge_map_key};
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{
-    Delivery, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect, retire,
+    Delivery, EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect, retire,
 };
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -23,6 +30,8 @@ pub struct ReplayConfig {
     pub speed: f64,
     /// How long to wait for a subscriber before publishing anyway.
     pub wait_for_cloud: Duration,
+    /// Watch the cloud's delivery acknowledgements of every replayed source (`--no-ack` off).
+    pub ack: bool,
 }
 
 /// What a replay published, per key, and what it skipped (topics that are neither an edge stream
@@ -36,9 +45,45 @@ pub struct ReplaySummary {
     pub elapsed_s: f64,
     /// Published messages per second over `elapsed_s`.
     pub msgs_per_s: f64,
+    /// Edge-stream messages whose header could not be read (published, their delivery not
+    /// tracked: the cloud drops them as malformed, counted).
+    pub unnumbered: u64,
+    /// What became of each replayed source's messages (`site/source`), when watched.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub delivery: BTreeMap<String, DeliverySummary>,
     /// What could not be read of an unfinished recording (a recorder killed): the caller warns.
     #[serde(skip)]
     pub unfinished: Option<UnfinishedRecording>,
+}
+
+impl ReplaySummary {
+    /// Why this replay cannot count as a success, if it cannot: a source's messages that no
+    /// cloud accounted for (see [`DeliverySummary::failure`]).
+    pub fn failure(&self) -> Option<String> {
+        let why: Vec<String> = self
+            .delivery
+            .iter()
+            .filter_map(|(source, d)| {
+                let sent = d.acknowledged.values().chain(d.lost.values()).chain(d.undelivered.values()).sum();
+                d.failure(source, sent)
+            })
+            .collect();
+        (!why.is_empty()).then(|| why.join("; "))
+    }
+}
+
+/// A replayed channel: its publisher, and for an edge stream the source and stream whose
+/// numbers it counts in.
+struct Channel {
+    publisher: StreamPublisher,
+    counted: Option<(usize, EdgeStream)>,
+}
+
+/// One replayed source's watch on its acknowledgements and the numbers of its streams.
+struct Source {
+    name: String,
+    watch: Option<DeliveryWatch>,
+    streams: BTreeMap<EdgeStream, Numbering>,
 }
 
 /// Republishes the edge streams of a recording read by `cursor` (an MCAP file, streamed: the
@@ -52,8 +97,9 @@ pub async fn run<R: Read>(
 ) -> Result<ReplaySummary, EdgeError> {
     let bad_file = |e: RecordingError| EdgeError::Recording { reason: e.to_string() };
     let session = connect(&config.transport).await?;
-    // By channel id: the publisher of the channel's key, or None for a topic outside the scheme.
-    let mut publishers: Vec<Option<Option<StreamPublisher>>> = Vec::new();
+    // By channel id: the channel's publisher, or None for a topic outside the scheme.
+    let mut channels: Vec<Option<Option<Channel>>> = Vec::new();
+    let mut sources: Vec<Source> = Vec::new();
     let mut waited = false;
     let mut summary = ReplaySummary::default();
     let mut first_log_ns = None;
@@ -64,13 +110,13 @@ pub async fn run<R: Read>(
             break;
         }
         let slot = usize::from(m.channel_id);
-        if publishers.len() <= slot {
-            publishers.resize_with(slot + 1, || None);
+        if channels.len() <= slot {
+            channels.resize_with(slot + 1, || None);
         }
-        if publishers[slot].is_none() {
-            publishers[slot] = Some(declare(&session, m.topic, m.schema_name).await?);
+        if channels[slot].is_none() {
+            channels[slot] = Some(declare(&session, m.topic, m.schema_name, config.ack, &mut sources).await?);
         }
-        let Some(Some(publisher)) = &publishers[slot] else {
+        let Some(Some(Channel { publisher, counted })) = &channels[slot] else {
             summary.skipped += 1;
             continue;
         };
@@ -91,22 +137,56 @@ pub async fn run<R: Read>(
             continue;
         };
         let topic = m.topic.to_owned();
+        let seq = counted.map(|_| header_seq(m.data));
         publisher.put_with_attachment(m.data.to_vec(), encode_replay_time(log_time_ns).to_vec())?;
+        match (counted, seq) {
+            (Some((source, stream)), Some(Some(seq))) => {
+                sources[*source].streams.entry(*stream).or_default().sent(seq);
+            }
+            (Some(_), _) => summary.unnumbered += 1,
+            (None, _) => {}
+        }
         summary.published += 1;
         *summary.by_key.entry(topic).or_default() += 1;
     }
     summary.unfinished = cursor.unfinished();
     summary.elapsed_s = start.elapsed().as_secs_f64();
     summary.msgs_per_s = summary.published as f64 / summary.elapsed_s.max(1e-9);
-    retire(publishers.into_iter().flatten().flatten()).await?;
+    // The publishers (and their caches) stay while the sources settle: the cloud may still fetch.
+    summary.delivery = settle(sources).await?;
+    retire(channels.into_iter().flatten().flatten().map(|c| c.publisher)).await?;
     close(session).await?;
     Ok(summary)
 }
 
-/// The publisher of `topic`'s key, or `None` when the topic is neither an edge stream nor a road
+/// Waits (all at once) until every watched source's acknowledgements cover what it sent, or
+/// its watch gives up; what became of each source's messages.
+async fn settle(sources: Vec<Source>) -> Result<BTreeMap<String, DeliverySummary>, EdgeError> {
+    let mut settling = Vec::new();
+    for source in sources {
+        let Some(watch) = source.watch else { continue };
+        let sent: Vec<(EdgeStream, StreamSent)> = source.streams.iter().map(|(s, n)| (*s, n.stream_sent())).collect();
+        settling.push((source.name, tokio::spawn(async move { watch.settle(&sent).await })));
+    }
+    let mut delivery = BTreeMap::new();
+    for (name, task) in settling {
+        let settled = task.await.map_err(|e| EdgeError::Shutdown { reason: format!("settling {name}: {e}") })?;
+        delivery.insert(name, settled?);
+    }
+    Ok(delivery)
+}
+
+/// The channel of `topic`'s key, or `None` when the topic is neither an edge stream nor a road
 /// map of the scheme. A channel whose schema is not the message its key carries (a recording of
 /// another schema version) is refused by name: its messages would be tagged as what they are not.
-async fn declare(session: &Session, topic: &str, schema: &str) -> Result<Option<StreamPublisher>, EdgeError> {
+/// An edge stream's source is watched (`ack`) from its first channel on.
+async fn declare(
+    session: &Session,
+    topic: &str,
+    schema: &str,
+    ack: bool,
+    sources: &mut Vec<Source>,
+) -> Result<Option<Channel>, EdgeError> {
     let bad = |e: risktwin_transport::KeyError| EdgeError::Recording { reason: format!("{topic}: {e}") };
     let check = |message: &str| {
         let reason = format!("channel {topic} has schema {schema}, its key carries {message}");
@@ -115,7 +195,8 @@ async fn declare(session: &Session, topic: &str, schema: &str) -> Result<Option<
     if let Some((site, source)) = parse_edge_map_key(topic) {
         check(EDGE_MAP_MESSAGE)?;
         let (site, source) = (SiteId::new(site).map_err(bad)?, SourceId::new(source).map_err(bad)?);
-        return Ok(Some(StreamPublisher::declare_map(session, &site, &source, replay_delivery())?));
+        let publisher = StreamPublisher::declare_map(session, &site, &source, replay_delivery())?;
+        return Ok(Some(Channel { publisher, counted: None }));
     }
     let Some(key) = parse_edge_key(topic) else {
         return Ok(None);
@@ -123,7 +204,17 @@ async fn declare(session: &Session, topic: &str, schema: &str) -> Result<Option<
     check(key.stream.message())?;
     let site = SiteId::new(key.site).map_err(bad)?;
     let source = SourceId::new(key.source).map_err(bad)?;
-    Ok(Some(StreamPublisher::declare(session, &site, &source, key.stream, replay_delivery())?))
+    let publisher = StreamPublisher::declare(session, &site, &source, key.stream, replay_delivery())?;
+    let name = format!("{site}/{source}");
+    let index = match sources.iter().position(|s| s.name == name) {
+        Some(index) => index,
+        None => {
+            let watch = if ack { Some(DeliveryWatch::start(session, &site, &source).await?) } else { None };
+            sources.push(Source { name, watch, streams: BTreeMap::new() });
+            sources.len() - 1
+        }
+    };
+    Ok(Some(Channel { publisher, counted: Some((index, key.stream)) }))
 }
 
 /// Samples each replayed key keeps for recovery: 30 s of a 50 Hz state stream at speed 1.

@@ -24,30 +24,39 @@ impl SentSummary {
     /// accounted for, or messages refused as too large (docs/keyexpr.md, "Delivery
     /// acknowledgements").
     pub fn failure(&self) -> Option<String> {
-        let d = self.delivery.as_ref()?;
+        self.delivery.as_ref()?.failure(&self.source, self.sent.values().sum())
+    }
+}
+
+impl DeliverySummary {
+    /// Why an edge (`source`, which sent `sent` messages) cannot count its run a success, if it
+    /// cannot: messages sent that no cloud accounted for, or messages refused as too large.
+    pub fn failure(&self, source: &str, sent: u64) -> Option<String> {
         let per_stream = |counts: &BTreeMap<String, u64>| {
             let streams: Vec<String> =
                 counts.iter().filter(|(_, n)| **n > 0).map(|(s, n)| format!("{s} {n}")).collect();
             streams.join(", ")
         };
-        let sent: u64 = self.sent.values().sum();
-        let undelivered = d.total_undelivered();
-        let too_large: u64 = d.too_large.values().sum();
+        let undelivered = self.total_undelivered();
+        let too_large: u64 = self.too_large.values().sum();
         let mut why = Vec::new();
         if undelivered > 0 {
-            let cloud = if !d.cloud.seen {
+            let cloud = if !self.cloud.seen {
                 "no cloud seen (--no-ack publishes without one)".to_owned()
-            } else if d.cloud.gone_s > 0.0 {
-                let at_exit = if d.cloud.alive_at_exit { "" } else { ", and gone at the end" };
-                format!("the cloud was gone for {:.1} s{at_exit}", d.cloud.gone_s)
+            } else if self.cloud.gone_s > 0.0 {
+                let at_exit = if self.cloud.alive_at_exit { "" } else { ", and gone at the end" };
+                format!("the cloud was gone for {:.1} s{at_exit}", self.cloud.gone_s)
             } else {
                 "not acknowledged in time".to_owned()
             };
-            why.push(format!("{undelivered} of {sent} messages undelivered ({}): {cloud}", per_stream(&d.undelivered)));
+            why.push(format!(
+                "{undelivered} of {sent} messages undelivered ({}): {cloud}",
+                per_stream(&self.undelivered)
+            ));
         }
         if too_large > 0 {
-            why.push(format!("{too_large} messages refused as too large ({})", per_stream(&d.too_large)));
+            why.push(format!("{too_large} messages refused as too large ({})", per_stream(&self.too_large)));
         }
-        (!why.is_empty()).then(|| format!("edge {}: {}", self.source, why.join("; ")))
+        (!why.is_empty()).then(|| format!("edge {source}: {}", why.join("; ")))
     }
 }

@@ -29,5 +29,5 @@ pub const FILE_DESCRIPTOR_SET: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "
 
 pub use convert::{
     ConvertError, DecodeError, PROTOBUF_MEDIA_TYPE, WireMessage, check_encoding, decode, decode_tagged, encode,
-    encode_into, encoding_of,
+    encode_into, encoding_of, header_seq,
 };

@@ -196,6 +196,15 @@ fn edge_replay_into_a_second_cloud_rebuilds_the_live_snapshots() {
     let published = replay.exit_json(STEP);
     assert_eq!(published["published"], live["total_received"], "every recorded message is republished");
     assert_eq!(published["skipped"], 0);
+    assert_eq!(published["unnumbered"], 0);
+    // The replay's own account, per source: everything acknowledged by the replaying cloud.
+    let delivery = published["delivery"].as_object().expect("delivery per source");
+    assert_eq!(delivery.len(), 3, "{published}");
+    for source in ["veh-r", "veh-s", "rsu-r"] {
+        let d = &delivery[&format!("track/{source}")];
+        assert_eq!(d["acknowledged"], live["received"][source], "{source}: {d}");
+        assert!(d["undelivered"].as_object().expect("per stream").values().all(|n| n == 0), "{source}: {d}");
+    }
     replayed_cloud.terminate();
     let replayed = replayed_cloud.exit_json(STEP);
     assert_eq!(replayed["total_dropped"], 0, "{replayed}");

@@ -39,6 +39,9 @@ fn check_delivery(id: &str, sent: &Value, forwarded: &Value, mut cloud: Proc) ->
     assert_eq!(sent["source"], id, "{sent}");
     assert_eq!(forwarded["forwarded"], sent["sent"], "gateway: {forwarded}\nsensor: {sent}");
     assert_eq!(forwarded["rejected"], json!({"state": 0, "can": 0, "perception": 0}));
+    // The gateway's own account: every forwarded message acknowledged by the cloud.
+    assert_eq!(forwarded["acknowledged"], sent["sent"], "gateway: {forwarded}");
+    assert_eq!(forwarded["undelivered"], json!({"state": 0, "can": 0, "perception": 0}), "{forwarded}");
     let left = format!("edge left: track/{id}");
     cloud.wait_line(STEP, |l| l == left);
     cloud.terminate();
@@ -138,4 +141,22 @@ fn sigterm_stops_an_idle_gateway_cleanly() {
     let summary = gateway.exit_json(STEP);
     assert_eq!(summary["forwarded"], json!({"state": 0, "can": 0, "perception": 0}));
     assert_eq!(summary["end_of_stream"], false);
+}
+
+#[test]
+fn a_gateway_without_a_cloud_reports_everything_undelivered_and_fails() {
+    let (_router, locator) = start_router();
+    let id = vehicle_id("nocloud");
+    let mut gateway =
+        Proc::spawn("gateway", &["edge", "gateway", "--id", &id, "--connect", &locator, "--wait-for-cloud-s", "0"]);
+    let mut sensor = start_sensor(&id, &["--count", "10"]);
+    let sent = sensor.exit_json(STEP);
+    let (status, stdout) = gateway.wait_exit(STEP);
+    assert_eq!(status.code(), Some(1), "undelivered messages fail the gateway: {stdout}");
+    let summary: Value = serde_json::from_str(&stdout).expect("the summary is printed before the error");
+    assert_eq!(summary["forwarded"], sent["sent"], "{summary}");
+    assert_eq!(summary["undelivered"], sent["sent"], "nothing acknowledged: {summary}");
+    assert_eq!(summary["cloud"]["seen"], false, "{summary}");
+    let error = gateway.wait_line(STEP, |l| l.starts_with("error: edge "));
+    assert!(error.contains("no cloud seen"), "{error}");
 }

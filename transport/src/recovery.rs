@@ -36,8 +36,10 @@ pub fn is_recovered(sample: &Sample) -> bool {
 }
 
 /// The longest outage a live edge stream survives by default: a router restart or a partition
-/// up to this long loses nothing.
-pub const DEFAULT_OUTAGE: Duration = Duration::from_secs(30);
+/// up to this long loses nothing. 45 s so that a 30 s stall of the cloud is covered with its
+/// aftermath: the stall outlasts Zenoh's 10 s lease, the router drops the cloud's session, and
+/// the samples published until the cloud is back and queries the caches count too.
+pub const DEFAULT_OUTAGE: Duration = Duration::from_secs(45);
 
 /// The most samples one stream's cache may keep (bounds memory whatever rate × outage says).
 pub const MAX_CACHE_SAMPLES: usize = 1_000_000;

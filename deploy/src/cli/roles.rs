@@ -2,6 +2,7 @@
 //! joins the Zenoh network.
 
 use clap::{Args, Subcommand};
+use risktwin_transport::recovery::DEFAULT_OUTAGE;
 use std::path::PathBuf;
 
 /// How a distributed role joins the Zenoh network.
@@ -89,6 +90,10 @@ pub struct ReplayArgs {
     /// Seconds to wait for a subscriber before publishing anyway.
     #[arg(long, default_value_t = 10.0)]
     pub wait_for_cloud_s: f64,
+    /// Publish without waiting for (or reporting) the cloud's delivery acknowledgements of the
+    /// replayed sources (as `edge vehicle --no-ack`).
+    #[arg(long)]
+    pub no_ack: bool,
 }
 
 #[derive(Debug, Args)]
@@ -128,7 +133,7 @@ pub struct EdgeArgs {
     pub wait_for_cloud_s: f64,
     /// Seconds of each stream kept for the cloud to recover after an outage (router restart,
     /// partition): a longer outage loses its oldest samples, counted by the cloud as `lost`.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = DEFAULT_OUTAGE.as_secs_f64())]
     pub cache_s: f64,
     /// A file of clock steps, one signed number of ms per line: those in it at the start and
     /// each one appended later (looked for on a tick, at most every 100 ms) step the edge

@@ -177,11 +177,18 @@ fn bench_tls(config: BenchConfig, format: Format) -> CliResult {
                     format!("{:.0?}", report.plain_msgs_per_s),
                 ],
                 vec![
+                    "state path, TLS".into(),
+                    format!("{:.0}", report.tls_median_msgs_per_s),
+                    format!("{:.0?}", report.tls_msgs_per_s),
+                ],
+                vec![
                     "state path, TLS + ACL".into(),
                     format!("{:.0}", report.tls_acl_median_msgs_per_s),
                     format!("{:.0?}", report.tls_acl_msgs_per_s),
                 ],
                 vec!["ratio TLS+ACL/plain".into(), format!("{:.3}", report.ratio), String::new()],
+                vec!["ratio TLS/plain".into(), format!("{:.3}", report.ratio_tls), String::new()],
+                vec!["ratio TLS+ACL/TLS".into(), format!("{:.3}", report.ratio_acl), String::new()],
             ],
         ),
     }

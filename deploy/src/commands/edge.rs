@@ -22,10 +22,7 @@ pub fn vehicle(args: EdgeArgs) -> CliResult {
 
 /// Exit 1 (after the summary) when messages sent were not all delivered or some were refused.
 fn delivered(summary: &risktwin_edge::SentSummary) -> CliResult {
-    match summary.failure() {
-        Some(why) => Err(CliError::runtime(why)),
-        None => Ok(()),
-    }
+    summary.failure().map_or(Ok(()), |why| Err(CliError::runtime(why)))
 }
 
 pub fn sensor(args: EdgeArgs) -> CliResult {
@@ -40,7 +37,8 @@ pub fn gateway(args: EdgeArgs) -> CliResult {
     risktwin_edge::shm::validate_vehicle_id(config.id.as_str()).map_err(CliError::input)?;
     let summary =
         with_signals(|shutdown| async move { gateway::run(&config, shutdown).await.map_err(CliError::runtime) })?;
-    print_json(&summary)
+    print_json(&summary)?;
+    summary.failure().map_or(Ok(()), |why| Err(CliError::runtime(why)))
 }
 
 pub fn rsu(args: EdgeArgs) -> CliResult {
@@ -57,7 +55,8 @@ pub fn replay(args: ReplayArgs) -> CliResult {
     let wait_for_cloud = Duration::try_from_secs_f64(args.wait_for_cloud_s)
         .map_err(|_| CliError::input(format!("--wait-for-cloud-s {} must be non-negative", args.wait_for_cloud_s)))?;
     let cursor = open_recording(&args.recording, 1 << 20)?;
-    let config = ReplayConfig { transport: transport_config(args.zenoh)?, speed: args.speed, wait_for_cloud };
+    let config =
+        ReplayConfig { transport: transport_config(args.zenoh)?, speed: args.speed, wait_for_cloud, ack: !args.no_ack };
     let path = args.recording.display().to_string();
     let summary = with_signals(|shutdown| async move {
         replay::run(cursor, &config, shutdown).await.map_err(|e| match e {
@@ -68,7 +67,8 @@ pub fn replay(args: ReplayArgs) -> CliResult {
     if let Some(unfinished) = &summary.unfinished {
         warn_unfinished(&args.recording, unfinished);
     }
-    print_json(&summary)
+    print_json(&summary)?;
+    summary.failure().map_or(Ok(()), |why| Err(CliError::runtime(why)))
 }
 
 fn edge_config(args: EdgeArgs, default_rate_hz: f64) -> CliResult<EdgeConfig> {

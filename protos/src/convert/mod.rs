@@ -97,6 +97,24 @@ pub fn decode<T: WireMessage>(bytes: &[u8]) -> Result<T, DecodeError> {
     Ok(T::from_proto(proto)?)
 }
 
+/// The header's sequence number of an encoded message of the schema (each carries its
+/// `Header` as field 1), read without decoding the rest: `None` when the bytes do not parse
+/// or have no header.
+pub fn header_seq(bytes: &[u8]) -> Option<u64> {
+    /// Field 1 of every message, and field 2 (`seq`) of its header; the rest is skipped.
+    #[derive(Clone, PartialEq, prost::Message)]
+    struct Headed {
+        #[prost(message, optional, tag = "1")]
+        header: Option<SeqOnly>,
+    }
+    #[derive(Clone, PartialEq, prost::Message)]
+    struct SeqOnly {
+        #[prost(uint64, tag = "2")]
+        seq: u64,
+    }
+    Headed::decode(bytes).ok()?.header.map(|h| h.seq)
+}
+
 /// The media type of every protobuf payload.
 pub const PROTOBUF_MEDIA_TYPE: &str = "application/protobuf";
 

@@ -575,3 +575,14 @@ fn delivery_acks_round_trip_and_impossible_ones_are_rejected() {
     rejects(&ack, |p| p.streams[0].stream.clear(), missing("StreamAck", "stream"));
     rejects(&ack, |p| p.streams[1].received = 41, bad("StreamAck", "received", "41 above next_seq 40"));
 }
+
+#[test]
+fn the_header_sequence_number_is_read_without_decoding_the_rest() {
+    let mut state = vehicle_state();
+    state.header.seq = 123_456_789_012;
+    assert_eq!(header_seq(&encode(&state)), Some(123_456_789_012));
+    let frame = CanFrame { header: hdr(7), can_id: 0x123, data: [1, 2, 3, 4, 5, 6, 7, 8], dlc: 8 };
+    assert_eq!(header_seq(&encode(&frame)), Some(7));
+    assert_eq!(header_seq(&[]), None, "no header");
+    assert_eq!(header_seq(&[0x0A, 0x05, 0x10]), None, "cut short");
+}

@@ -12,6 +12,7 @@
 # summary. Printed: per vehicle the seconds from SIGCONT until it exited with everything
 # accounted for (recovery of the stall's samples, plus the acknowledgement period), and the
 # counts of the edges and the cloud. Needs the release binary (cargo build --release).
+# KEEP_LOGS=1 keeps every process's output in the temporary folder it names.
 set -euo pipefail
 bin=${1:-target/release/risktwin}
 n=${2:-100}
@@ -21,7 +22,7 @@ dir=$(mktemp -d)
 pids=()
 cleanup() {
     for p in "${pids[@]}" $(cat "$dir"/veh-*.pid 2>/dev/null); do kill -9 "$p" 2>/dev/null || true; done
-    rm -rf "$dir"
+    if [ -n "${KEEP_LOGS:-}" ]; then echo "logs kept in $dir" >&2; else rm -rf "$dir"; fi
 }
 trap cleanup EXIT
 now() { date +%s.%N; }
@@ -58,9 +59,11 @@ done
 for i in $(seq 1 "$n"); do wait_for "$dir/veh-$i.err" 120 "edge veh-$i: publishing"; done
 sleep 2
 
+echo "SIGSTOP at $(now)" >"$dir/marks"
 kill -STOP "$cloud"
 sleep "$stall_s"
 cont=$(now)
+echo "SIGCONT at $cont" >>"$dir/marks"
 kill -CONT "$cloud"
 # A stall past the lease took the cloud's session (and token) away: wait until it is back.
 for i in $(seq 1 "$n"); do

@@ -109,6 +109,9 @@ pub struct Catalogue {
 impl Catalogue {
     /// The catalogue of `dir`, created (folder included) when missing: the recorder's.
     pub fn create(dir: &Path) -> Result<Self, CatalogueError> {
+        if dir.exists() && !dir.is_dir() {
+            return Err(CatalogueError::NotAFolder { dir: dir.to_path_buf() });
+        }
         std::fs::create_dir_all(dir).map_err(|source| CatalogueError::Folder { dir: dir.to_path_buf(), source })?;
         Self::open_with(&dir.join(CATALOGUE_FILE), OpenFlags::default())
     }

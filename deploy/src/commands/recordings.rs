@@ -38,6 +38,9 @@ pub fn rotation(args: &CloudArgs) -> CliResult<Option<RotationConfig>> {
     let segment_s = positive("--segment-s", args.segment_s.unwrap_or(600.0), 0.25, 604_800.0)?;
     let retain_s = args.retain_s.map(|s| positive("--retain-s", s, 1.0, 1e10)).transpose()?;
     let retain_mb = args.retain_mb.map(|mb| positive("--retain-mb", mb, 0.001, 1e12)).transpose()?;
+    // A folder that cannot hold a catalogue, or a catalogue that is not one, fails now: before
+    // the cloud joins the network, and as bad input.
+    drop(Catalogue::create(&dir)?);
     let config = serde_json::json!({
         "argv": std::env::args().collect::<Vec<_>>(),
         "segment_mb": segment_mb,

@@ -143,10 +143,8 @@ impl Catalogue {
         let sqlite = |e| CatalogueError::sqlite(&path, e);
         let app_id: i32 = self.conn.pragma_query_value(None, "application_id", |r| r.get(0)).map_err(sqlite)?;
         let version: i64 = self.conn.pragma_query_value(None, "user_version", |r| r.get(0)).map_err(sqlite)?;
-        let objects: i64 = self
-            .conn
-            .query_row("SELECT count(*) FROM sqlite_schema", [], |r| r.get(0))
-            .map_err(sqlite)?;
+        let objects: i64 =
+            self.conn.query_row("SELECT count(*) FROM sqlite_schema", [], |r| r.get(0)).map_err(sqlite)?;
         if app_id == APPLICATION_ID && version != SCHEMA_VERSION {
             return Err(CatalogueError::UnsupportedVersion { path, found: version, expected: SCHEMA_VERSION });
         }
@@ -195,7 +193,13 @@ impl Catalogue {
     }
 
     /// Catalogues a segment as it is opened (not closed: a crash leaves it so).
-    pub fn open_segment(&self, recording_id: i64, seq: u64, file: &str, opened_unix_ns: i64) -> Result<(), CatalogueError> {
+    pub fn open_segment(
+        &self,
+        recording_id: i64,
+        seq: u64,
+        file: &str,
+        opened_unix_ns: i64,
+    ) -> Result<(), CatalogueError> {
         self.conn
             .execute(
                 "INSERT INTO segments (seq, recording_id, file, opened_unix_ns) VALUES (?1, ?2, ?3, ?4)",

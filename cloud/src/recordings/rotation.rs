@@ -117,8 +117,15 @@ impl Segments {
     }
 
     /// Flushes segment `seq`'s file to disk, books it closed and applies retention.
-    fn close(&mut self, seq: u64, path: &Path, written: BufWriter<File>, stats: &SegmentStats) -> Result<(), SegmentError> {
-        let file = written.into_inner().map_err(|e| SegmentError::Io { path: path.to_path_buf(), source: e.into_error() })?;
+    fn close(
+        &mut self,
+        seq: u64,
+        path: &Path,
+        written: BufWriter<File>,
+        stats: &SegmentStats,
+    ) -> Result<(), SegmentError> {
+        let file =
+            written.into_inner().map_err(|e| SegmentError::Io { path: path.to_path_buf(), source: e.into_error() })?;
         file.sync_data().map_err(io(path))?;
         let bytes = file.metadata().map_err(io(path))?.len();
         self.catalogue.close_segment(seq, stats, bytes, unix_ns())?;

@@ -136,11 +136,8 @@ fn query(args: RecordingsQueryArgs) -> CliResult {
     let mut segments = Vec::new();
     let mut messages = 0;
     for row in &rows {
-        let streams: Vec<StreamRow> = catalogue
-            .streams(row.seq)?
-            .into_iter()
-            .filter(|s| source.is_none() || s.source == source)
-            .collect();
+        let streams: Vec<StreamRow> =
+            catalogue.streams(row.seq)?.into_iter().filter(|s| source.is_none() || s.source == source).collect();
         messages += streams.iter().map(|s| s.messages).sum::<u64>();
         segments.push(Listed { row, status: status(row), streams: Some(streams) });
     }

@@ -192,9 +192,7 @@ impl<R: Read> MessageCursor<R> {
                     self.done = true;
                     // Damage before the first complete message leaves nothing to salvage.
                     return match self.scanner.tail() {
-                        Some(tail) if self.messages == 0 => {
-                            Some(Err(RecordingError::NothingReadable(tail.clone())))
-                        }
+                        Some(tail) if self.messages == 0 => Some(Err(RecordingError::NothingReadable(tail.clone()))),
                         _ => None,
                     };
                 }

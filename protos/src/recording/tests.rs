@@ -100,8 +100,7 @@ fn an_offline_recording_has_no_wall_bound_and_its_bytes_follow_its_input() {
     // A bound that is always due closes a chunk at every second write (the first write after
     // the bound): what an offline recorder given a wall bound does once a slow machine
     // crosses it, other bytes for the same input.
-    let bounded =
-        Recorder::new(std::io::Cursor::new(Vec::new())).expect("recorder").with_wall_bound(Duration::ZERO);
+    let bounded = Recorder::new(std::io::Cursor::new(Vec::new())).expect("recorder").with_wall_bound(Duration::ZERO);
     let bounded = written(bounded, 200);
     assert_eq!(chunks(&bounded), 100, "two messages a chunk");
     assert_eq!(read_messages(&bounded).expect("finished"), read_messages(&a).expect("finished"));

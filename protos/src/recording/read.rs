@@ -166,25 +166,18 @@ impl<R: Read> MessageCursor<R> {
         }
         loop {
             match self.advance() {
-                Ok(Some((channel_id, log_time_ns, publish_time_ns))) => {
-                    let Some(channel) = self.channels.get(&channel_id) else {
+                Ok(Some(at)) => {
+                    let Some(message) = lend(&self.channels, self.scanner.body(), at) else {
                         self.done = true;
                         return Some(Err(RecordingError::Corrupt {
-                            reason: format!("a message on unknown channel {channel_id}"),
+                            reason: format!("a message on unknown channel {}", at.0),
                         }));
                     };
+                    let kept = keep(&message);
                     self.messages += 1;
-                    self.last_log_time_ns = self.last_log_time_ns.max(log_time_ns);
-                    let message = MessageRef {
-                        topic: &channel.topic,
-                        schema_name: &channel.schema_name,
-                        channel_id,
-                        log_time_ns,
-                        publish_time_ns,
-                        data: &self.scanner.body()[MESSAGE_HEADER_LEN..],
-                    };
-                    if keep(&message) {
-                        self.at = Some((channel_id, log_time_ns, publish_time_ns));
+                    self.last_log_time_ns = self.last_log_time_ns.max(at.1);
+                    if kept {
+                        self.at = Some(at);
                         return Some(Ok(()));
                     }
                 }
@@ -206,16 +199,7 @@ impl<R: Read> MessageCursor<R> {
 
     /// The message [`MessageCursor::seek_where`] stopped at; `None` when it found none.
     pub fn message(&self) -> Option<MessageRef<'_>> {
-        let (channel_id, log_time_ns, publish_time_ns) = self.at?;
-        let channel = self.channels.get(&channel_id)?;
-        Some(MessageRef {
-            topic: &channel.topic,
-            schema_name: &channel.schema_name,
-            channel_id,
-            log_time_ns,
-            publish_time_ns,
-            data: &self.scanner.body()[MESSAGE_HEADER_LEN..],
-        })
+        lend(&self.channels, self.scanner.body(), self.at?)
     }
 
     /// Reads up to the next message record, leaving it as the scanner's body.
@@ -258,4 +242,22 @@ impl<R: Read> MessageCursor<R> {
         }
         Ok(None)
     }
+}
+
+/// The message record `body` (read at `(channel id, log time, publish time)`) as lent out;
+/// `None` for a channel never declared.
+fn lend<'a>(
+    channels: &'a HashMap<u16, ChannelName>,
+    body: &'a [u8],
+    (channel_id, log_time_ns, publish_time_ns): (u16, u64, u64),
+) -> Option<MessageRef<'a>> {
+    let channel = channels.get(&channel_id)?;
+    Some(MessageRef {
+        topic: &channel.topic,
+        schema_name: &channel.schema_name,
+        channel_id,
+        log_time_ns,
+        publish_time_ns,
+        data: &body[MESSAGE_HEADER_LEN..],
+    })
 }

@@ -60,6 +60,8 @@ pub mod generate;
 pub mod ingest;
 pub mod library;
 pub mod network;
+pub mod recordings;
+mod sqlite_schema;
 #[cfg(test)]
 mod test_fixtures;
 pub mod trainer;

@@ -182,7 +182,8 @@ mod tests {
         let mut ledger = DeliveryLedger::new("e1");
         // Number 3 was refused (too large): the cloud skipped it and counts it lost.
         ledger.apply(ack("e1", "c1", 0, &[("rsu", 6, 5, 1)]));
-        let d = ledger.stream("rsu", 8, 7, &[3..4]);
+        let unsent = std::slice::from_ref(&(3..4));
+        let d = ledger.stream("rsu", 8, 7, unsent);
         assert_eq!(d, StreamDelivery { acknowledged: 5, lost: 0, undelivered: 2 });
     }
 

@@ -11,7 +11,7 @@
 use crate::delivery::{DeliverySummary, DeliveryWatch, Numbering, StreamSent};
 use crate::error::EdgeError;
 use risktwin_protos::header_seq;
-use risktwin_protos::recording::{MessageCursor, RecordingError, UnfinishedRecording, encode_replay_time};
+use risktwin_protos::recording::{RecordingError, SpanCursor, UnfinishedRecording, encode_replay_time};
 use risktwin_transport::keyexpr::{EDGE_MAP_MESSAGE, parse_edge_key, parse_edge_map_key};
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{
@@ -19,7 +19,7 @@ use risktwin_transport::{
 };
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::io::Read;
+use std::path::PathBuf;
 use std::time::Duration;
 
 /// How to replay.
@@ -51,9 +51,9 @@ pub struct ReplaySummary {
     /// What became of each replayed source's messages (`site/source`), when watched.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub delivery: BTreeMap<String, DeliverySummary>,
-    /// What could not be read of an unfinished recording (a recorder killed): the caller warns.
+    /// What could not be read of each unfinished file (a recorder killed): the caller warns.
     #[serde(skip)]
-    pub unfinished: Option<UnfinishedRecording>,
+    pub unfinished: Vec<(PathBuf, UnfinishedRecording)>,
 }
 
 impl ReplaySummary {
@@ -86,12 +86,13 @@ struct Source {
     streams: BTreeMap<EdgeStream, Numbering>,
 }
 
-/// Republishes the edge streams of a recording read by `cursor` (an MCAP file, streamed: the
-/// recording is never held in memory; an unfinished one up to its last complete chunk). Each message carries its recorded receive time as a
+/// Republishes the edge streams of a recording read by `cursor` (MCAP files, or a span of the
+/// segments of a rotating recording, streamed: the recording is never held in memory; an
+/// unfinished file up to its last complete chunk). Each message carries its recorded receive time as a
 /// replay-time attachment ([`encode_replay_time`]), which a cloud run with `--replay-time`
 /// ingests at instead of its own clock, so that it rebuilds the live run's snapshots.
-pub async fn run<R: Read>(
-    mut cursor: MessageCursor<R>,
+pub async fn run(
+    mut cursor: SpanCursor,
     config: &ReplayConfig,
     mut shutdown: Shutdown,
 ) -> Result<ReplaySummary, EdgeError> {
@@ -149,7 +150,7 @@ pub async fn run<R: Read>(
         summary.published += 1;
         *summary.by_key.entry(topic).or_default() += 1;
     }
-    summary.unfinished = cursor.unfinished();
+    summary.unfinished = cursor.unfinished().to_vec();
     summary.elapsed_s = start.elapsed().as_secs_f64();
     summary.msgs_per_s = summary.published as f64 / summary.elapsed_s.max(1e-9);
     // The publishers (and their caches) stay while the sources settle: the cloud may still fetch.

@@ -9,14 +9,20 @@
 //! the rest). A recorder fed in real time ([`Recorder::live`]) also closes it [`CHUNK_WALL`]
 //! after the chunk's first message; an offline one does not, so that its bytes depend on its
 //! input alone (same seed, same bytes).
+//!
+//! A recording may be kept in several files: [`Recorder::rotate`] finishes one (footer and
+//! summary) and goes on in the next with the same channel ids, and [`SpanCursor`] reads a time
+//! span across such files ([`export`]: as one file).
 
 mod read;
 mod recover;
 pub mod scan;
+mod span;
 
 pub use read::{MessageCursor, MessageRef, RecordedMessage, UnfinishedRecording, read_messages, salvage_messages};
 pub use recover::{Recovery, recover};
 pub use scan::{CHUNK_UNCOMPRESSED_CAP, RECORD_LENGTH_CAP, RecordScanner, Tail};
+pub use span::{Exported, SpanCursor, TopicFilter, export};
 
 use crate::WireMessage;
 use crate::convert::foxglove::{
@@ -76,11 +82,25 @@ fn file_has(at_byte: u64, claimed: u64, file_len: Option<u64>) -> String {
     }
 }
 
-/// Writes messages of known protobuf types to an MCAP file.
+/// Writes messages of known protobuf types to an MCAP file, or to a series of them
+/// ([`Recorder::rotate`]: segments of one recording).
+///
+/// Ids are the recorder's own, not the file's: a channel keeps its id in every segment, and a
+/// segment declares a schema and a channel only once a message on it comes (a segment holds
+/// what it needs and no more).
 pub struct Recorder<W: Write + Seek> {
     writer: mcap::Writer<W>,
-    schemas: HashMap<&'static str, u16>,
-    channels: HashMap<String, (u16, &'static str)>,
+    /// Schema names, by id − 1.
+    schemas: Vec<String>,
+    /// Channel id and schema id by topic.
+    channels: HashMap<String, (u16, u16)>,
+    /// Each channel's topic and schema id, by id − 1: what a new segment declares again.
+    channel_defs: Vec<(String, u16)>,
+    /// Whether each schema / channel (by id − 1) is declared in the current file.
+    schema_declared: Vec<bool>,
+    channel_declared: Vec<bool>,
+    /// Messages written to the current file.
+    segment_messages: u64,
     sequence: u32,
     /// When the open chunk got its first message (`None`: no chunk is open, or no wall bound).
     chunk_opened: Option<Instant>,
@@ -88,22 +108,47 @@ pub struct Recorder<W: Write + Seek> {
     wall_bound: Option<Duration>,
 }
 
+/// What one closed file of a recording holds, from its statistics record.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct SegmentStats {
+    pub messages: u64,
+    /// Least and greatest log time, ns; `None` without messages.
+    pub log_time_ns: Option<(u64, u64)>,
+    /// Messages per channel that has any, in channel order.
+    pub topics: Vec<TopicCount>,
+}
+
+/// Messages on one topic of a file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TopicCount {
+    pub topic: String,
+    pub schema_name: String,
+    pub messages: u64,
+}
+
 impl<W: Write + Seek> Recorder<W> {
     /// An offline recorder over `w`: chunks close at [`CHUNK_BYTES`] only, so the same messages
     /// give the same bytes however fast they come.
     pub fn new(w: W) -> Result<Self, RecordingError> {
-        let options = mcap::WriteOptions::new()
-            .profile("")
-            .library(concat!("risktwin ", env!("CARGO_PKG_VERSION")))
-            .chunk_size(Some(CHUNK_BYTES));
         Ok(Self {
-            writer: options.create(w)?,
-            schemas: HashMap::new(),
+            writer: Self::options().create(w)?,
+            schemas: Vec::new(),
             channels: HashMap::new(),
+            channel_defs: Vec::new(),
+            schema_declared: Vec::new(),
+            channel_declared: Vec::new(),
+            segment_messages: 0,
             sequence: 0,
             chunk_opened: None,
             wall_bound: None,
         })
+    }
+
+    fn options() -> mcap::WriteOptions {
+        mcap::WriteOptions::new()
+            .profile("")
+            .library(concat!("risktwin ", env!("CARGO_PKG_VERSION")))
+            .chunk_size(Some(CHUNK_BYTES))
     }
 
     /// A recorder of messages as they arrive in real time over `w`: chunks close at
@@ -122,6 +167,23 @@ impl<W: Write + Seek> Recorder<W> {
     /// How long a chunk may stay open by the wall clock; `None` for an offline recorder.
     pub fn wall_bound(&self) -> Option<Duration> {
         self.wall_bound
+    }
+
+    /// Messages written to the current file (since the start or the last rotation).
+    pub fn segment_messages(&self) -> u64 {
+        self.segment_messages
+    }
+
+    /// Finishes the current file (summary and footer) and goes on in `next`, channel ids kept:
+    /// the finished file's writer and what it holds.
+    pub fn rotate(&mut self, next: W) -> Result<(W, SegmentStats), RecordingError> {
+        let fresh = Self::options().create(next)?;
+        let old = std::mem::replace(&mut self.writer, fresh);
+        self.schema_declared.clear();
+        self.channel_declared.clear();
+        self.chunk_opened = None;
+        self.segment_messages = 0;
+        close(old, &self.channel_defs, &self.schemas)
     }
 
     /// Closes the open chunk and flushes the file when the chunk is as old as the wall bound;
@@ -143,29 +205,50 @@ impl<W: Write + Seek> Recorder<W> {
         Ok(())
     }
 
-    /// The channel id of `topic` carrying messages of `schema_name` (e.g. `risktwin.v1.VehicleState`).
-    pub fn channel(&mut self, topic: &str, schema_name: &'static str) -> Result<u16, RecordingError> {
-        if let Some(&(id, first)) = self.channels.get(topic) {
+    /// The channel id of `topic` carrying messages of `schema_name` (e.g.
+    /// `risktwin.v1.VehicleState`, a message of [`crate::FILE_DESCRIPTOR_SET`], which is the
+    /// schema written for it). Declared in the file with its first message.
+    pub fn channel(&mut self, topic: &str, schema_name: &str) -> Result<u16, RecordingError> {
+        if let Some(&(id, schema)) = self.channels.get(topic) {
+            let first = &self.schemas[usize::from(schema) - 1];
             if first != schema_name {
                 return Err(RecordingError::SchemaChanged {
                     topic: topic.into(),
-                    first: first.into(),
+                    first: first.clone(),
                     now: schema_name.into(),
                 });
             }
             return Ok(id);
         }
-        let schema = match self.schemas.get(schema_name) {
-            Some(&id) => id,
+        let schema = match self.schemas.iter().position(|s| s == schema_name) {
+            Some(i) => i + 1,
             None => {
-                let id = self.writer.add_schema(schema_name, "protobuf", crate::FILE_DESCRIPTOR_SET)?;
-                self.schemas.insert(schema_name, id);
-                id
+                self.schemas.push(schema_name.to_owned());
+                self.schemas.len()
             }
         };
-        let id = self.writer.add_channel(schema, topic, "protobuf", &BTreeMap::new())?;
-        self.channels.insert(topic.to_string(), (id, schema_name));
+        let schema = u16::try_from(schema).map_err(|_| mcap::McapError::TooManySchemas)?;
+        let id = u16::try_from(self.channel_defs.len() + 1).map_err(|_| mcap::McapError::TooManyChannels)?;
+        self.channel_defs.push((topic.to_owned(), schema));
+        self.channels.insert(topic.to_owned(), (id, schema));
         Ok(id)
+    }
+
+    /// Declares `channel` (and its schema) in the current file.
+    fn declare(&mut self, channel: u16) -> Result<(), RecordingError> {
+        let index = usize::from(channel).wrapping_sub(1);
+        let (topic, schema) = self.channel_defs.get(index).ok_or_else(|| RecordingError::Corrupt {
+            reason: format!("a message on channel {channel}, which the recorder never made"),
+        })?;
+        let schema_index = usize::from(*schema) - 1;
+        if !self.schema_declared.get(schema_index).copied().unwrap_or(false) {
+            let name = &self.schemas[schema_index];
+            self.writer.add_schema_with_id(*schema, name, "protobuf", crate::FILE_DESCRIPTOR_SET)?;
+            grow(&mut self.schema_declared, schema_index);
+        }
+        self.writer.add_channel_with_id(channel, *schema, topic, "protobuf", &BTreeMap::new())?;
+        grow(&mut self.channel_declared, index);
+        Ok(())
     }
 
     /// Appends one encoded message. `log_time_ns` orders the recording (the cloud's receive
@@ -183,8 +266,12 @@ impl<W: Write + Seek> Recorder<W> {
             log_time: log_time_ns,
             publish_time: publish_time_ns,
         };
+        if !self.channel_declared.get(usize::from(channel).wrapping_sub(1)).copied().unwrap_or(false) {
+            self.declare(channel)?;
+        }
         self.sequence = self.sequence.wrapping_add(1);
         self.writer.write_to_known_channel(&header, data)?;
+        self.segment_messages += 1;
         // The writer closes a chunk at `CHUNK_BYTES` by itself (it does not say when, so this
         // clock may have started in an earlier chunk: it flushes early, never late).
         match self.chunk_opened {
@@ -250,10 +337,43 @@ impl<W: Write + Seek> Recorder<W> {
     }
 
     /// [`Recorder::finish`], handing back the underlying writer.
-    pub fn finish_into_inner(mut self) -> Result<W, RecordingError> {
-        self.writer.finish()?;
-        Ok(self.writer.into_inner())
+    pub fn finish_into_inner(self) -> Result<W, RecordingError> {
+        self.finish_segment().map(|(w, _)| w)
     }
+
+    /// [`Recorder::finish`], handing back the underlying writer and what its file holds.
+    pub fn finish_segment(self) -> Result<(W, SegmentStats), RecordingError> {
+        close(self.writer, &self.channel_defs, &self.schemas)
+    }
+}
+
+/// Finishes `writer` and reads what its file holds from the statistics it wrote; `channel_defs`
+/// and `schemas` name its channels (see [`Recorder`]).
+fn close<W: Write + Seek>(
+    mut writer: mcap::Writer<W>,
+    channel_defs: &[(String, u16)],
+    schemas: &[String],
+) -> Result<(W, SegmentStats), RecordingError> {
+    let summary = writer.finish()?;
+    let mut stats = SegmentStats::default();
+    if let Some(s) = summary.stats.filter(|s| s.message_count > 0) {
+        stats.messages = s.message_count;
+        stats.log_time_ns = Some((s.message_start_time, s.message_end_time));
+        for (&id, &messages) in &s.channel_message_counts {
+            let Some((topic, schema)) = channel_defs.get(usize::from(id).wrapping_sub(1)) else { continue };
+            let schema_name = schemas[usize::from(*schema) - 1].clone();
+            stats.topics.push(TopicCount { topic: topic.clone(), schema_name, messages });
+        }
+    }
+    Ok((writer.into_inner(), stats))
+}
+
+/// Sets `flags[index]`, growing `flags` as needed.
+fn grow(flags: &mut Vec<bool>, index: usize) {
+    if flags.len() <= index {
+        flags.resize(index + 1, false);
+    }
+    flags[index] = true;
 }
 
 /// Length of a replay-time attachment: an 8-byte tag and the time as little-endian `i64` ns.
@@ -279,124 +399,7 @@ pub fn decode_replay_time(attachment: &[u8]) -> Option<i64> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::decode;
-    use risktwin_common::geometry::{Footprint, Pose, Vec2};
-    use risktwin_common::telemetry::{Frame, Header};
-
-    fn state(seq: u64) -> VehicleStateSample {
-        VehicleStateSample {
-            header: Header {
-                source: "veh-1".into(),
-                seq,
-                capture_time_ns: 1_000 * seq as i64,
-                publish_time_ns: 1_001 * seq as i64,
-                frame: Frame::World,
-            },
-            pose: Pose::new(seq as f64, 2.0, 0.1),
-            velocity: Vec2::new(20.0, 0.0),
-            speed_mps: 20.0,
-            accel_mps2: -1.5,
-            yaw_rate_radps: 0.01,
-            steer_rad: 0.02,
-            footprint: Footprint::new(4.5, 1.8),
-        }
-    }
-
-    #[test]
-    fn round_trip_through_a_file_and_schema_mismatch_is_refused() {
-        let dir = tempfile::tempdir().expect("temp dir");
-        let path = dir.path().join("r.mcap");
-        let mut rec =
-            Recorder::new(std::io::BufWriter::new(std::fs::File::create(&path).expect("create"))).expect("recorder");
-        for seq in 0..100 {
-            rec.record("risktwin/v1/site/veh-1/state", 10 * seq, &state(seq)).expect("record");
-        }
-        assert!(matches!(
-            rec.channel("risktwin/v1/site/veh-1/state", "risktwin.v1.CanFrame"),
-            Err(RecordingError::SchemaChanged { .. })
-        ));
-        rec.finish().expect("finish");
-        let bytes = std::fs::read(&path).expect("read");
-        let msgs = read_messages(&bytes).expect("valid recording");
-        assert_eq!(msgs.len(), 100);
-        for (seq, m) in msgs.iter().enumerate() {
-            assert_eq!(m.schema_name, "risktwin.v1.VehicleState");
-            assert_eq!(m.log_time_ns, 10 * seq as u64);
-            let back: VehicleStateSample = decode(&m.data).expect("decodes");
-            assert_eq!(format!("{back:?}"), format!("{:?}", state(seq as u64)));
-        }
-        // A truncated file is an error to the strict reader, not a panic.
-        let truncated = read_messages(&bytes[..bytes.len() / 2]);
-        assert!(truncated.is_err(), "a recording cut in half is refused: {:?}", truncated.map(|m| m.len()));
-        let (kept, unfinished) = salvage_messages(&bytes[..bytes.len() / 2]).expect("salvaged");
-        // The second half is the summary (it repeats the large schema): every message is kept.
-        assert!(unfinished.is_some(), "a cut file is reported");
-        assert_eq!(kept, msgs, "the messages before the cut");
-        assert!(read_messages(b"not an mcap file").is_err());
-
-        // The streaming cursor over the file itself agrees with the collected read.
-        let mut cursor = MessageCursor::new(std::fs::File::open(&path).expect("open"));
-        let mut n = 0;
-        while let Some(m) = cursor.next_message() {
-            let m = m.expect("a whole message");
-            assert_eq!((m.topic, m.data), (msgs[n].topic.as_str(), msgs[n].data.as_slice()));
-            assert_eq!(m.log_time_ns, msgs[n].log_time_ns);
-            n += 1;
-        }
-        assert_eq!(n, 100);
-        let mut cut = MessageCursor::new(&bytes[..bytes.len() / 2]);
-        let mut read = 0;
-        while let Some(m) = cut.next_message() {
-            m.expect("the messages before the cut");
-            read += 1;
-        }
-        assert_eq!(read, kept.len(), "the cursor keeps what the collected read keeps");
-        assert!(cut.unfinished().is_some(), "the cursor reports a truncated file");
-    }
-
-    /// `n` state messages written by `rec`, its finished bytes.
-    fn written(mut rec: Recorder<std::io::Cursor<Vec<u8>>>, n: u64) -> Vec<u8> {
-        for seq in 0..n {
-            rec.record("risktwin/v1/site/veh-1/state", 10 * seq, &state(seq)).expect("record");
-        }
-        rec.finish_into_inner().expect("finish").into_inner()
-    }
-
-    fn chunks(bytes: &[u8]) -> usize {
-        mcap::Summary::read(bytes).expect("summary").expect("a summary").chunk_indexes.len()
-    }
-
-    #[test]
-    fn an_offline_recording_has_no_wall_bound_and_its_bytes_follow_its_input() {
-        let offline = || Recorder::new(std::io::Cursor::new(Vec::new())).expect("recorder");
-        assert_eq!(offline().wall_bound(), None, "offline chunks close by size only");
-        let live = Recorder::live(std::io::Cursor::new(Vec::new())).expect("recorder");
-        assert_eq!(live.wall_bound(), Some(CHUNK_WALL));
-        let (a, b) = (written(offline(), 200), written(offline(), 200));
-        assert_eq!(a, b, "the same messages, the same bytes");
-        assert_eq!(chunks(&a), 1, "200 small messages fit one 1 MiB chunk");
-        // A bound that is always due closes a chunk at every second write (the first write after
-        // the bound): what an offline recorder given a wall bound does once a slow machine
-        // crosses it, other bytes for the same input.
-        let bounded =
-            Recorder::new(std::io::Cursor::new(Vec::new())).expect("recorder").with_wall_bound(Duration::ZERO);
-        let bounded = written(bounded, 200);
-        assert_eq!(chunks(&bounded), 100, "two messages a chunk");
-        assert_eq!(read_messages(&bounded).expect("finished"), read_messages(&a).expect("finished"));
-    }
-
-    #[test]
-    fn replay_time_attachments_round_trip_and_others_are_refused() {
-        for t in [0, 1, -5, i64::MAX, 1_700_000_000_123_456_789] {
-            assert_eq!(decode_replay_time(&encode_replay_time(t)), Some(t));
-        }
-        assert_eq!(decode_replay_time(b""), None);
-        assert_eq!(decode_replay_time(b"rtlogt01short"), None);
-        assert_eq!(decode_replay_time(b"somethingelse!!!"), None);
-    }
-}
+mod tests;
 
 #[cfg(test)]
 mod salvage_tests;

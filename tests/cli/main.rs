@@ -17,6 +17,7 @@ mod hostile_commonroad;
 mod mutate;
 mod real_data;
 mod recorded;
+mod recordings;
 mod regress;
 mod run;
 mod same_scenario;

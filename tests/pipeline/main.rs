@@ -18,6 +18,7 @@ mod peer_python;
 mod policyloop;
 mod pushrace;
 mod python_zenoh;
+mod rotation;
 mod scene;
 mod scene_v2x;
 mod shm_gateway;

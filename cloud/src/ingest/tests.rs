@@ -74,7 +74,7 @@ fn replaying_the_recording_reproduces_the_snapshots() {
     }
     let (stats, writer) = live.finish().expect("recording closes");
     assert_eq!(stats.recorded, stats.accepted);
-    let recorder_bytes = writer.expect("the recorder's buffer").into_inner();
+    let recorder_bytes = writer.expect("the recorder's buffer").0.into_inner();
     let recorded = read_messages(&recorder_bytes).expect("a valid recording");
     assert_eq!(recorded.len(), 600, "only accepted messages are recorded");
 

@@ -14,7 +14,7 @@ use risktwin_common::align::{
     SourceTable, StreamIndex,
 };
 use risktwin_common::telemetry::{CanFrame, Header, ObjectList, RsuObservation, SignalPhase, VehicleStateSample};
-use risktwin_protos::recording::{Recorder, RecordingError};
+use risktwin_protos::recording::{Recorder, RecordingError, SegmentStats};
 use risktwin_protos::{DecodeError, WireMessage, decode};
 use risktwin_transport::EdgeStream;
 use std::collections::BTreeMap;
@@ -254,10 +254,10 @@ impl<W: Write + Seek> IngestWorker<W> {
         EdgeStream::ALL.iter().filter_map(|s| Some((*s, self.core.progress(index, aligner_index(*s))?))).collect()
     }
 
-    /// Closes the recording (summary and footer written) and returns the final counts and the
-    /// recording's writer.
-    pub fn finish(self) -> Result<(IngestStats, Option<W>), RecordingError> {
-        let writer = self.recorder.map(Recorder::finish_into_inner).transpose()?;
+    /// Closes the recording (summary and footer written) and returns the final counts, and the
+    /// recording's writer with what its (last) file holds.
+    pub fn finish(self) -> Result<(IngestStats, Option<(W, SegmentStats)>), RecordingError> {
+        let writer = self.recorder.map(Recorder::finish_segment).transpose()?;
         Ok((self.stats, writer))
     }
 

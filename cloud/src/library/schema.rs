@@ -2,7 +2,8 @@
 //! tell a RiskTwin library from a foreign SQLite file or from a file that is not SQLite at all.
 
 use super::error::LibraryError;
-use rusqlite::{Connection, ErrorCode, TransactionBehavior};
+use crate::sqlite_schema::{not_a_database, schema_difference};
+use rusqlite::{Connection, TransactionBehavior};
 use std::path::Path;
 use std::time::Duration;
 
@@ -172,11 +173,10 @@ const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [V1_DDL, V2_DDL, V3_DDL];
 
 /// Maps the first error that reading a file raises to "not SQLite" when SQLite says so.
 fn read_error(path: &Path, err: rusqlite::Error) -> LibraryError {
-    match err.sqlite_error_code() {
-        Some(ErrorCode::NotADatabase | ErrorCode::DatabaseCorrupt) => {
-            LibraryError::NotSqlite { path: path.to_path_buf(), reason: err.to_string() }
-        }
-        _ => LibraryError::Open { path: path.to_path_buf(), source: err },
+    if not_a_database(&err) {
+        LibraryError::NotSqlite { path: path.to_path_buf(), reason: err.to_string() }
+    } else {
+        LibraryError::Open { path: path.to_path_buf(), source: err }
     }
 }
 
@@ -243,50 +243,14 @@ pub fn prepare(conn: &mut Connection, path: &Path) -> Result<(), LibraryError> {
     Ok(())
 }
 
-/// Every table's and index's SQL, by name, as SQLite keeps it.
-fn objects_of(conn: &Connection) -> rusqlite::Result<Vec<(String, String, Option<String>)>> {
-    let mut stmt =
-        conn.prepare("SELECT type, name, sql FROM sqlite_schema WHERE name NOT LIKE 'sqlite_%' ORDER BY type, name")?;
-    let rows = stmt.query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))?;
-    rows.collect()
-}
-
-/// A statement's SQL with every run of whitespace made one space: SQLite keeps a `CREATE` as
-/// it was written, and builds that laid the same DDL out differently wrote the same schema.
-fn normalised(sql: &str) -> String {
-    sql.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
-/// Refuses a file whose tables and indexes are not those of schema `version` to the letter
-/// (whitespace aside): the CHECKs and NOT NULLs are what keep the rows in range, and a table
-/// rebuilt without them (or an extra trigger that rewrites rows) is not a library a RiskTwin
-/// build wrote. The reference is the first `version` migrations run on an empty in-memory
-/// database (new and upgraded files are the same).
+/// Refuses a file whose tables and indexes are not those of schema `version`
+/// ([`crate::sqlite_schema::schema_difference`]; new and upgraded files are the same).
 fn check_schema(conn: &Connection, path: &Path, version: i64) -> Result<(), LibraryError> {
-    let wrong = |reason: String| LibraryError::WrongSchema { path: path.to_path_buf(), reason };
-    let expected = {
-        let reference = Connection::open_in_memory()?;
-        let count = usize::try_from(version).unwrap_or(0).min(MIGRATIONS.len());
-        for ddl in &MIGRATIONS[..count] {
-            reference.execute_batch(ddl)?;
-        }
-        objects_of(&reference)?
-    };
-    let found = objects_of(conn).map_err(|e| read_error(path, e))?;
-    for (kind, name, sql) in &expected {
-        match found.iter().find(|(k, n, _)| k == kind && n == name) {
-            None => return Err(wrong(format!("{kind} {name} is missing"))),
-            Some((_, _, s)) if s.as_deref().map(normalised) != sql.as_deref().map(normalised) => {
-                return Err(wrong(format!("{kind} {name} is not defined as this build defines it")));
-            }
-            Some(_) => {}
-        }
+    let count = usize::try_from(version).unwrap_or(0).min(MIGRATIONS.len());
+    match schema_difference(conn, &MIGRATIONS[..count], "a library").map_err(|e| read_error(path, e))? {
+        Some(reason) => Err(LibraryError::WrongSchema { path: path.to_path_buf(), reason }),
+        None => Ok(()),
     }
-    if let Some((kind, name, _)) = found.iter().find(|(k, n, _)| !expected.iter().any(|(ek, en, _)| ek == k && en == n))
-    {
-        return Err(wrong(format!("{kind} {name} is not part of a library")));
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -58,6 +58,7 @@ mod wire_tests;
 use crate::fleet_loop::trainer::TrainerConfig;
 use crate::fleet_loop::{FleetLoop, LoopConfig};
 use crate::library::ScenarioLibrary;
+use crate::recordings::RotationConfig;
 use crate::twin::outputs::{TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
 use crate::warning::{HazardWarner, WarningConfig, WarningSink, WarningSummary};
@@ -65,7 +66,7 @@ use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, C
 use fleet_loop::LoopRoleSummary;
 use library::LibrarySummary;
 use liveliness::LivenessLog;
-pub use receive::{LiveIngest, OUTPUT_SCHEMAS, Origin, RecordError, RecordingFile};
+pub use receive::{LiveIngest, OUTPUT_SCHEMAS, Origin, RecordError, RecordTo, RecordingFile};
 use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::road::Road;
 use risktwin_protos::recording::decode_replay_time;
@@ -146,6 +147,8 @@ pub enum CloudError {
     Criticality(#[from] CriticalityRoleError),
     #[error("no role to run")]
     NoRole,
+    #[error("record to one file or to a folder of segments, not both")]
+    RecordTwice,
     #[error("risk field: {0}")]
     Field(#[from] risktwin_common::risk::FieldError),
     #[error(transparent)]
@@ -172,6 +175,9 @@ pub struct CloudConfig {
     /// Record every accepted message (and the twin's outputs) into this MCAP file (closed
     /// properly on shutdown).
     pub record: Option<PathBuf>,
+    /// Record as [`record`](Self::record) does, into rotating segments with a catalogue
+    /// ([`crate::recordings`]); not with `record`.
+    pub record_dir: Option<RotationConfig>,
     /// Replay-ingest mode: take each message's receive time from its replay-time attachment
     /// (put there by `risktwin edge replay`) instead of the cloud's clock, so that a replayed
     /// recording rebuilds the live run's snapshots; a message without one is dropped as
@@ -207,6 +213,7 @@ impl CloudConfig {
             drain_quiet: Duration::from_millis(200),
             drain_max: Duration::from_secs(2),
             record: None,
+            record_dir: None,
             replay_time: false,
             road: crate::twin::scenario_road(risktwin_common::scenario::ScenarioKind::CutIn),
             risk: RiskConfig::default(),
@@ -227,6 +234,9 @@ impl CloudConfig {
     fn check_roles(&self) -> Result<(), CloudError> {
         if self.roles.is_empty() {
             return Err(CloudError::NoRole);
+        }
+        if self.record.is_some() && self.record_dir.is_some() {
+            return Err(CloudError::RecordTwice);
         }
         for (role, needs) in [
             (Role::Twin, Role::Ingest),
@@ -333,14 +343,19 @@ pub async fn run(
     } else {
         (None, None)
     };
-    let ingest = LiveIngest::new(config.record.as_deref(), outputs)?
+    let record = match (&config.record, &config.record_dir) {
+        (Some(file), _) => Some(RecordTo::File(file)),
+        (None, Some(rotation)) => Some(RecordTo::Segments(rotation)),
+        (None, None) => None,
+    };
+    let ingest = LiveIngest::new(record, outputs)?
         .with_replay_time(config.replay_time)
         .with_route_keys(keys_tx)
         .with_publisher(config.has(Role::Twin).then_some(publish_tx))
         .with_episodes(fleet.is_some().then_some(episodes_tx))
         .with_warnings(warning_sink);
     let ingest = Arc::new(Mutex::new(ingest));
-    let flusher = config.record.is_some().then(|| tokio::spawn(flush_recording(Arc::clone(&ingest), shutdown.clone())));
+    let flusher = record.is_some().then(|| tokio::spawn(flush_recording(Arc::clone(&ingest), shutdown.clone())));
     let subscriber = if config.has(Role::Ingest) {
         Some(
             risktwin_transport::subscribe_edge_streams(

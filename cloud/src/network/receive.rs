@@ -14,6 +14,7 @@ use super::id_conflicts::IdConflicts;
 use super::loss::LossCounts;
 use super::summary::{IngestSummary, LagSummary, per_stream_names, summarize};
 use crate::ingest::{AcceptedMessage, IngestWorker, ObservedKinematics, SnapshotDigest};
+use crate::recordings::{RotationConfig, SegmentError, Segments};
 use crate::twin::fidelity::distribution::Distribution;
 use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
@@ -75,9 +76,20 @@ impl Origin {
 /// Where a recording goes: buffered, since the recorder writes many small records.
 pub type RecordingFile = BufWriter<File>;
 
+/// Where the cloud records.
+#[derive(Debug, Clone, Copy)]
+pub enum RecordTo<'a> {
+    /// One MCAP file.
+    File(&'a Path),
+    /// Rotating segments with a catalogue in a folder.
+    Segments(&'a RotationConfig),
+}
+
 /// Why the recording failed.
 #[derive(Debug, Error)]
 pub enum RecordError {
+    #[error(transparent)]
+    Segments(#[from] SegmentError),
     #[error("creating the recording {path}: {source}")]
     Create { path: String, source: std::io::Error },
     #[error("recording: {0}")]
@@ -151,31 +163,38 @@ pub struct LiveIngest {
     warnings: Option<(HazardWarner, Box<dyn WarningSink>)>,
     /// The sources to acknowledge ([`super::ack`]).
     acks: AckSources,
+    /// The segments and catalogue of a rotating recording (`--record-dir`).
+    segments: Option<Segments>,
 }
 
 impl LiveIngest {
-    /// A worker recording into a new file at `record` when given, feeding `outputs` (the twin
-    /// and risk roles) when given.
-    pub fn new(record: Option<&Path>, outputs: Option<TwinOutputs>) -> Result<Self, RecordError> {
+    /// A worker recording to `record` when given, feeding `outputs` (the twin and risk roles)
+    /// when given.
+    pub fn new(record: Option<RecordTo<'_>>, outputs: Option<TwinOutputs>) -> Result<Self, RecordError> {
         Self::with_config(record, outputs, IngestConfig::default())
     }
 
     /// [`LiveIngest::new`] with another ingest configuration (tick, lateness, …).
     pub fn with_config(
-        record: Option<&Path>,
+        record: Option<RecordTo<'_>>,
         outputs: Option<TwinOutputs>,
         config: IngestConfig,
     ) -> Result<Self, RecordError> {
-        let recorder = match record {
-            Some(path) => {
+        let (file, segments) = match record {
+            Some(RecordTo::File(path)) => {
                 let file = File::create(path)
                     .map_err(|source| RecordError::Create { path: path.display().to_string(), source })?;
-                // Fed in real time: a chunk closes a second after it opened (see
-                // `flush_recording_if_due`), what a killed cloud can lose.
-                Some(Recorder::live(BufWriter::new(file))?)
+                (Some(BufWriter::new(file)), None)
             }
-            None => None,
+            Some(RecordTo::Segments(rotation)) => {
+                let (segments, file) = Segments::start(rotation.clone())?;
+                (Some(file), Some(segments))
+            }
+            None => (None, None),
         };
+        // Fed in real time: a chunk closes a second after it opened (see
+        // `flush_recording_if_due`), what a killed cloud can lose.
+        let recorder = file.map(Recorder::live).transpose()?;
         Ok(LiveIngest {
             worker: IngestWorker::new(config, recorder),
             received: HashMap::new(),
@@ -199,6 +218,7 @@ impl LiveIngest {
             route_keys: None,
             warnings: None,
             acks: AckSources::default(),
+            segments,
         })
     }
 
@@ -522,12 +542,16 @@ impl LiveIngest {
     }
 
     /// Closes the recording's open chunk once it is a second old, so a cloud that goes quiet
-    /// and is then killed keeps what it received (a chunk otherwise closes at the next message).
+    /// and is then killed keeps what it received (a chunk otherwise closes at the next message);
+    /// of a rotating recording, closes the segment and opens the next once it is due.
     pub fn flush_recording_if_due(&mut self) -> Result<(), RecordError> {
-        match self.worker.recorder_mut() {
-            Some(rec) => Ok(rec.flush_if_due()?),
-            None => Ok(()),
+        let Some(rec) = self.worker.recorder_mut() else { return Ok(()) };
+        if let Some(segments) = self.segments.as_mut()
+            && segments.due(rec.segment_messages())
+        {
+            return Ok(segments.rotate(|next| Ok(rec.rotate(next)?))?);
         }
+        Ok(rec.flush_if_due()?)
     }
 
     /// The sources to acknowledge.
@@ -560,10 +584,16 @@ impl LiveIngest {
     pub fn finish(self) -> Result<(IngestSummary, Option<TwinSummary>), RecordError> {
         let presumed_lost = self.worker.presumed_lost();
         let (stats, recording) = self.worker.finish()?;
-        if let Some(mut file) = recording {
-            file.flush().map_err(RecordError::Flush)?;
-        }
+        let segments = match (recording, self.segments) {
+            (Some((file, closed)), Some(segments)) => Some(segments.finish(file, &closed)?),
+            (Some((mut file, _)), None) => {
+                file.flush().map_err(RecordError::Flush)?;
+                None
+            }
+            (None, _) => None,
+        };
         let mut summary = summarize(&stats, &self.received, &self.digest);
+        summary.segments = segments;
         summary.recovered = per_stream_names(&self.recovered);
         summary.total_recovered = summary.recovered.values().flat_map(BTreeMap::values).sum();
         summary.twin_lag = LagSummary::of(&self.lag);

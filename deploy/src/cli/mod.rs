@@ -5,6 +5,7 @@ mod bench;
 mod certs;
 mod deploy;
 mod push;
+mod recordings;
 mod roles;
 mod scene;
 mod source;
@@ -14,6 +15,7 @@ pub use bench::*;
 pub use certs::*;
 pub use deploy::*;
 pub use push::*;
+pub use recordings::*;
 pub use roles::*;
 pub use scene::*;
 pub use source::ScenarioSource;
@@ -50,6 +52,9 @@ pub enum Command {
     Import(ImportCommand),
     /// Rewrite what is readable of an unfinished or damaged MCAP recording as a finished file.
     Recover(RecoverArgs),
+    /// Read back a folder of rotating recordings (`cloud --record-dir`): list, query, export.
+    #[command(subcommand)]
+    Recordings(RecordingsCommand),
     /// Throughput benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -102,7 +107,8 @@ impl Command {
             | Command::Recover(_)
             | Command::V2x(_)
             | Command::Keys(_)
-            | Command::Certs(_) => false,
+            | Command::Certs(_)
+            | Command::Recordings(_) => false,
         }
     }
 }

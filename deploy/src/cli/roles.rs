@@ -80,8 +80,12 @@ pub enum EdgeCommand {
 
 #[derive(Debug, Args)]
 pub struct ReplayArgs {
-    /// An MCAP recording (e.g. from `risktwin cloud --record`).
+    /// An MCAP recording (e.g. from `risktwin cloud --record`), or a `cloud --record-dir`
+    /// folder: its segments in order, across files.
     pub recording: PathBuf,
+    /// Replay only this span (log times in [--from, --to), one source's streams).
+    #[command(flatten)]
+    pub span: super::SpanArgs,
     /// Replay speed relative to the recording; 0 replays as fast as the transport allows.
     #[arg(long, default_value_t = 1.0)]
     pub speed: f64,
@@ -167,6 +171,22 @@ pub struct CloudArgs {
     /// file (closed cleanly on SIGINT/SIGTERM).
     #[arg(long)]
     pub record: Option<std::path::PathBuf>,
+    /// Record as --record does, into MCAP segments in this folder (created if missing), each
+    /// finished when the next opens, with a catalogue (catalogue.db; docs/recordings.md).
+    #[arg(long, value_name = "DIR", conflicts_with = "record")]
+    pub record_dir: Option<PathBuf>,
+    /// A segment closes once its file reaches this many MiB (checked every 250 ms; default 256).
+    #[arg(long, value_name = "MIB", requires = "record_dir")]
+    pub segment_mb: Option<f64>,
+    /// A segment closes once it is this many seconds old (default 600; at least 0.25).
+    #[arg(long, value_name = "S", requires = "record_dir")]
+    pub segment_s: Option<f64>,
+    /// Delete closed segments closed longer ago than this many seconds.
+    #[arg(long, value_name = "S", requires = "record_dir")]
+    pub retain_s: Option<f64>,
+    /// Delete the oldest closed segments while the folder's segments hold more than this many MiB.
+    #[arg(long, value_name = "MIB", requires = "record_dir")]
+    pub retain_mb: Option<f64>,
     /// Ingest `risktwin edge replay` output at the recorded receive times it attaches, instead
     /// of this cloud's clock (messages without one are dropped as `no-replay-time`).
     #[arg(long)]

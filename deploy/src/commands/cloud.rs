@@ -30,7 +30,9 @@ use std::time::Duration;
 pub fn cloud(args: CloudArgs) -> CliResult {
     let roles =
         args.roles.iter().map(|r| r.trim().parse::<Role>()).collect::<Result<Vec<_>, _>>().map_err(CliError::input)?;
+    let record_dir = super::recordings::rotation(&args)?;
     let mut config = CloudConfig::new(transport_config(args.zenoh)?);
+    config.record_dir = record_dir;
     config.roles = roles;
     config.site = args.site.map(SiteId::new).transpose().map_err(CliError::input)?;
     config.record = args.record;

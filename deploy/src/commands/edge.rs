@@ -2,7 +2,7 @@
 //! publishing real telemetry) until its count, duration or a signal, and print what it sent per
 //! stream as JSON on stdout.
 
-use super::recover::{open_recording, warn_unfinished};
+use super::recover::warn_unfinished;
 use super::router::{transport_config, with_signals};
 use crate::cli::{EdgeArgs, ReplayArgs};
 use crate::error::{CliError, CliResult};
@@ -54,7 +54,7 @@ pub fn replay(args: ReplayArgs) -> CliResult {
     }
     let wait_for_cloud = Duration::try_from_secs_f64(args.wait_for_cloud_s)
         .map_err(|_| CliError::input(format!("--wait-for-cloud-s {} must be non-negative", args.wait_for_cloud_s)))?;
-    let cursor = open_recording(&args.recording, 1 << 20)?;
+    let (cursor, _files) = super::recordings::span_cursor(&args.recording, &args.span)?;
     let config =
         ReplayConfig { transport: transport_config(args.zenoh)?, speed: args.speed, wait_for_cloud, ack: !args.no_ack };
     let path = args.recording.display().to_string();
@@ -64,8 +64,8 @@ pub fn replay(args: ReplayArgs) -> CliResult {
             other => CliError::runtime(other),
         })
     })?;
-    if let Some(unfinished) = &summary.unfinished {
-        warn_unfinished(&args.recording, unfinished);
+    for (file, unfinished) in &summary.unfinished {
+        warn_unfinished(file, unfinished);
     }
     print_json(&summary)?;
     summary.failure().map_or(Ok(()), |why| Err(CliError::runtime(why)))

@@ -16,6 +16,7 @@ mod input_file;
 pub mod keys;
 pub mod push;
 mod recorded;
+mod recordings;
 pub(crate) mod recover;
 mod regress;
 mod risk_field;
@@ -50,6 +51,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Criticality(a) => criticality::criticality(a),
         Command::Import(ImportCommand::Commonroad(a)) => import::commonroad(a),
         Command::Recover(a) => recover::recover(a),
+        Command::Recordings(c) => recordings::recordings(c),
         Command::Bench(BenchCommand::Sim(a)) => bench::sim(a),
         Command::Bench(BenchCommand::RiskField(a)) => bench::risk_field(a),
         Command::Bench(BenchCommand::Zenoh(a)) => cloud::bench_zenoh(a),

@@ -137,7 +137,7 @@ fn refuse_same_file(input: &File, out: &Path, input_name: &str) -> CliResult {
 }
 
 /// An empty temporary file in `out`'s folder, removed when dropped unless persisted.
-fn temp_next_to(out: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+pub(crate) fn temp_next_to(out: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     let folder = match out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),

@@ -112,6 +112,8 @@ pub struct MessageCursor<R: Read> {
     messages: u64,
     last_log_time_ns: u64,
     done: bool,
+    /// The message the cursor stopped at: channel id, log and publish time.
+    at: Option<(u16, u64, u64)>,
 }
 
 impl<R: Read> MessageCursor<R> {
@@ -124,6 +126,7 @@ impl<R: Read> MessageCursor<R> {
             messages: 0,
             last_log_time_ns: 0,
             done: false,
+            at: None,
         }
     }
 
@@ -147,41 +150,56 @@ impl<R: Read> MessageCursor<R> {
     /// `None` for ever.
     #[allow(clippy::should_implement_trait)] // a lending iterator: `Iterator` cannot lend
     pub fn next_message(&mut self) -> Option<Result<MessageRef<'_>, RecordingError>> {
+        match self.seek_where(|_| true)? {
+            Ok(()) => self.message().map(Ok),
+            Err(e) => Some(Err(e)),
+        }
+    }
+
+    /// Moves to the next message that `keep` takes (each message read counts as read, kept or
+    /// not), then lent by [`MessageCursor::message`]; `None` as for
+    /// [`MessageCursor::next_message`]. Lets a filtering reader return the message it stops at.
+    pub fn seek_where(&mut self, mut keep: impl FnMut(&MessageRef<'_>) -> bool) -> Option<Result<(), RecordingError>> {
+        self.at = None;
         if self.done {
             return None;
         }
-        match self.advance() {
-            Ok(Some((channel_id, log_time_ns, publish_time_ns))) => {
-                let Some(channel) = self.channels.get(&channel_id) else {
+        loop {
+            match self.advance() {
+                Ok(Some(at)) => {
+                    let Some(message) = lend(&self.channels, self.scanner.body(), at) else {
+                        self.done = true;
+                        return Some(Err(RecordingError::Corrupt {
+                            reason: format!("a message on unknown channel {}", at.0),
+                        }));
+                    };
+                    let kept = keep(&message);
+                    self.messages += 1;
+                    self.last_log_time_ns = self.last_log_time_ns.max(at.1);
+                    if kept {
+                        self.at = Some(at);
+                        return Some(Ok(()));
+                    }
+                }
+                Ok(None) => {
                     self.done = true;
-                    return Some(Err(RecordingError::Corrupt {
-                        reason: format!("a message on unknown channel {channel_id}"),
-                    }));
-                };
-                self.messages += 1;
-                self.last_log_time_ns = self.last_log_time_ns.max(log_time_ns);
-                Some(Ok(MessageRef {
-                    topic: &channel.topic,
-                    schema_name: &channel.schema_name,
-                    channel_id,
-                    log_time_ns,
-                    publish_time_ns,
-                    data: &self.scanner.body()[MESSAGE_HEADER_LEN..],
-                }))
-            }
-            Ok(None) => {
-                self.done = true;
-                // Damage before the first complete message leaves nothing to salvage.
-                match self.scanner.tail() {
-                    Some(tail) if self.messages == 0 => Some(Err(RecordingError::NothingReadable(tail.clone()))),
-                    _ => None,
+                    // Damage before the first complete message leaves nothing to salvage.
+                    return match self.scanner.tail() {
+                        Some(tail) if self.messages == 0 => Some(Err(RecordingError::NothingReadable(tail.clone()))),
+                        _ => None,
+                    };
+                }
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e));
                 }
             }
-            Err(e) => {
-                self.done = true;
-                Some(Err(e))
-            }
         }
+    }
+
+    /// The message [`MessageCursor::seek_where`] stopped at; `None` when it found none.
+    pub fn message(&self) -> Option<MessageRef<'_>> {
+        lend(&self.channels, self.scanner.body(), self.at?)
     }
 
     /// Reads up to the next message record, leaving it as the scanner's body.
@@ -224,4 +242,22 @@ impl<R: Read> MessageCursor<R> {
         }
         Ok(None)
     }
+}
+
+/// The message record `body` (read at `(channel id, log time, publish time)`) as lent out;
+/// `None` for a channel never declared.
+fn lend<'a>(
+    channels: &'a HashMap<u16, ChannelName>,
+    body: &'a [u8],
+    (channel_id, log_time_ns, publish_time_ns): (u16, u64, u64),
+) -> Option<MessageRef<'a>> {
+    let channel = channels.get(&channel_id)?;
+    Some(MessageRef {
+        topic: &channel.topic,
+        schema_name: &channel.schema_name,
+        channel_id,
+        log_time_ns,
+        publish_time_ns,
+        data: &body[MESSAGE_HEADER_LEN..],
+    })
 }

@@ -24,7 +24,7 @@ pub use catalogue::{
     is_segment_name,
 };
 pub use error::{CatalogueError, SegmentError};
-pub use rotation::{RotationConfig, Segments, SegmentsSummary, segment_name};
+pub use rotation::{RotationConfig, Segments, SegmentsSummary, segment_name, utc_stamp};
 
 #[cfg(test)]
 mod tests;

@@ -196,21 +196,14 @@ fn open_segment(
 
 /// `seg-000042-20260501T120000Z.mcap`: sorted by name, sorted by number and by time (UTC).
 pub fn segment_name(seq: u64, at: SystemTime) -> String {
-    let s = at.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_secs());
-    let (days, rest) = (s / 86_400, s % 86_400);
-    let (y, m, d) = civil_from_days(days as i64);
-    format!("seg-{seq:06}-{y:04}{m:02}{d:02}T{:02}{:02}{:02}Z.mcap", rest / 3600, rest % 3600 / 60, rest % 60)
+    format!("seg-{seq:06}-{}.mcap", utc_stamp(at))
 }
 
-/// Year, month, day of a day count since 1970-01-01 (H. Hinnant's `civil_from_days`).
-fn civil_from_days(z: i64) -> (i64, u32, u32) {
-    let z = z + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097);
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    (yoe + era * 400 + i64::from(m <= 2), m, d)
+/// `20260501T120000Z`: the UTC second of `at`, sortable as text (clamped to 1970–9999, the
+/// years RFC 3339 spells with four digits).
+pub fn utc_stamp(at: SystemTime) -> String {
+    const LAST_SECOND_OF_9999: u64 = 253_402_300_799;
+    let at = at.clamp(UNIX_EPOCH, UNIX_EPOCH + Duration::from_secs(LAST_SECOND_OF_9999));
+    let rfc3339 = humantime::format_rfc3339_seconds(at).to_string();
+    rfc3339.chars().filter(char::is_ascii_alphanumeric).collect()
 }

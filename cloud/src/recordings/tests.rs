@@ -198,6 +198,11 @@ fn segment_names_sort_by_number_and_carry_the_utc_start() {
     let at = std::time::UNIX_EPOCH + Duration::from_secs(1_777_636_800 + 3_723);
     assert_eq!(segment_name(42, at), "seg-000042-20260501T130203Z.mcap");
     assert!(is_segment_name(&segment_name(1, std::time::SystemTime::now())));
+    // Clocks outside 1970–9999 are clamped, never a panic.
+    let before = std::time::UNIX_EPOCH - std::time::Duration::from_secs(1);
+    assert_eq!(segment_name(1, before), "seg-000001-19700101T000000Z.mcap");
+    let far = std::time::UNIX_EPOCH + std::time::Duration::from_secs(1 << 40);
+    assert_eq!(segment_name(1, far), "seg-000001-99991231T235959Z.mcap");
     for bad in ["seg-1/../x.mcap", "x.mcap", "seg-1.db", "seg-..mcap"] {
         assert!(!is_segment_name(bad), "{bad}");
     }

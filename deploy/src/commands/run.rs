@@ -31,26 +31,10 @@ fn load_config(args: &RunArgs) -> CliResult<RunConfig> {
     Ok(config)
 }
 
-/// `./risktwin-out/<UTC timestamp>`.
+/// `./risktwin-out/<UTC timestamp>` (`20261127-133700`).
 fn default_out_dir() -> PathBuf {
-    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
-    let (days, rem) = (secs / 86_400, secs % 86_400);
-    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
-    let z = days as i64 + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    PathBuf::from("risktwin-out").join(format!(
-        "{year:04}{month:02}{day:02}-{:02}{:02}{:02}",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60
-    ))
+    let stamp = risktwin_cloud::recordings::utc_stamp(std::time::SystemTime::now());
+    PathBuf::from("risktwin-out").join(stamp.trim_end_matches('Z').replace('T', "-"))
 }
 
 /// The pipeline's progress on stderr: phase lines, a bar for the long phases, the closed loop's

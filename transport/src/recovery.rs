@@ -95,7 +95,7 @@ mod tests {
         assert_eq!(cache_samples(1e5, Duration::from_secs(3600)), MAX_CACHE_SAMPLES);
         assert_eq!(cache_samples(50.0, Duration::ZERO), 1);
         let live = Delivery::live(50.0, DEFAULT_OUTAGE);
-        assert_eq!((live.cache_samples, live.congestion), (1500, CongestionControl::Drop));
+        assert_eq!((live.cache_samples, live.congestion), (2250, CongestionControl::Drop));
         assert_eq!(Delivery::paced_by_transport(0).cache_samples, 1);
         assert_eq!(Delivery::paced_by_transport(usize::MAX).congestion, CongestionControl::Block);
     }

@@ -22,6 +22,9 @@ use tokio::sync::Notify;
 /// every 500 ms, so this leaves room for five of them and a recovery of the last samples.
 pub const ACK_WAIT: Duration = Duration::from_secs(3);
 
+/// The longest wait for the answer to the start's question whether a cloud is there.
+const PRESENCE_QUERY: Duration = Duration::from_secs(2);
+
 /// Gone-periods of the cloud kept in a summary; later ones are only summed.
 const MAX_GONE_LISTED: usize = 32;
 
@@ -205,7 +208,22 @@ impl DeliveryWatch {
                 notify.notify_one();
             })
             .await
-            .map_err(|e| TransportError::Declare { what: "liveliness subscriber", key, reason: e.to_string() })?;
+            .map_err(|e| TransportError::Declare {
+                what: "liveliness subscriber",
+                key: key.clone(),
+                reason: e.to_string(),
+            })?;
+        // The cloud's tokens as they are now, asked and answered before the edge publishes: the
+        // subscriber's history can arrive after a short-lived edge (a replay of a small file
+        // takes milliseconds) has already settled, which would then see no cloud at all.
+        let query = |e: String| TransportError::Declare { what: "liveliness query", key: key.clone(), reason: e };
+        let replies = session.liveliness().get(&key).timeout(PRESENCE_QUERY).await.map_err(|e| query(e.to_string()))?;
+        while let Ok(reply) = replies.recv_async().await {
+            if let Ok(sample) = reply.result() {
+                let mut presence = presence.lock().unwrap_or_else(PoisonError::into_inner);
+                presence.update(sample.key_expr().as_str(), sample.kind() == SampleKind::Put, start, Instant::now());
+            }
+        }
         Ok(DeliveryWatch { start, ledger, presence, changed, subscribers: [ack_subscriber, cloud_subscriber] })
     }
 

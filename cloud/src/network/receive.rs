@@ -546,10 +546,11 @@ impl LiveIngest {
     /// of a rotating recording, closes the segment and opens the next once it is due.
     pub fn flush_recording_if_due(&mut self) -> Result<(), RecordError> {
         let Some(rec) = self.worker.recorder_mut() else { return Ok(()) };
-        if let Some(segments) = self.segments.as_mut()
-            && segments.due(rec.segment_messages())
-        {
-            return Ok(segments.rotate(|next| Ok(rec.rotate(next)?))?);
+        if let Some(segments) = self.segments.as_mut() {
+            segments.check()?;
+            if segments.due(rec.segment_messages()) {
+                return Ok(segments.rotate(|next| Ok(rec.rotate(next)?))?);
+            }
         }
         Ok(rec.flush_if_due()?)
     }
@@ -585,7 +586,7 @@ impl LiveIngest {
         let presumed_lost = self.worker.presumed_lost();
         let (stats, recording) = self.worker.finish()?;
         let segments = match (recording, self.segments) {
-            (Some((file, closed)), Some(segments)) => Some(segments.finish(file, &closed)?),
+            (Some((file, closed)), Some(segments)) => Some(segments.finish(file, closed)?),
             (Some((mut file, _)), None) => {
                 file.flush().map_err(RecordError::Flush)?;
                 None

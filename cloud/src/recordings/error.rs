@@ -57,4 +57,6 @@ pub enum SegmentError {
     Recording(#[from] RecordingError),
     #[error("segment {}: {source}", path.display())]
     Io { path: PathBuf, source: std::io::Error },
+    #[error("recordings: the segment keeper thread stopped")]
+    KeeperGone,
 }

@@ -17,6 +17,7 @@
 
 mod catalogue;
 mod error;
+mod keeper;
 mod rotation;
 
 pub use catalogue::{

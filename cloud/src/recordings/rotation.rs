@@ -2,13 +2,15 @@
 //! the catalogue and retention around them. The [`Recorder`](risktwin_protos::recording::Recorder)
 //! does the writing; this opens its files and books them.
 //!
-//! A segment is catalogued when it is opened (unfinished) and updated when it is closed, so a
-//! killed recorder leaves a row that says so. Rotation is looked at by the recorder's flush
-//! timer (not per message): a segment closes at the first look after it reached its size or
-//! age, and only once it holds a message (a quiet recorder makes no empty segments).
+//! A segment is catalogued when it is opened (unfinished; the keeper thread writes the row
+//! within milliseconds of the file's creation) and updated when it is closed, so a killed
+//! recorder leaves a row that says so. Rotation is looked at by the recorder's flush timer (not
+//! per message): a segment closes at the first look after it reached its size or age, and only
+//! once it holds a message (a quiet recorder makes no empty segments).
 
 use super::catalogue::{Catalogue, Provenance};
 use super::error::{CatalogueError, SegmentError};
+use super::keeper::{Booking, Closed, Keeper, Opened};
 use risktwin_protos::recording::SegmentStats;
 use serde::Serialize;
 use std::fs::File;
@@ -57,17 +59,21 @@ struct OpenSegment {
     opened: Instant,
 }
 
-/// The segments of a rotating recording.
+/// The segments of a rotating recording. The swap to a new file happens on the caller's thread
+/// (under the ingest's lock); the slow rest of a rotation — flushing and syncing the closed file
+/// to disk, the catalogue's rows, retention — on the [`Keeper`]'s, so a rotation holds the
+/// ingest for a file creation and the MCAP summary only.
 #[derive(Debug)]
 pub struct Segments {
-    config: RotationConfig,
-    catalogue: Catalogue,
+    dir: PathBuf,
+    segment_bytes: u64,
+    segment_age: Duration,
     open: OpenSegment,
-    summary: SegmentsSummary,
+    keeper: Keeper,
 }
 
 /// Nanoseconds since the Unix epoch, now.
-fn unix_ns() -> i64 {
+pub(super) fn unix_ns() -> i64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64)
 }
 
@@ -77,93 +83,57 @@ impl Segments {
     pub fn start(config: RotationConfig) -> Result<(Self, BufWriter<File>), SegmentError> {
         let catalogue = Catalogue::create(&config.dir)?;
         let recording_id = catalogue.add_recording(unix_ns(), &config.provenance)?;
-        let (open, file) = open_segment(&catalogue, &config.dir, recording_id, catalogue.next_seq()?)?;
-        let summary = SegmentsSummary {
-            dir: config.dir.display().to_string(),
-            recording_id,
-            segments_opened: 1,
-            ..SegmentsSummary::default()
+        let seq = catalogue.next_seq()?;
+        if catalogue.has_segment(seq)? {
+            return Err(already_catalogued(&catalogue, seq).into());
+        }
+        let (opened, file, writer) = create_segment(&config.dir, seq)?;
+        catalogue.open_segment(recording_id, seq, &opened.file, opened.unix_ns)?;
+        let open = OpenSegment { seq, path: config.dir.join(&opened.file), file, opened: Instant::now() };
+        let segments = Segments {
+            dir: config.dir.clone(),
+            segment_bytes: config.segment_bytes,
+            segment_age: config.segment_age,
+            keeper: Keeper::start(config, catalogue, recording_id, opened)?,
+            open,
         };
-        Ok((Self { config, catalogue, open, summary }, file))
+        Ok((segments, writer))
     }
 
     /// Whether the segment holding `segment_messages` messages is due to close.
     pub fn due(&self, segment_messages: u64) -> bool {
         segment_messages > 0
-            && (self.open.opened.elapsed() >= self.config.segment_age
-                || self.open.file.metadata().is_ok_and(|m| m.len() >= self.config.segment_bytes))
+            && (self.open.opened.elapsed() >= self.segment_age
+                || self.open.file.metadata().is_ok_and(|m| m.len() >= self.segment_bytes))
+    }
+
+    /// The keeper's error, once it failed (it books nothing after it).
+    pub fn check(&mut self) -> Result<(), SegmentError> {
+        self.keeper.check()
     }
 
     /// Opens the next segment and hands it to `swap`, which finishes the current one into it
-    /// (`Recorder::rotate`); then books the closed one and applies retention.
+    /// (`Recorder::rotate`); the keeper then books both and applies retention.
     pub fn rotate(
         &mut self,
         swap: impl FnOnce(BufWriter<File>) -> Result<(BufWriter<File>, SegmentStats), SegmentError>,
     ) -> Result<(), SegmentError> {
-        let next_seq = self.open.seq + 1;
-        let (next, file) = open_segment(&self.catalogue, &self.config.dir, self.summary.recording_id, next_seq)?;
-        self.summary.segments_opened += 1;
-        let closing = std::mem::replace(&mut self.open, next);
-        let (written, stats) = swap(file)?;
-        self.close(closing.seq, &closing.path, written, &stats)
+        self.keeper.check()?;
+        let seq = self.open.seq + 1;
+        let (opened, file, next) = create_segment(&self.dir, seq)?;
+        let path = self.dir.join(&opened.file);
+        let closing = std::mem::replace(&mut self.open, OpenSegment { seq, path, file, opened: Instant::now() });
+        self.keeper.book(Booking::Opened(opened))?;
+        let (written, stats) = swap(next)?;
+        self.keeper.book(Booking::Closed(Closed { seq: closing.seq, path: closing.path, written, stats }))
     }
 
-    /// Books the last segment, closed by the recorder into `written` with `stats`: the summary.
-    pub fn finish(mut self, written: BufWriter<File>, stats: &SegmentStats) -> Result<SegmentsSummary, SegmentError> {
-        // The last segment stays the "open" one: retention keeps it.
+    /// Books the last segment, closed by the recorder into `written` with `stats`, waits for the
+    /// keeper to finish its work: the summary.
+    pub fn finish(mut self, written: BufWriter<File>, stats: SegmentStats) -> Result<SegmentsSummary, SegmentError> {
         let (seq, path) = (self.open.seq, self.open.path.clone());
-        self.close(seq, &path, written, stats)?;
-        Ok(self.summary)
-    }
-
-    /// Flushes segment `seq`'s file to disk, books it closed and applies retention.
-    fn close(
-        &mut self,
-        seq: u64,
-        path: &Path,
-        written: BufWriter<File>,
-        stats: &SegmentStats,
-    ) -> Result<(), SegmentError> {
-        let file =
-            written.into_inner().map_err(|e| SegmentError::Io { path: path.to_path_buf(), source: e.into_error() })?;
-        file.sync_data().map_err(io(path))?;
-        let bytes = file.metadata().map_err(io(path))?.len();
-        self.catalogue.close_segment(seq, stats, bytes, unix_ns())?;
-        self.summary.segments_closed += 1;
-        self.summary.messages += stats.messages;
-        self.summary.bytes_written += bytes;
-        self.retain()
-    }
-
-    /// Deletes the oldest closed segments beyond the age and size bounds (never the open one).
-    fn retain(&mut self) -> Result<(), SegmentError> {
-        if self.config.retain_age.is_none() && self.config.retain_bytes.is_none() {
-            return Ok(());
-        }
-        let segments = self.catalogue.all_segments()?;
-        let open_bytes = self.open.file.metadata().map_or(0, |m| m.len());
-        let mut total: u64 = segments.iter().filter_map(|s| s.bytes).sum::<u64>() + open_bytes;
-        let oldest_kept = self.config.retain_age.map(|age| unix_ns().saturating_sub(age.as_nanos() as i64));
-        for segment in segments.iter().filter(|s| s.closed && s.seq != self.open.seq) {
-            let too_old = oldest_kept.is_some_and(|t| segment.closed_unix_ns.is_some_and(|c| c < t));
-            let too_much = self.config.retain_bytes.is_some_and(|max| total > max);
-            if !(too_old || too_much) {
-                continue;
-            }
-            let path = self.config.dir.join(&segment.file);
-            match std::fs::remove_file(&path) {
-                Ok(()) => {}
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-                Err(e) => return Err(SegmentError::Io { path, source: e }),
-            }
-            self.catalogue.delete_segment(segment.seq)?;
-            let bytes = segment.bytes.unwrap_or(0);
-            total = total.saturating_sub(bytes);
-            self.summary.segments_deleted += 1;
-            self.summary.bytes_deleted += bytes;
-            tracing::info!("recordings: retention deleted {} ({bytes} bytes)", segment.file);
-        }
-        Ok(())
+        self.keeper.book(Booking::Closed(Closed { seq, path, written, stats }))?;
+        self.keeper.finish()
     }
 }
 
@@ -172,26 +142,21 @@ fn io(path: impl AsRef<Path>) -> impl Fn(std::io::Error) -> SegmentError {
     move |source| SegmentError::Io { path: path.clone(), source }
 }
 
-/// Creates segment `seq`'s file in `dir` and catalogues it (unfinished).
-fn open_segment(
-    catalogue: &Catalogue,
-    dir: &Path,
-    recording_id: i64,
-    seq: u64,
-) -> Result<(OpenSegment, BufWriter<File>), SegmentError> {
-    if catalogue.has_segment(seq)? {
-        let reason = format!("segment {seq} is already catalogued (another recorder in this folder?)");
-        return Err(CatalogueError::BadRow { path: catalogue.path().to_path_buf(), seq: seq as i64, reason }.into());
-    }
+pub(super) fn already_catalogued(catalogue: &Catalogue, seq: u64) -> CatalogueError {
+    let reason = format!("segment {seq} is already catalogued (another recorder in this folder?)");
+    CatalogueError::BadRow { path: catalogue.path().to_path_buf(), seq: seq as i64, reason }
+}
+
+/// Creates segment `seq`'s file in `dir`: what the catalogue is to say of it, a handle for its
+/// size and the writer.
+fn create_segment(dir: &Path, seq: u64) -> Result<(Opened, File, BufWriter<File>), SegmentError> {
     let now = SystemTime::now();
     let name = segment_name(seq, now);
     let path = dir.join(&name);
     // `create_new`: an existing file (another recorder's) is never truncated.
     let file = File::options().write(true).create_new(true).open(&path).map_err(io(&path))?;
     let size_handle = file.try_clone().map_err(io(&path))?;
-    catalogue.open_segment(recording_id, seq, &name, unix_ns())?;
-    let open = OpenSegment { seq, path, file: size_handle, opened: Instant::now() };
-    Ok((open, BufWriter::new(file)))
+    Ok((Opened { seq, file: name, unix_ns: unix_ns() }, size_handle, BufWriter::new(file)))
 }
 
 /// `seg-000042-20260501T120000Z.mcap`: sorted by name, sorted by number and by time (UTC).

@@ -42,7 +42,7 @@ fn record(config: RotationConfig, segments: u64) -> (SegmentsSummary, u64) {
         }
     }
     let (file, stats) = rec.finish_segment().expect("finish");
-    (segs.finish(file, &stats).expect("finish segments"), t)
+    (segs.finish(file, stats).expect("finish segments"), t)
 }
 
 #[test]
@@ -206,4 +206,32 @@ fn segment_names_sort_by_number_and_carry_the_utc_start() {
     for bad in ["seg-1/../x.mcap", "x.mcap", "seg-1.db", "seg-..mcap"] {
         assert!(!is_segment_name(bad), "{bad}");
     }
+}
+
+#[test]
+fn a_failed_booking_reaches_the_recorder_at_its_next_look_and_at_the_end() {
+    let dir = tempfile::tempdir().expect("dir");
+    let (mut segs, file) = Segments::start(config(dir.path())).expect("start");
+    let mut rec: Recorder<BufWriter<File>> = Recorder::live(file).expect("recorder");
+    let channel = rec.channel(TOPICS[0], "risktwin.v1.VehicleState").expect("channel");
+    rec.write(channel, 5, 5, &[1; 20]).expect("write");
+    // Another recorder took segment 2 in the catalogue: the keeper refuses to book ours over it.
+    let raw = rusqlite::Connection::open(dir.path().join(CATALOGUE_FILE)).expect("sqlite");
+    raw.execute(
+        "INSERT INTO segments (seq, recording_id, file, opened_unix_ns) VALUES (2, 1, 'seg-000002-x.mcap', 0)",
+        [],
+    )
+    .expect("a foreign row");
+    // The keeper books in the background: the rotation itself or a later look reports it.
+    let failed = segs.rotate(|next| Ok(rec.rotate(next)?)).err().or_else(|| {
+        (0..200).find_map(|_| {
+            std::thread::sleep(Duration::from_millis(10));
+            segs.check().err()
+        })
+    });
+    let failed = failed.expect("the keeper's failure within 2 s");
+    assert!(failed.to_string().contains("segment 2 is already catalogued"), "{failed}");
+    let (file, stats) = rec.finish_segment().expect("finish");
+    let at_end = segs.finish(file, stats).expect_err("the end reports it too");
+    assert!(matches!(at_end, SegmentError::KeeperGone), "{at_end}");
 }

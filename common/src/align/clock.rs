@@ -6,13 +6,15 @@
 //! envelope of `r − c` over time traces `θ(c) + d_min`, and its slope is the relative drift.
 //! This is the minimum-filter approach of Paxson ("On calibrating measurements of packet transit
 //! times", SIGMETRICS 1998) and Moon, Skelly & Towsley ("Estimation and removal of clock skew
-//! from network delay measurements", INFOCOM 1999), in its simple "min filter + least squares"
-//! form:
+//! from network delay measurements", INFOCOM 1999), in the latter's linear-programming form:
 //! 1. receive time is cut into buckets (default 1 s); each bucket keeps its minimum `r − c` and
 //!    the capture time where it occurred;
-//! 2. over the last K closed buckets (default 32), a least-squares line through the minima gives
-//!    the drift; the line is then lowered to pass through the lowest residual, so it supports the
-//!    points from below (a lower envelope, less biased than the mean of the minima).
+//! 2. over the last K closed buckets (default 32), the line under every minimum with the least
+//!    total distance to them (Moon et al.'s linear program; it touches their lower convex hull
+//!    at their mean capture time) gives drift and offset. It supports the points from below, and
+//!    minima raised by congestion or by a backlog delivered late (a cloud catching up after a
+//!    stall) lie above it without moving it — a least-squares line through them would tilt and
+//!    map live samples into the future.
 //!
 //! With one-way messages only, the offset and the minimum delay `d_min` cannot be told apart
 //! (NTP needs round trips for that): the estimate maps a capture onto the earliest cloud time it
@@ -60,6 +62,8 @@ pub struct ClockEstimator {
     cfg: ClockConfig,
     ring: Vec<Bucket>,
     ring_next: usize,
+    /// Scratch for the fit: the ring's points, then their lower hull.
+    hull: Vec<(f64, f64)>,
     open: Option<(i64, Bucket)>,
     last_receive_ns: Option<i64>,
     /// Minimum `r − c` over messages received before `last_receive_ns`.
@@ -83,6 +87,7 @@ impl ClockEstimator {
             cfg,
             ring: Vec::with_capacity(cfg.buckets),
             ring_next: 0,
+            hull: Vec::with_capacity(cfg.buckets),
             open: None,
             last_receive_ns: None,
             committed_min_ns: None,
@@ -165,29 +170,13 @@ impl ClockEstimator {
             return;
         }
         let ref_ns = self.ring.iter().map(|b| b.at_capture_ns).min().unwrap_or(0);
-        let n = self.ring.len() as f64;
-        let (mut sx, mut sy) = (0.0, 0.0);
-        for b in &self.ring {
-            // Saturating, like every difference of a source's stamps here: they may span more
-            // than i64 (a hostile or broken clock), which a fit may get wrong but not overflow.
-            sx += b.at_capture_ns.saturating_sub(ref_ns) as f64;
-            sy += b.min_delta_ns as f64;
-        }
-        let (mx, my) = (sx / n, sy / n);
-        let (mut sxx, mut sxy) = (0.0, 0.0);
-        for b in &self.ring {
-            let dx = b.at_capture_ns.saturating_sub(ref_ns) as f64 - mx;
-            sxx += dx * dx;
-            sxy += dx * (b.min_delta_ns as f64 - my);
-        }
-        // All minima at one capture time (a stalled source clock): no slope to fit.
-        let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-        // Lower the line onto the lowest point: it becomes a support line from below.
-        let offset_ns = self
-            .ring
-            .iter()
-            .map(|b| b.min_delta_ns as f64 - slope * b.at_capture_ns.saturating_sub(ref_ns) as f64)
-            .fold(f64::INFINITY, f64::min);
+        // Saturating, like every difference of a source's stamps here: they may span more than
+        // i64 (a hostile or broken clock), which a fit may get wrong but not overflow.
+        self.hull.clear();
+        self.hull
+            .extend(self.ring.iter().map(|b| (b.at_capture_ns.saturating_sub(ref_ns) as f64, b.min_delta_ns as f64)));
+        let mean_x = self.hull.iter().map(|p| p.0).sum::<f64>() / self.hull.len() as f64;
+        let (offset_ns, slope) = lower_support_at(&mut self.hull, mean_x);
         self.line = Some(Line { ref_ns, offset_ns, slope });
     }
 
@@ -229,6 +218,46 @@ impl ClockEstimator {
     pub fn samples(&self) -> u64 {
         self.samples
     }
+}
+
+/// The line under every point of `points` that lies highest at `x` — of all lines under the
+/// points, the one with the least total distance to them when `x` is their mean: `(offset at
+/// x = 0, slope)`. Sorts `points` and leaves their lower convex hull in it (no allocation).
+///
+/// The supporting line at `x` touches the lower hull along the edge that spans `x` (or, at `x`
+/// beyond the hull, the end vertex, slope 0 there). Points above the hull — minima raised by
+/// congestion or a backlog — do not move it, which a least-squares fit through them would.
+fn lower_support_at(points: &mut Vec<(f64, f64)>, x: f64) -> (f64, f64) {
+    points.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
+    // Andrew's monotone chain, lower half, in place: the hull never outruns the input.
+    let mut k = 0;
+    for i in 0..points.len() {
+        let p = points[i];
+        // A point at the same x as the hull's last is higher (sorted): not on the lower hull.
+        if k > 0 && points[k - 1].0 == p.0 {
+            continue;
+        }
+        while k >= 2 && cross(points[k - 2], points[k - 1], p) <= 0.0 {
+            k -= 1;
+        }
+        points[k] = p;
+        k += 1;
+    }
+    points.truncate(k);
+    let edge = points.windows(2).find(|e| e[0].0 <= x && x <= e[1].0);
+    match edge {
+        Some(&[(x0, y0), (x1, y1)]) => {
+            let slope = (y1 - y0) / (x1 - x0);
+            (y0 - slope * x0, slope)
+        }
+        // One distinct x (a stalled source clock), or `x` outside: flat through the lowest point.
+        _ => (points.iter().map(|p| p.1).fold(f64::INFINITY, f64::min), 0.0),
+    }
+}
+
+/// Positive when `a → b → c` turns counter-clockwise.
+fn cross(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> f64 {
+    (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)
 }
 
 fn min_opt(a: Option<i64>, b: Option<i64>) -> Option<i64> {

@@ -113,3 +113,36 @@ fn warm_up_uses_only_earlier_receive_times() {
     assert_eq!(est.to_cloud_ns(0), None);
     assert_eq!(est.samples(), 0);
 }
+
+#[test]
+fn a_stalled_cloud_catching_up_keeps_mapping_live_samples_to_their_time() {
+    // 40 s of a 50 Hz stream, then the cloud stops receiving for 30 s (a stalled process): on
+    // its return the 30 s held back arrive within 2 s, oldest first, while the live samples
+    // wait their turn behind them; after that the stream is live again. Late arrivals only
+    // raise the bucket minima: the lower envelope must stay where the network put it, so a live
+    // sample never maps into the future (the ingest refuses those beyond 100 ms).
+    let mut est = ClockEstimator::new(ClockConfig::default());
+    let mut rng = Rng::new(5);
+    let period_ns = 20 * MS;
+    let (stall_from, stall_to, caught_up) = (T0_NS + 40_000 * MS, T0_NS + 70_000 * MS, T0_NS + 72_000 * MS);
+    let mut worst_live = 0i64;
+    for k in 0..(100 * 50) {
+        let t = T0_NS + k * period_ns;
+        let capture = source_clock(t, 250 * MS, 20.0);
+        let on_time = t + 2 * MS + Jitter::Exponential { mean_ns: 3e6 }.sample(&mut rng);
+        // Held back: delivered in capture order, spread over the catch-up.
+        let receive = if on_time < stall_from || on_time >= caught_up {
+            on_time
+        } else {
+            let share = (t - stall_from) as f64 / (caught_up - stall_from) as f64;
+            stall_to + ((caught_up - stall_to) as f64 * share) as i64
+        };
+        est.roll_to(receive);
+        if t >= caught_up + 1_000 * MS {
+            let mapped = est.to_cloud_ns(capture).expect("warmed up");
+            worst_live = worst_live.max(mapped - (t + 2 * MS));
+        }
+        est.observe(capture, receive);
+    }
+    assert!(worst_live <= 2 * MS, "a live sample mapped {} ms after its time", worst_live as f64 / 1e6);
+}

@@ -12,7 +12,8 @@
 # summary. Printed: per vehicle the seconds from SIGCONT until it exited with everything
 # accounted for (recovery of the stall's samples, plus the acknowledgement period), and the
 # counts of the edges and the cloud. Needs the release binary (cargo build --release).
-# KEEP_LOGS=1 keeps every process's output in the temporary folder it names.
+# KEEP_LOGS=1 keeps every process's output in the temporary folder it names (the cloud's stderr
+# with the Unix time of each line; RUST_LOG=info,zenoh=debug there shows Zenoh's reconnection).
 set -euo pipefail
 bin=${1:-target/release/risktwin}
 n=${2:-100}
@@ -26,6 +27,8 @@ cleanup() {
 }
 trap cleanup EXIT
 now() { date +%s.%N; }
+# Prefixes each line with the Unix time it was read at (the roles print none of their own).
+stamp() { perl -MTime::HiRes=time -ne '$| = 1; printf "%.6f %s", time, $_'; }
 # Waits up to $2 s until file $1 holds a line matching $3.
 wait_for() {
     local deadline=$(($(date +%s) + $2))
@@ -38,13 +41,13 @@ wait_for() {
 "$bin" router --listen tcp/127.0.0.1:0 2>"$dir/router.err" &
 pids+=($!)
 wait_for "$dir/router.err" 30 "listening on tcp/127.0.0.1:"
-locator=$(grep -m1 -o 'tcp/127.0.0.1:[0-9]*' "$dir/router.err")
+locator=$(grep -m1 -o 'listening on tcp/127.0.0.1:[0-9]*' "$dir/router.err" | cut -d' ' -f3)
 net=(--mode client --connect "$locator")
 
-"$bin" cloud --roles ingest "${net[@]}" >"$dir/cloud.json" 2>"$dir/cloud.err" &
+"$bin" cloud --roles ingest "${net[@]}" >"$dir/cloud.json" 2> >(stamp >"$dir/cloud.err") &
 cloud=$!
 pids+=("$cloud")
-wait_for "$dir/cloud.err" 30 "^ready"
+wait_for "$dir/cloud.err" 30 " ready$"
 
 for i in $(seq 1 "$n"); do
     (

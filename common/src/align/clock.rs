@@ -14,7 +14,9 @@
 //!    at their mean capture time) gives drift and offset. It supports the points from below, and
 //!    minima raised by congestion or by a backlog delivered late (a cloud catching up after a
 //!    stall) lie above it without moving it — a least-squares line through them would tilt and
-//!    map live samples into the future.
+//!    map live samples into the future. The drift is bounded (500 ppm, NTP's tolerance): when
+//!    late minima are all there is on one side (a long catch-up), the bound keeps the line near
+//!    the last good ones.
 //!
 //! With one-way messages only, the offset and the minimum delay `d_min` cannot be told apart
 //! (NTP needs round trips for that): the estimate maps a capture onto the earliest cloud time it
@@ -34,11 +36,15 @@ pub struct ClockConfig {
     pub buckets: usize,
     /// Closed buckets needed before the drift is fitted; before that the offset is the minimum.
     pub min_fit_buckets: usize,
+    /// The largest rate error a source clock is believed to have: the fit's drift is clamped to
+    /// it. 500 ppm is the frequency tolerance NTP's reference implementation assumes of any
+    /// clock (its `MAXFREQ`); quartz clocks stay within ±100 ppm.
+    pub max_drift_ppm: u32,
 }
 
 impl Default for ClockConfig {
     fn default() -> Self {
-        Self { bucket_ns: 1_000_000_000, buckets: 32, min_fit_buckets: 4 }
+        Self { bucket_ns: 1_000_000_000, buckets: 32, min_fit_buckets: 4, max_drift_ppm: 500 }
     }
 }
 
@@ -82,6 +88,7 @@ impl ClockEstimator {
             bucket_ns: cfg.bucket_ns.max(1),
             buckets: cfg.buckets.max(2),
             min_fit_buckets: cfg.min_fit_buckets.max(2),
+            max_drift_ppm: cfg.max_drift_ppm,
         };
         Self {
             cfg,
@@ -176,7 +183,7 @@ impl ClockEstimator {
         self.hull
             .extend(self.ring.iter().map(|b| (b.at_capture_ns.saturating_sub(ref_ns) as f64, b.min_delta_ns as f64)));
         let mean_x = self.hull.iter().map(|p| p.0).sum::<f64>() / self.hull.len() as f64;
-        let (offset_ns, slope) = lower_support_at(&mut self.hull, mean_x);
+        let (offset_ns, slope) = lower_support_at(&mut self.hull, mean_x, f64::from(self.cfg.max_drift_ppm) * 1e-6);
         self.line = Some(Line { ref_ns, offset_ns, slope });
     }
 
@@ -220,14 +227,19 @@ impl ClockEstimator {
     }
 }
 
-/// The line under every point of `points` that lies highest at `x` — of all lines under the
-/// points, the one with the least total distance to them when `x` is their mean: `(offset at
-/// x = 0, slope)`. Sorts `points` and leaves their lower convex hull in it (no allocation).
+/// The line under every point of `points`, of slope within ±`max_slope`, that lies highest at
+/// `x` — of all such lines, the one with the least total distance to the points when `x` is
+/// their mean: `(offset at x = 0, slope)`. Sorts `points` and leaves their lower convex hull in
+/// it (no allocation).
 ///
 /// The supporting line at `x` touches the lower hull along the edge that spans `x` (or, at `x`
-/// beyond the hull, the end vertex, slope 0 there). Points above the hull — minima raised by
-/// congestion or a backlog — do not move it, which a least-squares fit through them would.
-fn lower_support_at(points: &mut Vec<(f64, f64)>, x: f64) -> (f64, f64) {
+/// beyond the hull, the end vertex, slope 0 there); a steeper edge gives way to the bound,
+/// through the vertex that keeps the line under all points (the objective is concave in the
+/// slope). Points above the hull — minima raised by congestion — do not move it, which a
+/// least-squares fit through them would. The bound matters when raised minima make the hull
+/// itself: after a stall, the late backlog's minima lie a stall's length to the right of the
+/// last good ones, and once their mean crosses into that gap the edge spanning it climbs to them.
+fn lower_support_at(points: &mut Vec<(f64, f64)>, x: f64, max_slope: f64) -> (f64, f64) {
     points.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
     // Andrew's monotone chain, lower half, in place: the hull never outruns the input.
     let mut k = 0;
@@ -245,14 +257,12 @@ fn lower_support_at(points: &mut Vec<(f64, f64)>, x: f64) -> (f64, f64) {
     }
     points.truncate(k);
     let edge = points.windows(2).find(|e| e[0].0 <= x && x <= e[1].0);
-    match edge {
-        Some(&[(x0, y0), (x1, y1)]) => {
-            let slope = (y1 - y0) / (x1 - x0);
-            (y0 - slope * x0, slope)
-        }
-        // One distinct x (a stalled source clock), or `x` outside: flat through the lowest point.
-        _ => (points.iter().map(|p| p.1).fold(f64::INFINITY, f64::min), 0.0),
-    }
+    // One distinct x (a stalled source clock), or `x` outside: flat.
+    let slope = edge.map_or(0.0, |e| (e[1].1 - e[0].1) / (e[1].0 - e[0].0)).clamp(-max_slope, max_slope);
+    // Through the hull vertex the line touches: the lowest `y − slope·x` (the edge's own ends
+    // when the slope was not clamped).
+    let offset = points.iter().map(|p| p.1 - slope * p.0).fold(f64::INFINITY, f64::min);
+    (offset, slope)
 }
 
 /// Positive when `a → b → c` turns counter-clockwise.

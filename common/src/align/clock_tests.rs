@@ -114,28 +114,39 @@ fn warm_up_uses_only_earlier_receive_times() {
     assert_eq!(est.samples(), 0);
 }
 
-#[test]
-fn a_stalled_cloud_catching_up_keeps_mapping_live_samples_to_their_time() {
-    // 40 s of a 50 Hz stream, then the cloud stops receiving for 30 s (a stalled process): on
-    // its return the 30 s held back arrive within 2 s, oldest first, while the live samples
-    // wait their turn behind them; after that the stream is live again. Late arrivals only
-    // raise the bucket minima: the lower envelope must stay where the network put it, so a live
-    // sample never maps into the future (the ingest refuses those beyond 100 ms).
-    let mut est = ClockEstimator::new(ClockConfig::default());
+/// How a stalled cloud gets its samples back.
+#[derive(Clone, Copy)]
+enum Return {
+    /// Those held back arrive within the catch-up, oldest first, the live ones waiting their
+    /// turn behind them.
+    Backlog,
+    /// Those held back are gone; the live ones arrive this many ms late until caught up (a
+    /// cloud running behind).
+    Behind(i64),
+}
+
+/// 40 s of a 50 Hz stream, then the cloud stops receiving for 30 s (a stalled process) and
+/// returns as `how` says for `catch_up_ms`; then the stream is live again. The worst mapping of
+/// a live sample after its true time (+ base delay), in ns, over the 28 s after the catch-up.
+fn stall_then_catch_up(cfg: ClockConfig, how: Return, catch_up_ms: i64) -> i64 {
+    let mut est = ClockEstimator::new(cfg);
     let mut rng = Rng::new(5);
     let period_ns = 20 * MS;
-    let (stall_from, stall_to, caught_up) = (T0_NS + 40_000 * MS, T0_NS + 70_000 * MS, T0_NS + 72_000 * MS);
+    let (stall_from, stall_to) = (T0_NS + 40_000 * MS, T0_NS + 70_000 * MS);
+    let caught_up = stall_to + catch_up_ms * MS;
     let mut worst_live = 0i64;
-    for k in 0..(100 * 50) {
+    for k in 0..(caught_up - T0_NS + 30_000 * MS) / period_ns {
         let t = T0_NS + k * period_ns;
         let capture = source_clock(t, 250 * MS, 20.0);
         let on_time = t + 2 * MS + Jitter::Exponential { mean_ns: 3e6 }.sample(&mut rng);
-        // Held back: delivered in capture order, spread over the catch-up.
-        let receive = if on_time < stall_from || on_time >= caught_up {
-            on_time
-        } else {
-            let share = (t - stall_from) as f64 / (caught_up - stall_from) as f64;
-            stall_to + ((caught_up - stall_to) as f64 * share) as i64
+        let receive = match how {
+            _ if on_time < stall_from || on_time >= caught_up => on_time,
+            Return::Backlog => {
+                let share = (t - stall_from) as f64 / (caught_up - stall_from) as f64;
+                stall_to + ((caught_up - stall_to) as f64 * share) as i64
+            }
+            Return::Behind(_) if on_time < stall_to => continue,
+            Return::Behind(late_ms) => on_time + late_ms * MS,
         };
         est.roll_to(receive);
         if t >= caught_up + 1_000 * MS {
@@ -144,5 +155,26 @@ fn a_stalled_cloud_catching_up_keeps_mapping_live_samples_to_their_time() {
         }
         est.observe(capture, receive);
     }
-    assert!(worst_live <= 2 * MS, "a live sample mapped {} ms after its time", worst_live as f64 / 1e6);
+    worst_live
+}
+
+#[test]
+fn a_stalled_cloud_catching_up_keeps_mapping_live_samples_near_their_time() {
+    // Late arrivals only raise the bucket minima: the lower envelope must stay where the network
+    // put it, so a live sample never maps into the future (the ingest refuses those beyond
+    // 100 ms as `future-timestamp`). A least-squares line mapped them 105.6 ms ahead after a 2 s
+    // catch-up of the backlog; the lower hull keeps that within 0.02 ms.
+    let quick = stall_then_catch_up(ClockConfig::default(), Return::Backlog, 2_000);
+    assert!(quick <= 2 * MS, "2 s catch-up: a live sample mapped {} ms late", quick as f64 / 1e6);
+    let slow = stall_then_catch_up(ClockConfig::default(), Return::Backlog, 10_000);
+    assert!(slow <= 2 * MS, "10 s catch-up: a live sample mapped {} ms late", slow as f64 / 1e6);
+    // A cloud that comes back 3 s behind for 10 s: ten raised minima a stall's length right of
+    // the good ones, and the hull's edge across the gap climbs to them once their mean capture
+    // time lies in it. The drift bound keeps the error within 500 ppm of the time since the last
+    // good minimum (≈ 41 s: 21 ms); without it the edge's slope maps seconds ahead.
+    let behind = stall_then_catch_up(ClockConfig::default(), Return::Behind(3_000), 10_000);
+    assert!(behind <= 25 * MS, "3 s behind: a live sample mapped {} ms late", behind as f64 / 1e6);
+    let unbounded = ClockConfig { max_drift_ppm: 1_000_000, ..ClockConfig::default() };
+    let wild = stall_then_catch_up(unbounded, Return::Behind(3_000), 10_000);
+    assert!(wild > 1_000 * MS, "without the bound: {} ms", wild as f64 / 1e6);
 }

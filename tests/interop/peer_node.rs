@@ -3,9 +3,7 @@
 //! runs; scripts find it through `NODE_PATH`. Node and npm come from Debian (`apt-get`) when
 //! missing. Without them or the npm registry the test fails and says why; it never skips.
 
-#[path = "peer_cache.rs"]
-mod peer_cache;
-
+use crate::peer_cache;
 use std::path::Path;
 use std::process::Command;
 

@@ -2,9 +2,7 @@
 //! directory (or $RISKTWIN_PEER_VENV), shared by every test and reused across runs. Creating it
 //! needs `python3` and the PyPI registry; without them the test fails and says why.
 
-#[path = "peer_cache.rs"]
-mod peer_cache;
-
+use crate::peer_cache;
 use std::path::PathBuf;
 use std::process::Command;
 

@@ -115,7 +115,8 @@ client.on("advertise", (channels) => {
 });
 client.on("message", ({ subscriptionId, timestamp, data }) => {
   const sub = subscribed.get(subscriptionId);
-  if (!sub) return;
+  // Messages already on their way when it finished are not part of the answer.
+  if (!sub || finished) return;
   const { channel, type } = sub;
   let object;
   try {

@@ -13,6 +13,8 @@ mod delivery;
 mod faults;
 mod fleet;
 mod fleetloop;
+#[path = "../interop/peer_cache.rs"]
+mod peer_cache;
 #[path = "../interop/peer_node.rs"]
 mod peer_node;
 #[path = "../interop/peer_python.rs"]

@@ -110,7 +110,7 @@ pub async fn cloud_side(
     let (trigger, shutdown) = risktwin_transport::shutdown::channel();
     let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
     let cloud = tokio::spawn(async move {
-        run(&cloud_config, shutdown, move || {
+        run(&cloud_config, shutdown, move |_| {
             let _ = ready_tx.send(());
         })
         .await

@@ -9,6 +9,8 @@
 //!   touches and warns both vehicles of a critical one at once, beside the aligned snapshots;
 //! - [`network`]: the `risktwin cloud` roles on Zenoh (subscriptions, queryables, the
 //!   publisher of the twin's outputs, liveliness) and the cloud→edge pushes;
+//! - [`viz`]: the live twin served to the Foxglove app over its WebSocket protocol (the same
+//!   topics and schemas as a recording);
 //! - [`fleet_loop`]: the closed loop over the fleet (what the `loop` role decides), on the
 //!   library's state;
 //! - [`library`]: the scenario library (SQLite); [`criticality`]: CommonRoad criticality of a
@@ -66,4 +68,5 @@ mod sqlite_schema;
 mod test_fixtures;
 pub mod trainer;
 pub mod twin;
+pub mod viz;
 pub mod warning;

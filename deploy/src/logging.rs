@@ -10,8 +10,9 @@
 
 use tracing_subscriber::EnvFilter;
 
-/// The filter without `RUST_LOG`.
-const DEFAULT_FILTER: &str = "info,zenoh=off";
+/// The filter without `RUST_LOG`. The Foxglove server's info lines (each client registered,
+/// server started) repeat what the viz role says in its own words.
+const DEFAULT_FILTER: &str = "info,zenoh=off,foxglove=warn";
 
 /// Installs the subscriber; call once, first thing in `main`.
 pub fn init() {

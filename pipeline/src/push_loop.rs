@@ -237,7 +237,7 @@ async fn roles(
     cloud_config.site = Some(site.clone());
     cloud_config.record.clone_from(&request.record);
     let cloud = tokio::spawn(async move {
-        risktwin_cloud::network::run(&cloud_config, cloud_shutdown, move || {
+        risktwin_cloud::network::run(&cloud_config, cloud_shutdown, move |_| {
             let _ = ready_tx.send(());
         })
         .await

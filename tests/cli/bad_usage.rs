@@ -1,7 +1,7 @@
 //! Bad flags and flag values: exit 2, one `error:` line naming the problem, nothing on stdout,
 //! and no file created on the way out.
 
-use crate::support::{GOOD_SPEC, assert_input_error, generate, write_file};
+use crate::support::{GOOD_SPEC, assert_input_error, generate, risktwin, write_file};
 use tempfile::tempdir;
 
 #[test]
@@ -172,6 +172,27 @@ fn warning_flags_without_the_warning_role_are_refused() {
         &["cloud", "--roles", "ingest,warning", "--warning-ttc-s", "0"],
         "--warning-ttc-s 0 must lie in (0, 10]",
     );
+}
+
+#[test]
+fn viz_flags_are_checked_before_the_cloud_joins() {
+    let dir = tempdir().unwrap();
+    for (roles, listen, needle) in [
+        ("ingest,twin", "127.0.0.1:0", "--viz-listen needs the viz role"),
+        ("ingest,twin,viz", "localhost:8765", "--viz-listen localhost:8765: not an IP address and port"),
+        ("ingest,twin,viz", "127.0.0.1", "not an IP address and port"),
+    ] {
+        assert_input_error(dir.path(), &["cloud", "--roles", roles, "--viz-listen", listen], needle);
+    }
+    assert_input_error(dir.path(), &["cloud", "--roles", "ingest,viz"], r#"role "viz" needs role "twin""#);
+    // Beyond loopback: one warning first, whatever comes after (here the missing twin role).
+    let out = risktwin(dir.path(), &["cloud", "--roles", "ingest,viz", "--viz-listen", "0.0.0.0:0"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert_eq!(lines.len(), 2, "{stderr}");
+    assert!(lines[0].starts_with("warning: --viz-listen 0.0.0.0:0 is reachable beyond this host"), "{stderr}");
+    assert!(lines[1].starts_with("error: ") && lines[1].contains("needs role"), "{stderr}");
 }
 
 #[test]

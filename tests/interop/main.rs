@@ -2,6 +2,7 @@
 //! with the official Python `mcap` reader and `mcap-protobuf-support` decoder.
 
 mod episode;
+mod peer_cache;
 mod peer_python;
 
 use std::process::Command;

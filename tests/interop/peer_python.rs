@@ -2,35 +2,15 @@
 //! directory (or $RISKTWIN_PEER_VENV), shared by every test and reused across runs. Creating it
 //! needs `python3` and the PyPI registry; without them the test fails and says why.
 
+use crate::peer_cache;
 use std::path::PathBuf;
 use std::process::Command;
 
-fn venv_dir() -> PathBuf {
-    if let Some(dir) = std::env::var_os("RISKTWIN_PEER_VENV") {
-        return PathBuf::from(dir);
-    }
-    // The test executable lives in <target>/<profile>/deps/.
-    let exe = std::env::current_exe().expect("test executable path");
-    let target = exe.ancestors().nth(3).expect("target directory").to_path_buf();
-    target.join("peer-venv")
-}
-
 /// The venv's python, with `packages` (pip requirement strings) installed.
 pub fn python(packages: &[&str]) -> PathBuf {
-    let dir = venv_dir();
+    let dir = peer_cache::folder("RISKTWIN_PEER_VENV", "peer-venv");
     let python = dir.join("bin").join("python");
-    // One creator at a time: tests in other processes wait on the lock directory.
-    let lock = dir.with_extension("lock");
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(600);
-    while std::fs::create_dir(&lock).is_err() {
-        assert!(std::time::Instant::now() < deadline, "timed out waiting for {}", lock.display());
-        std::thread::sleep(std::time::Duration::from_millis(200));
-    }
-    let result = std::panic::catch_unwind(|| ensure(&dir, &python, packages));
-    let _ = std::fs::remove_dir(&lock);
-    if let Err(e) = result {
-        std::panic::resume_unwind(e);
-    }
+    peer_cache::installing(&dir, || ensure(&dir, &python, packages));
     python
 }
 

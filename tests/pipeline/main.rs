@@ -13,6 +13,10 @@ mod delivery;
 mod faults;
 mod fleet;
 mod fleetloop;
+#[path = "../interop/peer_cache.rs"]
+mod peer_cache;
+#[path = "../interop/peer_node.rs"]
+mod peer_node;
 #[path = "../interop/peer_python.rs"]
 mod peer_python;
 mod policyloop;
@@ -26,3 +30,4 @@ mod signed_policy;
 mod support;
 mod tls;
 mod v2x_agreement;
+mod viz;

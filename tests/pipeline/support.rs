@@ -1,4 +1,4 @@
-//! Child processes of the `risktwin` binary with their output read on threads, so that a test
+//! Child processes (of the `risktwin` binary, or a peer's program) with their output read on threads, so that a test
 //! can wait for a line or for the exit with a timeout instead of sleeping.
 
 use serde_json::Value;
@@ -7,7 +7,7 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
 use std::time::{Duration, Instant};
 
-/// A running `risktwin` process.
+/// A running child process.
 pub struct Proc {
     pub name: String,
     child: Child,
@@ -19,13 +19,19 @@ pub struct Proc {
 impl Proc {
     /// Starts `risktwin args…`.
     pub fn spawn(name: &str, args: &[&str]) -> Proc {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_risktwin"))
-            .args(args)
+        let mut risktwin = Command::new(env!("CARGO_BIN_EXE_risktwin"));
+        risktwin.args(args);
+        Proc::spawn_command(name, risktwin)
+    }
+
+    /// Starts `command` (a peer's program as well as ours).
+    pub fn spawn_command(name: &str, mut command: Command) -> Proc {
+        let mut child = command
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
-            .expect("the risktwin binary starts");
+            .unwrap_or_else(|e| panic!("{name}: {command:?} does not start: {e}"));
         let (line_tx, stderr_lines) = channel();
         let stderr = child.stderr.take().expect("stderr is piped");
         std::thread::spawn(move || {

@@ -211,6 +211,9 @@ pub enum CloudOutput {
     Scene,
     /// The closed loop's events (`risktwin.v1.LoopEvent`: pushes, retries, episodes stored).
     Loop,
+    /// The road the site's twin runs on as lines (`foxglove.SceneUpdate`): a topic of the viz
+    /// role's live view, not put on Zenoh.
+    Road,
 }
 
 impl CloudOutput {
@@ -222,6 +225,7 @@ impl CloudOutput {
             CloudOutput::Snapshot => "snapshot",
             CloudOutput::Scene => "scene",
             CloudOutput::Loop => "loop",
+            CloudOutput::Road => "road",
         }
     }
 }
@@ -274,6 +278,13 @@ pub fn cloud_to_edge(site: &SiteId, source: &SourceId, push: CloudToEdge) -> Str
 /// `risktwin/v1/<site>/cloud/<output>`.
 pub fn cloud_output(site: &SiteId, output: CloudOutput) -> String {
     format!("{ROOT}/{site}/{CLOUD_CHUNK}/{}", output.as_str())
+}
+
+/// The site of a cloud `output` key `risktwin/v1/<site>/cloud/<output>`; `None` otherwise.
+pub fn parse_cloud_output_key(key: &str, output: CloudOutput) -> Option<&str> {
+    let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
+    let site = rest.strip_suffix(output.as_str())?.strip_suffix('/')?.strip_suffix(CLOUD_CHUNK)?.strip_suffix('/')?;
+    (!site.is_empty() && !site.contains('/')).then_some(site)
 }
 
 /// The last chunk of an edge's road-map key.
@@ -527,6 +538,14 @@ mod tests {
         assert_eq!(parse_library_ranked("risktwin/v1/a/cloud/library/other"), None);
         assert_eq!(library_queryable_all(None), "risktwin/v1/*/cloud/library/**");
         assert_eq!(cloud_output(&site, CloudOutput::Scene), "risktwin/v1/track-1/cloud/scene");
+        assert_eq!(cloud_output(&site, CloudOutput::Road), "risktwin/v1/track-1/cloud/road");
+        for output in [CloudOutput::Scene, CloudOutput::Road] {
+            assert_eq!(parse_cloud_output_key(&cloud_output(&site, output), output), Some("track-1"));
+        }
+        assert_eq!(parse_cloud_output_key("risktwin/v1/track-1/cloud/scene", CloudOutput::Road), None);
+        assert_eq!(parse_cloud_output_key("risktwin/v1/a/b/cloud/scene", CloudOutput::Scene), None);
+        assert_eq!(parse_cloud_output_key("risktwin/v1/a/veh/scene", CloudOutput::Scene), None);
+        assert_eq!(parse_cloud_output_key("risktwin/v1//cloud/scene", CloudOutput::Scene), None);
         let report = edge_report(&site, &src, EdgeReport::ScenarioResult);
         assert_eq!(report, "risktwin/v1/track-1/veh_0.a/scenario_result");
         assert_eq!(parse_edge_key(&report), None, "a report is not an ingest stream");

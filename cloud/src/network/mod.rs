@@ -28,7 +28,10 @@
 //!   edge's outcome beside the twin's) and mutates around failures;
 //! - `trainer` (needs `loop`): retrains a policy on the library when enough new fleet failures
 //!   are in, gates it against the deployed version and has the loop push the versions it lets
-//!   through ([`crate::fleet_loop::trainer`]).
+//!   through ([`crate::fleet_loop::trainer`]);
+//! - `viz` (needs `twin`): the live twin for the Foxglove app over its WebSocket protocol
+//!   ([`crate::viz`]): what the publisher task puts on Zenoh, every accepted vehicle state and
+//!   each site's road, under the recording's topics and schemas.
 //!
 //! With `--record`, the twin's scene and risk outputs are recorded next to the accepted edge
 //! messages, under their keys.
@@ -61,6 +64,7 @@ use crate::library::ScenarioLibrary;
 use crate::recordings::RotationConfig;
 use crate::twin::outputs::{TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
+use crate::viz::{VizConfig, VizError, VizRole, VizSummary};
 use crate::warning::{HazardWarner, WarningConfig, WarningSink, WarningSummary};
 use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, CriticalitySummary};
 use fleet_loop::LoopRoleSummary;
@@ -73,6 +77,7 @@ use risktwin_protos::recording::decode_replay_time;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Shutdown, SiteId, StreamLoss, TransportConfig, TransportError, close, connect};
 use serde::Serialize;
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
@@ -98,6 +103,8 @@ pub enum Role {
     Warning,
     /// Policy retraining on the library, gated before every push (with `loop`).
     Trainer,
+    /// The live twin over the Foxglove WebSocket protocol.
+    Viz,
 }
 
 impl Role {
@@ -111,6 +118,7 @@ impl Role {
             Role::Loop => "loop",
             Role::Trainer => "trainer",
             Role::Warning => "warning",
+            Role::Viz => "viz",
         }
     }
 }
@@ -127,6 +135,7 @@ impl std::str::FromStr for Role {
             "loop" => Ok(Role::Loop),
             "trainer" => Ok(Role::Trainer),
             "warning" => Ok(Role::Warning),
+            "viz" => Ok(Role::Viz),
             other => Err(CloudError::UnknownRole { role: other.to_owned() }),
         }
     }
@@ -135,7 +144,7 @@ impl std::str::FromStr for Role {
 /// Why the cloud role failed.
 #[derive(Debug, Error)]
 pub enum CloudError {
-    #[error("role {role:?} is not one of ingest, twin, risk, library, criticality, loop, trainer, warning")]
+    #[error("role {role:?} is not one of ingest, twin, risk, library, criticality, loop, trainer, warning, viz")]
     UnknownRole { role: String },
     #[error("role {role:?} needs role {needs:?} in the same process (e.g. --roles ingest,twin,risk)")]
     RoleNeeds { role: &'static str, needs: &'static str },
@@ -157,6 +166,8 @@ pub enum CloudError {
     Transport(#[from] TransportError),
     #[error(transparent)]
     Record(#[from] RecordError),
+    #[error(transparent)]
+    Viz(#[from] VizError),
 }
 
 /// What the cloud runs and how it joins the network.
@@ -200,6 +211,8 @@ pub struct CloudConfig {
     /// The key the `loop` role signs each policy update with, per vehicle (`--signing-key`);
     /// `None`: updates go unsigned and vehicles refuse them.
     pub signing_key: Option<PolicySigningKey>,
+    /// Where the `viz` role serves.
+    pub viz: VizConfig,
 }
 
 impl CloudConfig {
@@ -223,6 +236,7 @@ impl CloudConfig {
             trainer: TrainerConfig::default(),
             warning: WarningConfig::default(),
             signing_key: None,
+            viz: VizConfig::default(),
         }
     }
 
@@ -244,6 +258,7 @@ impl CloudConfig {
             (Role::Loop, Role::Twin),
             (Role::Trainer, Role::Loop),
             (Role::Warning, Role::Ingest),
+            (Role::Viz, Role::Twin),
         ] {
             if self.has(role) && !self.has(needs) {
                 return Err(CloudError::RoleNeeds { role: role.name(), needs: needs.name() });
@@ -288,6 +303,16 @@ pub struct CloudSummary {
     /// The warning role, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub warning: Option<WarningSummary>,
+    /// The viz role, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub viz: Option<VizSummary>,
+}
+
+/// What a started cloud tells its caller (see [`run`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CloudReady {
+    /// Where the viz role serves, when it runs.
+    pub viz: Option<SocketAddr>,
 }
 
 /// Runs the cloud roles until `shutdown` fires; `on_ready` is called once every subscription
@@ -295,7 +320,7 @@ pub struct CloudSummary {
 pub async fn run(
     config: &CloudConfig,
     mut shutdown: Shutdown,
-    on_ready: impl FnOnce(),
+    on_ready: impl FnOnce(&CloudReady),
 ) -> Result<CloudSummary, CloudError> {
     config.check_roles()?;
     // Open the library and build the risk raster before joining: a bad file or config fails fast.
@@ -319,15 +344,28 @@ pub async fn run(
         criticality: None,
         fleet_loop: None,
         warning: None,
+        viz: None,
+    };
+    // Before joining too: a port in use fails the start at once.
+    let (viz, viz_feed) = if config.has(Role::Viz) {
+        let (role, feed) = VizRole::start(config.viz, config.road.clone()).await?;
+        (Some(role), Some(feed))
+    } else {
+        (None, None)
     };
     let session = tokio::select! {
         opened = connect(&config.transport) => opened?,
-        _ = shutdown.wait() => return Ok(empty),
+        _ = shutdown.wait() => {
+            if let Some(viz) = viz {
+                viz.finish().await;
+            }
+            return Ok(empty);
+        }
     };
 
     let (publish_tx, publish_rx) = tokio::sync::mpsc::unbounded_channel();
     let outputs = config.has(Role::Twin).then(|| TwinOutputs::new(risk));
-    let publisher = tokio::spawn(publisher::publish_outputs(session.clone(), publish_rx));
+    let publisher = tokio::spawn(publisher::publish_outputs(session.clone(), publish_rx, viz_feed.clone()));
     let queryable = match library {
         Some(lib) => Some((library::declare(&session, config.site.as_ref()).await?, lib)),
         None => None,
@@ -353,7 +391,8 @@ pub async fn run(
         .with_route_keys(keys_tx)
         .with_publisher(config.has(Role::Twin).then_some(publish_tx))
         .with_episodes(fleet.is_some().then_some(episodes_tx))
-        .with_warnings(warning_sink);
+        .with_warnings(warning_sink)
+        .with_viz(viz_feed);
     let ingest = Arc::new(Mutex::new(ingest));
     let flusher = record.is_some().then(|| tokio::spawn(flush_recording(Arc::clone(&ingest), shutdown.clone())));
     let subscriber = if config.has(Role::Ingest) {
@@ -375,7 +414,7 @@ pub async fn run(
         None => None,
     };
     // The loop needs the scene maps too: they start the twin's watch of a scene's episode.
-    let map_subscriber = if config.has(Role::Risk) || config.has(Role::Loop) || config.has(Role::Warning) {
+    let map_subscriber = if [Role::Risk, Role::Loop, Role::Warning, Role::Viz].iter().any(|&r| config.has(r)) {
         Some(scene::subscribe_maps(&session, config.site.as_ref(), Arc::clone(&ingest)).await?)
     } else {
         None
@@ -409,7 +448,7 @@ pub async fn run(
         }
         None => None,
     };
-    on_ready();
+    on_ready(&CloudReady { viz: viz.as_ref().map(VizRole::addr) });
 
     shutdown.wait().await;
     if subscriber.is_some() || crit_subscriber.is_some() {
@@ -482,6 +521,10 @@ pub async fn run(
     let warning = ingest.warning_summary();
     let (ingest, twin) = ingest.finish()?;
     let liveliness = liveness.lock().unwrap_or_else(PoisonError::into_inner).summary();
+    let viz = match viz {
+        Some(viz) => Some(viz.finish().await),
+        None => None,
+    };
     // Computed last, once every other role has flushed: a scenario that cannot be rebuilt fails
     // the run without losing the recording or the database.
     let criticality = match config.criticality.as_ref().filter(|_| config.has(Role::Criticality)) {
@@ -491,7 +534,7 @@ pub async fn run(
         }
         None => None,
     };
-    Ok(CloudSummary { ingest, liveliness, twin, library: library_summary, criticality, fleet_loop, warning })
+    Ok(CloudSummary { ingest, liveliness, twin, library: library_summary, criticality, fleet_loop, warning, viz })
 }
 
 /// How often the recording's open chunk is looked at: a quarter of its time bound

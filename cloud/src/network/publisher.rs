@@ -1,9 +1,11 @@
 //! The task that publishes the cloud's outputs (risk field, risk report, scene) on their keys.
 //! Outputs are latest-value data: a slow subscriber makes Zenoh drop them rather than stall
 //! the cloud (`CongestionControl::Drop`). Each key's publisher tags its samples with the
-//! message it carries (`risktwin_transport::protobuf`).
+//! message it carries (`risktwin_transport::protobuf`). With the viz role, each output goes to
+//! its feed as well (copied only while a Foxglove client is connected).
 
 use super::receive::Publication;
+use crate::viz::VizFeed;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Publisher;
 use risktwin_transport::zenoh::qos::CongestionControl;
@@ -11,15 +13,19 @@ use risktwin_transport::{TransportError, protobuf};
 use std::collections::HashMap;
 use tokio::sync::mpsc::UnboundedReceiver;
 
-/// Publishes everything that arrives on `outputs` until the channel closes; returns how many
-/// messages went out.
+/// Publishes everything that arrives on `outputs` (and hands it to `viz`, when given) until the
+/// channel closes; returns how many messages went out.
 pub(crate) async fn publish_outputs(
     session: Session,
     mut outputs: UnboundedReceiver<Publication>,
+    viz: Option<VizFeed>,
 ) -> Result<u64, TransportError> {
     let mut publishers: HashMap<String, Publisher<'static>> = HashMap::new();
     let mut sent = 0;
-    while let Some(Publication { key, message, payload }) = outputs.recv().await {
+    while let Some(Publication { key, message, log_ns, payload }) = outputs.recv().await {
+        if let Some(viz) = &viz {
+            viz.offer(&key, message, log_ns, &payload);
+        }
         let publisher = match publishers.get(&key) {
             Some(p) => p,
             None => {

@@ -19,6 +19,7 @@ use crate::twin::fidelity::distribution::Distribution;
 use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
 use crate::twin::watch::{WatchCounts, WatchedEpisode};
+use crate::viz::VizFeed;
 use crate::warning::{HazardWarner, WarningSink, WarningSummary};
 use risktwin_common::align::{DropReason, IngestConfig, MAX_EDGE_PAYLOAD_BYTES, SeqProgress};
 use risktwin_common::scenario::ScenarioSpec;
@@ -115,6 +116,8 @@ pub(crate) struct Publication {
     pub(crate) key: String,
     /// The full name of the message (its encoding's schema).
     pub(crate) message: &'static str,
+    /// The cloud time it was produced at, ns (its log time in a recording).
+    pub(crate) log_ns: u64,
     pub(crate) payload: Vec<u8>,
 }
 
@@ -165,6 +168,9 @@ pub struct LiveIngest {
     acks: AckSources,
     /// The segments and catalogue of a rotating recording (`--record-dir`).
     segments: Option<Segments>,
+    /// The viz role's input: every accepted state goes there (copied only while a client is
+    /// connected).
+    viz: Option<VizFeed>,
 }
 
 impl LiveIngest {
@@ -219,6 +225,7 @@ impl LiveIngest {
             warnings: None,
             acks: AckSources::default(),
             segments,
+            viz: None,
         })
     }
 
@@ -239,6 +246,19 @@ impl LiveIngest {
     pub fn with_warnings(mut self, path: Option<(HazardWarner, Box<dyn WarningSink>)>) -> Self {
         self.warnings = path;
         self
+    }
+
+    /// Hands every accepted vehicle state (and the scene maps' roads) to `viz` when given.
+    pub fn with_viz(mut self, viz: Option<VizFeed>) -> Self {
+        self.viz = viz;
+        self
+    }
+
+    /// `site`'s scene published its road map: the viz role shows it as the site's road.
+    pub fn set_viz_road(&mut self, site: &str, road: &risktwin_common::road::Road) {
+        if let Some(viz) = &self.viz {
+            viz.set_road(site, road);
+        }
     }
 
     /// `site`'s scene published its road map: the warning path measures lane TTC on it.
@@ -386,6 +406,9 @@ impl LiveIngest {
         let accepted = accepted.is_some();
         if accepted && parsed.stream == EdgeStream::State {
             self.watch_state(parsed.site, parsed.source, payload);
+            if let Some(viz) = &self.viz {
+                viz.offer(key, parsed.stream.message(), receive_ns.max(0) as u64, payload);
+            }
         }
         if accepted {
             self.acks.touch(parsed.site, parsed.source, origin.publisher, now);
@@ -626,7 +649,7 @@ fn emit<W: Write + Seek>(
             let update = vehicle_boxes(tick.tick_ns, &scene.boxes);
             // A closed channel means shutdown: nothing left to publish to.
             let payload = prost::Message::encode_to_vec(&update);
-            let _ = tx.send(Publication { key: scene_key, message: FOXGLOVE_SCENE_UPDATE, payload });
+            let _ = tx.send(Publication { key: scene_key, message: FOXGLOVE_SCENE_UPDATE, log_ns, payload });
         }
     }
     for truth in tick.truth_scenes {
@@ -646,9 +669,9 @@ fn emit<W: Write + Seek>(
         }
         if let Some(tx) = publish {
             let grid = prost::Message::encode_to_vec(&risk_grid(&a.field));
-            let _ = tx.send(Publication { key: field_key, message: FOXGLOVE_GRID, payload: grid });
+            let _ = tx.send(Publication { key: field_key, message: FOXGLOVE_GRID, log_ns, payload: grid });
             let report = encode(&a.report);
-            let _ = tx.send(Publication { key: report_key, message: RiskReport::PROTO_NAME, payload: report });
+            let _ = tx.send(Publication { key: report_key, message: RiskReport::PROTO_NAME, log_ns, payload: report });
         }
     }
     Ok(())

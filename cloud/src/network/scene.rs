@@ -1,7 +1,7 @@
 //! What a scene's authority publishes for the cloud (never mixed into the edge streams):
 //! - its road map on `risktwin/v1/<site>/scene/map`, every second: the first one, and any that
-//!   differs from the last, moves that site's risk assessment and the warning path's lane TTC
-//!   onto it (sites without a scene keep `--road`); every one tells the twin's watch that a scene runs there (its ego's
+//!   differs from the last, moves that site's risk assessment, the warning path's lane TTC and
+//!   the viz role's road onto it (sites without a scene keep `--road`); every one tells the twin's watch that a scene runs there (its ego's
 //!   episode is scored for the loop) and marks the site's edges as scene participants;
 //! - its ground truth, every physics step: each connected vehicle's state on
 //!   `risktwin/v1/<site>/scene/gt/<source>` and every other object on `…/scene/objects`. The
@@ -46,6 +46,7 @@ pub(crate) async fn subscribe_maps(
                     let mut live = ingest.lock().unwrap_or_else(PoisonError::into_inner);
                     live.scene_seen(site);
                     live.set_warning_road(site, &map.road);
+                    live.set_viz_road(site, &map.road);
                     let Some(config) = live.risk_config() else { return };
                     drop(live);
                     // Rasterising a road takes ~0.1 s: never on a callback that delivers

@@ -55,7 +55,7 @@ pub(super) async fn start_cloud(
     let (stop, cloud_shutdown) = shutdown::channel();
     let (ready_tx, ready_rx) = oneshot::channel();
     let cloud = tokio::spawn(async move {
-        run(&config, cloud_shutdown, || {
+        run(&config, cloud_shutdown, |_| {
             let _ = ready_tx.send(());
         })
         .await

@@ -8,9 +8,6 @@ use super::raster::RiskGrid;
 use crate::geometry::Vec2;
 use crate::road::Road;
 
-/// Spacing of the points of a lane's edge and centreline polylines, m.
-const POLYLINE_STEP_M: f64 = 1.0;
-
 /// The layers of one heatmap.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeatmapLayers {
@@ -46,27 +43,12 @@ impl HeatmapLayers {
 }
 
 /// The layers of `grid` over the twin's `road`: a cell is on the map when its centre is within
-/// the carriageway; edges are the lane sides without a neighbour.
+/// the carriageway; the lines are [`Road::lines`].
 pub fn road_layers(grid: &RiskGrid, road: &Road) -> HeatmapLayers {
     let on_map =
         (0..grid.cols * grid.rows).map(|k| road.edge_distance_m(grid.cell_centre(k % grid.cols, k / grid.cols)) >= 0.0);
-    let mut edges = Vec::new();
-    let mut centrelines = Vec::new();
-    for lane in &road.lanes {
-        let len = lane.length_m();
-        let n = (len / POLYLINE_STEP_M).ceil().clamp(1.0, 1e6) as usize;
-        let along = |offset_m: f64| -> Vec<Vec2> {
-            (0..=n).map(|k| lane.pose_at(len * k as f64 / n as f64, offset_m).position()).collect()
-        };
-        centrelines.push(along(0.0));
-        let half = 0.5 * lane.width_m;
-        for (side, has_neighbour) in [(half, lane.left.is_some()), (-half, lane.right.is_some())] {
-            if !has_neighbour {
-                edges.push(along(side));
-            }
-        }
-    }
-    HeatmapLayers::new(grid, on_map.collect(), edges, centrelines)
+    let lines = road.lines();
+    HeatmapLayers::new(grid, on_map.collect(), lines.edges, lines.centrelines)
 }
 
 #[cfg(test)]

@@ -8,9 +8,11 @@
 
 mod builders;
 mod lane;
+mod lines;
 mod ring;
 
 pub use lane::{Frenet, Lane, LaneId};
+pub use lines::RoadLines;
 
 use crate::geometry::{Obb, Vec2};
 use serde::{Deserialize, Serialize};

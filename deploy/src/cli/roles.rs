@@ -161,9 +161,15 @@ pub struct CloudArgs {
     /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db),
     /// criticality (needs --criticality-out or --db: the replayed drive stored as a recorded
     /// case), loop (needs twin and --db), trainer (needs loop), warning (needs ingest: a hazard
-    /// warning to both vehicles of a critical pair on every state message).
+    /// warning to both vehicles of a critical pair on every state message), viz (needs twin: the
+    /// live twin for the Foxglove app, docs/viz.md).
     #[arg(long, default_value = "ingest", value_delimiter = ',')]
     pub roles: Vec<String>,
+    /// The viz role serves the Foxglove WebSocket protocol on this IP:PORT (default
+    /// 127.0.0.1:8765; port 0 picks a free one). Unauthenticated: a non-loopback address is
+    /// warned about.
+    #[arg(long, value_name = "ADDR")]
+    pub viz_listen: Option<String>,
     /// Serve one site only (default: every site).
     #[arg(long)]
     pub site: Option<String>,

@@ -7,7 +7,9 @@
 //! written on exit (with `--db`, the drive stored as a recorded case of the library),
 //! `--roles ingest,twin,loop[,trainer] --db FILE [--loop-report FILE.md]` the closed loop over
 //! the fleet, with policy retraining and the regression gate; `--roles ingest,warning` a hazard
-//! warning to both vehicles of a critical pair on every state message.
+//! warning to both vehicles of a critical pair on every state message; `--roles
+//! ingest,twin[,risk],viz [--viz-listen ADDR]` the live twin for the Foxglove app (`viz on
+//! ws://ADDR` on stderr before `ready`).
 //! Also `risktwin bench zenoh|latency|warning`.
 
 use super::router::{transport_config, with_signals};
@@ -21,6 +23,7 @@ use risktwin_bench::zenoh_throughput::{BenchConfig, throughput};
 use risktwin_cloud::fleet_loop::trainer::TrainerConfig;
 use risktwin_cloud::network::criticality::{CriticalityConfig, CriticalityRoleError};
 use risktwin_cloud::network::{CloudConfig, CloudError, Role, run};
+use risktwin_cloud::viz::VizConfig;
 use risktwin_common::align::IngestConfig;
 use risktwin_common::scenario::ScenarioKind;
 use risktwin_pipeline::fidelity::write_fidelity_report;
@@ -109,9 +112,19 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     }
     let road_kind: ScenarioKind = args.road.parse().map_err(CliError::input)?;
     config.road = risktwin_cloud::twin::scenario_road(road_kind);
+    if let Some(listen) = &args.viz_listen {
+        config.viz = viz_config(listen, config.roles.contains(&Role::Viz))?;
+    }
     let summary = with_signals(|shutdown| async move {
-        run(&config, shutdown, || eprintln!("ready")).await.map_err(|e| match e {
+        let on_ready = |ready: &risktwin_cloud::network::CloudReady| {
+            if let Some(addr) = ready.viz {
+                eprintln!("viz on ws://{addr}");
+            }
+            eprintln!("ready");
+        };
+        run(&config, shutdown, on_ready).await.map_err(|e| match e {
             CloudError::Transport(t) => CliError::runtime(t),
+            CloudError::Viz(v) => CliError::runtime(v),
             CloudError::Record(r) => CliError::runtime(r),
             CloudError::Criticality(w @ CriticalityRoleError::Write { .. }) => CliError::runtime(w),
             CloudError::Criticality(s @ CriticalityRoleError::StoreCase { .. }) => CliError::runtime(s),
@@ -126,6 +139,24 @@ pub fn cloud(args: CloudArgs) -> CliResult {
             .map_err(|e| CliError::runtime(format!("writing the loop report {}: {e}", path.display())))?;
     }
     print_json(&summary)
+}
+
+/// `--viz-listen`: an IP address and port, with the viz role; warned about once when it lets
+/// other hosts in (the protocol has no authentication).
+fn viz_config(listen: &str, with_role: bool) -> CliResult<VizConfig> {
+    if !with_role {
+        return Err(CliError::input("--viz-listen needs the viz role (--roles ingest,twin,viz)"));
+    }
+    let listen: std::net::SocketAddr = listen.parse().map_err(|_| {
+        CliError::input(format!("--viz-listen {listen}: not an IP address and port (e.g. 127.0.0.1:8765)"))
+    })?;
+    if !listen.ip().is_loopback() {
+        eprintln!(
+            "warning: --viz-listen {listen} is reachable beyond this host: the Foxglove WebSocket protocol has no \
+             authentication or encryption, so anyone who reaches the port sees the live twin (docs/viz.md)"
+        );
+    }
+    Ok(VizConfig { listen })
 }
 
 pub fn bench_zenoh(args: BenchZenohArgs) -> CliResult {

@@ -1,7 +1,9 @@
-//! Visualisation messages for Foxglove: the risk field as a `foxglove.Grid` and vehicles as boxes
-//! in a `foxglove.SceneUpdate`. One-way (the twin never reads these back).
+//! Visualisation messages for Foxglove: the risk field as a `foxglove.Grid`, vehicles as boxes
+//! and the road as lines in a `foxglove.SceneUpdate`. One-way (the twin never reads these back).
 
 use crate::foxglove as fg;
+use risktwin_common::geometry::Vec2;
+use risktwin_common::road::Road;
 use risktwin_common::telemetry::{Frame, Header, RiskField, VehicleStateSample};
 
 /// Full protobuf name of the grid message.
@@ -15,6 +17,8 @@ pub const WORLD_FRAME_ID: &str = "world";
 
 /// Height of the boxes drawn for vehicles, m (the twin is planar).
 const BOX_HEIGHT_M: f64 = 1.5;
+/// Entity id of the road in a scene update.
+pub const ROAD_ENTITY_ID: &str = "road";
 
 /// A Unix time in ns as a protobuf timestamp (nanos always in [0, 1e9)).
 pub fn timestamp(time_ns: i64) -> prost_types::Timestamp {
@@ -93,6 +97,41 @@ pub fn vehicle_boxes(time_ns: i64, vehicles: &[VehicleStateSample]) -> fg::Scene
     fg::SceneUpdate { deletions: Vec::new(), entities }
 }
 
+/// The road as lines on the ground (entity [`ROAD_ENTITY_ID`], world frame, stamped `time_ns`):
+/// carriageway edges solid white, lane centrelines thin grey, crosswalks outlined in yellow; the
+/// lines of [`Road::lines`], so Foxglove shows what the report's heatmaps show.
+pub fn road_scene(time_ns: i64, road: &Road) -> fg::SceneUpdate {
+    let line =
+        |kind: fg::line_primitive::Type, points: &[Vec2], thickness_m: f64, color: fg::Color| fg::LinePrimitive {
+            r#type: kind as i32,
+            pose: Some(planar_pose(0.0, 0.0, 0.0, 0.0)),
+            thickness: thickness_m,
+            scale_invariant: false,
+            points: points.iter().map(|p| fg::Point3 { x: p.x, y: p.y, z: 0.0 }).collect(),
+            color: Some(color),
+            ..Default::default()
+        };
+    let strip = fg::line_primitive::Type::LineStrip;
+    let lines = road.lines();
+    let edges = lines.edges.iter().map(|e| line(strip, e, 0.15, fg::Color { r: 0.9, g: 0.9, b: 0.9, a: 1.0 }));
+    let centres = lines.centrelines.iter().map(|c| line(strip, c, 0.05, fg::Color { r: 0.6, g: 0.6, b: 0.6, a: 0.8 }));
+    let crosswalks = road.crosswalks.iter().map(|w| {
+        let along = Vec2::new(w.heading_rad.cos(), w.heading_rad.sin());
+        let across = Vec2::new(-along.y, along.x) * (0.5 * w.width_m);
+        let end = w.start + along * w.length_m;
+        let corners = [w.start - across, end - across, end + across, w.start + across];
+        line(fg::line_primitive::Type::LineLoop, &corners, 0.1, fg::Color { r: 1.0, g: 0.85, b: 0.2, a: 1.0 })
+    });
+    let entity = fg::SceneEntity {
+        timestamp: Some(timestamp(time_ns)),
+        frame_id: WORLD_FRAME_ID.to_owned(),
+        id: ROAD_ENTITY_ID.to_owned(),
+        lines: edges.chain(centres).chain(crosswalks).collect(),
+        ..Default::default()
+    };
+    fg::SceneUpdate { deletions: Vec::new(), entities: vec![entity] }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -131,5 +170,24 @@ mod tests {
         let q = cube.pose.and_then(|p| p.orientation).expect("orientation set");
         assert!((q.z - 0.5f64.sqrt()).abs() < 1e-12 && (q.w - 0.5f64.sqrt()).abs() < 1e-12);
         assert_eq!(cube.size.map(|s| (s.x, s.y)), Some((4.5, 1.8)));
+    }
+
+    #[test]
+    fn the_road_is_its_lines_on_the_ground() {
+        let road = Road::crossing(3.5, 200.0, 100.0, 80.0, 13.9);
+        let update = fg::SceneUpdate::decode(&*road_scene(5, &road).encode_to_vec()).expect("own encoding decodes");
+        let entity = &update.entities[0];
+        assert_eq!((entity.id.as_str(), entity.frame_id.as_str()), (ROAD_ENTITY_ID, WORLD_FRAME_ID));
+        let lines = road.lines();
+        let strips = lines.edges.len() + lines.centrelines.len();
+        assert_eq!(entity.lines.len(), strips + road.crosswalks.len());
+        assert!(!road.crosswalks.is_empty(), "the crossing has a crosswalk to draw");
+        let first_edge = &entity.lines[0];
+        assert_eq!(first_edge.points.len(), lines.edges[0].len());
+        assert_eq!((first_edge.points[0].x, first_edge.points[0].y), (lines.edges[0][0].x, lines.edges[0][0].y));
+        assert!(entity.lines.iter().flat_map(|l| &l.points).all(|p| p.z == 0.0));
+        let crosswalk = entity.lines.last().expect("a crosswalk");
+        assert_eq!(crosswalk.r#type, fg::line_primitive::Type::LineLoop as i32);
+        assert_eq!(crosswalk.points.len(), 4);
     }
 }

@@ -16,6 +16,7 @@ mod fleetloop;
 #[path = "../interop/peer_python.rs"]
 mod peer_python;
 mod policyloop;
+mod prometheus;
 mod pushrace;
 mod python_zenoh;
 mod rotation;

@@ -108,6 +108,11 @@ impl Segments {
         self.close(closing.seq, &closing.path, written, &stats)
     }
 
+    /// What the recording did so far.
+    pub fn summary(&self) -> &SegmentsSummary {
+        &self.summary
+    }
+
     /// Books the last segment, closed by the recorder into `written` with `stats`: the summary.
     pub fn finish(mut self, written: BufWriter<File>, stats: &SegmentStats) -> Result<SegmentsSummary, SegmentError> {
         // The last segment stays the "open" one: retention keeps it.

@@ -109,6 +109,7 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     }
     let road_kind: ScenarioKind = args.road.parse().map_err(CliError::input)?;
     config.road = risktwin_cloud::twin::scenario_road(road_kind);
+    let metrics = crate::metrics_endpoint::start(&args.metrics, "cloud")?;
     let summary = with_signals(|shutdown| async move {
         run(&config, shutdown, || eprintln!("ready")).await.map_err(|e| match e {
             CloudError::Transport(t) => CliError::runtime(t),
@@ -125,7 +126,11 @@ pub fn cloud(args: CloudArgs) -> CliResult {
         std::fs::write(path, &fleet.fleet.report)
             .map_err(|e| CliError::runtime(format!("writing the loop report {}: {e}", path.display())))?;
     }
-    print_json(&summary)
+    print_json(&summary)?;
+    if let Some(endpoint) = metrics {
+        endpoint.last_scrape();
+    }
+    Ok(())
 }
 
 pub fn bench_zenoh(args: BenchZenohArgs) -> CliResult {

@@ -16,13 +16,26 @@ use std::sync::{Arc, Mutex, PoisonError, Weak};
 /// The histogram of how far each snapshot's tick lay behind the cloud's clock, s.
 pub(super) const SNAPSHOT_LAG: &str = "risktwin_twin_snapshot_lag_seconds";
 
+/// The counts a scrape exports, copied out of the ingest.
+pub(super) struct Snapshot {
+    pub(super) ingest: IngestSummary,
+    /// Each source's site.
+    pub(super) sites: HashMap<String, String>,
+    pub(super) twin: Option<TwinCounts>,
+    pub(super) warning: Option<WarningSummary>,
+}
+
 /// Has every scrape copy the counts of `ingest` and `liveness` while the cloud runs.
 pub(super) fn watch(ingest: &Arc<Mutex<LiveIngest>>, liveness: &Arc<Mutex<LivenessLog>>) {
     // Weak: the cloud takes the ingest apart at shutdown, and exports the final counts itself.
     let (ingest, liveness): (Weak<_>, Weak<_>) = (Arc::downgrade(ingest), Arc::downgrade(liveness));
     risktwin_transport::metrics::on_scrape(move || {
         let (Some(ingest), Some(liveness)) = (ingest.upgrade(), liveness.upgrade()) else { return false };
-        ingest.lock().unwrap_or_else(PoisonError::into_inner).export_metrics();
+        // Only the copy holds the ingest's lock: the receive path must not wait for the export
+        // (a stall of a second would skew every source's clock estimate).
+        let snapshot = ingest.lock().unwrap_or_else(PoisonError::into_inner).metrics_snapshot();
+        export_ingest(&snapshot.ingest, &snapshot.sites, snapshot.twin.as_ref());
+        snapshot.warning.iter().for_each(export_warning);
         export_liveliness(&liveness.lock().unwrap_or_else(PoisonError::into_inner).summary());
         true
     });
@@ -40,7 +53,7 @@ fn per_stream(name: &'static str, counts: &BTreeMap<String, BTreeMap<String, u64
 }
 
 /// The ingest's summary (and the twin's counts, when it runs); `sites` names each source's site.
-pub(super) fn export_ingest(s: &IngestSummary, sites: &HashMap<String, String>, twin: Option<TwinCounts<'_>>) {
+pub(super) fn export_ingest(s: &IngestSummary, sites: &HashMap<String, String>, twin: Option<&TwinCounts>) {
     per_stream("risktwin_ingest_messages_received_total", &s.received, sites);
     per_stream("risktwin_ingest_messages_lost_total", &s.lost, sites);
     per_stream("risktwin_ingest_messages_recovered_total", &s.recovered, sites);
@@ -68,10 +81,10 @@ pub(super) fn export_ingest(s: &IngestSummary, sites: &HashMap<String, String>, 
         metrics::counter!("risktwin_twin_ticks_total").absolute(twin.ticks);
         metrics::counter!("risktwin_twin_scenes_total").absolute(twin.scenes);
         metrics::counter!("risktwin_risk_assessments_total").absolute(twin.risk_assessments);
-        for (site, n) in twin.vehicles {
+        for (site, n) in &twin.vehicles {
             metrics::gauge!("risktwin_twin_vehicles", "site" => site.clone()).set(*n as f64);
         }
-        for (site, risk) in twin.latest_max_risk {
+        for (site, risk) in &twin.latest_max_risk {
             metrics::gauge!("risktwin_risk_field_max", "site" => site.clone()).set(*risk);
         }
     }

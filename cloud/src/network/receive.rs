@@ -601,7 +601,7 @@ impl LiveIngest {
         };
         if risktwin_transport::metrics::enabled() {
             let twin = self.outputs.as_ref().map(TwinOutputs::counts);
-            super::live_metrics::export_ingest(&summary, &self.sites, twin);
+            super::live_metrics::export_ingest(&summary, &self.sites, twin.as_ref());
         }
         Ok((summary, self.outputs.as_ref().map(TwinOutputs::summary)))
     }
@@ -622,12 +622,14 @@ impl LiveIngest {
         summary
     }
 
-    /// Copies the summary so far into the metrics (a scrape's refresh).
-    pub(crate) fn export_metrics(&self) {
-        let twin = self.outputs.as_ref().map(TwinOutputs::counts);
-        super::live_metrics::export_ingest(&self.summary(), &self.sites, twin);
-        if let Some(warning) = self.warning_summary() {
-            super::live_metrics::export_warning(&warning);
+    /// What a scrape exports: copied while the receive path waits (a few ms for thousands of
+    /// sources), exported after it has the lock back.
+    pub(super) fn metrics_snapshot(&self) -> super::live_metrics::Snapshot {
+        super::live_metrics::Snapshot {
+            ingest: self.summary(),
+            sites: self.sites.clone(),
+            twin: self.outputs.as_ref().map(TwinOutputs::counts),
+            warning: self.warning_summary(),
         }
     }
 }

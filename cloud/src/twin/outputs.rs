@@ -61,15 +61,15 @@ pub struct TickOutputs<'a> {
 }
 
 /// The twin's running counts, for the live metrics (`crate::network`).
-#[derive(Debug, Clone, Copy)]
-pub struct TwinCounts<'a> {
+#[derive(Debug, Clone, Default)]
+pub struct TwinCounts {
     pub ticks: u64,
     pub scenes: u64,
     pub risk_assessments: u64,
     /// Vehicles per site at the last tick.
-    pub vehicles: &'a BTreeMap<String, usize>,
+    pub vehicles: BTreeMap<String, usize>,
     /// Per site, the highest risk-field cell of its latest assessment.
-    pub latest_max_risk: &'a BTreeMap<String, f64>,
+    pub latest_max_risk: BTreeMap<String, f64>,
 }
 
 /// The twin, the optional risk assessor and the summary of what they produced.
@@ -144,14 +144,14 @@ impl TwinOutputs {
         s
     }
 
-    /// The running counts (cheap: nothing is cloned).
-    pub fn counts(&self) -> TwinCounts<'_> {
+    /// The running counts (a map per site; the fidelity series are not copied).
+    pub fn counts(&self) -> TwinCounts {
         TwinCounts {
             ticks: self.twin.ticks(),
             scenes: self.summary.scenes,
             risk_assessments: self.summary.risk_assessments,
-            vehicles: &self.summary.vehicles,
-            latest_max_risk: &self.latest_max_risk,
+            vehicles: self.summary.vehicles.clone(),
+            latest_max_risk: self.latest_max_risk.clone(),
         }
     }
 

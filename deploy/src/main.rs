@@ -6,6 +6,7 @@ mod commands;
 mod emulate;
 mod error;
 mod logging;
+mod metrics_endpoint;
 mod output;
 mod process_tuning;
 

@@ -197,6 +197,8 @@ impl DeliveryWatch {
         // The token of a cloud serving this site, or every site (`*`): both intersect this key.
         let key = cloud_liveliness(Some(site));
         let (seen, notify) = (Arc::clone(&presence), Arc::clone(&changed));
+        let cloud_alive = crate::live_metrics::cloud_alive(site.as_str(), source.as_str());
+        let queried_alive = cloud_alive.clone();
         let cloud_subscriber = session
             .liveliness()
             .declare_subscriber(key.clone())
@@ -205,6 +207,7 @@ impl DeliveryWatch {
                 let alive = sample.kind() == SampleKind::Put;
                 let mut presence = seen.lock().unwrap_or_else(PoisonError::into_inner);
                 presence.update(sample.key_expr().as_str(), alive, start, Instant::now());
+                cloud_alive.set(f64::from(u8::from(presence.any_alive())));
                 notify.notify_one();
             })
             .await
@@ -222,6 +225,7 @@ impl DeliveryWatch {
             if let Ok(sample) = reply.result() {
                 let mut presence = presence.lock().unwrap_or_else(PoisonError::into_inner);
                 presence.update(sample.key_expr().as_str(), sample.kind() == SampleKind::Put, start, Instant::now());
+                queried_alive.set(f64::from(u8::from(presence.any_alive())));
             }
         }
         Ok(DeliveryWatch { start, ledger, presence, changed, subscribers: [ack_subscriber, cloud_subscriber] })

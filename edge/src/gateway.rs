@@ -403,12 +403,14 @@ fn summary(
     delivery: Option<DeliverySummary>,
 ) -> GatewaySummary {
     let named = |counts: [u64; 3]| STREAMS.iter().zip(counts).map(|(s, n)| (s.as_str().to_owned(), n)).collect();
-    GatewaySummary {
+    let summary = GatewaySummary {
         site: config.site.to_string(),
         source: config.id.to_string(),
         forwarded: named(forwarded),
         rejected: named(rejected),
         end_of_stream,
         delivery,
-    }
+    };
+    crate::live_metrics::export_final(&summary.site, &summary.source, &summary.forwarded, summary.delivery.as_ref());
+    summary
 }

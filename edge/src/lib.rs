@@ -14,6 +14,7 @@ pub mod delivery;
 mod error;
 pub mod fleet;
 pub mod gateway;
+mod live_metrics;
 pub mod publish;
 pub mod replay;
 pub mod rsu;

@@ -217,6 +217,7 @@ pub async fn run_producer(
     let mut steps_read = start;
     let mut seq = [0u64; EdgeStream::ALL.len()];
     let mut sent = [0u64; EdgeStream::ALL.len()];
+    let sent_metrics = crate::live_metrics::sent_counters(config.site.as_str(), config.id.as_str(), &streams);
     // The numbers of messages refused as too large, per stream.
     let mut refused: [Vec<u64>; EdgeStream::ALL.len()] = Default::default();
     let base = streams[0].index();
@@ -300,7 +301,8 @@ pub async fn run_producer(
                 result = Err(e.into());
                 break;
             }
-            sent[stream.index()] += 1;
+            sent[i] += 1;
+            sent_metrics[i].absolute(sent[i]);
         }
         if result.is_err() {
             break;
@@ -324,6 +326,7 @@ pub async fn run_producer(
         None => None,
     };
     let summary = SentSummary::new(config, numbers.iter().map(|(s, n)| (*s, n.sent)), delivery);
+    crate::live_metrics::export_final(&summary.site, &summary.source, &summary.sent, summary.delivery.as_ref());
     if summary.delivery.as_ref().is_some_and(|d| d.total_undelivered() == 0) {
         // All accounted for: nothing left for the cloud to fetch, no need to linger.
         for publisher in publishers {

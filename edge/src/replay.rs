@@ -155,6 +155,7 @@ pub async fn run(
     summary.msgs_per_s = summary.published as f64 / summary.elapsed_s.max(1e-9);
     // The publishers (and their caches) stay while the sources settle: the cloud may still fetch.
     summary.delivery = settle(sources).await?;
+    crate::live_metrics::export_replay(&summary);
     retire(channels.into_iter().flatten().flatten().map(|c| c.publisher)).await?;
     close(session).await?;
     Ok(summary)

@@ -217,3 +217,16 @@ fn a_small_order_trust_key_is_refused() {
     );
     assert!(line.contains("small-order"), "{line}");
 }
+
+#[test]
+fn a_bad_metrics_address_is_refused_before_anything_starts() {
+    let dir = tempdir().unwrap();
+    for args in [
+        &["router", "--metrics-listen", "host:9464"][..],
+        &["cloud", "--metrics-listen", "70000"],
+        &["edge", "vehicle", "--id", "v", "--metrics-listen", "tcp/127.0.0.1:9464"],
+    ] {
+        let flag = format!("--metrics-listen {}", args[args.len() - 1]);
+        assert_input_error(dir.path(), args, &flag);
+    }
+}

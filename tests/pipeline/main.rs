@@ -20,6 +20,7 @@ mod peer_node;
 #[path = "../interop/peer_python.rs"]
 mod peer_python;
 mod policyloop;
+mod prometheus;
 mod pushrace;
 mod python_zenoh;
 mod rotation;

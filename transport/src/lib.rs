@@ -9,6 +9,7 @@
 
 pub mod edge_subscriber;
 pub mod keyexpr;
+pub mod metrics;
 pub mod recovery;
 pub mod router;
 pub mod session;

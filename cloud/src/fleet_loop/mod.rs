@@ -586,6 +586,11 @@ impl FleetLoop {
         std::mem::take(&mut self.events)
     }
 
+    /// This run's counts so far, without the library's (no query).
+    pub fn running(&self) -> &LoopSummary {
+        &self.summary
+    }
+
     /// The summary so far, with the library's counts.
     pub fn summary(&self) -> Result<LoopSummary, LibraryError> {
         let mut summary = self.summary.clone();

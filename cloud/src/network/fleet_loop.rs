@@ -236,6 +236,9 @@ fn live_vehicles(ingest: &Mutex<LiveIngest>, liveness: &Mutex<LivenessLog>) -> V
 /// Records the loop's events into the cloud's recording (when it records): each on its
 /// site's loop topic; a fleet-wide one (a gate decision) on that of every site with a live edge.
 fn record(fleet: &mut FleetLoop, ingest: &Mutex<LiveIngest>, liveness: &Mutex<LivenessLog>, seq: &mut u64) {
+    if risktwin_transport::metrics::enabled() {
+        super::live_metrics::export_loop(fleet.running());
+    }
     let events = fleet.take_events();
     if events.is_empty() {
         return;

@@ -42,6 +42,7 @@ pub mod edges;
 pub mod fleet_loop;
 mod id_conflicts;
 pub mod library;
+mod live_metrics;
 pub mod liveliness;
 pub mod loss;
 mod publisher;
@@ -438,6 +439,9 @@ pub async fn run(
             None => (None, None),
         };
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
+    if risktwin_transport::metrics::enabled() {
+        live_metrics::watch(&ingest, &liveness);
+    }
     let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness), Arc::clone(&ingest)).await?;
     let library_task = queryable.map(|(q, lib)| tokio::spawn(library::serve(q, lib, shutdown.clone())));
     let loop_role = match fleet {
@@ -525,6 +529,12 @@ pub async fn run(
         Some(viz) => Some(viz.finish().await),
         None => None,
     };
+    if risktwin_transport::metrics::enabled() {
+        // The ingest's final counts went out in `finish`.
+        live_metrics::export_liveliness(&liveliness);
+        warning.iter().for_each(live_metrics::export_warning);
+        fleet_loop.iter().for_each(live_metrics::export_loop_results);
+    }
     // Computed last, once every other role has flushed: a scenario that cannot be rebuilt fails
     // the run without losing the recording or the database.
     let criticality = match config.criticality.as_ref().filter(|_| config.has(Role::Criticality)) {

@@ -144,6 +144,9 @@ pub struct LiveIngest {
     digest: SnapshotDigest,
     /// Each emitted snapshot's lag behind the cloud's clock, s.
     lag: Distribution,
+    /// The same lags as a Prometheus histogram (a no-op without `--metrics-listen`): observed
+    /// one by one, which a count copied at scrape time cannot give.
+    lag_metric: metrics::Histogram,
     last_receive_ns: i64,
     last_sample: Option<Instant>,
     /// Replay-ingest mode: receive times come from the messages' replay-time attachments.
@@ -213,6 +216,7 @@ impl LiveIngest {
             episodes: None,
             digest: SnapshotDigest::default(),
             lag: Distribution::new(LAG_BIN_S),
+            lag_metric: metrics::histogram!(super::live_metrics::SNAPSHOT_LAG),
             last_receive_ns: i64::MIN,
             last_sample: None,
             replay_time: false,
@@ -384,6 +388,7 @@ impl LiveIngest {
         }
         let digest = &mut self.digest;
         let lag = &mut self.lag;
+        let lag_metric = &self.lag_metric;
         let mut outputs = self.outputs.as_mut();
         let mut ticked = false;
         let warnings = self.warnings.as_mut();
@@ -397,7 +402,9 @@ impl LiveIngest {
         let accepted =
             self.worker.handle_then(parsed.source, parsed.stream, key, payload, receive_ns, on_accepted, |s| {
                 digest.add(s);
-                lag.add(receive_ns.saturating_sub(s.tick_ns).max(0) as f64 * 1e-9);
+                let lag_s = receive_ns.saturating_sub(s.tick_ns).max(0) as f64 * 1e-9;
+                lag.add(lag_s);
+                lag_metric.record(lag_s);
                 if let Some(outputs) = outputs.as_mut() {
                     outputs.apply(s);
                     ticked = true;
@@ -606,9 +613,9 @@ impl LiveIngest {
     /// Closes the recording (so the file is a valid MCAP) and returns the summary, with the
     /// twin's when it ran.
     pub fn finish(self) -> Result<(IngestSummary, Option<TwinSummary>), RecordError> {
-        let presumed_lost = self.worker.presumed_lost();
-        let (stats, recording) = self.worker.finish()?;
-        let segments = match (recording, self.segments) {
+        let mut summary = self.summary();
+        let (_, recording) = self.worker.finish()?;
+        summary.segments = match (recording, self.segments) {
             (Some((file, closed)), Some(segments)) => Some(segments.finish(file, closed)?),
             (Some((mut file, _)), None) => {
                 file.flush().map_err(RecordError::Flush)?;
@@ -616,8 +623,18 @@ impl LiveIngest {
             }
             (None, _) => None,
         };
-        let mut summary = summarize(&stats, &self.received, &self.digest);
-        summary.segments = segments;
+        if risktwin_transport::metrics::enabled() {
+            let twin = self.outputs.as_ref().map(TwinOutputs::counts);
+            super::live_metrics::export_ingest(&summary, &self.sites, twin.as_ref());
+        }
+        Ok((summary, self.outputs.as_ref().map(TwinOutputs::summary)))
+    }
+
+    /// The summary so far; a rotating recording's segments as they stand (closed ones counted).
+    pub fn summary(&self) -> IngestSummary {
+        let presumed_lost = self.worker.presumed_lost();
+        let mut summary = summarize(self.worker.stats(), &self.received, &self.digest);
+        summary.segments = self.segments.as_ref().map(Segments::summary);
         summary.recovered = per_stream_names(&self.recovered);
         summary.total_recovered = summary.recovered.values().flat_map(BTreeMap::values).sum();
         summary.twin_lag = LagSummary::of(&self.lag);
@@ -626,7 +643,18 @@ impl LiveIngest {
         summary.total_presumed_lost = presumed_lost.values().flat_map(BTreeMap::values).sum();
         summary.presumed_lost = presumed_lost;
         summary.id_conflicts = self.conflicts.summary();
-        Ok((summary, self.outputs.as_ref().map(TwinOutputs::summary)))
+        summary
+    }
+
+    /// What a scrape exports: copied while the receive path waits (a few ms for thousands of
+    /// sources), exported after it has the lock back.
+    pub(super) fn metrics_snapshot(&self) -> super::live_metrics::Snapshot {
+        super::live_metrics::Snapshot {
+            ingest: self.summary(),
+            sites: self.sites.clone(),
+            twin: self.outputs.as_ref().map(TwinOutputs::counts),
+            warning: self.warning_summary(),
+        }
     }
 }
 

@@ -16,6 +16,7 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 
 /// A segment's file was created.
@@ -49,6 +50,8 @@ pub(super) struct Keeper {
     to: Option<Sender<Booking>>,
     /// `None` once joined.
     thread: Option<JoinHandle<Result<SegmentsSummary, SegmentError>>>,
+    /// The books so far (for live metrics).
+    summary: Arc<Mutex<SegmentsSummary>>,
 }
 
 impl Keeper {
@@ -61,13 +64,15 @@ impl Keeper {
         first: Opened,
     ) -> Result<Self, SegmentError> {
         let (to, from) = channel();
+        let summary = Arc::new(Mutex::new(SegmentsSummary {
+            dir: config.dir.display().to_string(),
+            recording_id,
+            segments_opened: 1,
+            ..SegmentsSummary::default()
+        }));
         let books = Books {
-            summary: SegmentsSummary {
-                dir: config.dir.display().to_string(),
-                recording_id,
-                segments_opened: 1,
-                ..SegmentsSummary::default()
-            },
+            summary: Arc::clone(&summary),
+            recording_id,
             open: (first.seq, config.dir.join(&first.file)),
             config,
             catalogue,
@@ -76,7 +81,12 @@ impl Keeper {
             .name("segment-keeper".into())
             .spawn(move || books.keep(&from))
             .map_err(|source| SegmentError::Io { path: PathBuf::from("(segment keeper thread)"), source })?;
-        Ok(Keeper { to: Some(to), thread: Some(thread) })
+        Ok(Keeper { to: Some(to), thread: Some(thread), summary })
+    }
+
+    /// What is booked so far.
+    pub fn summary(&self) -> SegmentsSummary {
+        self.summary.lock().unwrap_or_else(PoisonError::into_inner).clone()
     }
 
     /// Hands `booking` to the keeper: its error instead when it has failed.
@@ -115,7 +125,9 @@ struct Books {
     catalogue: Catalogue,
     /// The segment being written (its number and path): retention never deletes it.
     open: (u64, PathBuf),
-    summary: SegmentsSummary,
+    recording_id: i64,
+    /// Shared with the [`Keeper`], which reads it for live metrics.
+    summary: Arc<Mutex<SegmentsSummary>>,
 }
 
 impl Books {
@@ -128,16 +140,20 @@ impl Books {
                 Booking::Closed(closed) => self.close(closed)?,
             }
         }
-        Ok(self.summary)
+        Ok(self.books().clone())
+    }
+
+    fn books(&self) -> std::sync::MutexGuard<'_, SegmentsSummary> {
+        self.summary.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
     fn open(&mut self, opened: Opened) -> Result<(), SegmentError> {
         if self.catalogue.has_segment(opened.seq)? {
             return Err(super::rotation::already_catalogued(&self.catalogue, opened.seq).into());
         }
-        self.catalogue.open_segment(self.summary.recording_id, opened.seq, &opened.file, opened.unix_ns)?;
+        self.catalogue.open_segment(self.recording_id, opened.seq, &opened.file, opened.unix_ns)?;
         self.open = (opened.seq, self.config.dir.join(&opened.file));
-        self.summary.segments_opened += 1;
+        self.books().segments_opened += 1;
         Ok(())
     }
 
@@ -148,9 +164,11 @@ impl Books {
         file.sync_data().map_err(io)?;
         let bytes = file.metadata().map_err(io)?.len();
         self.catalogue.close_segment(seq, &stats, bytes, unix_ns())?;
-        self.summary.segments_closed += 1;
-        self.summary.messages += stats.messages;
-        self.summary.bytes_written += bytes;
+        let mut books = self.books();
+        books.segments_closed += 1;
+        books.messages += stats.messages;
+        books.bytes_written += bytes;
+        drop(books);
         self.retain()
     }
 
@@ -178,8 +196,9 @@ impl Books {
             self.catalogue.delete_segment(segment.seq)?;
             let bytes = segment.bytes.unwrap_or(0);
             total = total.saturating_sub(bytes);
-            self.summary.segments_deleted += 1;
-            self.summary.bytes_deleted += bytes;
+            let mut books = self.books();
+            books.segments_deleted += 1;
+            books.bytes_deleted += bytes;
             tracing::info!("recordings: retention deleted {} ({bytes} bytes)", segment.file);
         }
         Ok(())

@@ -128,6 +128,11 @@ impl Segments {
         self.keeper.book(Booking::Closed(Closed { seq: closing.seq, path: closing.path, written, stats }))
     }
 
+    /// What the recording did so far (the keeper's books).
+    pub fn summary(&self) -> SegmentsSummary {
+        self.keeper.summary()
+    }
+
     /// Books the last segment, closed by the recorder into `written` with `stats`, waits for the
     /// keeper to finish its work: the summary.
     pub fn finish(mut self, written: BufWriter<File>, stats: SegmentStats) -> Result<SegmentsSummary, SegmentError> {

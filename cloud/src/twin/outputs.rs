@@ -60,6 +60,18 @@ pub struct TickOutputs<'a> {
     pub assessments: &'a [(String, RiskAssessment)],
 }
 
+/// The twin's running counts, for the live metrics (`crate::network`).
+#[derive(Debug, Clone, Default)]
+pub struct TwinCounts {
+    pub ticks: u64,
+    pub scenes: u64,
+    pub risk_assessments: u64,
+    /// Vehicles per site at the last tick.
+    pub vehicles: BTreeMap<String, usize>,
+    /// Per site, the highest risk-field cell of its latest assessment.
+    pub latest_max_risk: BTreeMap<String, f64>,
+}
+
 /// The twin, the optional risk assessor and the summary of what they produced.
 pub struct TwinOutputs {
     twin: Twin,
@@ -70,6 +82,8 @@ pub struct TwinOutputs {
     /// The pushed episodes being watched (the loop role's).
     watch: EpisodeWatch,
     last_risk_tick: HashMap<String, i64>,
+    /// Per site, the highest risk-field cell of its latest assessment.
+    latest_max_risk: BTreeMap<String, f64>,
     summary: TwinSummary,
     scenes: Vec<SiteScene>,
     truth_scenes: Vec<SiteScene>,
@@ -86,6 +100,7 @@ impl TwinOutputs {
             fidelity: Fidelity::default(),
             watch: EpisodeWatch::default(),
             last_risk_tick: HashMap::new(),
+            latest_max_risk: BTreeMap::new(),
             summary: TwinSummary::default(),
             scenes: Vec::new(),
             truth_scenes: Vec::new(),
@@ -127,6 +142,17 @@ impl TwinOutputs {
         s.fidelity = self.fidelity.summary();
         s.fidelity_series = self.fidelity.series();
         s
+    }
+
+    /// The running counts (a map per site; the fidelity series are not copied).
+    pub fn counts(&self) -> TwinCounts {
+        TwinCounts {
+            ticks: self.twin.ticks(),
+            scenes: self.summary.scenes,
+            risk_assessments: self.summary.risk_assessments,
+            vehicles: self.summary.vehicles.clone(),
+            latest_max_risk: self.latest_max_risk.clone(),
+        }
     }
 
     /// A scene's true state of connected vehicle `source` at `site` (its authority's clock).
@@ -180,12 +206,21 @@ impl TwinOutputs {
                 continue;
             }
             self.last_risk_tick.insert(site.to_owned(), tick_ns);
+            let mut site_max = None::<f64>;
             for ego in 0..twin.vehicles.len() {
                 if let Some(a) = risk.assess(twin, ego, tick_ns) {
                     let max = a.field.grid.cells.iter().copied().fold(0.0f32, f32::max);
-                    self.summary.max_risk = self.summary.max_risk.max(f64::from(max));
+                    site_max = Some(site_max.unwrap_or(0.0).max(f64::from(max)));
                     self.summary.risk_assessments += 1;
                     self.assessments.push((site.to_owned(), a));
+                }
+            }
+            let Some(site_max) = site_max else { continue };
+            self.summary.max_risk = self.summary.max_risk.max(site_max);
+            match self.latest_max_risk.get_mut(site) {
+                Some(latest) => *latest = site_max,
+                None => {
+                    self.latest_max_risk.insert(site.to_owned(), site_max);
                 }
             }
         }

@@ -110,6 +110,10 @@ pub struct BenchIngestArgs {
     pub publishers: usize,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
+    /// Serve the cloud side's metrics here while it runs (docs/metrics.md), to measure what
+    /// they cost under load.
+    #[command(flatten)]
+    pub metrics: super::MetricsArgs,
     /// Internal: run as one publisher of the fleet, connecting here.
     #[arg(long, hide = true)]
     pub fleet_connect: Option<String>,

@@ -25,6 +25,15 @@ pub struct ZenohArgs {
     pub tls: TlsArgs,
 }
 
+/// The role's Prometheus endpoint (docs/metrics.md).
+#[derive(Debug, Args, Default, Clone)]
+pub struct MetricsArgs {
+    /// Serve Prometheus metrics at http://ADDR/metrics: `IP:PORT`, `localhost:PORT` or a port
+    /// (on loopback); port 0 picks a free one. Unauthenticated: a non-loopback address warns.
+    #[arg(long, value_name = "ADDR")]
+    pub metrics_listen: Option<String>,
+}
+
 /// TLS with mutual authentication (docs/security.md); without these flags links are plain TCP.
 #[derive(Debug, Args, Default, Clone)]
 pub struct TlsArgs {
@@ -59,6 +68,8 @@ pub struct RouterArgs {
     /// beside the CA certificate when it starts (docs/security.md).
     #[command(flatten)]
     pub tls: TlsArgs,
+    #[command(flatten)]
+    pub metrics: MetricsArgs,
 }
 
 #[derive(Debug, Subcommand)]
@@ -91,6 +102,8 @@ pub struct ReplayArgs {
     pub speed: f64,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
+    #[command(flatten)]
+    pub metrics: MetricsArgs,
     /// Seconds to wait for a subscriber before publishing anyway.
     #[arg(long, default_value_t = 10.0)]
     pub wait_for_cloud_s: f64,
@@ -108,6 +121,8 @@ pub struct EdgeArgs {
     pub site: String,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
+    #[command(flatten)]
+    pub metrics: MetricsArgs,
     /// Base rate, Hz (default: 50 for a vehicle's state, 10 for an RSU).
     #[arg(long)]
     pub rate_hz: Option<f64>,
@@ -258,4 +273,6 @@ pub struct CloudArgs {
     pub ego: Option<u64>,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
+    #[command(flatten)]
+    pub metrics: MetricsArgs,
 }

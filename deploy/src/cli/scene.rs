@@ -127,6 +127,8 @@ pub struct SceneRoleArgs {
     pub speed: f64,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
+    #[command(flatten)]
+    pub metrics: super::MetricsArgs,
 }
 
 #[derive(Debug, Args)]
@@ -138,4 +140,6 @@ pub struct SceneParticipantArgs {
     pub participant: String,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
+    #[command(flatten)]
+    pub metrics: super::MetricsArgs,
 }

@@ -24,6 +24,7 @@ pub fn ingest(args: BenchIngestArgs) -> CliResult {
         })?;
         return print_json(&report);
     }
+    let _metrics = crate::metrics_endpoint::start(&args.metrics, "bench-ingest")?;
     let exe = std::env::current_exe().map_err(CliError::runtime)?;
     let config = FleetBenchConfig {
         vehicles: args.vehicles,

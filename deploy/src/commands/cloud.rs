@@ -115,6 +115,7 @@ pub fn cloud(args: CloudArgs) -> CliResult {
     if let Some(listen) = &args.viz_listen {
         config.viz = viz_config(listen, config.roles.contains(&Role::Viz))?;
     }
+    let metrics = crate::metrics_endpoint::start(&args.metrics, "cloud")?;
     let summary = with_signals(|shutdown| async move {
         let on_ready = |ready: &risktwin_cloud::network::CloudReady| {
             if let Some(addr) = ready.viz {
@@ -138,7 +139,11 @@ pub fn cloud(args: CloudArgs) -> CliResult {
         std::fs::write(path, &fleet.fleet.report)
             .map_err(|e| CliError::runtime(format!("writing the loop report {}: {e}", path.display())))?;
     }
-    print_json(&summary)
+    print_json(&summary)?;
+    if let Some(endpoint) = metrics {
+        endpoint.last_scrape();
+    }
+    Ok(())
 }
 
 /// `--viz-listen`: an IP address and port, with the viz role; warned about once when it lets

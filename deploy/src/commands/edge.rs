@@ -6,6 +6,7 @@ use super::recover::warn_unfinished;
 use super::router::{transport_config, with_signals};
 use crate::cli::{EdgeArgs, ReplayArgs};
 use crate::error::{CliError, CliResult};
+use crate::metrics_endpoint::{self, MetricsEndpoint};
 use crate::output::print_json;
 use risktwin_edge::replay::{self, ReplayConfig};
 use risktwin_edge::{ClockModel, EdgeConfig, EdgeError, gateway, rsu, sensor, vehicle};
@@ -13,11 +14,19 @@ use risktwin_transport::{SiteId, SourceId};
 use std::time::Duration;
 
 pub fn vehicle(args: EdgeArgs) -> CliResult {
-    let config = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ)?;
+    let (config, metrics) = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ, "edge-vehicle")?;
     let summary =
         with_signals(|shutdown| async move { vehicle::run(&config, shutdown).await.map_err(CliError::runtime) })?;
     print_json(&summary)?;
+    last_scrape(metrics);
     delivered(&summary.sent)
+}
+
+/// Lets a scraper take the role's final counts before the process exits.
+fn last_scrape(metrics: Option<MetricsEndpoint>) {
+    if let Some(endpoint) = metrics {
+        endpoint.last_scrape();
+    }
 }
 
 /// Exit 1 (after the summary) when messages sent were not all delivered or some were refused.
@@ -26,25 +35,29 @@ fn delivered(summary: &risktwin_edge::SentSummary) -> CliResult {
 }
 
 pub fn sensor(args: EdgeArgs) -> CliResult {
-    let config = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ)?;
+    let (config, metrics) = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ, "edge-sensor")?;
     let summary =
         with_signals(|shutdown| async move { sensor::run(&config, shutdown).await.map_err(CliError::runtime) })?;
-    print_json(&summary)
+    print_json(&summary)?;
+    last_scrape(metrics);
+    Ok(())
 }
 
 pub fn gateway(args: EdgeArgs) -> CliResult {
-    let config = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ)?;
+    let (config, metrics) = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ, "edge-gateway")?;
     risktwin_edge::shm::validate_vehicle_id(config.id.as_str()).map_err(CliError::input)?;
     let summary =
         with_signals(|shutdown| async move { gateway::run(&config, shutdown).await.map_err(CliError::runtime) })?;
     print_json(&summary)?;
+    last_scrape(metrics);
     summary.failure().map_or(Ok(()), |why| Err(CliError::runtime(why)))
 }
 
 pub fn rsu(args: EdgeArgs) -> CliResult {
-    let config = edge_config(args, rsu::DEFAULT_RATE_HZ)?;
+    let (config, metrics) = edge_config(args, rsu::DEFAULT_RATE_HZ, "edge-rsu")?;
     let summary = with_signals(|shutdown| async move { rsu::run(&config, shutdown).await.map_err(CliError::runtime) })?;
     print_json(&summary)?;
+    last_scrape(metrics);
     delivered(&summary)
 }
 
@@ -58,6 +71,7 @@ pub fn replay(args: ReplayArgs) -> CliResult {
     let config =
         ReplayConfig { transport: transport_config(args.zenoh)?, speed: args.speed, wait_for_cloud, ack: !args.no_ack };
     let path = args.recording.display().to_string();
+    let metrics = metrics_endpoint::start(&args.metrics, "edge-replay")?;
     let summary = with_signals(|shutdown| async move {
         replay::run(cursor, &config, shutdown).await.map_err(|e| match e {
             EdgeError::Recording { .. } => CliError::input(format!("{path}: {e}")),
@@ -68,10 +82,12 @@ pub fn replay(args: ReplayArgs) -> CliResult {
         warn_unfinished(file, unfinished);
     }
     print_json(&summary)?;
+    last_scrape(metrics);
     summary.failure().map_or(Ok(()), |why| Err(CliError::runtime(why)))
 }
 
-fn edge_config(args: EdgeArgs, default_rate_hz: f64) -> CliResult<EdgeConfig> {
+/// The config of an edge role, and its metrics endpoint once the config is valid.
+fn edge_config(args: EdgeArgs, default_rate_hz: f64, role: &str) -> CliResult<(EdgeConfig, Option<MetricsEndpoint>)> {
     let site = SiteId::new(args.site).map_err(CliError::input)?;
     let id = SourceId::new(args.id).map_err(CliError::input)?;
     let rate_hz = args.rate_hz.unwrap_or(default_rate_hz);
@@ -103,5 +119,5 @@ fn edge_config(args: EdgeArgs, default_rate_hz: f64) -> CliResult<EdgeConfig> {
     config.clock_steps = args.clock_steps;
     config.ack = !args.no_ack;
     config.trust_key = args.trust_key.as_deref().map(super::keys::read_trust_key).transpose()?;
-    Ok(config)
+    Ok((config, metrics_endpoint::start(&args.metrics, role)?))
 }

@@ -15,6 +15,8 @@ pub fn router(args: RouterArgs) -> CliResult {
     let config = RouterConfig { listen: args.listen, connect: args.connect, security: security(&args.tls)? };
     // Bad locators, TLS files or certificates are the user's input: exit 2 before starting.
     warn_if_insecure(&config.transport().map_err(CliError::input)?);
+    // Only the process's own facts: the router's sessions are Zenoh's, not counted here.
+    let _metrics = crate::metrics_endpoint::start(&args.metrics, "router")?;
     with_signals(|shutdown| async move {
         run(&config, shutdown, |locators| {
             for locator in locators {

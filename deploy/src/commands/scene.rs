@@ -315,7 +315,9 @@ pub fn authority(args: SceneRoleArgs) -> CliResult {
     let setup = setup_of(&args.scene)?;
     let site = site_of(&args.scene)?;
     let data = data_transport(&args.scene)?;
-    let (_runtime, physics, data) = open_planes(&transport_config(args.zenoh)?, data.as_ref())?;
+    let transport = transport_config(args.zenoh)?;
+    let _metrics = crate::metrics_endpoint::start(&args.metrics, "scene-authority")?;
+    let (_runtime, physics, data) = open_planes(&transport, data.as_ref())?;
     let report = authority_on(&physics, &data, &site, &setup, clock)?;
     print_json(&report)
 }
@@ -333,7 +335,9 @@ pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
         )));
     }
     let data = data_transport(&args.scene)?;
-    let (_runtime, physics, data) = open_planes(&transport_config(args.zenoh)?, data.as_ref())?;
+    let transport = transport_config(args.zenoh)?;
+    let _metrics = crate::metrics_endpoint::start(&args.metrics, &format!("scene-{as_role}"))?;
+    let (_runtime, physics, data) = open_planes(&transport, data.as_ref())?;
     let summary =
         run_participant(&physics, &data, &site, &setup, &args.participant, Timeouts::default()).map_err(scene_error)?;
     print_json(&summary)

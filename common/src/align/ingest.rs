@@ -11,7 +11,9 @@
 //!    from earlier messages only); a mapping later than `receive + future_tolerance` is refused
 //!    (`future-timestamp`) and not fed to the estimator, whose minimum filter one bad timestamp
 //!    would otherwise wreck. A source that sends `clock_reset_after` future timestamps in a row
-//!    has had its clock stepped forward: its estimate is reset and re-anchored;
+//!    has had its clock stepped forward: its estimate is reset and re-anchored (after
+//!    `clock_reset_after_warming_up`, fewer, while the estimate is still warming up: then its
+//!    first samples most likely arrived late and anchored it too high);
 //! 5. the estimator takes the message in, and the payload goes to the aligner at its cloud time.
 //!
 //! Accounting: every message ends in exactly one of accepted or one drop reason, and per
@@ -48,6 +50,10 @@ pub struct IngestConfig {
     pub future_tolerance_ns: i64,
     /// Consecutive future timestamps after which a source's clock estimate is reset.
     pub clock_reset_after: u32,
+    /// The same while the estimate warms up (no drift fitted yet: the running minimum of a few
+    /// seconds): a run of future timestamps then most likely means the first samples arrived
+    /// late (a cloud behind at start) and the anchor is off, not that the clock stepped.
+    pub clock_reset_after_warming_up: u32,
 }
 
 impl Default for IngestConfig {
@@ -59,6 +65,7 @@ impl Default for IngestConfig {
             sequence_scope: SequenceScope::PerStream,
             future_tolerance_ns: 100_000_000,
             clock_reset_after: 50,
+            clock_reset_after_warming_up: 5,
         }
     }
 }
@@ -193,7 +200,9 @@ impl<T: Clone> IngestCore<T> {
         let mut mapped = clock.to_cloud_ns(msg.capture_ns);
         if mapped.is_some_and(|m| m > msg.receive_ns.saturating_add(self.cfg.future_tolerance_ns)) {
             self.future_streak[s] += 1;
-            if self.future_streak[s] < self.cfg.clock_reset_after {
+            let reset_after =
+                if clock.is_fitted() { self.cfg.clock_reset_after } else { self.cfg.clock_reset_after_warming_up };
+            if self.future_streak[s] < reset_after {
                 return Err(DropReason::FutureTimestamp);
             }
             clock.reset();

@@ -99,16 +99,14 @@ pub(super) fn export_liveliness(s: &LivenessSummary) {
 
 /// The warning role's counts.
 pub(super) fn export_warning(s: &WarningSummary) {
-    for (name, n) in [
+    set_counters([
         ("risktwin_warning_states_total", s.states),
         ("risktwin_warning_late_states_total", s.late_states),
         ("risktwin_warning_pairs_assessed_total", s.pairs_assessed),
         ("risktwin_warning_critical_total", s.critical),
         ("risktwin_warning_rate_limited_total", s.rate_limited),
         ("risktwin_warning_failed_total", s.failed),
-    ] {
-        metrics::counter!(name).absolute(n);
-    }
+    ]);
     for (vehicle, n) in &s.sent_to {
         let (site, vehicle) = vehicle.split_once('/').unwrap_or(("", vehicle));
         metrics::counter!("risktwin_warning_sent_total", "site" => site.to_owned(), "vehicle" => vehicle.to_owned())
@@ -118,7 +116,7 @@ pub(super) fn export_warning(s: &WarningSummary) {
 
 /// The loop role's counts of this run (the library's own totals are in its database).
 pub(crate) fn export_loop(s: &LoopSummary) {
-    for (name, n) in [
+    set_counters([
         ("risktwin_loop_pushes_total", s.pushes),
         ("risktwin_loop_retries_total", s.retries),
         ("risktwin_loop_abandoned_total", s.abandoned),
@@ -126,7 +124,12 @@ pub(crate) fn export_loop(s: &LoopSummary) {
         ("risktwin_loop_failures_total", s.failures),
         ("risktwin_loop_disagreements_total", s.disagreements),
         ("risktwin_loop_mutants_total", s.mutants),
-    ] {
+    ]);
+}
+
+/// Sets each unlabelled counter to its count.
+fn set_counters<const N: usize>(counts: [(&'static str, u64); N]) {
+    for (name, n) in counts {
         metrics::counter!(name).absolute(n);
     }
 }

@@ -10,6 +10,7 @@
 //! from the receive callback.
 
 use super::receive::LiveIngest;
+use super::routes::DeclaredKeys;
 use risktwin_common::delivery::{DeliveryAck, StreamAck};
 use risktwin_common::telemetry::{Frame, Header};
 use risktwin_protos::{WireMessage, encode};
@@ -149,6 +150,7 @@ pub(crate) fn spawn_acks(session: Session, ingest: Arc<Mutex<LiveIngest>>) -> Jo
     tokio::spawn(async move {
         let cloud = session.zid().to_string();
         let encoding = protobuf(DeliveryAck::PROTO_NAME);
+        let mut keys = DeclaredKeys::default();
         let mut every = tokio::time::interval(ACK_PERIOD);
         every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
@@ -158,14 +160,18 @@ pub(crate) fn spawn_acks(session: Session, ingest: Arc<Mutex<LiveIngest>>) -> Jo
                 &cloud,
                 MAX_ACKS_PER_PERIOD,
             );
+            let now = Instant::now();
             for (key, payload) in acks {
+                let put = match keys.get(&session, &key, now).await {
+                    Some(declared) => session.put(declared, payload),
+                    None => session.put(&key, payload),
+                };
                 // Latest-value data: a full link drops it, and the next period's says the same or more.
-                let put =
-                    session.put(&key, payload).encoding(encoding.clone()).congestion_control(CongestionControl::Drop);
-                if let Err(e) = put.await {
+                if let Err(e) = put.encoding(encoding.clone()).congestion_control(CongestionControl::Drop).await {
                     tracing::warn!("ingest: acknowledgement on {key} not sent: {e}");
                 }
             }
+            keys.forget_idle(&session, now).await;
         }
     })
 }

@@ -9,7 +9,8 @@
 # a stall longer than Zenoh's 10 s lease makes the router drop the cloud's session, which comes
 # back by itself. Once every vehicle that saw it go has seen it back, all are stopped (SIGTERM) at once:
 # each waits for acknowledgements covering everything it sent (at most 3 s) and prints its
-# summary. Printed: per vehicle the seconds from SIGCONT until it exited with everything
+# summary. Printed: when the cloud's count of samples recovered from the caches stopped growing
+# (its Prometheus counter, scraped every 0.1 s from SIGCONT: the recovery itself); per vehicle the seconds from SIGCONT until it exited with everything
 # accounted for (recovery of the stall's samples, plus the acknowledgement period), and the
 # counts of the edges and the cloud. Needs the release binary (cargo build --release).
 # KEEP_LOGS=1 keeps every process's output in the temporary folder it names (the cloud's stderr
@@ -44,10 +45,13 @@ wait_for "$dir/router.err" 30 "listening on tcp/127.0.0.1:"
 locator=$(grep -m1 -o 'listening on tcp/127.0.0.1:[0-9]*' "$dir/router.err" | cut -d' ' -f3)
 net=(--mode client --connect "$locator")
 
-"$bin" cloud --roles ingest "${net[@]}" >"$dir/cloud.json" 2> >(stamp >"$dir/cloud.err") &
+"$bin" cloud --roles ingest "${net[@]}" --metrics-listen 127.0.0.1:0 >"$dir/cloud.json" 2> >(stamp >"$dir/cloud.err") &
 cloud=$!
 pids+=("$cloud")
 wait_for "$dir/cloud.err" 30 " ready$"
+metrics=$(grep -m1 -o 'http://[^ ]*/metrics' "$dir/cloud.err")
+# Samples the cloud recovered from the edges' caches so far (its Prometheus counter, summed).
+recovered() { curl -sf --max-time 5 "$metrics" | awk '/^risktwin_ingest_messages_recovered_total/ {s += $2} END {print s + 0}'; }
 
 for i in $(seq 1 "$n"); do
     (
@@ -68,6 +72,10 @@ sleep "$stall_s"
 cont=$(now)
 echo "SIGCONT at $cont" >>"$dir/marks"
 kill -CONT "$cloud"
+# The recovered count every 100 ms until the cloud exits (it waits for a last scrape).
+(while kill -0 "$cloud" 2>/dev/null; do echo "$(now) $(recovered)"; sleep 0.1; done >"$dir/recovered") &
+poller=$!
+pids+=("$poller")
 # A stall past the lease took the cloud's session (and token) away: wait until it is back.
 for i in $(seq 1 "$n"); do
     if grep -q "cloud gone" "$dir/veh-$i.err"; then wait_for "$dir/veh-$i.err" 60 "cloud back after"; fi
@@ -79,6 +87,7 @@ kill -TERM "${vehicles[@]}" || true
 for i in $(seq 1 "$n"); do wait_for "$dir/veh-$i.end" 60 "."; done
 kill -TERM "$cloud"
 wait "$cloud" || true
+wait "$poller" || true
 
 python3 - "$dir" "$n" "$cont" "$back" "$stall_s" "$cache_s" <<'EOF'
 import json, statistics, sys
@@ -105,6 +114,11 @@ if secs:
     print(f"SIGCONT -> edge exited, all acknowledged: median {statistics.median(secs):.2f} s, p95 {q[18]:.2f} s, max {max(secs):.2f} s ({len(secs)} edges)")
 print(f"edges with undelivered messages (or no summary): {failed}")
 print("edges:", tot)
+# When the recovered count reached its final value: the stall's samples are all in the twin.
+series = [tuple(map(float, l.split())) for l in open(f"{d}/recovered") if len(l.split()) == 2]
+final = max((v for _, v in series), default=0)
+done = next((t for t, v in series if v >= final), cont)
+print(f"recovered {final:.0f} samples from the edges' caches, the last {done - cont:.2f} s after SIGCONT (scraped every 0.1 s)")
 print("cloud: received", cloud["total_received"], "recovered", cloud["total_recovered"], "lost", cloud["total_lost"],
       "presumed_lost", cloud["total_presumed_lost"], "dropped", cloud["dropped"])
 EOF

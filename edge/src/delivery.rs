@@ -117,6 +117,11 @@ impl DeliverySummary {
     pub fn total_undelivered(&self) -> u64 {
         self.undelivered.values().sum()
     }
+
+    /// All messages the cloud counts lost.
+    pub fn total_lost(&self) -> u64 {
+        self.lost.values().sum()
+    }
 }
 
 #[derive(Debug, Default)]
@@ -231,17 +236,19 @@ impl DeliveryWatch {
         Ok(DeliveryWatch { start, ledger, presence, changed, subscribers: [ack_subscriber, cloud_subscriber] })
     }
 
-    /// Waits until acknowledgements cover every stream of `sent`, no cloud's token is there, or
-    /// [`ACK_WAIT`] has passed; then undeclares the watch and tells what became of `sent`.
+    /// Waits until acknowledgements say every message of `sent` was received, no cloud's token
+    /// is there, or [`ACK_WAIT`] has passed; then undeclares the watch and tells what became of
+    /// `sent`. A count of lost ones is not final before the deadline: the cloud counts a gap
+    /// lost when it sees it and takes it back when its recovery brings the gap's messages.
     pub async fn settle(self, sent: &[(EdgeStream, StreamSent)]) -> Result<DeliverySummary, TransportError> {
         let deadline = tokio::time::Instant::now() + ACK_WAIT;
         loop {
             // Registered before the state is read, so that no change falls between the two.
             let changed = self.changed.notified();
             let summary = self.summary(sent);
-            let covered = summary.total_undelivered() == 0;
+            let received = summary.total_undelivered() == 0 && summary.total_lost() == 0;
             let alive = self.presence.lock().unwrap_or_else(PoisonError::into_inner).any_alive();
-            if covered || !alive || tokio::time::Instant::now() >= deadline {
+            if received || !alive || tokio::time::Instant::now() >= deadline {
                 for subscriber in self.subscribers {
                     subscriber.undeclare().await.map_err(|e| TransportError::Declare {
                         what: "undeclare",

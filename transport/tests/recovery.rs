@@ -128,3 +128,60 @@ async fn an_outage_longer_than_the_cache_is_counted_to_the_sample() {
     let key = Some("risktwin/v1/s1/veh-1/can".to_owned());
     assert!(seen.lost_keys.iter().all(|k| *k == key), "losses are named by their key: {:?}", seen.lost_keys);
 }
+
+/// The second ask for a range zenoh-ext reported missed: what the cache holds comes back once,
+/// as recovered; what it no longer holds is counted; a router that is back within the retries
+/// costs nothing.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_missed_range_is_asked_for_again_and_only_the_evicted_part_is_lost() {
+    use risktwin_transport::recovery::is_recovered;
+    use risktwin_transport::{Missed, requery};
+    let first = router("tcp/127.0.0.1:0").await;
+    let locator = listening_locators(&first).await.into_iter().find(|l| l.starts_with("tcp/127.0.0.1:")).unwrap();
+    let (cloud, edge) = (client(&locator).await, client(&locator).await);
+    let (site, source) = (SiteId::new("s1").unwrap(), SourceId::new("veh-1").unwrap());
+    let delivery = Delivery { cache_samples: 10, ..Delivery::live(1.0, Duration::ZERO) };
+    let publisher = StreamPublisher::declare(&edge, &site, &source, EdgeStream::Can, delivery).unwrap();
+    let key = publisher.key().to_owned();
+    let live = cloud.declare_subscriber(&key).await.unwrap();
+    let (_trigger, shutdown) = risktwin_transport::shutdown::channel();
+    assert!(publisher.wait_for_subscriber(STEP, shutdown).await.unwrap());
+    put_range(&publisher, 0, 20).await;
+    let sample = tokio::time::timeout(STEP, live.recv_async()).await.unwrap().unwrap();
+    let id = *sample.source_info().expect("numbered").source_id();
+    let ask = |first_sn, samples| Missed { key: key.clone(), publisher: id, first_sn, samples };
+    let payload = |s: &Sample| u32::from_le_bytes(<[u8; 4]>::try_from(s.payload().to_bytes().as_ref()).unwrap());
+
+    // Held: all of it, once, as recovered (the cache holds numbers 10..=19).
+    let mut got = Vec::new();
+    let lost = requery(&cloud, &ask(12, 5), |s| got.push((payload(s), is_recovered(s)))).await;
+    assert_eq!((lost, got), (0, (12..17).map(|n| (n, true)).collect::<Vec<_>>()));
+    // Half evicted: the held half comes back at the first answer, the rest is counted.
+    let (mut got, started) = (Vec::new(), Instant::now());
+    let lost = requery(&cloud, &ask(5, 10), |s| got.push(payload(s))).await;
+    assert_eq!((lost, got), (5, (10..15).collect::<Vec<_>>()));
+    assert!(started.elapsed() < risktwin_transport::edge_subscriber::REQUERY_DELAY, "no second ask");
+    // All evicted: asked REQUERY_ATTEMPTS times, all counted.
+    let lost = requery(&cloud, &ask(0, 5), |_| panic!("nothing is held")).await;
+    assert_eq!(lost, 5);
+
+    // The router gone when the range is first asked for, back within the retries.
+    close(first).await.unwrap();
+    let asked = tokio::spawn({
+        let (cloud, missed) = (cloud.clone(), ask(17, 3));
+        async move {
+            let mut got = Vec::new();
+            (requery(&cloud, &missed, |s| got.push(payload(s))).await, got)
+        }
+    });
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let second = router(&locator).await;
+    let (lost, got) = tokio::time::timeout(STEP, asked).await.unwrap().unwrap();
+    assert_eq!((lost, got), (0, vec![17, 18, 19]));
+
+    live.undeclare().await.unwrap();
+    publisher.undeclare().unwrap();
+    for session in [edge, cloud, second] {
+        close(session).await.unwrap();
+    }
+}

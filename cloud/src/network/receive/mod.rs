@@ -12,34 +12,37 @@
 use super::ack::AckSources;
 use super::id_conflicts::IdConflicts;
 use super::loss::LossCounts;
-use super::summary::{IngestSummary, LagSummary, per_stream_names, summarize};
 use crate::ingest::{AcceptedMessage, IngestWorker, ObservedKinematics, SnapshotDigest};
 use crate::recordings::{RotationConfig, SegmentError, Segments};
 use crate::twin::fidelity::distribution::Distribution;
-use crate::twin::outputs::{TickOutputs, TwinOutputs, TwinSummary};
+use crate::twin::outputs::TwinOutputs;
 use crate::twin::risk::{RiskAssessor, RiskConfig};
 use crate::twin::watch::{WatchCounts, WatchedEpisode};
 use crate::viz::VizFeed;
 use crate::warning::{HazardWarner, WarningSink, WarningSummary};
 use risktwin_common::align::{DropReason, IngestConfig, MAX_EDGE_PAYLOAD_BYTES, SeqProgress};
 use risktwin_common::scenario::ScenarioSpec;
-use risktwin_common::telemetry::{ObjectList, RiskReport, ScenarioResult, VehicleStateSample};
-use risktwin_protos::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE, risk_grid, vehicle_boxes};
+use risktwin_common::telemetry::{ObjectList, ScenarioResult, VehicleStateSample};
+use risktwin_protos::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE};
 use risktwin_protos::recording::{Recorder, RecordingError};
-use risktwin_protos::{WireMessage, encode};
-use risktwin_transport::keyexpr::{CloudOutput, SceneTopic, cloud_output, parse_edge_key, scene_topic};
+use risktwin_transport::keyexpr::{CloudOutput, cloud_output, parse_edge_key};
 use risktwin_transport::recovery::is_recovered;
 use risktwin_transport::zenoh::bytes::Encoding;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::session::ZenohId;
 use risktwin_transport::{EdgeStream, SiteId, StreamLoss, protobuf};
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{HashMap, HashSet};
 use std::fs::File;
-use std::io::{BufWriter, Seek, Write};
+use std::io::BufWriter;
 use std::path::Path;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 use thiserror::Error;
 use tokio::sync::mpsc::UnboundedSender;
+
+mod emit;
+mod report;
+
+use emit::emit;
 
 pub(super) const STREAMS: usize = EdgeStream::ALL.len();
 
@@ -609,98 +612,4 @@ impl LiveIngest {
     pub(crate) fn close_publisher(&mut self) {
         self.publish = None;
     }
-
-    /// Closes the recording (so the file is a valid MCAP) and returns the summary, with the
-    /// twin's when it ran.
-    pub fn finish(self) -> Result<(IngestSummary, Option<TwinSummary>), RecordError> {
-        let mut summary = self.summary();
-        let (_, recording) = self.worker.finish()?;
-        summary.segments = match (recording, self.segments) {
-            (Some((file, closed)), Some(segments)) => Some(segments.finish(file, closed)?),
-            (Some((mut file, _)), None) => {
-                file.flush().map_err(RecordError::Flush)?;
-                None
-            }
-            (None, _) => None,
-        };
-        if risktwin_transport::metrics::enabled() {
-            let twin = self.outputs.as_ref().map(TwinOutputs::counts);
-            super::live_metrics::export_ingest(&summary, &self.sites, twin.as_ref());
-        }
-        Ok((summary, self.outputs.as_ref().map(TwinOutputs::summary)))
-    }
-
-    /// The summary so far; a rotating recording's segments as they stand (closed ones counted).
-    pub fn summary(&self) -> IngestSummary {
-        let presumed_lost = self.worker.presumed_lost();
-        let mut summary = summarize(self.worker.stats(), &self.received, &self.digest);
-        summary.segments = self.segments.as_ref().map(Segments::summary);
-        summary.recovered = per_stream_names(&self.recovered);
-        summary.total_recovered = summary.recovered.values().flat_map(BTreeMap::values).sum();
-        summary.twin_lag = LagSummary::of(&self.lag);
-        summary.lost = self.losses.by_source().clone();
-        summary.total_lost = self.losses.total();
-        summary.total_presumed_lost = presumed_lost.values().flat_map(BTreeMap::values).sum();
-        summary.presumed_lost = presumed_lost;
-        summary.id_conflicts = self.conflicts.summary();
-        summary
-    }
-
-    /// What a scrape exports: copied while the receive path waits (a few ms for thousands of
-    /// sources), exported after it has the lock back.
-    pub(super) fn metrics_snapshot(&self) -> super::live_metrics::Snapshot {
-        super::live_metrics::Snapshot {
-            ingest: self.summary(),
-            sites: self.sites.clone(),
-            twin: self.outputs.as_ref().map(TwinOutputs::counts),
-            warning: self.warning_summary(),
-        }
-    }
-}
-
-/// Records (when recording) and publishes (when publishing) what one tick produced, under the
-/// cloud's output keys; `now_ns` is the cloud time the tick was produced at (its log time).
-fn emit<W: Write + Seek>(
-    tick: TickOutputs<'_>,
-    now_ns: i64,
-    mut recorder: Option<&mut Recorder<W>>,
-    publish: Option<&UnboundedSender<Publication>>,
-) -> Result<(), RecordingError> {
-    let log_ns = now_ns.max(0) as u64;
-    let key = |site: &str, output| SiteId::new(site).ok().map(|id| cloud_output(&id, output));
-    for scene in tick.scenes {
-        let Some(scene_key) = key(&scene.site, CloudOutput::Scene) else { continue };
-        if let Some(rec) = recorder.as_deref_mut() {
-            rec.record_scene(&scene_key, log_ns, &scene.boxes)?;
-        }
-        if let Some(tx) = publish {
-            let update = vehicle_boxes(tick.tick_ns, &scene.boxes);
-            // A closed channel means shutdown: nothing left to publish to.
-            let payload = prost::Message::encode_to_vec(&update);
-            let _ = tx.send(Publication { key: scene_key, message: FOXGLOVE_SCENE_UPDATE, log_ns, payload });
-        }
-    }
-    for truth in tick.truth_scenes {
-        let (Some(rec), Ok(site)) = (recorder.as_deref_mut(), SiteId::new(&truth.site)) else { continue };
-        rec.record_scene(&scene_topic(Some(&site), SceneTopic::TruthBoxes), log_ns, &truth.boxes)?;
-    }
-    for (site, a) in tick.assessments {
-        let (Some(field_key), Some(report_key)) =
-            (key(site, CloudOutput::RiskField), key(site, CloudOutput::RiskReport))
-        else {
-            continue;
-        };
-        if let Some(rec) = recorder.as_deref_mut() {
-            rec.record_risk_grid(&field_key, log_ns, &a.field)?;
-            let channel = rec.channel(&report_key, RiskReport::PROTO_NAME)?;
-            rec.write(channel, log_ns, log_ns, &encode(&a.report))?;
-        }
-        if let Some(tx) = publish {
-            let grid = prost::Message::encode_to_vec(&risk_grid(&a.field));
-            let _ = tx.send(Publication { key: field_key, message: FOXGLOVE_GRID, log_ns, payload: grid });
-            let report = encode(&a.report);
-            let _ = tx.send(Publication { key: report_key, message: RiskReport::PROTO_NAME, log_ns, payload: report });
-        }
-    }
-    Ok(())
 }

@@ -5,7 +5,17 @@ use super::*;
 /// A recording of `n` messages (log time = index) in chunks of about `chunk_bytes`, written by
 /// the `mcap` crate itself, and the byte range and message count of each chunk.
 fn small_chunked(n: u64, chunk_bytes: u64) -> (Vec<u8>, Vec<(u64, u64, u64)>) {
+    small_chunked_with(n, chunk_bytes, Some(mcap::Compression::Zstd))
+}
+
+/// [`small_chunked`] with the chunks compressed by `compression`.
+fn small_chunked_with(
+    n: u64,
+    chunk_bytes: u64,
+    compression: Option<mcap::Compression>,
+) -> (Vec<u8>, Vec<(u64, u64, u64)>) {
     let mut w = mcap::WriteOptions::new()
+        .compression(compression)
         .chunk_size(Some(chunk_bytes))
         .create(std::io::Cursor::new(Vec::new()))
         .expect("writer");
@@ -59,6 +69,19 @@ fn a_file_cut_anywhere_gives_the_messages_of_its_complete_chunks() {
         }
         assert_eq!(error, None, "cut at {cut}: the tail is not an error");
         assert_eq!(times, (0..complete).collect::<Vec<_>>(), "cut at {cut}");
+    }
+}
+
+#[test]
+fn lz4_and_uncompressed_chunks_of_other_writers_read_like_zstd_ones() {
+    for compression in [Some(mcap::Compression::Lz4), None] {
+        let (bytes, chunks) = small_chunked_with(60, 400, compression);
+        let (times, error) = drain(&bytes);
+        assert_eq!((times, error), ((0..60).collect(), None), "{compression:?}");
+        // Cut inside the third chunk: the first two chunks' messages, the rest a tail.
+        let (times, error) = drain(&bytes[..chunks[2].1 as usize - 1]);
+        assert_eq!(error, None, "{compression:?}");
+        assert_eq!(times.len() as u64, chunks[0].2 + chunks[1].2, "{compression:?}");
     }
 }
 

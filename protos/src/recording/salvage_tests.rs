@@ -14,11 +14,12 @@ fn small_chunked_with(
     chunk_bytes: u64,
     compression: Option<mcap::Compression>,
 ) -> (Vec<u8>, Vec<(u64, u64, u64)>) {
-    let mut w = mcap::WriteOptions::new()
-        .compression(compression)
-        .chunk_size(Some(chunk_bytes))
-        .create(std::io::Cursor::new(Vec::new()))
-        .expect("writer");
+    small_chunked_opts(n, mcap::WriteOptions::new().compression(compression).chunk_size(Some(chunk_bytes)))
+}
+
+/// [`small_chunked`] written with `options`.
+fn small_chunked_opts(n: u64, options: mcap::WriteOptions) -> (Vec<u8>, Vec<(u64, u64, u64)>) {
+    let mut w = options.create(std::io::Cursor::new(Vec::new())).expect("writer");
     let schema = w.add_schema("risktwin.v1.VehicleState", "protobuf", b"schema").expect("schema");
     let channel = w.add_channel(schema, "risktwin/v1/s/veh-1/state", "protobuf", &BTreeMap::new()).expect("channel");
     for seq in 0..n {
@@ -83,6 +84,32 @@ fn lz4_and_uncompressed_chunks_of_other_writers_read_like_zstd_ones() {
         assert_eq!(error, None, "{compression:?}");
         assert_eq!(times.len() as u64, chunks[0].2 + chunks[1].2, "{compression:?}");
     }
+}
+
+#[test]
+fn a_chunk_without_a_crc_that_does_not_parse_yields_none_of_its_messages() {
+    // Uncompressed chunks without a CRC (0: "not computed", which other writers may write).
+    let options = mcap::WriteOptions::new().compression(None).calculate_chunk_crcs(false).chunk_size(Some(400));
+    let (bytes, chunks) = small_chunked_opts(60, options);
+    let records_at = |chunk_start: u64| {
+        // Chunk body: start, end, uncompressed size, crc, compression (length-prefixed), records length.
+        let body = chunk_start as usize + 9;
+        let compression_len = u32::from_le_bytes(bytes[body + 28..body + 32].try_into().unwrap()) as usize;
+        body + 32 + compression_len + 8
+    };
+    let crc_at = chunks[1].0 as usize + 9 + 24;
+    assert_eq!(bytes[crc_at..crc_at + 4], [0, 0, 0, 0], "no CRC written");
+    // The second chunk's third record claims a length past the chunk's end.
+    let mut at = records_at(chunks[1].0);
+    for _ in 0..2 {
+        at += 9 + u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+    }
+    let mut damaged = bytes.clone();
+    damaged[at + 1 + 4] ^= 0x01;
+    let (times, error) = drain(&damaged);
+    assert!(error.is_some_and(|e| e.contains(&format!("chunk at byte {}", chunks[1].0))), "an error naming the chunk");
+    assert_eq!(times.len() as u64, chunks[0].2, "the first chunk's messages, none of the damaged one's: {times:?}");
+    assert_eq!(drain(&bytes), ((0..60).collect(), None), "undamaged, it reads whole");
 }
 
 #[test]

@@ -5,7 +5,8 @@
 //! byte offset is known (errors name it), its length is checked before anything is read, and a
 //! record's bytes are read as they arrive, so a record never takes more memory than the file
 //! holds. Only a complete chunk goes to a `LinearReader` (which decompresses it and checks its
-//! CRC before yielding a record), so a chunk is read whole or not at all. The one length taken
+//! CRC before yielding a record; a chunk whose CRC is 0, "not computed", is read through once
+//! before its first record is yielded), so a chunk is read whole or not at all. The one length taken
 //! on trust is a complete chunk's decompressed size, which the `LinearReader` allocates (zeroed)
 //! before it decompresses: [`CHUNK_UNCOMPRESSED_CAP`] bounds it, so a small damaged file can
 //! cost that much memory, no more.
@@ -41,6 +42,8 @@ pub(super) const RECORD_HEAD_LEN: usize = 9;
 const READ_STEP: u64 = 1 << 20;
 /// Offset of a chunk's uncompressed size in its body: after start and end time.
 const CHUNK_UNCOMPRESSED_SIZE_AT: usize = 16;
+/// Where a chunk's CRC of its uncompressed records lies in its body (after the size).
+const CHUNK_CRC_AT: usize = 24;
 
 /// Why a read ended before the file's footer and end magic.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -256,6 +259,13 @@ impl<R: Read> RecordScanner<R> {
             .with_skip_end_magic(true)
             .with_prevalidate_chunk_crcs(true)
             .with_record_length_limit(limit);
+        let crc = body.get(CHUNK_CRC_AT..CHUNK_CRC_AT + 4);
+        if crc == Some(&[0; 4]) {
+            // No CRC to check before the first record is yielded (0: "not computed"): read the
+            // chunk through once first, so that one that does not parse yields nothing.
+            let mut dry = OpenChunk { reader: LinearReader::new_with_options(options.clone()), at_byte, fed: 0 };
+            while next_record_of(&mut dry, &self.record, &mut self.yielded)?.is_some() {}
+        }
         self.chunk = Some(OpenChunk { reader: LinearReader::new_with_options(options), at_byte, fed: 0 });
         Ok(())
     }
@@ -263,27 +273,11 @@ impl<R: Read> RecordScanner<R> {
     /// The next record of the open chunk, if any; closes the chunk at its end.
     fn next_in_chunk(&mut self) -> Result<Option<u8>, RecordingError> {
         let Some(chunk) = self.chunk.as_mut() else { return Ok(None) };
-        let corrupt =
-            |at: u64, e: mcap::McapError| RecordingError::Corrupt { reason: format!("chunk at byte {at}: {e}") };
-        loop {
-            match chunk.reader.next_event() {
-                None => {
-                    self.chunk = None;
-                    return Ok(None);
-                }
-                Some(Err(e)) => return Err(corrupt(chunk.at_byte, e)),
-                Some(Ok(LinearReadEvent::ReadRequest(need))) => {
-                    let rest = &self.record[chunk.fed..];
-                    let n = need.min(rest.len());
-                    chunk.reader.insert(n).copy_from_slice(&rest[..n]);
-                    chunk.reader.notify_read(n);
-                    chunk.fed += n;
-                }
-                Some(Ok(LinearReadEvent::Record { opcode, data })) => {
-                    self.yielded.clear();
-                    self.yielded.extend_from_slice(data);
-                    return Ok(Some(opcode));
-                }
+        match next_record_of(chunk, &self.record, &mut self.yielded)? {
+            Some(opcode) => Ok(Some(opcode)),
+            None => {
+                self.chunk = None;
+                Ok(None)
             }
         }
     }
@@ -335,4 +329,29 @@ fn read_up_to<R: Read>(source: &mut R, buf: &mut Vec<u8>, len: u64) -> std::io::
 /// Counts the bytes left in `source`, reading them in small pieces.
 fn count_rest<R: Read>(source: &mut R) -> std::io::Result<u64> {
     std::io::copy(source, &mut std::io::sink())
+}
+
+/// The next record of `chunk`, whose whole record (head included) is `record`: its opcode, its
+/// body copied into `out`.
+fn next_record_of(chunk: &mut OpenChunk, record: &[u8], out: &mut Vec<u8>) -> Result<Option<u8>, RecordingError> {
+    loop {
+        match chunk.reader.next_event() {
+            None => return Ok(None),
+            Some(Err(e)) => {
+                return Err(RecordingError::Corrupt { reason: format!("chunk at byte {}: {e}", chunk.at_byte) });
+            }
+            Some(Ok(LinearReadEvent::ReadRequest(need))) => {
+                let rest = &record[chunk.fed..];
+                let n = need.min(rest.len());
+                chunk.reader.insert(n).copy_from_slice(&rest[..n]);
+                chunk.reader.notify_read(n);
+                chunk.fed += n;
+            }
+            Some(Ok(LinearReadEvent::Record { opcode, data })) => {
+                out.clear();
+                out.extend_from_slice(data);
+                return Ok(Some(opcode));
+            }
+        }
+    }
 }

@@ -113,6 +113,22 @@ fn a_chunk_without_a_crc_that_does_not_parse_yields_none_of_its_messages() {
 }
 
 #[test]
+fn damage_in_the_middle_of_a_finished_file_is_an_error_not_a_tail() {
+    let (bytes, chunks) = small_chunked(60, 400);
+    // The second chunk's opcode turned into a reserved one: unreadable from there, but the file
+    // goes on to its footer and end magic, so it was finished, not cut short.
+    let mut damaged = bytes.clone();
+    damaged[chunks[1].0 as usize] = 0x20;
+    let (times, error) = drain(&damaged);
+    let error = error.expect("an error");
+    assert!(error.contains(&format!("at byte {}", chunks[1].0)) && error.contains("damaged"), "{error}");
+    assert_eq!(times.len() as u64, chunks[0].2, "the messages before the damage");
+    // The same file cut before its end magic is an unfinished one: a tail.
+    let (times, error) = drain(&damaged[..damaged.len() - 1]);
+    assert_eq!((times.len() as u64, error), (chunks[0].2, None));
+}
+
+#[test]
 fn trailing_garbage_after_complete_chunks_is_a_tail_not_an_error() {
     let (bytes, chunks) = small_chunked(60, 400);
     let mut cut = bytes[..chunks[1].1 as usize].to_vec();

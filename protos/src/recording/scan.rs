@@ -159,7 +159,7 @@ impl<R: Read> RecordScanner<R> {
                         return Err(RecordingError::NotMcap);
                     }
                     if n < magic.len() {
-                        return self.end_early(0, n as u64, "the file ends inside the MCAP magic");
+                        return self.end_early(0, &magic[..n], "the file ends inside the MCAP magic");
                     }
                     self.offset = magic.len() as u64;
                     self.section = Section::Data;
@@ -184,19 +184,19 @@ impl<R: Read> RecordScanner<R> {
         let n = read_some(&mut self.source, &mut head)?;
         if n < RECORD_HEAD_LEN {
             let reason = if n == 0 { "no footer" } else { "the file ends inside a record's opcode and length" };
-            return self.end_early(at, n as u64, reason).map(|_| None);
+            return self.end_early(at, &head[..n], reason).map(|_| None);
         }
         let opcode = head[0];
         let len = u64::from_le_bytes([head[1], head[2], head[3], head[4], head[5], head[6], head[7], head[8]]);
         // Opcode 0 and 0x10..0x7f are reserved: nothing writes them, so this is not a record.
         if opcode == 0 || (0x10..0x80).contains(&opcode) {
             let reason = format!("bytes that are no MCAP record (opcode {opcode:#04x})");
-            return self.end_early(at, n as u64, &reason).map(|_| None);
+            return self.end_early(at, &head[..n], &reason).map(|_| None);
         }
         // The `mcap` writer's placeholder for a chunk it has not finished: the recorder stopped
         // inside this chunk.
         if opcode == op::CHUNK && len == u64::MAX {
-            return self.end_early(at, n as u64, "a chunk the writer never finished").map(|_| None);
+            return self.end_early(at, &head[..n], "a chunk the writer never finished").map(|_| None);
         }
         let body_end = at.saturating_add(RECORD_HEAD_LEN as u64).saturating_add(len);
         if len > RECORD_LENGTH_CAP {
@@ -204,14 +204,15 @@ impl<R: Read> RecordScanner<R> {
         }
         if self.source_len.is_some_and(|file_len| body_end > file_len) {
             let reason = format!("the file ends inside a record of {len} bytes");
-            return self.end_early(at, n as u64, &reason).map(|_| None);
+            return self.end_early(at, &head[..n], &reason).map(|_| None);
         }
         self.record.clear();
         self.record.extend_from_slice(&head);
         let got = read_up_to(&mut self.source, &mut self.record, len)?;
         if got < len {
             let reason = format!("the file ends inside a record of {len} bytes");
-            return self.end_early(at, (RECORD_HEAD_LEN as u64) + got, &reason).map(|_| None);
+            let read = std::mem::take(&mut self.record);
+            return self.end_early(at, &read, &reason).map(|_| None);
         }
         self.offset = body_end;
         match opcode {
@@ -227,7 +228,7 @@ impl<R: Read> RecordScanner<R> {
                 let mut magic = [0u8; 8];
                 let n = read_some(&mut self.source, &mut magic)?;
                 if n < magic.len() || magic != mcap::MAGIC {
-                    return self.end_early(self.offset, n as u64, "no end magic after the footer").map(|_| None);
+                    return self.end_early(self.offset, &magic[..n], "no end magic after the footer").map(|_| None);
                 }
                 self.section = Section::Done;
                 Ok(None)
@@ -282,15 +283,47 @@ impl<R: Read> RecordScanner<R> {
         }
     }
 
-    /// Ends the read at `at`, where `read` bytes of the unreadable part were read already.
-    fn end_early(&mut self, at: u64, read: u64, reason: &str) -> Result<Option<u8>, RecordingError> {
+    /// Ends the read at `at`, where `read` holds the bytes of the unreadable part read already:
+    /// quietly, as an unfinished tail, unless the file ends with the MCAP magic. Only a writer
+    /// that finished writes that (after the footer), so bytes it cannot read in such a file are
+    /// damage, an error, not a recorder that stopped.
+    fn end_early(&mut self, at: u64, read: &[u8], reason: &str) -> Result<Option<u8>, RecordingError> {
+        let mut last = EndWindow::default();
+        last.push(read);
+        let rest = copy_rest(&mut self.source, &mut last)?;
+        if last.is_magic() && read.len() as u64 + rest > mcap::MAGIC.len() as u64 {
+            return Err(RecordingError::Corrupt {
+                reason: format!("{reason} at byte {at}, in a file that ends with a footer: damaged, not unfinished"),
+            });
+        }
         let unreadable_bytes = match self.source_len {
             Some(len) => len.saturating_sub(at),
-            None => read + count_rest(&mut self.source)?,
+            None => read.len() as u64 + rest,
         };
         self.tail = Some(Tail { at_byte: at, unreadable_bytes, reason: reason.to_owned() });
         self.section = Section::Done;
         Ok(None)
+    }
+}
+
+/// The last 8 bytes seen (as many as there were).
+#[derive(Default)]
+struct EndWindow {
+    bytes: [u8; 8],
+    len: usize,
+}
+
+impl EndWindow {
+    fn push(&mut self, data: &[u8]) {
+        let take = data.len().min(8);
+        let keep = (8 - take).min(self.len);
+        self.bytes.copy_within(self.len - keep..self.len, 0);
+        self.bytes[keep..keep + take].copy_from_slice(&data[data.len() - take..]);
+        self.len = keep + take;
+    }
+
+    fn is_magic(&self) -> bool {
+        self.bytes[..self.len] == mcap::MAGIC[..]
     }
 }
 
@@ -327,8 +360,18 @@ fn read_up_to<R: Read>(source: &mut R, buf: &mut Vec<u8>, len: u64) -> std::io::
 }
 
 /// Counts the bytes left in `source`, reading them in small pieces.
-fn count_rest<R: Read>(source: &mut R) -> std::io::Result<u64> {
-    std::io::copy(source, &mut std::io::sink())
+/// Reads the rest of `source`, keeping its last bytes in `last`; the count read.
+fn copy_rest<R: Read>(source: &mut R, last: &mut EndWindow) -> std::io::Result<u64> {
+    let mut buf = [0u8; 64 << 10];
+    let mut total = 0;
+    loop {
+        let n = read_some(source, &mut buf)?;
+        if n == 0 {
+            return Ok(total);
+        }
+        last.push(&buf[..n]);
+        total += n as u64;
+    }
 }
 
 /// The next record of `chunk`, whose whole record (head included) is `record`: its opcode, its

@@ -96,10 +96,12 @@ fn free_port() -> Result<u16, BenchError> {
     Ok(listener.local_addr().map_err(BenchError::runtime)?.port())
 }
 
-/// Runs the cloud ingest role and one publisher process per share, each started by
-/// `publisher` (a command whose stdout is one [`FleetReport`]), and reports.
+/// Runs the cloud ingest role (recording into `record_dir` when given) and one publisher
+/// process per share, each started by `publisher` (a command whose stdout is one
+/// [`FleetReport`]), and reports.
 pub async fn cloud_side(
     config: FleetBenchConfig,
+    record_dir: Option<risktwin_cloud::recordings::RotationConfig>,
     publisher: impl Fn(&FleetShare) -> Command,
 ) -> Result<IngestReport, BenchError> {
     let locator = format!("tcp/127.0.0.1:{}", free_port()?);
@@ -107,6 +109,7 @@ pub async fn cloud_side(
     let mut cloud_config = CloudConfig::new(transport);
     cloud_config.drain_quiet = Duration::from_millis(300);
     cloud_config.drain_max = Duration::from_secs(10);
+    cloud_config.record_dir = record_dir;
     let (trigger, shutdown) = risktwin_transport::shutdown::channel();
     let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
     let cloud = tokio::spawn(async move {

@@ -177,6 +177,10 @@ pub async fn requery(session: &Session, missed: &Missed, mut deliver: impl FnMut
         if attempt > 0 {
             tokio::time::sleep(REQUERY_DELAY).await;
         }
+        if session.is_closed() {
+            // Shutting down: nobody to ask, and the caller's callbacks should be let go.
+            break;
+        }
         let replies = match session
             .get(&selector)
             .consolidation(ConsolidationMode::None)

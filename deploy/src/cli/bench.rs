@@ -114,6 +114,10 @@ pub struct BenchIngestArgs {
     /// they cost under load.
     #[command(flatten)]
     pub metrics: super::MetricsArgs,
+    /// Record what the cloud side accepts as `cloud --record-dir` does (for a soak:
+    /// benchmarks/soak.sh).
+    #[command(flatten)]
+    pub rotation: super::RecordDirArgs,
     /// Internal: run as one publisher of the fleet, connecting here.
     #[arg(long, hide = true)]
     pub fleet_connect: Option<String>,

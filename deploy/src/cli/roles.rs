@@ -25,6 +25,27 @@ pub struct ZenohArgs {
     pub tls: TlsArgs,
 }
 
+/// A rotating recording (docs/recordings.md): `cloud --record-dir`, `bench ingest --record-dir`.
+#[derive(Debug, Args, Default, Clone)]
+pub struct RecordDirArgs {
+    /// Record as --record does, into MCAP segments in this folder (created if missing), each
+    /// finished when the next opens, with a catalogue (catalogue.db; docs/recordings.md).
+    #[arg(long, value_name = "DIR")]
+    pub record_dir: Option<PathBuf>,
+    /// A segment closes once its file reaches this many MiB (checked every 250 ms; default 256).
+    #[arg(long, value_name = "MIB", requires = "record_dir")]
+    pub segment_mb: Option<f64>,
+    /// A segment closes once it is this many seconds old (default 600; at least 0.25).
+    #[arg(long, value_name = "S", requires = "record_dir")]
+    pub segment_s: Option<f64>,
+    /// Delete closed segments closed longer ago than this many seconds.
+    #[arg(long, value_name = "S", requires = "record_dir")]
+    pub retain_s: Option<f64>,
+    /// Delete the oldest closed segments while the folder's segments hold more than this many MiB.
+    #[arg(long, value_name = "MIB", requires = "record_dir")]
+    pub retain_mb: Option<f64>,
+}
+
 /// The role's Prometheus endpoint (docs/metrics.md).
 #[derive(Debug, Args, Default, Clone)]
 pub struct MetricsArgs {
@@ -190,24 +211,10 @@ pub struct CloudArgs {
     pub site: Option<String>,
     /// Record every accepted message (and the twin's scene and risk outputs) into this MCAP
     /// file (closed cleanly on SIGINT/SIGTERM).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "record_dir")]
     pub record: Option<std::path::PathBuf>,
-    /// Record as --record does, into MCAP segments in this folder (created if missing), each
-    /// finished when the next opens, with a catalogue (catalogue.db; docs/recordings.md).
-    #[arg(long, value_name = "DIR", conflicts_with = "record")]
-    pub record_dir: Option<PathBuf>,
-    /// A segment closes once its file reaches this many MiB (checked every 250 ms; default 256).
-    #[arg(long, value_name = "MIB", requires = "record_dir")]
-    pub segment_mb: Option<f64>,
-    /// A segment closes once it is this many seconds old (default 600; at least 0.25).
-    #[arg(long, value_name = "S", requires = "record_dir")]
-    pub segment_s: Option<f64>,
-    /// Delete closed segments closed longer ago than this many seconds.
-    #[arg(long, value_name = "S", requires = "record_dir")]
-    pub retain_s: Option<f64>,
-    /// Delete the oldest closed segments while the folder's segments hold more than this many MiB.
-    #[arg(long, value_name = "MIB", requires = "record_dir")]
-    pub retain_mb: Option<f64>,
+    #[command(flatten)]
+    pub rotation: RecordDirArgs,
     /// Ingest `risktwin edge replay` output at the recorded receive times it attaches, instead
     /// of this cloud's clock (messages without one are dropped as `no-replay-time`).
     #[arg(long)]

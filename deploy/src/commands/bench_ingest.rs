@@ -32,6 +32,7 @@ pub fn ingest(args: BenchIngestArgs) -> CliResult {
         seconds: args.seconds,
         publishers: args.publishers,
     };
+    let record_dir = super::recordings::rotation(&args.rotation)?;
     let publisher = move |share: &FleetShare| {
         let mut command = Command::new(&exe);
         command
@@ -40,7 +41,10 @@ pub fn ingest(args: BenchIngestArgs) -> CliResult {
             .args(["--rate-hz", &config.rate_hz.to_string(), "--seconds", &config.seconds.to_string()]);
         command
     };
-    let report = with_signals(|_shutdown| async move { cloud_side(config, publisher).await.map_err(CliError::from) })?;
+    let report =
+        with_signals(
+            |_shutdown| async move { cloud_side(config, record_dir, publisher).await.map_err(CliError::from) },
+        )?;
     match args.format {
         Format::Json => print_json(&report),
         _ => print_table(

@@ -33,7 +33,7 @@ use std::time::Duration;
 pub fn cloud(args: CloudArgs) -> CliResult {
     let roles =
         args.roles.iter().map(|r| r.trim().parse::<Role>()).collect::<Result<Vec<_>, _>>().map_err(CliError::input)?;
-    let record_dir = super::recordings::rotation(&args)?;
+    let record_dir = super::recordings::rotation(&args.rotation)?;
     let mut config = CloudConfig::new(transport_config(args.zenoh)?);
     config.record_dir = record_dir;
     config.roles = roles;

@@ -3,7 +3,7 @@
 //! flags turned into a rotation (docs/recordings.md).
 
 use super::recover::{temp_next_to, warn_unfinished};
-use crate::cli::{CloudArgs, RecordingsCommand, RecordingsExportArgs, RecordingsQueryArgs, SpanArgs};
+use crate::cli::{RecordDirArgs, RecordingsCommand, RecordingsExportArgs, RecordingsQueryArgs, SpanArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_cloud::recordings::{Catalogue, CatalogueError, Provenance, RotationConfig, SegmentRow, StreamRow};
@@ -25,7 +25,7 @@ impl From<CatalogueError> for CliError {
 }
 
 /// The cloud's `--record-dir` and its bounds, checked; `None` without `--record-dir`.
-pub fn rotation(args: &CloudArgs) -> CliResult<Option<RotationConfig>> {
+pub fn rotation(args: &RecordDirArgs) -> CliResult<Option<RotationConfig>> {
     let Some(dir) = args.record_dir.clone() else { return Ok(None) };
     let positive = |flag: &str, v: f64, min: f64, max: f64| {
         if v.is_finite() && (min..=max).contains(&v) {

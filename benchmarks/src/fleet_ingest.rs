@@ -175,11 +175,14 @@ pub async fn cloud_side(
 }
 
 /// One publisher process: its share of the fleet at `rate_hz` for `seconds`, paced on the 10 ms
-/// tick.
+/// tick. With `tokens`, every vehicle holds its liveliness token and is waited on until a
+/// subscriber matches it (sharded workers subscribe vehicle by vehicle, as they see the tokens);
+/// without, the first vehicle's match is enough (one cloud subscribes to all at once).
 pub async fn publish_share(
     share: &FleetShare,
     rate_hz: u64,
     seconds: u64,
+    tokens: bool,
     shutdown: Shutdown,
 ) -> Result<FleetReport, BenchError> {
     let transport = TransportConfig { connect: vec![share.locator.clone()], ..TransportConfig::default() };
@@ -192,16 +195,27 @@ pub async fn publish_share(
     };
     let mut fleet = SyntheticFleet::new(config, site.as_str());
     let mut publishers = Vec::with_capacity(share.vehicles);
+    let mut held_tokens = Vec::new();
     for i in 0..share.vehicles {
         let source = SourceId::new(format!("veh-{:05}", share.first_vehicle + i)).map_err(BenchError::input)?;
         let delivery = Delivery::paced_by_transport(FLEET_CACHE_SAMPLES);
         let publisher = StreamPublisher::declare(&session, &site, &source, EdgeStream::State, delivery);
         publishers.push(publisher.map_err(BenchError::runtime)?);
+        if tokens {
+            let key = risktwin_transport::keyexpr::liveliness_token(&site, &source);
+            let token = session.liveliness().declare_token(key).await.map_err(BenchError::runtime)?;
+            held_tokens.push(token);
+        }
     }
-    if let Some(first) = publishers.first()
-        && !first.wait_for_subscriber(Duration::from_secs(30), shutdown.clone()).await.map_err(BenchError::runtime)?
-    {
-        return Err(BenchError::runtime("no cloud subscriber within 30 s"));
+    let waited_on = if tokens { &publishers[..] } else { &publishers[..publishers.len().min(1)] };
+    for publisher in waited_on {
+        if !publisher
+            .wait_for_subscriber(Duration::from_secs(30), shutdown.clone())
+            .await
+            .map_err(BenchError::runtime)?
+        {
+            return Err(BenchError::runtime(format!("no cloud subscriber on {} within 30 s", publisher.key())));
+        }
     }
     let mut timer = tokio::time::interval(Duration::from_nanos(FLEET_TICK_NS as u64));
     timer.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Burst);
@@ -220,6 +234,7 @@ pub async fn publish_share(
         }
     }
     let wall_s = start.elapsed().as_secs_f64();
+    drop(held_tokens);
     close(session).await.map_err(BenchError::runtime)?;
     Ok(FleetReport { sent, wall_s })
 }

@@ -196,6 +196,19 @@ fn viz_flags_are_checked_before_the_cloud_joins() {
 }
 
 #[test]
+fn sharding_flags_and_the_union_role_are_checked_before_the_cloud_joins() {
+    let dir = tempdir().unwrap();
+    for (args, needle) in [
+        (&["cloud", "--shard"][..], "--shard needs role ingest, --site"),
+        (&["cloud", "--shard", "--roles", "ingest,twin", "--site", "s"][..], "--shard needs role ingest"),
+        (&["cloud", "--roles", "union,ingest"][..], "role union takes what sharded ingest workers accepted"),
+        (&["cloud", "--roles", "union,nope"][..], r#"role "nope" is not one of ingest, union"#),
+    ] {
+        assert_input_error(dir.path(), args, needle);
+    }
+}
+
+#[test]
 fn push_policy_without_a_signing_key_is_refused_before_sending() {
     let dir = tempdir().unwrap();
     let weights = write_file(dir.path(), "w.safetensors", "not read");

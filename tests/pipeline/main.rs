@@ -26,6 +26,7 @@ mod python_zenoh;
 mod rotation;
 mod scene;
 mod scene_v2x;
+mod shard;
 mod shm_gateway;
 mod signed_policy;
 mod support;

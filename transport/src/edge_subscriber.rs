@@ -28,7 +28,7 @@
 //! A miss names the publisher entity, not its key: the key is the one the entity's samples
 //! came on (a miss always follows a sample delivered from the same publisher).
 
-use crate::keyexpr::{self, EdgeStream, SiteId};
+use crate::keyexpr::{self, EdgeStream, SiteId, SourceId};
 use crate::recovery::RECOVERY_PRIORITY;
 use crate::session::TransportError;
 use std::collections::{HashMap, HashSet};
@@ -38,7 +38,9 @@ use zenoh::Session;
 use zenoh::query::{ConsolidationMode, ReplyKeyExpr};
 use zenoh::sample::{Locality, Sample};
 use zenoh::session::EntityGlobalId;
-use zenoh_ext::{AdvancedSubscriber, AdvancedSubscriberBuilderExt, Miss, RecoveryConfig, SampleMissListener};
+use zenoh_ext::{
+    AdvancedSubscriber, AdvancedSubscriberBuilderExt, HistoryConfig, Miss, RecoveryConfig, SampleMissListener,
+};
 
 /// Publishers whose key is remembered; beyond, the table starts over (a later miss of a
 /// forgotten publisher is still reported, without its key).
@@ -100,13 +102,46 @@ where
     F: Fn(EdgeStream, &Sample) + Send + Sync + 'static,
     L: Fn(StreamLoss) + Send + Sync + 'static,
 {
-    let key = keyexpr::edge_streams_all(site);
+    subscribe(session, keyexpr::edge_streams_all(site), None, on_sample, on_loss).await
+}
+
+/// Subscribes, like [`subscribe_edge_streams`], to the streams of one source (a sharded ingest
+/// worker's share) and, with `history_samples`, first asks the source's caches for the last
+/// that many samples of each of its streams: what was published while no worker owned it (a
+/// hand-over). Those arrive as recovered samples, some of them already taken by the previous
+/// owner; the union removes them by (source, sequence number).
+pub async fn subscribe_source_streams<F, L>(
+    session: &Session,
+    site: &SiteId,
+    source: &SourceId,
+    history_samples: Option<usize>,
+    on_sample: F,
+    on_loss: L,
+) -> Result<EdgeStreamSubscriber, TransportError>
+where
+    F: Fn(EdgeStream, &Sample) + Send + Sync + 'static,
+    L: Fn(StreamLoss) + Send + Sync + 'static,
+{
+    subscribe(session, keyexpr::source_streams(site, source), history_samples, on_sample, on_loss).await
+}
+
+async fn subscribe<F, L>(
+    session: &Session,
+    key: String,
+    history_samples: Option<usize>,
+    on_sample: F,
+    on_loss: L,
+) -> Result<EdgeStreamSubscriber, TransportError>
+where
+    F: Fn(EdgeStream, &Sample) + Send + Sync + 'static,
+    L: Fn(StreamLoss) + Send + Sync + 'static,
+{
     let declare_err =
         |what: &'static str, e: zenoh::Error| TransportError::Declare { what, key: key.clone(), reason: e.to_string() };
     let keys = Arc::new(Mutex::new(PublisherKeys::default()));
     let (on_sample, on_loss) = (Arc::new(on_sample), Arc::new(on_loss));
     let (sample_keys, deliver) = (Arc::clone(&keys), Arc::clone(&on_sample));
-    let subscriber = session
+    let builder = session
         .declare_subscriber(key.clone())
         .allowed_origin(Locality::Remote)
         .callback(move |sample| {
@@ -117,9 +152,14 @@ where
                 deliver(parsed.stream, &sample);
             }
         })
-        .recovery(RecoveryConfig::default().heartbeat())
-        .await
-        .map_err(|e| declare_err("advanced subscriber", e))?;
+        .recovery(RecoveryConfig::default().heartbeat());
+    let builder = match history_samples {
+        // No `max_age`: the edges' sessions do not timestamp, and a cache ignores a time range
+        // for samples without a timestamp.
+        Some(samples) => builder.history(HistoryConfig::default().max_samples(samples.max(1))),
+        None => builder,
+    };
+    let subscriber = builder.await.map_err(|e| declare_err("advanced subscriber", e))?;
     let (requery_session, runtime) = (session.clone(), tokio::runtime::Handle::current());
     let misses = subscriber
         .sample_miss_listener()

@@ -7,6 +7,8 @@
 //! - cloud outputs: `risktwin/v1/<site>/cloud/{risk_field,risk_report,snapshot}`
 //! - library queryables: `risktwin/v1/<site>/cloud/library/**`
 //! - liveliness tokens: `risktwin/v1/<site>/alive/<source_id>`
+//! - sharded ingest: workers' tokens `risktwin/v1/<site>/cloud/workers/<worker>`, what they
+//!   accepted, forwarded to the union: `risktwin/v1/<site>/cloud/ingested/<source>/<stream>`
 //!
 //! Ids are validated once, into [`SiteId`] and [`SourceId`], so that a key built from them is
 //! always a valid, wildcard-free key expression.
@@ -451,6 +453,64 @@ pub fn cloud_liveliness(site: Option<&SiteId>) -> String {
     format!("{ROOT}/{}/{ALIVE_CHUNK}/{CLOUD_CHUNK}", site_or_star(site))
 }
 
+/// The chunk under `cloud/` of the sharded ingest workers' liveliness tokens.
+pub const WORKERS_CHUNK: &str = "workers";
+/// The chunk under `cloud/` where sharded ingest workers forward what they accepted.
+pub const INGESTED_CHUNK: &str = "ingested";
+
+/// `risktwin/v1/<site>/<source>/*`: every stream of one source (a sharded worker's share).
+pub fn source_streams(site: &SiteId, source: &SourceId) -> String {
+    format!("{ROOT}/{site}/{source}/*")
+}
+
+/// `risktwin/v1/<site>/cloud/workers/<worker>`: the liveliness token of a sharded ingest worker.
+pub fn worker_liveliness(site: &SiteId, worker: &str) -> String {
+    format!("{ROOT}/{site}/{CLOUD_CHUNK}/{WORKERS_CHUNK}/{worker}")
+}
+
+/// `risktwin/v1/<site>/cloud/workers/*`: every sharded ingest worker's token at `site`.
+pub fn worker_liveliness_all(site: &SiteId) -> String {
+    format!("{ROOT}/{site}/{CLOUD_CHUNK}/{WORKERS_CHUNK}/*")
+}
+
+/// The worker id of a [`worker_liveliness`] key; `None` for any other key.
+pub fn parse_worker_liveliness_key(key: &str) -> Option<&str> {
+    let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
+    let mut chunks = rest.split('/');
+    let (_site, cloud, workers, worker) = (chunks.next()?, chunks.next()?, chunks.next()?, chunks.next()?);
+    let ok = cloud == CLOUD_CHUNK && workers == WORKERS_CHUNK && !worker.is_empty() && chunks.next().is_none();
+    ok.then_some(worker)
+}
+
+/// `risktwin/v1/<site>/cloud/ingested/<source>/<stream>`: where a sharded worker forwards a
+/// message it accepted on the edge key `edge` (under `cloud/`, so that only clouds may put it).
+pub fn ingested(edge: &EdgeKey<'_>) -> String {
+    format!("{ROOT}/{}/{CLOUD_CHUNK}/{INGESTED_CHUNK}/{}/{}", edge.site, edge.source, edge.stream.as_str())
+}
+
+/// `risktwin/v1/<site|*>/cloud/ingested/*/*`: everything the sharded workers of `site` (every
+/// site: `*`) forward.
+pub fn ingested_all(site: Option<&SiteId>) -> String {
+    format!("{ROOT}/{}/{CLOUD_CHUNK}/{INGESTED_CHUNK}/*/*", site_or_star(site))
+}
+
+/// The edge key an [`ingested`] key was forwarded from, written into `buf` (reused: no
+/// allocation once it is long enough); `None` for any other key.
+pub fn edge_key_of_ingested<'b>(key: &str, buf: &'b mut String) -> Option<&'b str> {
+    let rest = key.strip_prefix(ROOT)?.strip_prefix('/')?;
+    let mut chunks = rest.split('/');
+    let (site, cloud, ingested) = (chunks.next()?, chunks.next()?, chunks.next()?);
+    let (source, stream) = (chunks.next()?, chunks.next()?);
+    if cloud != CLOUD_CHUNK || ingested != INGESTED_CHUNK || chunks.next().is_some() {
+        return None;
+    }
+    buf.clear();
+    for part in [ROOT, "/", site, "/", source, "/", stream] {
+        buf.push_str(part);
+    }
+    parse_edge_key(buf).is_some().then_some(buf.as_str())
+}
+
 fn site_or_star(site: Option<&SiteId>) -> &str {
     site.map_or("*", SiteId::as_str)
 }
@@ -498,6 +558,24 @@ pub fn parse_liveliness_key(key: &str) -> Option<(&str, &str)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sharding_keys_round_trip_and_refuse_strangers() {
+        let (site, source) = (SiteId::new("s1").unwrap(), SourceId::new("v7").unwrap());
+        assert_eq!(source_streams(&site, &source), "risktwin/v1/s1/v7/*");
+        let token = worker_liveliness(&site, "w-01");
+        assert_eq!(parse_worker_liveliness_key(&token), Some("w-01"));
+        assert_eq!(parse_worker_liveliness_key("risktwin/v1/s1/alive/w-01"), None);
+        assert_eq!(parse_worker_liveliness_key("risktwin/v1/s1/cloud/workers/w/x"), None);
+        let edge = parse_edge_key("risktwin/v1/s1/v7/state").unwrap();
+        let forwarded = ingested(&edge);
+        assert_eq!(forwarded, "risktwin/v1/s1/cloud/ingested/v7/state");
+        let mut buf = String::new();
+        assert_eq!(edge_key_of_ingested(&forwarded, &mut buf), Some("risktwin/v1/s1/v7/state"));
+        assert_eq!(edge_key_of_ingested("risktwin/v1/s1/cloud/ingested/v7/nope", &mut buf), None);
+        assert_eq!(edge_key_of_ingested("risktwin/v1/s1/cloud/risk_field", &mut buf), None);
+        assert_eq!(edge_key_of_ingested("risktwin/v1/s1/cloud/ingested/cloud/state", &mut buf), None);
+    }
 
     fn ids() -> (SiteId, SourceId) {
         (SiteId::new("track-1").unwrap(), SourceId::new("veh_0.a").unwrap())

@@ -67,6 +67,8 @@ pub struct IngestWorker<W: Write + Seek> {
     sources: SourceTable,
     recorder: Option<Recorder<W>>,
     stats: IngestStats,
+    /// Why the last message handled was dropped (`None`: it was accepted).
+    last_drop: Option<DropReason>,
 }
 
 fn decoded<T: WireMessage>(payload: &[u8]) -> Result<T, DropReason> {
@@ -81,6 +83,7 @@ impl<W: Write + Seek> IngestWorker<W> {
             sources: SourceTable::with_limit(MAX_SOURCES),
             recorder,
             stats: IngestStats::default(),
+            last_drop: None,
         }
     }
 
@@ -114,6 +117,7 @@ impl<W: Write + Seek> IngestWorker<W> {
         on_snapshot: impl FnMut(&Snapshot<TwinSample>),
     ) -> Result<Option<AcceptedMessage>, RecordingError> {
         self.stats.received += 1;
+        self.last_drop = None;
         let (header, sample) = match Self::decode(stream, payload) {
             Ok(v) => v,
             Err(reason) => {
@@ -185,6 +189,11 @@ impl<W: Write + Seek> IngestWorker<W> {
         if let Some(index) = self.sources.get(source) {
             self.core.restart_source(index);
         }
+    }
+
+    /// Why the last message handled was dropped; `None` when it was accepted.
+    pub fn last_drop(&self) -> Option<DropReason> {
+        self.last_drop
     }
 
     /// Counts a message dropped before it reached the worker (its key or its attachment was
@@ -262,6 +271,7 @@ impl<W: Write + Seek> IngestWorker<W> {
     }
 
     fn drop_for(&mut self, reason: DropReason) {
+        self.last_drop = Some(reason);
         // Look up by &str first so that a known reason costs no allocation.
         match self.stats.dropped.get_mut(reason.code()) {
             Some(n) => *n += 1,

@@ -50,9 +50,11 @@ pub mod push;
 mod receive;
 pub mod routes;
 mod scene;
+pub mod shard;
 mod summary;
 #[cfg(test)]
 mod test_harness;
+mod union;
 pub mod warning;
 #[cfg(test)]
 mod warning_tests;
@@ -71,7 +73,7 @@ use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, C
 use fleet_loop::LoopRoleSummary;
 use library::LibrarySummary;
 use liveliness::LivenessLog;
-pub use receive::{LiveIngest, OUTPUT_SCHEMAS, Origin, RecordError, RecordTo, RecordingFile};
+pub use receive::{Handled, LiveIngest, OUTPUT_SCHEMAS, Origin, RecordError, RecordTo, RecordingFile};
 use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::road::Road;
 use risktwin_protos::recording::decode_replay_time;
@@ -106,6 +108,8 @@ pub enum Role {
     Trainer,
     /// The live twin over the Foxglove WebSocket protocol.
     Viz,
+    /// What sharded ingest workers accepted, deduplicated: the twin's input instead of `ingest`.
+    Union,
 }
 
 impl Role {
@@ -120,6 +124,7 @@ impl Role {
             Role::Trainer => "trainer",
             Role::Warning => "warning",
             Role::Viz => "viz",
+            Role::Union => "union",
         }
     }
 }
@@ -137,6 +142,7 @@ impl std::str::FromStr for Role {
             "trainer" => Ok(Role::Trainer),
             "warning" => Ok(Role::Warning),
             "viz" => Ok(Role::Viz),
+            "union" => Ok(Role::Union),
             other => Err(CloudError::UnknownRole { role: other.to_owned() }),
         }
     }
@@ -145,7 +151,7 @@ impl std::str::FromStr for Role {
 /// Why the cloud role failed.
 #[derive(Debug, Error)]
 pub enum CloudError {
-    #[error("role {role:?} is not one of ingest, twin, risk, library, criticality, loop, trainer, warning, viz")]
+    #[error("role {role:?} is not one of ingest, union, twin, risk, library, criticality, loop, trainer, warning, viz")]
     UnknownRole { role: String },
     #[error("role {role:?} needs role {needs:?} in the same process (e.g. --roles ingest,twin,risk)")]
     RoleNeeds { role: &'static str, needs: &'static str },
@@ -159,6 +165,12 @@ pub enum CloudError {
     NoRole,
     #[error("record to one file or to a folder of segments, not both")]
     RecordTwice,
+    #[error("role union takes what sharded ingest workers accepted: not with role ingest in the same process")]
+    UnionWithIngest,
+    #[error(
+        "--shard needs role ingest, --site, and no other role (a worker sees only its share: the twin runs with role union)"
+    )]
+    ShardRoles,
     #[error("risk field: {0}")]
     Field(#[from] risktwin_common::risk::FieldError),
     #[error(transparent)]
@@ -214,6 +226,8 @@ pub struct CloudConfig {
     pub signing_key: Option<PolicySigningKey>,
     /// Where the `viz` role serves.
     pub viz: VizConfig,
+    /// Ingest as one of several workers sharing the site ([`shard`]); needs `site`.
+    pub shard: bool,
 }
 
 impl CloudConfig {
@@ -238,6 +252,7 @@ impl CloudConfig {
             warning: WarningConfig::default(),
             signing_key: None,
             viz: VizConfig::default(),
+            shard: false,
         }
     }
 
@@ -253,6 +268,12 @@ impl CloudConfig {
         if self.record.is_some() && self.record_dir.is_some() {
             return Err(CloudError::RecordTwice);
         }
+        if self.has(Role::Union) && self.has(Role::Ingest) {
+            return Err(CloudError::UnionWithIngest);
+        }
+        if self.shard && (self.site.is_none() || self.roles.iter().any(|&r| r != Role::Ingest)) {
+            return Err(CloudError::ShardRoles);
+        }
         for (role, needs) in [
             (Role::Twin, Role::Ingest),
             (Role::Risk, Role::Twin),
@@ -261,7 +282,9 @@ impl CloudConfig {
             (Role::Warning, Role::Ingest),
             (Role::Viz, Role::Twin),
         ] {
-            if self.has(role) && !self.has(needs) {
+            // The union is the ingest of a sharded site.
+            let met = self.has(needs) || (needs == Role::Ingest && self.has(Role::Union));
+            if self.has(role) && !met {
                 return Err(CloudError::RoleNeeds { role: role.name(), needs: needs.name() });
             }
         }
@@ -307,6 +330,9 @@ pub struct CloudSummary {
     /// The viz role, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub viz: Option<VizSummary>,
+    /// The sharded worker, when it ran (`--shard`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shard: Option<shard::ShardSummary>,
 }
 
 /// What a started cloud tells its caller (see [`run`]).
@@ -346,6 +372,7 @@ pub async fn run(
         fleet_loop: None,
         warning: None,
         viz: None,
+        shard: None,
     };
     // Before joining too: a port in use fails the start at once.
     let (viz, viz_feed) = if config.has(Role::Viz) {
@@ -387,7 +414,13 @@ pub async fn run(
         (None, Some(rotation)) => Some(RecordTo::Segments(rotation)),
         (None, None) => None,
     };
-    let ingest = LiveIngest::new(record, outputs)?
+    let mut ingest_config = risktwin_common::align::ingest::IngestConfig::default();
+    if config.shard {
+        // A worker that takes a source over sees it from the middle: its count starts at the
+        // first number it gets (the union counts from 0).
+        ingest_config.dedup.first_seq = None;
+    }
+    let ingest = LiveIngest::with_config(record, outputs, ingest_config)?
         .with_replay_time(config.replay_time)
         .with_route_keys(keys_tx)
         .with_publisher(config.has(Role::Twin).then_some(publish_tx))
@@ -396,7 +429,7 @@ pub async fn run(
         .with_viz(viz_feed);
     let ingest = Arc::new(Mutex::new(ingest));
     let flusher = record.is_some().then(|| tokio::spawn(flush_recording(Arc::clone(&ingest), shutdown.clone())));
-    let subscriber = if config.has(Role::Ingest) {
+    let subscriber = if config.has(Role::Ingest) && !config.shard {
         Some(
             risktwin_transport::subscribe_edge_streams(
                 &session,
@@ -406,6 +439,15 @@ pub async fn run(
             )
             .await?,
         )
+    } else {
+        None
+    };
+    let shard = match config.site.as_ref().filter(|_| config.shard) {
+        Some(site) => Some(shard::ShardRole::start(&session, site, Arc::clone(&ingest), shutdown.clone()).await?),
+        None => None,
+    };
+    let union = if config.has(Role::Union) {
+        Some(union::subscribe(&session, config.site.as_ref(), Arc::clone(&ingest)).await?)
     } else {
         None
     };
@@ -428,8 +470,8 @@ pub async fn run(
     // After the subscriber: an edge that sees the token may count on its samples being taken
     // and acknowledged.
     let (cloud_token, acks) =
-        match subscriber.as_ref() {
-            Some(_) => {
+        match subscriber.as_ref().map(|_| ()).or(shard.as_ref().map(|_| ())) {
+            Some(()) => {
                 let key = risktwin_transport::keyexpr::cloud_liveliness(config.site.as_ref());
                 let token = session.liveliness().declare_token(key.clone()).await.map_err(|e| {
                     TransportError::Declare { what: "cloud liveliness token", key, reason: e.to_string() }
@@ -455,7 +497,7 @@ pub async fn run(
     on_ready(&CloudReady { viz: viz.as_ref().map(VizRole::addr) });
 
     shutdown.wait().await;
-    if subscriber.is_some() || crit_subscriber.is_some() {
+    if subscriber.is_some() || shard.is_some() || union.is_some() || crit_subscriber.is_some() {
         let last_sample = || {
             let ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner).last_sample();
             ingest.max(crit.lock().unwrap_or_else(PoisonError::into_inner).last_sample())
@@ -471,6 +513,13 @@ pub async fn run(
 
     if let Some(subscriber) = subscriber {
         subscriber.undeclare().await.map_err(|e| undeclare_error("subscriber", e))?;
+    }
+    let shard = match shard {
+        Some(role) => Some(role.finish().await?),
+        None => None,
+    };
+    if let Some(subscriber) = union {
+        subscriber.undeclare().await.map_err(|e| undeclare_error("union subscriber", e))?;
     }
     if let Some(subscriber) = map_subscriber {
         subscriber.undeclare().await.map_err(|e| undeclare_error("scene-map subscriber", e))?;
@@ -544,7 +593,17 @@ pub async fn run(
         }
         None => None,
     };
-    Ok(CloudSummary { ingest, liveliness, twin, library: library_summary, criticality, fleet_loop, warning, viz })
+    Ok(CloudSummary {
+        ingest,
+        liveliness,
+        twin,
+        library: library_summary,
+        criticality,
+        fleet_loop,
+        warning,
+        viz,
+        shard,
+    })
 }
 
 /// How often the recording's open chunk is looked at: a quarter of its time bound
@@ -577,17 +636,31 @@ fn join_error(what: &str, e: tokio::task::JoinError) -> CloudError {
 fn ingest_sink(
     ingest: Arc<Mutex<LiveIngest>>,
 ) -> impl Fn(risktwin_transport::EdgeStream, &Sample) + Send + Sync + 'static {
+    ingest_sink_then(ingest, |_, _| {})
+}
+
+/// [`ingest_sink`], calling `on_handled` with each sample and what became of it, outside the
+/// ingest's lock.
+fn ingest_sink_then(
+    ingest: Arc<Mutex<LiveIngest>>,
+    on_handled: impl Fn(&Sample, Handled) + Send + Sync + 'static,
+) -> impl Fn(risktwin_transport::EdgeStream, &Sample) + Send + Sync + 'static {
     move |_, sample| {
         // Contiguous payloads (the common case) are borrowed, not copied.
         let payload = sample.payload().to_bytes();
         let replay_ns = sample.attachment().and_then(|a| decode_replay_time(&a.to_bytes()));
-        let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
+        let handled = ingest.lock().unwrap_or_else(PoisonError::into_inner).handle(
+            sample.key_expr().as_str(),
+            sample.encoding(),
+            &payload,
+            replay_ns,
+            Origin::of(sample),
+        );
         // Drops are counted inside; only a failing recording comes back, and the receive path
         // cannot stop for it: say so and go on counting.
-        if let Err(e) =
-            ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, replay_ns, Origin::of(sample))
-        {
-            tracing::error!("cloud: {e}");
+        match handled {
+            Ok(handled) => on_handled(sample, handled),
+            Err(e) => tracing::error!("cloud: {e}"),
         }
     }
 }

@@ -124,6 +124,11 @@ pub struct BenchIngestArgs {
     /// Internal: index of this publisher's first vehicle.
     #[arg(long, hide = true, default_value_t = 0)]
     pub first_vehicle: usize,
+    /// Internal: each vehicle of this publisher holds a liveliness token and is published only
+    /// once a subscriber matches it (sharded workers find vehicles by their tokens;
+    /// benchmarks/shard_scale.sh).
+    #[arg(long, hide = true)]
+    pub fleet_tokens: bool,
 }
 
 /// `risktwin bench latency`.

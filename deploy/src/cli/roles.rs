@@ -194,7 +194,8 @@ pub struct EdgeArgs {
 
 #[derive(Debug, Args)]
 pub struct CloudArgs {
-    /// Comma-separated roles: ingest, twin (needs ingest), risk (needs twin), library (needs --db),
+    /// Comma-separated roles: ingest, union (the twin's input from sharded ingest workers, in
+    /// place of ingest), twin (needs ingest or union), risk (needs twin), library (needs --db),
     /// criticality (needs --criticality-out or --db: the replayed drive stored as a recorded
     /// case), loop (needs twin and --db), trainer (needs loop), warning (needs ingest: a hazard
     /// warning to both vehicles of a critical pair on every state message), viz (needs twin: the
@@ -209,6 +210,11 @@ pub struct CloudArgs {
     /// Serve one site only (default: every site).
     #[arg(long)]
     pub site: Option<String>,
+    /// Ingest as one of several workers sharing the site (needs --site and role ingest alone):
+    /// each edge is owned by one live worker, a departed worker's edges move to the others, and
+    /// what each accepts goes on to the union role (docs/sharding.md).
+    #[arg(long)]
+    pub shard: bool,
     /// Record every accepted message (and the twin's scene and risk outputs) into this MCAP
     /// file (closed cleanly on SIGINT/SIGTERM).
     #[arg(long, conflicts_with = "record_dir")]

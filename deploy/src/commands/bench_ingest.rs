@@ -20,7 +20,7 @@ pub fn ingest(args: BenchIngestArgs) -> CliResult {
     if let Some(locator) = args.fleet_connect.clone() {
         let share = FleetShare { locator, first_vehicle: args.first_vehicle, vehicles: args.vehicles };
         let report = with_signals(|shutdown| async move {
-            publish_share(&share, args.rate_hz, args.seconds, shutdown).await.map_err(CliError::from)
+            publish_share(&share, args.rate_hz, args.seconds, args.fleet_tokens, shutdown).await.map_err(CliError::from)
         })?;
         return print_json(&report);
     }

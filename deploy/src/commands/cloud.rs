@@ -110,6 +110,7 @@ pub fn cloud(args: CloudArgs) -> CliResult {
         }
         config.warning.repeat_ns = (repeat_ms * 1e6) as i64;
     }
+    config.shard = args.shard;
     let road_kind: ScenarioKind = args.road.parse().map_err(CliError::input)?;
     config.road = risktwin_cloud::twin::scenario_road(road_kind);
     if let Some(listen) = &args.viz_listen {

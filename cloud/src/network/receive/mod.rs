@@ -77,6 +77,24 @@ impl Origin {
     }
 }
 
+/// What became of one sample ([`LiveIngest::handle`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Handled {
+    Accepted,
+    /// Refused, and counted under this reason.
+    Dropped(DropReason),
+}
+
+impl Handled {
+    /// Whether a sharded worker forwards it to the union: accepted, or refused only by this
+    /// process's clock estimate (`future-timestamp`: a worker that took a source over anchors
+    /// its estimate on samples from the edge's cache, which arrive late); the union judges it
+    /// again with its own estimate. Every other refusal holds wherever it is made.
+    pub fn forwarded(self) -> bool {
+        matches!(self, Handled::Accepted | Handled::Dropped(DropReason::FutureTimestamp))
+    }
+}
+
 /// Where a recording goes: buffered, since the recorder writes many small records.
 pub type RecordingFile = BufWriter<File>;
 
@@ -332,11 +350,16 @@ impl LiveIngest {
         self
     }
 
+    /// Counts a sample whose key is no edge stream's (`bad-key`).
+    pub fn reject_bad_key(&mut self) {
+        self.worker.reject(DropReason::BadKey);
+    }
+
     /// Handles one sample received on `key`; the receive time is read here, once, from the
     /// system clock and never goes backwards (the aligner needs non-decreasing receive times).
     /// `replay_ns` is the message's replay-time attachment, used instead of the clock in
     /// replay-time mode (and required there). `origin`: whether the sample came from the edge's
-    /// cache, and which session published it.
+    /// cache, and which session published it. Tells whether the message was accepted.
     pub fn handle(
         &mut self,
         key: &str,
@@ -344,7 +367,7 @@ impl LiveIngest {
         payload: &[u8],
         replay_ns: Option<i64>,
         origin: Origin,
-    ) -> Result<(), RecordingError> {
+    ) -> Result<Handled, RecordingError> {
         let recovered = origin.recovered;
         let now = Instant::now();
         self.last_sample = Some(now);
@@ -353,14 +376,14 @@ impl LiveIngest {
             (true, Some(t)) => t,
             (true, None) => {
                 self.worker.reject(DropReason::NoReplayTime);
-                return Ok(());
+                return Ok(Handled::Dropped(DropReason::NoReplayTime));
             }
         };
         let receive_ns = wall_ns.max(self.last_receive_ns);
         self.last_receive_ns = receive_ns;
         let Some(parsed) = parse_edge_key(key) else {
             self.worker.reject(DropReason::BadKey);
-            return Ok(());
+            return Ok(Handled::Dropped(DropReason::BadKey));
         };
         // Before any check: a second process under this id is told by its session, whatever
         // becomes of its samples (numbered like the first's, most are refused as duplicates).
@@ -376,7 +399,7 @@ impl LiveIngest {
                     payload.len()
                 );
             }
-            return Ok(());
+            return Ok(Handled::Dropped(DropReason::TooLarge));
         }
         if encoding != &self.encodings[parsed.stream.index()] {
             self.worker.reject(DropReason::WrongSchema);
@@ -387,7 +410,7 @@ impl LiveIngest {
                     "ingest: refused {key}: encoding {encoding}, expected {expected} (counted wrong-schema)"
                 );
             }
-            return Ok(());
+            return Ok(Handled::Dropped(DropReason::WrongSchema));
         }
         let digest = &mut self.digest;
         let lag = &mut self.lag;
@@ -459,7 +482,8 @@ impl LiveIngest {
             }
         }
         self.forward_episodes();
-        Ok(())
+        // A message not accepted was counted under its reason by the worker.
+        Ok(self.worker.last_drop().map_or(Handled::Accepted, Handled::Dropped))
     }
 
     /// Hands the episodes the twin finished watching to `episodes` (the loop role).

@@ -37,6 +37,9 @@ pub struct DeliveryAck {
     /// The cloud's own Zenoh session: acknowledgements of two clouds (a restart) add up.
     pub cloud_session: String,
     pub streams: Vec<StreamAck>,
+    /// The streams the cloud sheds now (overloaded): the edge holds them back until an
+    /// acknowledgement no longer names them.
+    pub shed: Vec<String>,
 }
 
 /// Cloud sessions one edge keeps acknowledgements of; later ones are ignored (and said so).
@@ -138,6 +141,7 @@ mod tests {
             edge_source: "veh".into(),
             edge_session: edge.into(),
             cloud_session: cloud.into(),
+            shed: Vec::new(),
             streams: streams
                 .iter()
                 .map(|(s, next_seq, received, lost)| StreamAck {

@@ -22,6 +22,10 @@ use tokio::sync::Notify;
 /// every 500 ms, so this leaves room for five of them and a recovery of the last samples.
 pub const ACK_WAIT: Duration = Duration::from_secs(3);
 
+/// How long an acknowledgement's word that the cloud sheds a stream holds: four of the cloud's
+/// acknowledgement periods (it repeats the word with every one while it sheds).
+pub const SHED_HOLD: Duration = Duration::from_secs(2);
+
 /// The longest wait for the answer to the start's question whether a cloud is there.
 const PRESENCE_QUERY: Duration = Duration::from_secs(2);
 
@@ -172,6 +176,8 @@ impl Presence {
 pub struct DeliveryWatch {
     start: Instant,
     ledger: Arc<Mutex<DeliveryLedger>>,
+    /// What the latest acknowledgement said the cloud sheds, and when it came.
+    shed: Arc<Mutex<(u64, Option<Instant>)>>,
     presence: Arc<Mutex<Presence>>,
     changed: Arc<Notify>,
     subscribers: [Subscriber<()>; 2],
@@ -186,12 +192,22 @@ impl DeliveryWatch {
         let changed = Arc::new(Notify::new());
         let key = cloud_to_edge(site, source, CloudToEdge::Ack);
         let (acks, notify) = (Arc::clone(&ledger), Arc::clone(&changed));
+        let shed: Arc<Mutex<(u64, Option<Instant>)>> = Arc::default();
+        let ordered = Arc::clone(&shed);
         let ack_subscriber = session
             .declare_subscriber(key.clone())
             .callback(move |sample| {
                 match decode_tagged::<DeliveryAck>(&sample.encoding().to_string(), &sample.payload().to_bytes()) {
                     Ok(ack) => {
-                        acks.lock().unwrap_or_else(PoisonError::into_inner).apply(ack);
+                        // A stream name this edge does not know is no stream it sends.
+                        let mask = ack
+                            .shed
+                            .iter()
+                            .filter_map(|name| EdgeStream::from_chunk(name))
+                            .fold(0u64, |mask, s| mask | 1 << s.index());
+                        if acks.lock().unwrap_or_else(PoisonError::into_inner).apply(ack) {
+                            *ordered.lock().unwrap_or_else(PoisonError::into_inner) = (mask, Some(Instant::now()));
+                        }
                         notify.notify_one();
                     }
                     Err(e) => tracing::warn!("acknowledgement on {} refused: {e}", sample.key_expr()),
@@ -233,7 +249,17 @@ impl DeliveryWatch {
                 queried_alive.set(f64::from(u8::from(presence.any_alive())));
             }
         }
-        Ok(DeliveryWatch { start, ledger, presence, changed, subscribers: [ack_subscriber, cloud_subscriber] })
+        Ok(DeliveryWatch { start, ledger, shed, presence, changed, subscribers: [ack_subscriber, cloud_subscriber] })
+    }
+
+    /// The streams the cloud sheds now (bit [`EdgeStream::index`]): those the latest
+    /// acknowledgement named, while it is younger than [`SHED_HOLD`] (a cloud that stopped
+    /// acknowledging does not hold the edge back for ever).
+    pub fn shed_mask(&self, now: Instant) -> u64 {
+        match *self.shed.lock().unwrap_or_else(PoisonError::into_inner) {
+            (mask, Some(at)) if now.duration_since(at) < SHED_HOLD => mask,
+            _ => 0,
+        }
     }
 
     /// Waits until acknowledgements say every message of `sent` was received, no cloud's token

@@ -18,6 +18,7 @@ use risktwin_transport::{
     Delivery, EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, TransportError, close, connect,
     declare_alive, protobuf, retire,
 };
+use std::collections::BTreeMap;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// What every edge role is configured with.
@@ -86,6 +87,8 @@ impl EdgeConfig {
 pub struct Stamper<'a> {
     source: &'a str,
     seq: &'a mut [u64; EdgeStream::ALL.len()],
+    /// Streams held back this tick (the cloud sheds them): their messages take no number.
+    shed: u64,
     capture_time_ns: i64,
     publish_time_ns: i64,
 }
@@ -101,7 +104,11 @@ impl Stamper<'_> {
             publish_time_ns: self.publish_time_ns,
             frame: Frame::World,
         };
-        *seq += 1;
+        // A message held back is never sent: the next one takes its number, so the stream's
+        // numbers stay without gaps and the cloud counts nothing lost.
+        if self.shed & (1 << stream.index()) == 0 {
+            *seq += 1;
+        }
         header
     }
 
@@ -217,6 +224,9 @@ pub async fn run_producer(
     let mut steps_read = start;
     let mut seq = [0u64; EdgeStream::ALL.len()];
     let mut sent = [0u64; EdgeStream::ALL.len()];
+    // Messages held back because the cloud sheds their stream, per stream.
+    let mut shed = [0u64; EdgeStream::ALL.len()];
+    let mut shed_mask = 0u64;
     let sent_metrics = crate::live_metrics::sent_counters(config.site.as_str(), config.id.as_str(), &streams);
     // The numbers of messages refused as too large, per stream.
     let mut refused: [Vec<u64>; EdgeStream::ALL.len()] = Default::default();
@@ -252,9 +262,16 @@ pub async fn run_producer(
             }
         }
         let elapsed = now.duration_since(start);
+        let mask = watch.as_ref().map_or(0, |w| w.shed_mask(now));
+        if mask != shed_mask {
+            let held: Vec<&str> = streams.iter().filter(|s| mask & (1 << s.index()) != 0).map(|s| s.as_str()).collect();
+            tracing::warn!("edge {}: the cloud is overloaded: holding back {held:?}", config.id);
+            shed_mask = mask;
+        }
         let mut stamper = Stamper {
             source: config.id.as_str(),
             seq: &mut seq,
+            shed: shed_mask,
             capture_time_ns: clock.capture_ns(elapsed),
             publish_time_ns: clock.now_ns(elapsed),
         };
@@ -285,6 +302,10 @@ pub async fn run_producer(
         for (stream, payload) in out.drain(..) {
             let Some(publisher) = publishers.iter().find(|p| p.stream() == Some(stream)) else { continue };
             let i = stream.index();
+            if shed_mask & (1 << i) != 0 {
+                shed[i] += 1;
+                continue;
+            }
             if payload.len() > MAX_EDGE_PAYLOAD_BYTES {
                 // Its number is the next one of the stream: every message takes one, in order.
                 let seq = sent[i] + refused[i].len() as u64;
@@ -325,7 +346,9 @@ pub async fn run_producer(
         Some(watch) => Some(watch.settle(&numbers).await?),
         None => None,
     };
-    let summary = SentSummary::new(config, numbers.iter().map(|(s, n)| (*s, n.sent)), delivery);
+    let mut summary = SentSummary::new(config, numbers.iter().map(|(s, n)| (*s, n.sent)), delivery);
+    summary.shed =
+        streams.iter().filter(|s| shed[s.index()] > 0).map(|s| (s.as_str().to_owned(), shed[s.index()])).collect();
     crate::live_metrics::export_final(&summary.site, &summary.source, &summary.sent, summary.delivery.as_ref());
     if summary.delivery.as_ref().is_some_and(|d| d.total_undelivered() == 0) {
         // All accounted for: nothing left for the cloud to fetch, no need to linger.
@@ -358,6 +381,7 @@ impl SentSummary {
             site: config.site.to_string(),
             source: config.id.to_string(),
             sent: sent.into_iter().map(|(s, n)| (s.as_str().to_owned(), n)).collect(),
+            shed: BTreeMap::new(),
             delivery,
         }
     }

@@ -14,6 +14,10 @@ pub struct SentSummary {
     pub source: String,
     /// Messages sent per stream name.
     pub sent: BTreeMap<String, u64>,
+    /// Messages held back per stream name because the cloud shed the stream (overloaded; never
+    /// numbered, never sent; streams with none left out).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub shed: BTreeMap<String, u64>,
     /// What became of it, when the edge watched the cloud's acknowledgements.
     #[serde(flatten)]
     pub delivery: Option<DeliverySummary>,

@@ -196,13 +196,15 @@ fn viz_flags_are_checked_before_the_cloud_joins() {
 }
 
 #[test]
-fn sharding_flags_and_the_union_role_are_checked_before_the_cloud_joins() {
+fn sharding_shedding_and_the_union_role_are_checked_before_the_cloud_joins() {
     let dir = tempdir().unwrap();
     for (args, needle) in [
         (&["cloud", "--shard"][..], "--shard needs role ingest, --site"),
         (&["cloud", "--shard", "--roles", "ingest,twin", "--site", "s"][..], "--shard needs role ingest"),
         (&["cloud", "--roles", "union,ingest"][..], "role union takes what sharded ingest workers accepted"),
         (&["cloud", "--roles", "union,nope"][..], r#"role "nope" is not one of ingest, union"#),
+        (&["cloud", "--shed-after-ms", "5"][..], "--shed-after-ms 5 must lie in [10, 60000]"),
+        (&["cloud", "--shed-after-ms", "NaN"][..], "--shed-after-ms NaN must lie in [10, 60000]"),
     ] {
         assert_input_error(dir.path(), args, needle);
     }

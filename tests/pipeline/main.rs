@@ -13,6 +13,7 @@ mod delivery;
 mod faults;
 mod fleet;
 mod fleetloop;
+mod overload;
 #[path = "../interop/peer_cache.rs"]
 mod peer_cache;
 #[path = "../interop/peer_node.rs"]

@@ -191,6 +191,11 @@ impl<W: Write + Seek> IngestWorker<W> {
         }
     }
 
+    /// Sheds `streams` from now on (bit `i`: [`EdgeStream::index`] `i`; `0`: none).
+    pub fn set_shed(&mut self, streams: u64) {
+        self.core.set_shed(streams);
+    }
+
     /// Why the last message handled was dropped; `None` when it was accepted.
     pub fn last_drop(&self) -> Option<DropReason> {
         self.last_drop

@@ -106,6 +106,7 @@ impl LiveIngest {
     /// The acknowledgements due at `now` from the cloud session `cloud`: (key, payload).
     pub(crate) fn due_acks(&mut self, now: Instant, cloud: &str, max: usize) -> Vec<(String, Vec<u8>)> {
         let wall_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+        let shed: Vec<String> = self.shed_streams().iter().map(|s| s.as_str().to_owned()).collect();
         let due = self.acks_mut().due(now, max);
         let mut out = Vec::with_capacity(due.len());
         for (site, source, publisher) in due {
@@ -138,6 +139,7 @@ impl LiveIngest {
                 edge_session: publisher.to_string(),
                 cloud_session: cloud.to_owned(),
                 streams,
+                shed: shed.clone(),
             };
             out.push((cloud_to_edge(&site_id, &source_id, CloudToEdge::Ack), encode(&ack)));
         }

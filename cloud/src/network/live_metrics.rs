@@ -61,6 +61,11 @@ pub(super) fn export_ingest(s: &IngestSummary, sites: &HashMap<String, String>, 
     for (reason, n) in &s.dropped {
         metrics::counter!("risktwin_ingest_messages_dropped_total", "reason" => reason.clone()).absolute(*n);
     }
+    metrics::gauge!("risktwin_ingest_shed_level").set(f64::from(s.overload.shed_level));
+    metrics::counter!("risktwin_ingest_shedding_seconds_total").absolute(s.overload.shedding_s);
+    if let Some(ms) = s.overload.queue_delay_ms {
+        metrics::gauge!("risktwin_ingest_queue_delay_seconds").set(ms as f64 * 1e-3);
+    }
     metrics::counter!("risktwin_ingest_messages_late_total").absolute(s.late);
     metrics::counter!("risktwin_ingest_messages_late_unused_total").absolute(s.late_dropped);
     for (source, n) in &s.id_conflicts {

@@ -228,6 +228,9 @@ pub struct CloudConfig {
     pub viz: VizConfig,
     /// Ingest as one of several workers sharing the site ([`shard`]); needs `site`.
     pub shard: bool,
+    /// Shed lower-priority streams, and have the edges hold them back, while live states wait
+    /// longer than this (docs/keyexpr.md, "Overload"); `None`: never.
+    pub shed_after: Option<Duration>,
 }
 
 impl CloudConfig {
@@ -253,6 +256,7 @@ impl CloudConfig {
             signing_key: None,
             viz: VizConfig::default(),
             shard: false,
+            shed_after: None,
         }
     }
 
@@ -422,6 +426,7 @@ pub async fn run(
     }
     let ingest = LiveIngest::with_config(record, outputs, ingest_config)?
         .with_replay_time(config.replay_time)
+        .with_shedding(config.shed_after)
         .with_route_keys(keys_tx)
         .with_publisher(config.has(Role::Twin).then_some(publish_tx))
         .with_episodes(fleet.is_some().then_some(episodes_tx))

@@ -35,7 +35,7 @@ use risktwin_transport::{EdgeStreamSubscriber, Shutdown, SiteId, SourceId, Trans
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex, PoisonError, Weak};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
@@ -85,9 +85,9 @@ pub struct ShardSummary {
     pub worker: String,
     /// The most workers seen alive at once, this one included.
     pub workers_max: usize,
-    /// Workers alive at the end, this one included.
+    /// Workers alive at the end (while running: now), this one included.
     pub workers_at_exit: usize,
-    /// Sources owned at the end.
+    /// Sources owned at the end (while running: now).
     pub owned_at_exit: usize,
     /// Subscriptions declared (a source owned, or owned again).
     pub subscribed: u64,
@@ -158,7 +158,13 @@ impl ShardRole {
         })?;
         tracing::info!("shard: this worker is {me}");
         let forward = Arc::new(Forwarder::start(session));
-        let assignment = Assignment::new(me, site.clone(), session.clone(), ingest, Arc::clone(&forward));
+        let summary =
+            ShardSummary { worker: me.clone(), workers_max: 1, workers_at_exit: 1, ..ShardSummary::default() };
+        let summary = Arc::new(Mutex::new(summary));
+        if risktwin_transport::metrics::enabled() {
+            export_metrics(Arc::downgrade(&summary), Arc::downgrade(&forward));
+        }
+        let assignment = Assignment::new(me, site.clone(), session.clone(), ingest, Arc::clone(&forward), summary);
         let task = tokio::spawn(assignment.run(changes, shutdown));
         Ok(ShardRole { token, watches: [workers, edges], task, forward })
     }
@@ -172,9 +178,11 @@ impl ShardRole {
         }
         let assignment = self.task.await.map_err(|e| TransportError::Close { reason: format!("shard task: {e}") })?;
         let mut summary = assignment.finish().await;
-        summary.forwarded = self.forward.forwarded.load(Ordering::Relaxed);
-        summary.forward_failed = self.forward.failed.load(Ordering::Relaxed);
+        self.forward.count(&mut summary);
         self.forward.task.abort();
+        if risktwin_transport::metrics::enabled() {
+            export(&summary);
+        }
         Ok(summary)
     }
 }
@@ -192,7 +200,8 @@ struct Assignment {
     /// Each known source's owner as last computed.
     owners: HashMap<String, String>,
     subscribed: HashMap<String, EdgeStreamSubscriber>,
-    summary: ShardSummary,
+    /// Shared with the metrics' scrape ([`export_metrics`]); changed only on membership changes.
+    summary: Arc<Mutex<ShardSummary>>,
 }
 
 impl Assignment {
@@ -202,9 +211,9 @@ impl Assignment {
         session: Session,
         ingest: Arc<Mutex<LiveIngest>>,
         forward: Arc<Forwarder>,
+        summary: Arc<Mutex<ShardSummary>>,
     ) -> Self {
         let workers = BTreeSet::from([me.clone()]);
-        let summary = ShardSummary { worker: me.clone(), workers_max: 1, ..ShardSummary::default() };
         Assignment {
             me,
             site,
@@ -245,12 +254,14 @@ impl Assignment {
         match change {
             Change::Worker { id, alive: true } => {
                 if self.workers.insert(id.clone()) {
+                    self.count(|s| s.workers_at_exit += 1);
                     tracing::info!("shard: worker joined: {id} ({} alive)", self.workers.len());
                 }
             }
             // Never this worker itself: it leaves only by ending.
             Change::Worker { id, alive: false } if id != self.me => {
                 if self.workers.remove(&id) {
+                    self.count(|s| s.workers_at_exit -= 1);
                     tracing::info!("shard: worker left: {id} ({} alive)", self.workers.len());
                 }
             }
@@ -259,7 +270,12 @@ impl Assignment {
                 self.edges.insert(source, (!alive).then(Instant::now));
             }
         }
-        self.summary.workers_max = self.summary.workers_max.max(self.workers.len());
+        let alive = self.workers.len();
+        self.count(|s| s.workers_max = s.workers_max.max(alive));
+    }
+
+    fn count(&self, change: impl FnOnce(&mut ShardSummary)) {
+        change(&mut self.summary.lock().unwrap_or_else(PoisonError::into_inner));
     }
 
     /// Subscribes to the sources this worker owns now and lets go of the others.
@@ -283,11 +299,11 @@ impl Assignment {
                 {
                     let at_unix_ms = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis() as u64);
                     tracing::info!("shard: took over {source} from {from}");
-                    self.summary.took_over.push(TakeOver { source, from, at_unix_ms });
+                    self.count(|s| s.took_over.push(TakeOver { source, from, at_unix_ms }));
                 }
             } else if !mine && self.subscribed.contains_key(&source) {
                 self.unsubscribe(&source).await;
-                self.summary.handed_over += 1;
+                self.count(|s| s.handed_over += 1);
             }
         }
     }
@@ -318,12 +334,16 @@ impl Assignment {
             Ok(subscriber) => {
                 tracing::info!("shard: owns {source}");
                 self.subscribed.insert(source.to_owned(), subscriber);
-                self.summary.subscribed += 1;
+                let owned = self.subscribed.len();
+                self.count(|s| {
+                    s.subscribed += 1;
+                    s.owned_at_exit = owned;
+                });
                 true
             }
             Err(e) => {
                 tracing::error!("shard: subscribing to {source}: {e}");
-                self.summary.subscribe_failed += 1;
+                self.count(|s| s.subscribe_failed += 1);
                 // Asked again at the next change.
                 self.owners.remove(source);
                 false
@@ -332,7 +352,10 @@ impl Assignment {
     }
 
     async fn unsubscribe(&mut self, source: &str) {
-        if let Some(subscriber) = self.subscribed.remove(source)
+        let removed = self.subscribed.remove(source);
+        let owned = self.subscribed.len();
+        self.count(|s| s.owned_at_exit = owned);
+        if let Some(subscriber) = removed
             && let Err(e) = subscriber.undeclare().await
         {
             tracing::debug!("shard: undeclaring {source}: {e}");
@@ -340,13 +363,12 @@ impl Assignment {
     }
 
     async fn finish(mut self) -> ShardSummary {
+        let summary = self.summary.lock().unwrap_or_else(PoisonError::into_inner).clone();
         let sources: Vec<String> = self.subscribed.keys().cloned().collect();
-        self.summary.owned_at_exit = sources.len();
-        self.summary.workers_at_exit = self.workers.len();
         for source in sources {
             self.unsubscribe(&source).await;
         }
-        self.summary
+        summary
     }
 }
 
@@ -400,6 +422,12 @@ impl Forwarder {
         }
     }
 
+    /// Its counts, into `summary`.
+    fn count(&self, summary: &mut ShardSummary) {
+        summary.forwarded = self.forwarded.load(Ordering::Relaxed);
+        summary.forward_failed = self.failed.load(Ordering::Relaxed);
+    }
+
     /// Forwards `sample` (its payload shared, not copied) under its edge key's forward key.
     fn put(&self, sample: &risktwin_transport::zenoh::sample::Sample) {
         let edge_key = sample.key_expr().as_str();
@@ -426,6 +454,27 @@ impl Forwarder {
         let counter = if ok { &self.forwarded } else { &self.failed };
         counter.fetch_add(1, Ordering::Relaxed);
     }
+}
+
+/// Has every scrape copy the worker's counts (docs/metrics.md) while it runs.
+fn export_metrics(summary: Weak<Mutex<ShardSummary>>, forward: Weak<Forwarder>) {
+    risktwin_transport::metrics::on_scrape(move || {
+        let (Some(summary), Some(forward)) = (summary.upgrade(), forward.upgrade()) else { return false };
+        let mut copy = summary.lock().unwrap_or_else(PoisonError::into_inner).clone();
+        forward.count(&mut copy);
+        export(&copy);
+        true
+    });
+}
+
+/// The worker's counts as metrics.
+fn export(s: &ShardSummary) {
+    metrics::gauge!("risktwin_shard_workers").set(s.workers_at_exit as f64);
+    metrics::gauge!("risktwin_shard_sources_owned").set(s.owned_at_exit as f64);
+    metrics::counter!("risktwin_shard_sources_taken_over_total").absolute(s.took_over.len() as u64);
+    metrics::counter!("risktwin_shard_sources_handed_over_total").absolute(s.handed_over);
+    metrics::counter!("risktwin_shard_forwarded_messages_total").absolute(s.forwarded);
+    metrics::counter!("risktwin_shard_forward_failed_total").absolute(s.forward_failed);
 }
 
 #[cfg(test)]

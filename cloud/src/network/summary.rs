@@ -57,6 +57,9 @@ pub struct IngestSummary {
     /// Per source, how often its samples switched between two publishing sessions both alive
     /// (two processes under one id; see `id_conflicts.rs`). Empty when every id is one process.
     pub id_conflicts: BTreeMap<String, u64>,
+    /// Overload: the shedding level, how long the ingest shed, and its load measure
+    /// (docs/keyexpr.md, "Overload").
+    pub overload: super::receive::LoadSummary,
     /// The segments of a rotating recording (`--record-dir`), when recording so.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub segments: Option<crate::recordings::SegmentsSummary>,

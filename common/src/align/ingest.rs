@@ -104,6 +104,8 @@ pub struct IngestCore<T> {
     drops: DropCounts,
     accepted: u64,
     clock_resets: u64,
+    /// Streams shed now (bit `i`: stream index `i`), see [`IngestCore::set_shed`].
+    shed: u64,
 }
 
 impl<T: Clone + Interpolate> IngestCore<T> {
@@ -127,6 +129,7 @@ impl<T: Clone> IngestCore<T> {
             drops: DropCounts::default(),
             accepted: 0,
             clock_resets: 0,
+            shed: 0,
         }
     }
 
@@ -211,8 +214,20 @@ impl<T: Clone> IngestCore<T> {
         }
         self.future_streak[s] = 0;
         clock.observe(msg.capture_ns, msg.receive_ns);
+        // After the deduplicator and the clock: a shed message counts as received (its number
+        // is no gap) and still teaches the estimator.
+        if self.shed & (1 << msg.stream.as_usize().min(63)) != 0 {
+            return Err(DropReason::Shed);
+        }
         // The first message of a source (or after a reset) anchors it at its receive time.
         Ok(mapped.unwrap_or(msg.receive_ns))
+    }
+
+    /// Sheds the streams whose index has its bit set in `streams` (an overloaded ingest; see
+    /// `docs/keyexpr.md`, "Overload"): their messages are dropped as [`DropReason::Shed`] once
+    /// counted by the deduplicator. `0` sheds nothing.
+    pub fn set_shed(&mut self, streams: u64) {
+        self.shed = streams;
     }
 
     /// `source` may have started over (its process left, and a new one may come under the same

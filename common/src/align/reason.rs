@@ -43,6 +43,9 @@ pub enum DropReason {
     /// The payload is larger than an edge stream's maximum ([`MAX_EDGE_PAYLOAD_BYTES`]): refused
     /// before it is decoded.
     TooLarge,
+    /// The ingest is overloaded and sheds the message's stream (lower priority than states):
+    /// counted as received by the deduplicator, then not used.
+    Shed,
 }
 
 /// The largest payload an edge stream may carry, bytes. The real messages are far smaller
@@ -52,7 +55,7 @@ pub const MAX_EDGE_PAYLOAD_BYTES: usize = 64 * 1024;
 
 impl DropReason {
     /// Every reason, in code order; `DropCounts` is indexed by position in this list.
-    pub const ALL: [DropReason; 14] = [
+    pub const ALL: [DropReason; 15] = [
         DropReason::Duplicate,
         DropReason::TooOld,
         DropReason::SeqJump,
@@ -67,6 +70,7 @@ impl DropReason {
         DropReason::SourceMismatch,
         DropReason::WrongSchema,
         DropReason::TooLarge,
+        DropReason::Shed,
     ];
 
     /// The stable, kebab-case code used in counters, logs and reports.
@@ -86,6 +90,7 @@ impl DropReason {
             DropReason::SourceMismatch => "source-mismatch",
             DropReason::WrongSchema => "wrong-schema",
             DropReason::TooLarge => "too-large",
+            DropReason::Shed => "shed",
         }
     }
 
@@ -156,7 +161,8 @@ mod tests {
                 "invalid-field",
                 "source-mismatch",
                 "wrong-schema",
-                "too-large"
+                "too-large",
+                "shed"
             ]
         );
         for r in DropReason::ALL {

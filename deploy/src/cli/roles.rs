@@ -215,6 +215,11 @@ pub struct CloudArgs {
     /// what each accepts goes on to the union role (docs/sharding.md).
     #[arg(long)]
     pub shard: bool,
+    /// When live states wait at least this long (the least over a second), shed CAN, then every
+    /// stream but states, and have the edges hold them back (docs/keyexpr.md, "Overload");
+    /// default: never (the wait is still measured and reported).
+    #[arg(long, value_name = "MS")]
+    pub shed_after_ms: Option<f64>,
     /// Record every accepted message (and the twin's scene and risk outputs) into this MCAP
     /// file (closed cleanly on SIGINT/SIGTERM).
     #[arg(long, conflicts_with = "record_dir")]

@@ -111,6 +111,11 @@ pub fn cloud(args: CloudArgs) -> CliResult {
         config.warning.repeat_ns = (repeat_ms * 1e6) as i64;
     }
     config.shard = args.shard;
+    config.shed_after = match args.shed_after_ms {
+        Some(ms) if (10.0..=60_000.0).contains(&ms) => Some(Duration::from_secs_f64(ms * 1e-3)),
+        Some(ms) => return Err(CliError::input(format!("--shed-after-ms {ms} must lie in [10, 60000]"))),
+        None => None,
+    };
     let road_kind: ScenarioKind = args.road.parse().map_err(CliError::input)?;
     config.road = risktwin_cloud::twin::scenario_road(road_kind);
     if let Some(listen) = &args.viz_listen {

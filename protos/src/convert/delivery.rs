@@ -22,6 +22,7 @@ impl From<&DeliveryAck> for v1::DeliveryAck {
                     lost: s.lost,
                 })
                 .collect(),
+            shed: a.shed.clone(),
         }
     }
 }
@@ -53,6 +54,7 @@ impl TryFrom<v1::DeliveryAck> for DeliveryAck {
             edge_session: non_empty(M, "edge_session", a.edge_session)?,
             cloud_session: non_empty(M, "cloud_session", a.cloud_session)?,
             streams,
+            shed: a.shed.into_iter().map(|name| non_empty(M, "shed", name)).collect::<Result<_, _>>()?,
         })
     }
 }

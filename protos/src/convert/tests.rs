@@ -569,6 +569,7 @@ fn delivery_acks_round_trip_and_impossible_ones_are_rejected() {
         edge_session: "a1b2".into(),
         cloud_session: "c3d4".into(),
         streams: vec![stream("state", 10, 9, 1), stream("can", 40, 40, 0)],
+        shed: vec!["can".into()],
     };
     round_trip(&ack);
     rejects(&ack, |p| p.edge_session.clear(), missing("DeliveryAck", "edge_session"));

@@ -20,6 +20,8 @@ use crate::twin::risk::{RiskAssessor, RiskConfig};
 use crate::twin::watch::{WatchCounts, WatchedEpisode};
 use crate::viz::VizFeed;
 use crate::warning::{HazardWarner, WarningSink, WarningSummary};
+use load::LoadGauge;
+pub use load::LoadSummary;
 use risktwin_common::align::{DropReason, IngestConfig, MAX_EDGE_PAYLOAD_BYTES, SeqProgress};
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{ObjectList, ScenarioResult, VehicleStateSample};
@@ -40,6 +42,7 @@ use thiserror::Error;
 use tokio::sync::mpsc::UnboundedSender;
 
 mod emit;
+mod load;
 mod report;
 
 use emit::emit;
@@ -88,10 +91,10 @@ pub enum Handled {
 impl Handled {
     /// Whether a sharded worker forwards it to the union: accepted, or refused only by this
     /// process's clock estimate (`future-timestamp`: a worker that took a source over anchors
-    /// its estimate on samples from the edge's cache, which arrive late); the union judges it
-    /// again with its own estimate. Every other refusal holds wherever it is made.
+    /// its estimate on samples from the edge's cache, which arrive late) or its load (`shed`);
+    /// the union judges it again. Every other refusal holds wherever it is made.
     pub fn forwarded(self) -> bool {
-        matches!(self, Handled::Accepted | Handled::Dropped(DropReason::FutureTimestamp))
+        matches!(self, Handled::Accepted | Handled::Dropped(DropReason::FutureTimestamp | DropReason::Shed))
     }
 }
 
@@ -182,6 +185,8 @@ pub struct LiveIngest {
     losses: LossCounts,
     /// Sources published by two live sessions at once.
     conflicts: IdConflicts,
+    /// How far behind the ingest runs, and what it sheds ([`load`]).
+    load: LoadGauge,
     /// Where the key of each stream's first accepted sample goes, to be declared (see
     /// [`super::routes`]).
     route_keys: Option<UnboundedSender<String>>,
@@ -246,6 +251,7 @@ impl LiveIngest {
             too_large_logged: HashSet::new(),
             losses: LossCounts::default(),
             conflicts: IdConflicts::default(),
+            load: LoadGauge::default(),
             route_keys: None,
             warnings: None,
             acks: AckSources::default(),
@@ -344,6 +350,13 @@ impl LiveIngest {
         }
     }
 
+    /// Sheds lower-priority streams once live states wait longer than `after` ([`load`]);
+    /// `None` (the default): the wait is measured and reported, nothing is shed.
+    pub(crate) fn with_shedding(mut self, after: Option<std::time::Duration>) -> Self {
+        self.load = LoadGauge::new(after);
+        self
+    }
+
     /// Hands the twin's outputs to `publish` (the publisher task) when given.
     pub(crate) fn with_publisher(mut self, publish: Option<UnboundedSender<Publication>>) -> Self {
         self.publish = publish;
@@ -371,6 +384,12 @@ impl LiveIngest {
         let recovered = origin.recovered;
         let now = Instant::now();
         self.last_sample = Some(now);
+        if let Some(level) = self.load.roll(now) {
+            self.worker.set_shed(self.load.shed_mask());
+            let delay_ms = self.load.summary().queue_delay_ms.unwrap_or(0);
+            let shed: Vec<&str> = self.load.shed().iter().map(|s| s.as_str()).collect();
+            tracing::warn!("ingest: live states wait {delay_ms} ms at least: shedding level {level} ({shed:?})");
+        }
         let wall_ns = match (self.replay_time, replay_ns) {
             (false, _) => SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64),
             (true, Some(t)) => t,
@@ -418,9 +437,15 @@ impl LiveIngest {
         let mut outputs = self.outputs.as_mut();
         let mut ticked = false;
         let warnings = self.warnings.as_mut();
+        let load = &mut self.load;
         // The warning path runs as soon as the message is accepted: before the snapshots it
         // makes due are applied and before it is recorded (`IngestWorker::handle_then`).
         let on_accepted = |msg: &AcceptedMessage| {
+            // Only live states measure the load: a recovered sample waited in a cache, and the
+            // other streams may be shed.
+            if !recovered && parsed.stream == EdgeStream::State {
+                load.observe(receive_ns - msg.cloud_ns);
+            }
             if let Some((warner, sink)) = warnings {
                 warner.on_state(parsed.site, parsed.source, msg, receive_ns, &mut **sink);
             }
@@ -620,6 +645,11 @@ impl LiveIngest {
     /// How far each stream of `source` is accounted for ([`IngestWorker::progress`]).
     pub(crate) fn progress(&self, source: &str) -> Vec<(EdgeStream, SeqProgress)> {
         self.worker.progress(source)
+    }
+
+    /// The streams shed now (an overloaded ingest; [`load`]).
+    pub(crate) fn shed_streams(&self) -> &'static [EdgeStream] {
+        self.load.shed()
     }
 
     /// When the last sample (accepted or not) arrived.

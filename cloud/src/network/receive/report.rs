@@ -43,6 +43,7 @@ impl LiveIngest {
         summary.total_presumed_lost = presumed_lost.values().flat_map(BTreeMap::values).sum();
         summary.presumed_lost = presumed_lost;
         summary.id_conflicts = self.conflicts.summary();
+        summary.overload = self.load.summary();
         summary
     }
 

@@ -92,16 +92,12 @@ impl EdgeStreamSubscriber {
 /// the same shape that are not edge streams (another cloud's outputs, pushes to edges) also
 /// arrive; they are recognised by the key parser and skipped. Samples published by this same
 /// session are not received at all.
-pub async fn subscribe_edge_streams<F, L>(
+pub async fn subscribe_edge_streams(
     session: &Session,
     site: Option<&SiteId>,
-    on_sample: F,
-    on_loss: L,
-) -> Result<EdgeStreamSubscriber, TransportError>
-where
-    F: Fn(EdgeStream, &Sample) + Send + Sync + 'static,
-    L: Fn(StreamLoss) + Send + Sync + 'static,
-{
+    on_sample: impl Fn(EdgeStream, &Sample) + Send + Sync + 'static,
+    on_loss: impl Fn(StreamLoss) + Send + Sync + 'static,
+) -> Result<EdgeStreamSubscriber, TransportError> {
     subscribe(session, keyexpr::edge_streams_all(site), None, on_sample, on_loss).await
 }
 
@@ -110,18 +106,14 @@ where
 /// that many samples of each of its streams: what was published while no worker owned it (a
 /// hand-over). Those arrive as recovered samples, some of them already taken by the previous
 /// owner; the union removes them by (source, sequence number).
-pub async fn subscribe_source_streams<F, L>(
+pub async fn subscribe_source_streams(
     session: &Session,
     site: &SiteId,
     source: &SourceId,
     history_samples: Option<usize>,
-    on_sample: F,
-    on_loss: L,
-) -> Result<EdgeStreamSubscriber, TransportError>
-where
-    F: Fn(EdgeStream, &Sample) + Send + Sync + 'static,
-    L: Fn(StreamLoss) + Send + Sync + 'static,
-{
+    on_sample: impl Fn(EdgeStream, &Sample) + Send + Sync + 'static,
+    on_loss: impl Fn(StreamLoss) + Send + Sync + 'static,
+) -> Result<EdgeStreamSubscriber, TransportError> {
     subscribe(session, keyexpr::source_streams(site, source), history_samples, on_sample, on_loss).await
 }
 

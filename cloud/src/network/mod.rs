@@ -474,17 +474,17 @@ pub async fn run(
     };
     // After the subscriber: an edge that sees the token may count on its samples being taken
     // and acknowledged.
-    let (cloud_token, acks) =
-        match subscriber.as_ref().map(|_| ()).or(shard.as_ref().map(|_| ())) {
-            Some(()) => {
-                let key = risktwin_transport::keyexpr::cloud_liveliness(config.site.as_ref());
-                let token = session.liveliness().declare_token(key.clone()).await.map_err(|e| {
-                    TransportError::Declare { what: "cloud liveliness token", key, reason: e.to_string() }
-                })?;
-                (Some(token), Some(ack::spawn_acks(session.clone(), Arc::clone(&ingest))))
-            }
-            None => (None, None),
-        };
+    let (cloud_token, acks) = if subscriber.is_some() || shard.is_some() {
+        let key = risktwin_transport::keyexpr::cloud_liveliness(config.site.as_ref());
+        let token = session.liveliness().declare_token(key.clone()).await.map_err(|e| TransportError::Declare {
+            what: "cloud liveliness token",
+            key,
+            reason: e.to_string(),
+        })?;
+        (Some(token), Some(ack::spawn_acks(session.clone(), Arc::clone(&ingest))))
+    } else {
+        (None, None)
+    };
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
     if risktwin_transport::metrics::enabled() {
         live_metrics::watch(&ingest, &liveness);

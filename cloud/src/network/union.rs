@@ -17,6 +17,9 @@ use risktwin_transport::zenoh::sample::Locality;
 use risktwin_transport::{SiteId, TransportError};
 use std::sync::{Arc, Mutex, PoisonError};
 
+/// Forwarded keys declared at most (five streams of 100,000 sources, the ingest's source limit).
+const MAX_DECLARED: usize = 500_000;
+
 /// Subscribes to what the workers of `site` (every site if `None`) forward; drop or undeclare
 /// the subscriber to stop.
 pub async fn subscribe(
@@ -27,12 +30,25 @@ pub async fn subscribe(
     let key = keyexpr::ingested_all(site);
     // The edge key is rebuilt into one buffer, reused under the ingest's lock.
     let buffer = Mutex::new(String::new());
+    // Each forwarded key is declared at this session once (see `super::routes`: an undeclared
+    // key is routed by walking the whole resource tree, ≈ 50 µs a sample here). The declarer
+    // task ends with the subscriber's callback (its sender dropped).
+    let (_declarer, keys) = super::routes::declare_route_keys(session);
+    let seen = Mutex::new(std::collections::HashSet::<String>::new());
     session
         .declare_subscriber(key.clone())
         .allowed_origin(Locality::Remote)
         .callback(move |sample| {
             let payload = sample.payload().to_bytes();
             let replay_ns = sample.attachment().and_then(|a| decode_replay_time(&a.to_bytes()));
+            {
+                let mut seen = seen.lock().unwrap_or_else(PoisonError::into_inner);
+                let forwarded = sample.key_expr().as_str();
+                if !seen.contains(forwarded) && seen.len() < MAX_DECLARED {
+                    seen.insert(forwarded.to_owned());
+                    let _ = keys.send(forwarded.to_owned());
+                }
+            }
             let mut buffer = buffer.lock().unwrap_or_else(PoisonError::into_inner);
             let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
             let Some(edge_key) = edge_key_of_ingested(sample.key_expr().as_str(), &mut buffer) else {

@@ -38,9 +38,7 @@ use zenoh::Session;
 use zenoh::query::{ConsolidationMode, ReplyKeyExpr};
 use zenoh::sample::{Locality, Sample};
 use zenoh::session::EntityGlobalId;
-use zenoh_ext::{
-    AdvancedSubscriber, AdvancedSubscriberBuilderExt, HistoryConfig, Miss, RecoveryConfig, SampleMissListener,
-};
+use zenoh_ext::{AdvancedSubscriber, AdvancedSubscriberBuilderExt, Miss, RecoveryConfig, SampleMissListener};
 
 /// Publishers whose key is remembered; beyond, the table starts over (a later miss of a
 /// forgotten publisher is still reported, without its key).
@@ -57,6 +55,9 @@ pub const REQUERY_DELAY: Duration = Duration::from_secs(1);
 
 /// How long one ask waits for its answers.
 const REQUERY_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// How long [`fetch_cached`] waits for the caches' answers.
+pub const FETCH_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// Samples of one publisher that are lost for good: neither received nor recoverable.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -98,29 +99,44 @@ pub async fn subscribe_edge_streams(
     on_sample: impl Fn(EdgeStream, &Sample) + Send + Sync + 'static,
     on_loss: impl Fn(StreamLoss) + Send + Sync + 'static,
 ) -> Result<EdgeStreamSubscriber, TransportError> {
-    subscribe(session, keyexpr::edge_streams_all(site), None, on_sample, on_loss).await
+    subscribe(session, keyexpr::edge_streams_all(site), on_sample, on_loss).await
 }
 
-/// Subscribes, like [`subscribe_edge_streams`], to the streams of one source (a sharded ingest
-/// worker's share) and, with `history_samples`, first asks the source's caches for the last
-/// that many samples of each of its streams: what was published while no worker owned it (a
-/// hand-over). Those arrive as recovered samples, some of them already taken by the previous
-/// owner; the union removes them by (source, sequence number).
-pub async fn subscribe_source_streams(
-    session: &Session,
-    site: &SiteId,
-    source: &SourceId,
-    history_samples: Option<usize>,
-    on_sample: impl Fn(EdgeStream, &Sample) + Send + Sync + 'static,
-    on_loss: impl Fn(StreamLoss) + Send + Sync + 'static,
-) -> Result<EdgeStreamSubscriber, TransportError> {
-    subscribe(session, keyexpr::source_streams(site, source), history_samples, on_sample, on_loss).await
+/// Asks the caches of `source`'s stream publishers for their last `per_publisher` samples each
+/// (a sharded worker that starts owning a source: what reached it before it owned the source,
+/// or before its first sample of it arrived). Returns what came within [`FETCH_TIMEOUT`], in
+/// each publisher's order; a source without a live publisher brings nothing.
+pub async fn fetch_cached(session: &Session, site: &SiteId, source: &SourceId, per_publisher: usize) -> Vec<Sample> {
+    let selector = format!("{}/@adv/**?_max={}", keyexpr::source_streams(site, source), per_publisher.max(1));
+    let mut samples = Vec::new();
+    let replies = session
+        .get(&selector)
+        .consolidation(ConsolidationMode::None)
+        .accept_replies(ReplyKeyExpr::Any)
+        .priority(RECOVERY_PRIORITY)
+        .timeout(FETCH_TIMEOUT)
+        .await;
+    match replies {
+        Ok(replies) => {
+            while let Ok(reply) = replies.recv_async().await {
+                if let Ok(sample) = reply.into_result()
+                    && keyexpr::parse_edge_key(sample.key_expr().as_str()).is_some()
+                {
+                    samples.push(sample);
+                }
+            }
+        }
+        Err(e) => tracing::debug!("edge streams: asking {selector}: {e}"),
+    }
+    samples.sort_by_key(|s| {
+        s.source_info().map(|i| (i.source_id().zid().to_string(), i.source_id().eid(), i.source_sn()))
+    });
+    samples
 }
 
 async fn subscribe<F, L>(
     session: &Session,
     key: String,
-    history_samples: Option<usize>,
     on_sample: F,
     on_loss: L,
 ) -> Result<EdgeStreamSubscriber, TransportError>
@@ -133,7 +149,7 @@ where
     let keys = Arc::new(Mutex::new(PublisherKeys::default()));
     let (on_sample, on_loss) = (Arc::new(on_sample), Arc::new(on_loss));
     let (sample_keys, deliver) = (Arc::clone(&keys), Arc::clone(&on_sample));
-    let builder = session
+    let subscriber = session
         .declare_subscriber(key.clone())
         .allowed_origin(Locality::Remote)
         .callback(move |sample| {
@@ -144,14 +160,9 @@ where
                 deliver(parsed.stream, &sample);
             }
         })
-        .recovery(RecoveryConfig::default().heartbeat());
-    let builder = match history_samples {
-        // No `max_age`: the edges' sessions do not timestamp, and a cache ignores a time range
-        // for samples without a timestamp.
-        Some(samples) => builder.history(HistoryConfig::default().max_samples(samples.max(1))),
-        None => builder,
-    };
-    let subscriber = builder.await.map_err(|e| declare_err("advanced subscriber", e))?;
+        .recovery(RecoveryConfig::default().heartbeat())
+        .await
+        .map_err(|e| declare_err("advanced subscriber", e))?;
     let (requery_session, runtime) = (session.clone(), tokio::runtime::Handle::current());
     let misses = subscriber
         .sample_miss_listener()

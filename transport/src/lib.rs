@@ -17,9 +17,7 @@ pub mod shutdown;
 pub mod stream;
 pub mod tls;
 
-pub use edge_subscriber::{
-    EdgeStreamSubscriber, Missed, StreamLoss, requery, subscribe_edge_streams, subscribe_source_streams,
-};
+pub use edge_subscriber::{EdgeStreamSubscriber, Missed, StreamLoss, fetch_cached, requery, subscribe_edge_streams};
 pub use keyexpr::{EdgeStream, KeyError, SiteId, SourceId};
 pub use recovery::Delivery;
 pub use session::{DEFAULT_ROUTER_PORT, Mode, TransportConfig, TransportError, close, connect, listening_locators};

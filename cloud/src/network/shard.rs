@@ -2,52 +2,74 @@
 //! ingest workers share a site, each source owned by exactly one live worker.
 //!
 //! - Membership: each worker holds a liveliness token `risktwin/v1/<site>/cloud/workers/<id>`
-//!   (its Zenoh session id) and watches the others' and the edges' tokens. A killed worker's
-//!   token goes as soon as the router sees its link close; a frozen one's when its lease ends.
+//!   (its Zenoh session id) and watches the others'. A killed worker's token goes as soon as the
+//!   router sees its link close; a frozen one's when its lease ends.
 //! - Ownership: rendezvous (highest-random-weight) hashing of (worker, source), Thaler and
 //!   Ravishankar 1998: every worker computes the same owner from the same member set, with no
-//!   coordinator, and a worker that joins or leaves moves only its own share (≈ 1/n).
-//! - A worker subscribes to each source it owns (one `AdvancedSubscriber` on
-//!   `risktwin/v1/<site>/<source>/*`, so the router sends it its share only). Taking a source
-//!   over from another worker, it first asks the source's caches for the last
-//!   [`HANDOVER_SAMPLES`] of each stream: what was published while nobody owned the source comes
-//!   back (edge caches keep 45 s), and part of what the previous owner took.
+//!   coordinator, and a worker that joins or leaves moves only its own share (≈ 1/n). A source
+//!   needs no token to be sharded: its owner follows from its name.
+//! - Every worker subscribes to the whole site (the unsharded ingest's one wildcard
+//!   subscription, with its recovery) and lets through only the sources it owns; the others'
+//!   samples are counted `skipped` and cost only their receipt. One subscription per owned
+//!   source was tried first and does not scale in Zenoh 1.10.2: every key a session declares
+//!   is matched against every subscription of the session under the session's write lock, and
+//!   every sample of an undeclared key against every subscription too; at 2,000 sources a
+//!   worker's receive thread stood still for seconds and it received 1 sample in 250
+//!   (docs/sharding.md).
+//! - Starting to own a source (its first sample here, or a departed worker's source), a worker
+//!   holds its live samples back while it asks the source's caches for the last
+//!   [`JOIN_SAMPLES`] or [`HANDOVER_SAMPLES`] of each stream, then lets those through first:
+//!   what the previous owner stopped taking, or what reached the edge's cache before this
+//!   worker's first sample of it, is not lost.
 //! - Each accepted message (and each refused only by this worker's clock estimate, see
 //!   [`super::Handled::forwarded`]) is forwarded unchanged to `risktwin/v1/<site>/cloud/ingested/…`,
 //!   where the `union` role ([`super::union`]) feeds the twin and removes the hand-over's
 //!   duplicates by (source, sequence number).
 //!
-//! Zenoh has no queue groups (eclipse-zenoh/zenoh#2217), so the assignment is ours. Sources
-//! without a liveliness token (replays, fleet logs) are not sharded: one unsharded cloud takes
-//! them.
+//! Zenoh has no queue groups (eclipse-zenoh/zenoh#2217), so the assignment is ours.
+
+mod forward;
 
 use super::receive::LiveIngest;
 use crate::network::{ingest_sink_then, loss_sink};
+use forward::Forwarder;
 use risktwin_transport::keyexpr::{self, parse_edge_key};
-use risktwin_transport::recovery::LIVE_PRIORITY;
 use risktwin_transport::zenoh::Session;
-use risktwin_transport::zenoh::bytes::{Encoding, ZBytes};
-use risktwin_transport::zenoh::pubsub::Publisher;
-use risktwin_transport::zenoh::qos::CongestionControl;
-use risktwin_transport::zenoh::sample::SampleKind;
-use risktwin_transport::zenoh::{Wait, liveliness::LivelinessToken, pubsub::Subscriber};
-use risktwin_transport::{EdgeStreamSubscriber, Shutdown, SiteId, SourceId, TransportError, watch_liveliness};
+use risktwin_transport::zenoh::sample::{Sample, SampleKind};
+use risktwin_transport::zenoh::{liveliness::LivelinessToken, pubsub::Subscriber};
+use risktwin_transport::{
+    EdgeStream, EdgeStreamSubscriber, Shutdown, SiteId, SourceId, StreamLoss, TransportError, fetch_cached,
+};
 use serde::Serialize;
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError, Weak};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
-/// Samples per stream a worker asks a source's caches for when it starts owning the source: 5 s
-/// of a 200/s CAN stream, 20 s of a 50 Hz state stream. Below the union's reorder window (1,024
-/// numbers), so that every one of them the previous owner forwarded is still told a duplicate.
+/// Samples per stream a worker asks a source's caches for when it takes the source from a
+/// departed worker: 5 s of a 200/s CAN stream, 20 s of a 50 Hz state stream. Below the union's
+/// reorder window (1,024 numbers), so that every one of them the previous owner forwarded is
+/// still told a duplicate.
 pub const HANDOVER_SAMPLES: usize = 1000;
 
-/// How long a worker keeps the subscription of an edge whose token went: its last samples and
-/// a recovery of its last gap still arrive.
-const EDGE_LINGER: Duration = Duration::from_secs(10);
+/// Samples per stream a worker asks for when a source's first sample reaches it: a new edge's
+/// first samples (published the moment it saw a subscriber, possibly before this worker's
+/// subscription reached it), or what a worker that just joined missed while the previous
+/// owner had not yet seen it join (0.3 s of CAN, 1.3 s of states).
+pub const JOIN_SAMPLES: usize = 64;
+
+/// Live samples of one source held back while its caches answer, at most; beyond, they go
+/// through at once (the cached ones then arrive after them, and the deduplicator's window
+/// decides).
+const MAX_HELD: usize = 8192;
+
+/// Asks to sources' caches in flight at once, at most.
+const FETCHES_IN_FLIGHT: usize = 16;
+
+/// How long a starting worker waits for the other workers' tokens before it owns anything.
+const MEMBERS_WAIT: Duration = Duration::from_secs(2);
 
 /// The weight of `worker` for `source`: FNV-1a (64 bit) over both, finished with the SplitMix64
 /// mixer so that near-identical ids spread. Written out rather than `DefaultHasher` because every
@@ -74,7 +96,7 @@ pub struct TakeOver {
     pub source: String,
     /// The worker that owned it before.
     pub from: String,
-    /// When this worker's subscription was in place, ms since the Unix epoch.
+    /// When this worker started taking its samples, ms since the Unix epoch.
     pub at_unix_ms: u64,
 }
 
@@ -89,31 +111,226 @@ pub struct ShardSummary {
     pub workers_at_exit: usize,
     /// Sources owned at the end (while running: now).
     pub owned_at_exit: usize,
-    /// Subscriptions declared (a source owned, or owned again).
-    pub subscribed: u64,
+    /// Sources seen (owned or not).
+    pub sources_seen: usize,
     /// Sources handed to another worker (a worker joined).
     pub handed_over: u64,
-    /// Sources taken from another worker (it left, or this one joined), with when.
+    /// Sources taken from another worker (it left), with when.
     pub took_over: Vec<TakeOver>,
-    /// Subscriptions that could not be declared (logged; retried at the next change).
-    pub subscribe_failed: u64,
+    /// Asks to a source's caches (one per source this worker started owning).
+    pub fetches: u64,
+    /// Samples those asks brought.
+    pub fetched: u64,
+    /// Samples of sources other workers own: received and let go.
+    pub skipped: u64,
     /// Accepted messages forwarded to the union.
     pub forwarded: u64,
     /// Forwards Zenoh refused (the session closing).
     pub forward_failed: u64,
 }
 
-/// A membership change seen on a liveliness token.
-enum Change {
-    Worker { id: String, alive: bool },
-    Edge { source: String, alive: bool },
+/// What this worker does with a source's samples.
+enum Held {
+    Mine,
+    /// Another worker's (named): skipped.
+    Theirs(String),
+    /// Becoming this worker's: live samples wait here while the caches answer.
+    Fetching(Vec<(EdgeStream, Sample)>),
 }
 
-/// A running sharded worker: its token, watches and assignment task.
+/// Who is alive and who owns what; locked by the receive path for each sample (a lookup) and
+/// by membership changes.
+struct Owners {
+    me: String,
+    workers: BTreeSet<String>,
+    sources: HashMap<String, Held>,
+}
+
+impl Owners {
+    fn owner(&self, source: &str) -> &str {
+        owner(self.workers.iter().map(String::as_str), source).unwrap_or(&self.me)
+    }
+}
+
+type Deliver = dyn Fn(EdgeStream, &Sample) + Send + Sync;
+
+/// What the receive path, the fetches and the membership task share.
+struct Shard {
+    owners: Mutex<Owners>,
+    deliver: Box<Deliver>,
+    forward: Arc<Forwarder>,
+    fetch_slots: tokio::sync::Semaphore,
+    session: Session,
+    site: SiteId,
+    runtime: tokio::runtime::Handle,
+    skipped: AtomicU64,
+    fetches: AtomicU64,
+    fetched: AtomicU64,
+    summary: Mutex<ShardSummary>,
+}
+
+impl Shard {
+    fn owners(&self) -> std::sync::MutexGuard<'_, Owners> {
+        self.owners.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn count(&self, change: impl FnOnce(&mut ShardSummary)) {
+        change(&mut self.summary.lock().unwrap_or_else(PoisonError::into_inner));
+    }
+
+    /// The receive path: lets through the samples of the sources this worker owns.
+    fn on_sample(self: &Arc<Self>, stream: EdgeStream, sample: &Sample) {
+        let Some(source) = parse_edge_key(sample.key_expr().as_str()).map(|k| k.source) else { return };
+        let mut owners = self.owners();
+        match owners.sources.get_mut(source) {
+            Some(Held::Mine) => {
+                drop(owners);
+                (self.deliver)(stream, sample);
+            }
+            Some(Held::Theirs(_)) => {
+                self.skipped.fetch_add(1, Ordering::Relaxed);
+            }
+            Some(Held::Fetching(held)) if held.len() < MAX_HELD => held.push((stream, sample.clone())),
+            Some(Held::Fetching(_)) => {
+                drop(owners);
+                (self.deliver)(stream, sample);
+            }
+            None => {
+                let owner = owners.owner(source);
+                // A publisher's first sample (number 0) has nothing before it to ask for.
+                let first = sample.source_info().is_none_or(|info| info.source_sn() == 0);
+                let held = if owner == owners.me && first {
+                    Held::Mine
+                } else if owner == owners.me {
+                    self.fetch(source.to_owned(), JOIN_SAMPLES);
+                    Held::Fetching(vec![(stream, sample.clone())])
+                } else {
+                    self.skipped.fetch_add(1, Ordering::Relaxed);
+                    Held::Theirs(owner.to_owned())
+                };
+                let mine = matches!(held, Held::Mine);
+                owners.sources.insert(source.to_owned(), held);
+                drop(owners);
+                if mine {
+                    tracing::info!("shard: owns {source}");
+                    (self.deliver)(stream, sample);
+                }
+            }
+        }
+    }
+
+    /// Loss reports of the sources this worker owns (another worker counts its own).
+    fn on_loss(&self, loss: &StreamLoss) -> bool {
+        let source = loss.key.as_deref().and_then(parse_edge_key).map(|k| k.source);
+        source.is_none_or(|s| matches!(self.owners().sources.get(s), Some(Held::Mine | Held::Fetching(_))))
+    }
+
+    /// Asks `source`'s caches for the last `per_stream` samples of each stream, then lets them
+    /// and the live samples held meanwhile through, and owns the source from then on (unless it
+    /// moved away meanwhile: then all of it goes).
+    fn fetch(self: &Arc<Self>, source: String, per_stream: usize) {
+        let Ok(id) = SourceId::new(source.as_str()) else { return };
+        let shard = Arc::clone(self);
+        self.runtime.spawn(async move {
+            // A worker joining a running site asks for every source at once otherwise, and an
+            // edge process playing many sources answers them all on one link.
+            let Ok(_slot) = shard.fetch_slots.acquire().await else { return };
+            let cached = fetch_cached(&shard.session, &shard.site, &id, per_stream).await;
+            shard.fetches.fetch_add(1, Ordering::Relaxed);
+            shard.fetched.fetch_add(cached.len() as u64, Ordering::Relaxed);
+            let keys: BTreeSet<String> = cached.iter().map(|s| s.key_expr().as_str().to_owned()).collect();
+            for key in keys {
+                shard.forward.prepare(&key).await;
+            }
+            let mut next = cached;
+            // Live samples wait in `Fetching` until none is left: none passes an older one.
+            loop {
+                for sample in &next {
+                    if let Some(key) = parse_edge_key(sample.key_expr().as_str()) {
+                        (shard.deliver)(key.stream, sample);
+                    }
+                }
+                let mut owners = shard.owners();
+                let Some(Held::Fetching(live)) = owners.sources.get_mut(&source) else { return };
+                if live.is_empty() {
+                    tracing::info!("shard: owns {source}");
+                    owners.sources.insert(source, Held::Mine);
+                    return;
+                }
+                next = std::mem::take(live).into_iter().map(|(_, sample)| sample).collect();
+            }
+        });
+    }
+
+    /// Recomputes every known source's owner after the workers changed.
+    fn rebalance(self: &Arc<Self>) {
+        let mut owners = self.owners();
+        let me = owners.me.clone();
+        let now: HashMap<String, String> =
+            owners.sources.keys().map(|s| (s.clone(), owners.owner(s).to_owned())).collect();
+        let (mut took, mut handed) = (Vec::new(), 0);
+        for (source, owner) in now {
+            let Some(held) = owners.sources.get_mut(&source) else { continue };
+            match (&*held, owner == me) {
+                (Held::Theirs(from), true) => {
+                    let at_unix_ms = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis() as u64);
+                    tracing::info!("shard: took over {source} from {from}");
+                    took.push(TakeOver { source: source.clone(), from: from.clone(), at_unix_ms });
+                    *held = Held::Fetching(Vec::new());
+                    self.fetch(source, HANDOVER_SAMPLES);
+                }
+                (Held::Mine | Held::Fetching(_), false) => {
+                    tracing::info!("shard: handed {source} to {owner}");
+                    *held = Held::Theirs(owner);
+                    handed += 1;
+                }
+                (Held::Theirs(_), false) => *held = Held::Theirs(owner),
+                (Held::Mine | Held::Fetching(_), true) => {}
+            }
+        }
+        let (workers, owned, seen) = (
+            owners.workers.len(),
+            owners.sources.values().filter(|h| !matches!(h, Held::Theirs(_))).count(),
+            owners.sources.len(),
+        );
+        drop(owners);
+        self.count(|s| {
+            s.took_over.extend(took);
+            s.handed_over += handed;
+            s.workers_at_exit = workers;
+            s.workers_max = s.workers_max.max(workers);
+            s.owned_at_exit = owned;
+            s.sources_seen = seen;
+        });
+    }
+
+    /// The summary with the receive path's counts.
+    fn summary(&self) -> ShardSummary {
+        let mut summary = self.summary.lock().unwrap_or_else(PoisonError::into_inner).clone();
+        let owners = self.owners();
+        summary.owned_at_exit = owners.sources.values().filter(|h| !matches!(h, Held::Theirs(_))).count();
+        summary.sources_seen = owners.sources.len();
+        drop(owners);
+        summary.skipped = self.skipped.load(Ordering::Relaxed);
+        summary.fetches = self.fetches.load(Ordering::Relaxed);
+        summary.fetched = self.fetched.load(Ordering::Relaxed);
+        summary
+    }
+}
+
+/// A membership change seen on a worker's liveliness token.
+struct Change {
+    id: String,
+    alive: bool,
+}
+
+/// A running sharded worker: its token, subscriptions and membership task.
 pub struct ShardRole {
     token: LivelinessToken,
-    watches: [Subscriber<()>; 2],
-    task: JoinHandle<Assignment>,
+    workers: Subscriber<()>,
+    streams: EdgeStreamSubscriber,
+    task: JoinHandle<()>,
+    shard: Arc<Shard>,
     forward: Arc<Forwarder>,
 }
 
@@ -127,57 +344,96 @@ impl ShardRole {
         shutdown: Shutdown,
     ) -> Result<ShardRole, TransportError> {
         let me = session.zid().to_string();
-        let (changes_tx, changes) = mpsc::unbounded_channel();
-        let workers_tx = changes_tx.clone();
         let key = keyexpr::worker_liveliness_all(site);
+        let declare_err = |what: &'static str, key: &str, e: risktwin_transport::zenoh::Error| {
+            TransportError::Declare { what, key: key.to_owned(), reason: e.to_string() }
+        };
+        // The workers alive now, before this one owns anything: otherwise it would take (and
+        // ask the caches for) every source until their tokens arrived.
+        let mut workers = BTreeSet::from([me.clone()]);
+        let replies = session.liveliness().get(key.clone()).timeout(MEMBERS_WAIT).await;
+        let replies = replies.map_err(|e| declare_err("workers' liveliness query", &key, e))?;
+        while let Ok(reply) = replies.recv_async().await {
+            if let Some(id) =
+                reply.result().ok().and_then(|s| keyexpr::parse_worker_liveliness_key(s.key_expr().as_str()))
+            {
+                workers.insert(id.to_owned());
+            }
+        }
+        tracing::info!("shard: this worker is {me}");
+        tracing::info!("shard: workers at start ({} alive)", workers.len());
+        let forward = Arc::new(Forwarder::start(session));
+        let summary = ShardSummary {
+            worker: me.clone(),
+            workers_max: workers.len(),
+            workers_at_exit: workers.len(),
+            ..ShardSummary::default()
+        };
+        let to_union = Arc::clone(&forward);
+        let shard = Arc::new(Shard {
+            owners: Mutex::new(Owners { me: me.clone(), workers, sources: HashMap::new() }),
+            deliver: Box::new(ingest_sink_then(Arc::clone(&ingest), move |sample, handled| {
+                if handled.forwarded() {
+                    to_union.put(sample);
+                }
+            })),
+            forward: Arc::clone(&forward),
+            fetch_slots: tokio::sync::Semaphore::new(FETCHES_IN_FLIGHT),
+            session: session.clone(),
+            site: site.clone(),
+            runtime: tokio::runtime::Handle::current(),
+            skipped: AtomicU64::new(0),
+            fetches: AtomicU64::new(0),
+            fetched: AtomicU64::new(0),
+            summary: Mutex::new(summary),
+        });
+        // The site's streams before this worker's token: a worker that hands a source over on
+        // seeing the token finds this one already receiving it.
+        let (on_sample, on_loss, count_loss) = (Arc::clone(&shard), Arc::clone(&shard), loss_sink(ingest));
+        let streams = risktwin_transport::subscribe_edge_streams(
+            session,
+            Some(site),
+            move |stream, sample| on_sample.on_sample(stream, sample),
+            move |loss| {
+                if on_loss.on_loss(&loss) {
+                    count_loss(loss);
+                }
+            },
+        )
+        .await?;
+        let (changes_tx, changes) = mpsc::unbounded_channel();
         let workers = session
             .liveliness()
             .declare_subscriber(key.clone())
             .history(true)
             .callback(move |sample| {
                 if let Some(id) = keyexpr::parse_worker_liveliness_key(sample.key_expr().as_str()) {
-                    let alive = sample.kind() == SampleKind::Put;
-                    let _ = workers_tx.send(Change::Worker { id: id.to_owned(), alive });
+                    let _ = changes_tx.send(Change { id: id.to_owned(), alive: sample.kind() == SampleKind::Put });
                 }
             })
             .await
-            .map_err(|e| TransportError::Declare {
-                what: "workers' liveliness subscriber",
-                key,
-                reason: e.to_string(),
-            })?;
-        let edges = watch_liveliness(session, Some(site), move |change| {
-            let _ = changes_tx.send(Change::Edge { source: change.source, alive: change.alive });
-        })
-        .await?;
+            .map_err(|e| declare_err("workers' liveliness subscriber", &key, e))?;
         let key = keyexpr::worker_liveliness(site, &me);
-        let token = session.liveliness().declare_token(key.clone()).await.map_err(|e| TransportError::Declare {
-            what: "worker liveliness token",
-            key,
-            reason: e.to_string(),
-        })?;
-        tracing::info!("shard: this worker is {me}");
-        let forward = Arc::new(Forwarder::start(session));
-        let summary =
-            ShardSummary { worker: me.clone(), workers_max: 1, workers_at_exit: 1, ..ShardSummary::default() };
-        let summary = Arc::new(Mutex::new(summary));
+        let token = session
+            .liveliness()
+            .declare_token(key.clone())
+            .await
+            .map_err(|e| declare_err("worker liveliness token", &key, e))?;
         if risktwin_transport::metrics::enabled() {
-            export_metrics(Arc::downgrade(&summary), Arc::downgrade(&forward));
+            export_metrics(Arc::downgrade(&shard), Arc::downgrade(&forward));
         }
-        let assignment = Assignment::new(me, site.clone(), session.clone(), ingest, Arc::clone(&forward), summary);
-        let task = tokio::spawn(assignment.run(changes, shutdown));
-        Ok(ShardRole { token, watches: [workers, edges], task, forward })
+        let task = tokio::spawn(follow_members(Arc::clone(&shard), changes, shutdown));
+        Ok(ShardRole { token, workers, streams, task, shard, forward })
     }
 
-    /// Stops taking part: leaves the workers and drops every subscription.
+    /// Stops taking part: leaves the workers and drops the subscriptions.
     pub async fn finish(self) -> Result<ShardSummary, TransportError> {
         let undeclare = |e: risktwin_transport::zenoh::Error| TransportError::Close { reason: e.to_string() };
         self.token.undeclare().await.map_err(undeclare)?;
-        for watch in self.watches {
-            watch.undeclare().await.map_err(undeclare)?;
-        }
-        let assignment = self.task.await.map_err(|e| TransportError::Close { reason: format!("shard task: {e}") })?;
-        let mut summary = assignment.finish().await;
+        self.workers.undeclare().await.map_err(undeclare)?;
+        self.streams.undeclare().await.map_err(undeclare)?;
+        self.task.abort();
+        let mut summary = self.shard.summary();
         self.forward.count(&mut summary);
         self.forward.task.abort();
         if risktwin_transport::metrics::enabled() {
@@ -187,278 +443,40 @@ impl ShardRole {
     }
 }
 
-/// The assignment task's state: who is alive, what this worker owns.
-struct Assignment {
-    me: String,
-    site: SiteId,
-    session: Session,
-    ingest: Arc<Mutex<LiveIngest>>,
-    forward: Arc<Forwarder>,
-    workers: BTreeSet<String>,
-    /// Edges seen, with when their token went (`None`: alive).
-    edges: BTreeMap<String, Option<Instant>>,
-    /// Each known source's owner as last computed.
-    owners: HashMap<String, String>,
-    subscribed: HashMap<String, EdgeStreamSubscriber>,
-    /// Shared with the metrics' scrape ([`export_metrics`]); changed only on membership changes.
-    summary: Arc<Mutex<ShardSummary>>,
-}
-
-impl Assignment {
-    fn new(
-        me: String,
-        site: SiteId,
-        session: Session,
-        ingest: Arc<Mutex<LiveIngest>>,
-        forward: Arc<Forwarder>,
-        summary: Arc<Mutex<ShardSummary>>,
-    ) -> Self {
-        let workers = BTreeSet::from([me.clone()]);
-        Assignment {
-            me,
-            site,
-            session,
-            ingest,
-            forward,
-            workers,
-            edges: BTreeMap::new(),
-            owners: HashMap::new(),
-            subscribed: HashMap::new(),
-            summary,
-        }
-    }
-
-    async fn run(mut self, mut changes: mpsc::UnboundedReceiver<Change>, mut shutdown: Shutdown) -> Self {
-        let mut sweep = tokio::time::interval(Duration::from_secs(1));
-        loop {
-            tokio::select! {
-                change = changes.recv() => {
-                    let Some(change) = change else { return self };
-                    self.apply(change);
-                    // A burst (a worker's whole view at start) is taken in one go.
-                    while let Ok(change) = changes.try_recv() {
-                        self.apply(change);
-                    }
-                }
-                _ = sweep.tick() => {
-                    let now = Instant::now();
-                    self.edges.retain(|_, left| left.is_none_or(|at| now.duration_since(at) < EDGE_LINGER));
-                }
-                () = shutdown.wait() => return self,
-            }
-            self.rebalance().await;
-        }
-    }
-
-    fn apply(&mut self, change: Change) {
-        match change {
-            Change::Worker { id, alive: true } => {
-                if self.workers.insert(id.clone()) {
-                    tracing::info!("shard: worker joined: {id} ({} alive)", self.workers.len());
-                }
-            }
-            // Never this worker itself: it leaves only by ending.
-            Change::Worker { id, alive: false } if id != self.me => {
-                if self.workers.remove(&id) {
-                    tracing::info!("shard: worker left: {id} ({} alive)", self.workers.len());
-                }
-            }
-            Change::Worker { .. } => {}
-            Change::Edge { source, alive } => {
-                self.edges.insert(source, (!alive).then(Instant::now));
-            }
-        }
-        let alive = self.workers.len();
-        self.count(|s| {
-            s.workers_at_exit = alive;
-            s.workers_max = s.workers_max.max(alive);
-        });
-    }
-
-    fn count(&self, change: impl FnOnce(&mut ShardSummary)) {
-        change(&mut self.summary.lock().unwrap_or_else(PoisonError::into_inner));
-    }
-
-    /// Subscribes to the sources this worker owns now and lets go of the others.
-    async fn rebalance(&mut self) {
-        let gone: Vec<String> = self.subscribed.keys().filter(|s| !self.edges.contains_key(*s)).cloned().collect();
-        for source in gone {
-            self.unsubscribe(&source).await;
-            self.owners.remove(&source);
-        }
-        let sources: Vec<String> = self.edges.keys().cloned().collect();
-        for source in sources {
-            let Some(owner) = owner(self.workers.iter().map(String::as_str), &source).map(str::to_owned) else {
-                continue;
-            };
-            let before = self.owners.insert(source.clone(), owner.clone());
-            let mine = owner == self.me;
-            if mine && !self.subscribed.contains_key(&source) {
-                let from = before.filter(|b| *b != self.me);
-                if self.subscribe(&source, from.is_some()).await
-                    && let Some(from) = from
-                {
-                    let at_unix_ms = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis() as u64);
-                    tracing::info!("shard: took over {source} from {from}");
-                    self.count(|s| s.took_over.push(TakeOver { source, from, at_unix_ms }));
-                }
-            } else if !mine && self.subscribed.contains_key(&source) {
-                self.unsubscribe(&source).await;
-                self.count(|s| s.handed_over += 1);
-            }
-        }
-    }
-
-    /// Subscribes to `source`; with `take_over` (another worker owned it), first asking its
-    /// caches for the last [`HANDOVER_SAMPLES`]. A new source is not asked: its edge publishes
-    /// once it sees this subscription, and a history query racing with its first samples lost
-    /// them in 2 of 7 runs (zenoh-ext 1.10.2; 0 of 6 without the query).
-    async fn subscribe(&mut self, source: &str, take_over: bool) -> bool {
-        let Ok(id) = SourceId::new(source) else { return false };
-        let (ingest, forward) = (Arc::clone(&self.ingest), Arc::clone(&self.forward));
-        let on_sample = ingest_sink_then(ingest, move |sample, handled| {
-            if handled.forwarded() {
-                forward.put(sample);
-            }
-        });
-        let on_loss = loss_sink(Arc::clone(&self.ingest));
-        let subscribed = risktwin_transport::subscribe_source_streams(
-            &self.session,
-            &self.site,
-            &id,
-            take_over.then_some(HANDOVER_SAMPLES),
-            on_sample,
-            on_loss,
-        )
-        .await;
-        match subscribed {
-            Ok(subscriber) => {
-                tracing::info!("shard: owns {source}");
-                self.subscribed.insert(source.to_owned(), subscriber);
-                let owned = self.subscribed.len();
-                self.count(|s| {
-                    s.subscribed += 1;
-                    s.owned_at_exit = owned;
-                });
-                true
-            }
-            Err(e) => {
-                tracing::error!("shard: subscribing to {source}: {e}");
-                self.count(|s| s.subscribe_failed += 1);
-                // Asked again at the next change.
-                self.owners.remove(source);
-                false
-            }
-        }
-    }
-
-    async fn unsubscribe(&mut self, source: &str) {
-        let removed = self.subscribed.remove(source);
-        let owned = self.subscribed.len();
-        self.count(|s| s.owned_at_exit = owned);
-        if let Some(subscriber) = removed
-            && let Err(e) = subscriber.undeclare().await
-        {
-            tracing::debug!("shard: undeclaring {source}: {e}");
-        }
-    }
-
-    async fn finish(mut self) -> ShardSummary {
-        let summary = self.summary.lock().unwrap_or_else(PoisonError::into_inner).clone();
-        let sources: Vec<String> = self.subscribed.keys().cloned().collect();
-        for source in sources {
-            self.unsubscribe(&source).await;
-        }
-        summary
-    }
-}
-
-/// Forwards accepted samples to the union, each edge key's forward key declared once (by a task:
-/// declaring inside the receive callback would re-enter Zenoh's tables, see [`super::routes`]).
-/// `CongestionControl::Block`: a union that cannot keep up slows this worker's receive path,
-/// whose own link then drops, and those samples come back from the edges' caches; nothing is
-/// dropped between worker and union unseen.
-struct Forwarder {
-    session: Session,
-    /// Publishers by edge key; `None` while being declared.
-    declared: Arc<Mutex<HashMap<String, Option<Publisher<'static>>>>>,
-    declare: mpsc::UnboundedSender<String>,
-    task: JoinHandle<()>,
-    forwarded: AtomicU64,
-    failed: AtomicU64,
-}
-
-impl Forwarder {
-    fn start(session: &Session) -> Self {
-        let (declare, mut keys) = mpsc::unbounded_channel::<String>();
-        let declared: Arc<Mutex<HashMap<String, Option<Publisher<'static>>>>> = Arc::default();
-        let (held, on) = (Arc::clone(&declared), session.clone());
-        // `put` sends each edge key once (it enters the map as `None` when sent).
-        let task = tokio::spawn(async move {
-            while let Some(edge_key) = keys.recv().await {
-                let Some(forward_key) = parse_edge_key(&edge_key).map(|k| keyexpr::ingested(&k)) else { continue };
-                let publisher = on
-                    .declare_publisher(forward_key)
-                    .congestion_control(CongestionControl::Block)
-                    .priority(LIVE_PRIORITY)
-                    .await;
-                match publisher {
-                    Ok(p) => {
-                        held.lock().unwrap_or_else(PoisonError::into_inner).insert(edge_key, Some(p));
-                    }
-                    Err(e) => tracing::warn!("shard: declaring the forward of {edge_key}: {e} (put one by one)"),
-                }
-            }
-        });
-        Forwarder {
-            session: session.clone(),
-            declared,
-            declare,
-            task,
-            forwarded: AtomicU64::new(0),
-            failed: AtomicU64::new(0),
-        }
-    }
-
-    /// Its counts, into `summary`.
-    fn count(&self, summary: &mut ShardSummary) {
-        summary.forwarded = self.forwarded.load(Ordering::Relaxed);
-        summary.forward_failed = self.failed.load(Ordering::Relaxed);
-    }
-
-    /// Forwards `sample` (its payload shared, not copied) under its edge key's forward key.
-    fn put(&self, sample: &risktwin_transport::zenoh::sample::Sample) {
-        let edge_key = sample.key_expr().as_str();
-        let (payload, encoding): (ZBytes, Encoding) = (sample.payload().clone(), sample.encoding().clone());
-        let mut declared = self.declared.lock().unwrap_or_else(PoisonError::into_inner);
-        let ok = match declared.get(edge_key) {
-            Some(Some(publisher)) => publisher.put(payload).encoding(encoding).wait().is_ok(),
-            known => {
-                if known.is_none() {
-                    declared.insert(edge_key.to_owned(), None);
-                    let _ = self.declare.send(edge_key.to_owned());
-                }
-                drop(declared);
-                let Some(forward_key) = parse_edge_key(edge_key).map(|k| keyexpr::ingested(&k)) else { return };
-                self.session
-                    .put(forward_key, payload)
-                    .encoding(encoding)
-                    .congestion_control(CongestionControl::Block)
-                    .priority(LIVE_PRIORITY)
-                    .wait()
-                    .is_ok()
-            }
+/// Applies the workers' comings and goings: a burst (a worker's whole view at start) in one go.
+async fn follow_members(shard: Arc<Shard>, mut changes: mpsc::UnboundedReceiver<Change>, mut shutdown: Shutdown) {
+    loop {
+        let mut change = tokio::select! {
+            change = changes.recv() => match change {
+                Some(change) => Some(change),
+                None => return,
+            },
+            () = shutdown.wait() => return,
         };
-        let counter = if ok { &self.forwarded } else { &self.failed };
-        counter.fetch_add(1, Ordering::Relaxed);
+        let mut moved = false;
+        while let Some(Change { id, alive }) = change {
+            let mut owners = shard.owners();
+            // Never this worker itself: it leaves only by ending.
+            let changed =
+                if alive { owners.workers.insert(id.clone()) } else { id != owners.me && owners.workers.remove(&id) };
+            if changed {
+                let n = owners.workers.len();
+                tracing::info!("shard: worker {}: {id} ({n} alive)", if alive { "joined" } else { "left" });
+            }
+            moved |= changed;
+            change = changes.try_recv().ok();
+        }
+        if moved {
+            shard.rebalance();
+        }
     }
 }
 
 /// Has every scrape copy the worker's counts (docs/metrics.md) while it runs.
-fn export_metrics(summary: Weak<Mutex<ShardSummary>>, forward: Weak<Forwarder>) {
+fn export_metrics(shard: Weak<Shard>, forward: Weak<Forwarder>) {
     risktwin_transport::metrics::on_scrape(move || {
-        let (Some(summary), Some(forward)) = (summary.upgrade(), forward.upgrade()) else { return false };
-        let mut copy = summary.lock().unwrap_or_else(PoisonError::into_inner).clone();
+        let (Some(shard), Some(forward)) = (shard.upgrade(), forward.upgrade()) else { return false };
+        let mut copy = shard.summary();
         forward.count(&mut copy);
         export(&copy);
         true
@@ -473,62 +491,9 @@ fn export(s: &ShardSummary) {
     metrics::counter!("risktwin_shard_sources_handed_over_total").absolute(s.handed_over);
     metrics::counter!("risktwin_shard_forwarded_messages_total").absolute(s.forwarded);
     metrics::counter!("risktwin_shard_forward_failed_total").absolute(s.forward_failed);
+    metrics::counter!("risktwin_shard_skipped_messages_total").absolute(s.skipped);
+    metrics::counter!("risktwin_shard_fetched_messages_total").absolute(s.fetched);
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn ids(n: usize) -> Vec<String> {
-        (0..n).map(|i| format!("{:032x}", 0x9e37_79b9_7f4a_7c15_u128.wrapping_mul(i as u128 + 1))).collect()
-    }
-
-    #[test]
-    fn each_source_has_one_owner_and_shares_are_even() {
-        let workers = ids(3);
-        let mut shares = HashMap::new();
-        for v in 0..3000 {
-            let owner = owner(workers.iter().map(String::as_str), &format!("veh-{v}")).unwrap();
-            *shares.entry(owner.to_owned()).or_insert(0) += 1;
-        }
-        assert_eq!(shares.len(), 3);
-        for (worker, n) in &shares {
-            assert!((900..=1100).contains(n), "{worker} owns {n} of 3000");
-        }
-        assert_eq!(owner(std::iter::empty(), "veh-1"), None);
-    }
-
-    #[test]
-    fn a_worker_leaving_moves_only_its_sources_and_one_joining_takes_only_its_share() {
-        let all = ids(4);
-        let three: Vec<&str> = all[..3].iter().map(String::as_str).collect();
-        let two: Vec<&str> = all[..2].iter().map(String::as_str).collect();
-        let four: Vec<&str> = all.iter().map(String::as_str).collect();
-        let (mut moved, mut joined) = (0, 0);
-        for v in 0..3000 {
-            let source = format!("veh-{v}");
-            let before = owner(three.iter().copied(), &source).unwrap();
-            let after = owner(two.iter().copied(), &source).unwrap();
-            if before != after {
-                assert_eq!(before, three[2], "{source} moved though its owner stayed");
-                moved += 1;
-            }
-            let grown = owner(four.iter().copied(), &source).unwrap();
-            if grown != before {
-                assert_eq!(grown, four[3], "{source} moved between two old workers");
-                joined += 1;
-            }
-        }
-        assert!((900..=1100).contains(&moved), "{moved}");
-        assert!((600..=900).contains(&joined), "{joined}");
-    }
-
-    #[test]
-    fn the_weight_is_fixed_across_builds() {
-        // Every worker must compute the same owner: this value may never change (checked against
-        // FNV-1a 64 and the SplitMix64 finaliser computed by hand in Python).
-        assert_ne!(weight("a", "b"), weight("b", "a"));
-        assert_ne!(weight("ab", "c"), weight("a", "bc"));
-        assert_eq!(weight("w1", "veh-1"), 0x5c62_2a30_bc13_c620, "{:#x}", weight("w1", "veh-1"));
-    }
-}
+mod tests;

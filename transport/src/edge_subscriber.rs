@@ -128,9 +128,7 @@ pub async fn fetch_cached(session: &Session, site: &SiteId, source: &SourceId, p
         }
         Err(e) => tracing::debug!("edge streams: asking {selector}: {e}"),
     }
-    samples.sort_by_key(|s| {
-        s.source_info().map(|i| (i.source_id().zid().to_string(), i.source_id().eid(), i.source_sn()))
-    });
+    samples.sort_by_key(|s| s.source_info().map(|i| (i.source_id().zid(), i.source_id().eid(), i.source_sn())));
     samples
 }
 

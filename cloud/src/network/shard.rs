@@ -264,43 +264,35 @@ impl Shard {
 
     /// Recomputes every known source's owner after the workers changed.
     fn rebalance(self: &Arc<Self>) {
-        let mut owners = self.owners();
-        let me = owners.me.clone();
-        let now: HashMap<String, String> =
-            owners.sources.keys().map(|s| (s.clone(), owners.owner(s).to_owned())).collect();
+        let mut guard = self.owners();
+        let Owners { me, workers, sources } = &mut *guard;
         let (mut took, mut handed) = (Vec::new(), 0);
-        for (source, owner) in now {
-            let Some(held) = owners.sources.get_mut(&source) else { continue };
+        for (source, held) in sources.iter_mut() {
+            let owner = owner(workers.iter().map(String::as_str), source).unwrap_or(me);
             match (&*held, owner == me) {
                 (Held::Theirs(from), true) => {
                     let at_unix_ms = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis() as u64);
                     tracing::info!("shard: took over {source} from {from}");
                     took.push(TakeOver { source: source.clone(), from: from.clone(), at_unix_ms });
                     *held = Held::Fetching(Vec::new());
-                    self.fetch(source, HANDOVER_SAMPLES);
+                    self.fetch(source.clone(), HANDOVER_SAMPLES);
                 }
                 (Held::Mine | Held::Fetching(_), false) => {
                     tracing::info!("shard: handed {source} to {owner}");
-                    *held = Held::Theirs(owner);
+                    *held = Held::Theirs(owner.to_owned());
                     handed += 1;
                 }
-                (Held::Theirs(_), false) => *held = Held::Theirs(owner),
+                (Held::Theirs(_), false) => *held = Held::Theirs(owner.to_owned()),
                 (Held::Mine | Held::Fetching(_), true) => {}
             }
         }
-        let (workers, owned, seen) = (
-            owners.workers.len(),
-            owners.sources.values().filter(|h| !matches!(h, Held::Theirs(_))).count(),
-            owners.sources.len(),
-        );
-        drop(owners);
+        let alive = workers.len();
+        drop(guard);
         self.count(|s| {
             s.took_over.extend(took);
             s.handed_over += handed;
-            s.workers_at_exit = workers;
-            s.workers_max = s.workers_max.max(workers);
-            s.owned_at_exit = owned;
-            s.sources_seen = seen;
+            s.workers_at_exit = alive;
+            s.workers_max = s.workers_max.max(alive);
         });
     }
 

@@ -102,6 +102,20 @@ pub async fn subscribe_edge_streams(
     subscribe(session, keyexpr::edge_streams_all(site), on_sample, on_loss).await
 }
 
+/// Subscribes to the edge streams of one shard group of `site` ([`keyexpr::shard_group_streams`]),
+/// or of the whole site if `group` is `None`: [`subscribe_edge_streams`] for a sharded worker's
+/// share, so that the other workers' samples are not sent to this one at all.
+pub async fn subscribe_shard_group(
+    session: &Session,
+    site: &SiteId,
+    group: Option<&str>,
+    on_sample: impl Fn(EdgeStream, &Sample) + Send + Sync + 'static,
+    on_loss: impl Fn(StreamLoss) + Send + Sync + 'static,
+) -> Result<EdgeStreamSubscriber, TransportError> {
+    let key = group.map_or_else(|| keyexpr::edge_streams_all(Some(site)), |g| keyexpr::shard_group_streams(site, g));
+    subscribe(session, key, on_sample, on_loss).await
+}
+
 /// Asks the caches of `source`'s stream publishers for their last `per_publisher` samples each
 /// (a sharded worker that starts owning a source: what reached it before it owned the source,
 /// or before its first sample of it arrived). Returns what came within [`FETCH_TIMEOUT`], in

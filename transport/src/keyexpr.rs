@@ -463,6 +463,28 @@ pub fn source_streams(site: &SiteId, source: &SourceId) -> String {
     format!("{ROOT}/{site}/{source}/*")
 }
 
+/// Characters at the end of a source id that name its shard group: the smallest share of a
+/// site a sharded worker subscribes to (docs/sharding.md). Two give a numbered fleet 100 groups.
+pub const SHARD_GROUP_CHARS: usize = 2;
+
+/// The shard group of `source`: its last [`SHARD_GROUP_CHARS`] characters, or the whole id if
+/// shorter.
+pub fn shard_group(source: &str) -> &str {
+    source.char_indices().rev().nth(SHARD_GROUP_CHARS - 1).map_or(source, |(at, _)| &source[at..])
+}
+
+/// `risktwin/v1/<site>/$*<group>/*`: every stream of every source whose id ends in `group` (a
+/// group shorter than [`SHARD_GROUP_CHARS`] is a whole id, and only that id). The groups
+/// partition the sources: an id of at least [`SHARD_GROUP_CHARS`] characters matches exactly
+/// its own group's pattern.
+pub fn shard_group_streams(site: &SiteId, group: &str) -> String {
+    if group.chars().count() < SHARD_GROUP_CHARS {
+        format!("{ROOT}/{site}/{group}/*")
+    } else {
+        format!("{ROOT}/{site}/$*{group}/*")
+    }
+}
+
 /// `risktwin/v1/<site>/cloud/workers/<worker>`: the liveliness token of a sharded ingest worker.
 pub fn worker_liveliness(site: &SiteId, worker: &str) -> String {
     format!("{ROOT}/{site}/{CLOUD_CHUNK}/{WORKERS_CHUNK}/{worker}")

@@ -17,7 +17,9 @@ pub mod shutdown;
 pub mod stream;
 pub mod tls;
 
-pub use edge_subscriber::{EdgeStreamSubscriber, Missed, StreamLoss, fetch_cached, requery, subscribe_edge_streams};
+pub use edge_subscriber::{
+    EdgeStreamSubscriber, Missed, StreamLoss, fetch_cached, requery, subscribe_edge_streams, subscribe_shard_group,
+};
 pub use keyexpr::{EdgeStream, KeyError, SiteId, SourceId};
 pub use recovery::Delivery;
 pub use session::{DEFAULT_ROUTER_PORT, Mode, TransportConfig, TransportError, close, connect, listening_locators};

@@ -20,6 +20,23 @@ fn sharding_keys_round_trip_and_refuse_strangers() {
     assert_eq!(edge_key_of_ingested("risktwin/v1/s1/cloud/ingested/cloud/state", &mut buf), None);
 }
 
+#[test]
+fn shard_groups_partition_the_sources_by_zenoh_s_own_matching() {
+    use zenoh::key_expr::KeyExpr;
+    let site = SiteId::new("s1").unwrap();
+    let ids = ["v", "w", "v7", "veh-7", "veh-17", "car.ab", "ab", "b", "x-0001", "y-0001", "cloudy"];
+    assert_eq!(shard_group("veh-17"), "17");
+    assert_eq!(shard_group("v"), "v");
+    for id in ids {
+        let key = KeyExpr::new(format!("risktwin/v1/s1/{id}/state")).unwrap();
+        for other in ids {
+            let group = KeyExpr::new(shard_group_streams(&site, shard_group(other))).unwrap();
+            let same = shard_group(id) == shard_group(other);
+            assert_eq!(group.intersects(&key), same, "{group} and {key}");
+        }
+    }
+}
+
 fn ids() -> (SiteId, SourceId) {
     (SiteId::new("track-1").unwrap(), SourceId::new("veh_0.a").unwrap())
 }

@@ -387,6 +387,85 @@ fn a_router_restart_mid_run_loses_nothing_and_its_clients_are_back_within_2_s() 
     assert_eq!(d.leftovers(), Vec::<String>::new());
 }
 
+/// Two sharded ingest workers in two cloud sites (each its own router) and a union, four
+/// edges; each worker is killed once, 4 s apart, and restarted.
+const SHARDED: &str = r#"
+[[site]]
+name = "cloud"
+
+[[site]]
+name = "dc2"
+
+[[site]]
+name = "edge"
+
+[[host]]
+name = "cloud-0"
+site = "cloud"
+run = [{ role = "cloud", args = ["--roles", "union,twin", "--site", "edge"] }]
+
+[[host]]
+name = "w-1"
+site = "cloud"
+run = [{ role = "cloud", args = ["--roles", "ingest", "--shard", "--site", "edge"] }]
+
+[[host]]
+name = "w-2"
+site = "dc2"
+run = [{ role = "cloud", args = ["--roles", "ingest", "--shard", "--site", "edge"] }]
+
+[[host]]
+name = "car-1"
+site = "edge"
+run = [{ role = "vehicle", args = ["--count", "500", "--rate-hz", "50"] }]
+
+[[host]]
+name = "car-2"
+site = "edge"
+run = [{ role = "vehicle", args = ["--count", "500", "--rate-hz", "50"] }]
+
+[[host]]
+name = "car-3"
+site = "edge"
+run = [{ role = "vehicle", args = ["--count", "500", "--rate-hz", "50"] }]
+
+[[host]]
+name = "rsu-4"
+site = "edge"
+run = [{ role = "rsu", args = ["--count", "100"] }]
+
+[[link]]
+between = ["edge", "cloud"]
+latency_ms = 5
+
+[[link]]
+between = ["dc2", "cloud"]
+latency_ms = 5
+
+[[event]]
+at_s = 2
+kill = "w-1/cloud"
+
+[[event]]
+at_s = 6
+kill = "w-2/cloud"
+"#;
+
+#[test]
+fn sharded_workers_on_two_sites_each_killed_once_lose_nothing_at_the_union() {
+    let d = Deployment::new(SHARDED);
+    let report = d.run("60s");
+    let processes = report["processes"].as_array().expect("processes");
+    for worker in ["w-1/cloud", "w-2/cloud"] {
+        let p = processes.iter().find(|p| p["name"] == worker).unwrap_or_else(|| panic!("{worker}: {processes:?}"));
+        assert_eq!(p["restarts"], Value::from(1), "{worker} killed once and restarted: {p}");
+    }
+    // Each group changed owner at least once while the edges published (its owner was killed,
+    // or the restarted worker, a new id, took it on joining); the union holds every message.
+    assert_nothing_missing(&report, 11);
+    assert_eq!(d.leftovers(), Vec::<String>::new());
+}
+
 #[test]
 fn a_sites_own_router_is_restarted_by_name_and_nothing_is_lost() {
     // The edge site has no host that runs a router: its router runs on the site's gateway.

@@ -205,7 +205,9 @@ impl Report {
                     sent.insert((p.name.clone(), "(no summary)".into()), Said::default());
                 }
             }
-            if p.role == "cloud" {
+            // A sharded ingest worker's counts are its share, and the union's count them again
+            // (docs/sharding.md): the union is what the twin received.
+            if p.role == "cloud" && !p.args.iter().any(|a| a == "--shard") {
                 received_complete &= complete;
                 for doc in &docs {
                     for (field, into) in

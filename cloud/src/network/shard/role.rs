@@ -72,11 +72,10 @@ impl ShardRole {
         let (workers_key, edges_key) = (keyexpr::worker_liveliness_all(site), keyexpr::liveliness_all(Some(site)));
         // The workers and sources alive now, before this one owns anything: otherwise it would
         // take (and ask the caches for) every source until the workers' tokens arrived.
-        let (workers, sources) = tokio::try_join!(
+        let (mut workers, sources) = tokio::try_join!(
             alive_now(session, &workers_key, "workers' liveliness query", keyexpr::parse_worker_liveliness_key),
             alive_now(session, &edges_key, "edges' liveliness query", edge_of),
         )?;
-        let mut workers = workers;
         workers.insert(me.clone());
         tracing::info!("shard: this worker is {me}");
         tracing::info!("shard: workers at start ({} alive), {} sources", workers.len(), sources.len());

@@ -95,6 +95,14 @@ mod tests {
         }
     }
 
+    /// Potential shaping is policy-invariant only under the learner's own discount.
+    #[test]
+    fn the_risk_potential_is_discounted_with_the_learners_gamma() {
+        let gamma = f64::from(risktwin_common::env::SHAPING_GAMMA as f32);
+        assert_eq!(f64::from(crate::ppo::PpoConfig::default().gamma), gamma);
+        assert_eq!(f64::from(crate::sac::SacConfig::default().gamma), gamma);
+    }
+
     #[test]
     fn envs_are_interleaved() {
         // Two envs, two steps: env 1 gets reward only; layout [t·n + i].

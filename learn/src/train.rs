@@ -14,7 +14,7 @@ use crate::policy::{Algo, PolicyNet};
 use crate::ppo::{PpoConfig, PpoTimings};
 use crate::sac::SacConfig;
 use rayon::prelude::*;
-use risktwin_common::env::{DEFAULT_REPLAY_SHARE, ScenarioSource, Variant, VecEnv, benign_specs};
+use risktwin_common::env::{DEFAULT_REPLAY_SHARE, RiskShaping, ScenarioSource, Variant, VecEnv, benign_specs};
 use risktwin_common::episode;
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::rng::Rng;
@@ -206,7 +206,7 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
     };
     let benign = if cfg.benign_eval > 0 { benign_specs(cfg.seed ^ 0xBE91_6000, cfg.benign_eval) } else { Vec::new() };
     let start = Instant::now();
-    let mut env = VecEnv::new(cfg.n_envs, source, cfg.variant.training_weights())?;
+    let mut env = VecEnv::new(cfg.n_envs, source, cfg.variant.training_reward(RiskShaping::default()))?;
     let mut learner = Learner::new(cfg.algo, &cfg.ppo, &cfg.sac, cfg.n_envs, cfg.seed)?;
     let mut done_steps = 0u64;
     let mut curve = Vec::new();

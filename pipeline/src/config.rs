@@ -10,7 +10,7 @@
 //! them (`--algo`, the machine's cores).
 
 use risktwin_cloud::trainer::TrainingPlan;
-use risktwin_common::env::DEFAULT_REPLAY_SHARE;
+use risktwin_common::env::{DEFAULT_REPLAY_SHARE, RiskShaping};
 use risktwin_learn::Algo;
 use serde::{Deserialize, Serialize};
 
@@ -67,6 +67,7 @@ impl Default for RunConfig {
                 replay_share: DEFAULT_REPLAY_SHARE,
                 mutations: 40,
                 mutation_radius: 0.1,
+                risk_shaping: RiskShaping::default(),
                 threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             },
         }
@@ -141,6 +142,9 @@ impl RunConfig {
         if !(0.0..=1.0).contains(&t.replay_share) {
             return bad(format!("replay_share {} is out of range [0, 1]", t.replay_share));
         }
+        if let Err(message) = t.risk_shaping.validate() {
+            return bad(message);
+        }
         if t.mutations > 100_000 {
             return bad(format!("failure_mutations {} is too large (≤ 100000)", t.mutations));
         }
@@ -173,6 +177,7 @@ struct ConfigFile {
     replay_top: usize,
     background: usize,
     replay_share: f64,
+    risk_shaping: RiskShaping,
     failure_mutations: usize,
     eval_per_kind: usize,
     push_scenarios: usize,
@@ -202,6 +207,7 @@ impl From<RunConfig> for ConfigFile {
             replay_top: t.replay_top,
             background: t.background,
             replay_share: t.replay_share,
+            risk_shaping: t.risk_shaping,
             failure_mutations: t.mutations,
             eval_per_kind: c.eval_per_kind,
             push_scenarios: c.push_scenarios,
@@ -229,6 +235,7 @@ impl From<ConfigFile> for RunConfig {
                 replay_top: f.replay_top,
                 background: f.background,
                 replay_share: f.replay_share,
+                risk_shaping: f.risk_shaping,
                 mutations: f.failure_mutations,
                 mutation_radius: f.mutation_radius,
                 ..default.training
@@ -274,5 +281,21 @@ mod tests {
             "train_steps 0 is out of range [1, 1000000000]"
         );
         assert!(RunConfig::quick().validate().is_ok());
+    }
+
+    #[test]
+    fn the_risk_shaping_is_named_per_step_or_a_potential_with_its_scale() {
+        use risktwin_common::env::RiskShaping;
+        assert_eq!(RunConfig::default().training.risk_shaping, RiskShaping::PerStep);
+        assert!(serde_json::to_string(&RunConfig::default()).unwrap().contains(r#""risk_shaping":"per-step""#));
+        let config = RunConfig::from_json(r#"{"risk_shaping": {"potential": {"scale": 2.5}}}"#).expect("parses");
+        assert_eq!(config.training.risk_shaping, RiskShaping::Potential { scale: 2.5 });
+        assert!(config.validate().is_ok());
+        let zero = RunConfig::from_json(r#"{"risk_shaping": {"potential": {"scale": 0}}}"#).expect("parses");
+        assert_eq!(
+            zero.validate().expect_err("scale 0").to_string(),
+            "risk potential scale 0 is out of range (0, 100]"
+        );
+        assert!(RunConfig::from_json(r#"{"risk_shaping": "sometimes"}"#).is_err());
     }
 }

@@ -3,8 +3,8 @@
 //! calls it, so that tests, benchmarks or another front end can run it too.
 //!
 //! The phases, in order: generate candidates of every scenario kind and score them with the
-//! reference driver → mutate around the failures ([`search`]) → train the three variants (base /
-//! risk-only / full; PPO, or SAC) over several seeds through the cloud's trainer and evaluate
+//! reference driver → mutate around the failures ([`search`]) → train the four variants (base /
+//! risk-only / full / ttc; PPO, or SAC) over several seeds through the cloud's trainer and evaluate
 //! them on a held-out set, next to its achievable floor (the privileged planner of
 //! `common::planner`, [`floor`] in the report) → re-score the library's top scenarios with the trained policies
 //! ([`rescore`]) → push the top scenarios and the `full` policy over Zenoh to an edge vehicle in

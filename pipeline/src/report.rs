@@ -6,6 +6,7 @@ use crate::push_loop::LoopOutput;
 use crate::{closed_loop, verdict};
 use risktwin_cloud::trainer::stats::METRIC_NAMES;
 use risktwin_cloud::trainer::{EvalMetrics, EvalSpread, Spread};
+use risktwin_common::env::RiskShaping;
 use std::fmt::Write;
 
 const METRIC_HEADER: &str = "| reward | success | route completion | collision | avg speed m/s | steering smoothness rad/s | \
@@ -17,6 +18,17 @@ fn pm(s: &Spread) -> String {
 
 fn spread_cells(e: &EvalSpread) -> String {
     e.values().iter().map(pm).collect::<Vec<_>>().join(" | ")
+}
+
+/// How the risk term is shaped, in words for the report.
+fn shaping_words(shaping: RiskShaping) -> String {
+    match shaping {
+        RiskShaping::PerStep => "as a penalty −w_r·R̄ per second (paper eq. 7)".into(),
+        RiskShaping::Potential { scale } => format!(
+            "as a potential difference γ·Φ(s′) − Φ(s) with Φ = −{scale}·w_r·R̄ (Ng, Harada & Russell 1999), which \
+             cannot make ending an episode early pay"
+        ),
+    }
 }
 
 fn plain_cells(e: &EvalMetrics) -> String {
@@ -34,8 +46,16 @@ fn ablation_section(s: &mut String, m: &RunMetrics) {
          the reference driver survives (risk-ranked replay) and an equal share of ordinary ones, refreshed after \
          each of {} phases with the current policy's failures and the mutations around them that the reference \
          driver survives — and otherwise drives a fresh sample of the five \
-         kinds, as `base` and `risk-only` always do (prioritised level replay, Jiang et al. 2021).\n",
-        ab.algo, ab.steps_per_run, m.training_seeds, m.config.training.replay_share, m.config.training.phases
+         kinds, as `base` and `risk-only` always do (prioritised level replay, Jiang et al. 2021). `ttc` is base \
+         plus the literature's usual safety term instead of the risk field: ln(TTC / 4 s) per second while the \
+         time to collision with the car ahead is under 4 s (Zhu et al. 2020). The risk term of `risk-only` and \
+         `full` enters training {}.\n",
+        ab.algo,
+        ab.steps_per_run,
+        m.training_seeds,
+        m.config.training.replay_share,
+        m.config.training.phases,
+        shaping_words(m.config.training.risk_shaping)
     );
     let _ = writeln!(
         s,

@@ -33,6 +33,9 @@ pub struct Verdict {
     pub completion_equal_or_better: bool,
     pub speed_equal_or_better: bool,
     pub target_met: bool,
+    /// Every learned variant at or below the reference driver's collision rate and at or above
+    /// its success rate.
+    pub every_variant_beats_reference: bool,
     pub by_kind: Vec<KindComparison>,
     /// The findings as sentences (also in report.md).
     pub sentences: Vec<String>,
@@ -148,8 +151,39 @@ pub fn judge(ab: &AblationReport) -> Option<Verdict> {
             b.collision_rate.mean, f.collision_rate.mean
         ));
     }
-    let best_success = ab.variants.iter().map(|v| v.overall.success_rate.mean).fold(0.0, f64::max);
+    // The issue's second target: every learned variant at or below the reference driver's
+    // collision rate and at or above its success rate (means over seeds).
     let reference = &ab.reference.overall;
+    let short: Vec<String> = ab
+        .variants
+        .iter()
+        .filter(|v| {
+            v.overall.collision_rate.mean > reference.collision_rate
+                || v.overall.success_rate.mean < reference.success_rate
+        })
+        .map(|v| {
+            format!(
+                "{} ({:.3} collision, {:.3} success)",
+                v.variant, v.overall.collision_rate.mean, v.overall.success_rate.mean
+            )
+        })
+        .collect();
+    let every_variant_beats_reference = short.is_empty() && !ab.variants.is_empty();
+    s.push(if every_variant_beats_reference {
+        format!(
+            "Every learned variant collides at most as often as the reference driver ({:.3}) and succeeds at least as \
+             often ({:.3}).",
+            reference.collision_rate, reference.success_rate
+        )
+    } else {
+        format!(
+            "Against the reference driver ({:.3} collision, {:.3} success), short on collision or success: {}.",
+            reference.collision_rate,
+            reference.success_rate,
+            short.join(", ")
+        )
+    });
+    let best_success = ab.variants.iter().map(|v| v.overall.success_rate.mean).fold(0.0, f64::max);
     if best_success < 0.5 * reference.success_rate {
         s.push(format!(
             "Caveat: no learned policy drives well yet — the best success rate is {best_success:.2} against the \
@@ -166,6 +200,7 @@ pub fn judge(ab: &AblationReport) -> Option<Verdict> {
         completion_equal_or_better,
         speed_equal_or_better,
         target_met,
+        every_variant_beats_reference,
         by_kind,
         sentences: s,
     })

@@ -76,7 +76,7 @@ fn quick_run_writes_the_report_folder_and_repeats_byte_for_byte() {
     let ab = &m["ablation"];
     let variants = ab["variants"].as_array().expect("variants");
     let names: Vec<&str> = variants.iter().map(|v| v["variant"].as_str().unwrap()).collect();
-    assert_eq!(names, ["base", "risk-only", "full"]);
+    assert_eq!(names, ["base", "risk-only", "full", "ttc"]);
     assert_eq!(m["training_seeds"].as_array().unwrap().len(), 3);
     for v in variants {
         let name = v["variant"].as_str().unwrap();
@@ -93,7 +93,7 @@ fn quick_run_writes_the_report_folder_and_repeats_byte_for_byte() {
         assert_eq!(refreshes.len(), 1, "{seed}");
         assert!(refreshes[0]["evaluated"].as_u64().unwrap() > 0);
     }
-    for v in &variants[..2] {
+    for v in variants.iter().filter(|v| v["variant"] != "full") {
         assert!(v["seeds"][0]["refreshes"].as_array().unwrap().is_empty());
     }
     assert_eq!(ab["held_out_episodes"].as_u64(), Some(10));
@@ -101,6 +101,12 @@ fn quick_run_writes_the_report_folder_and_repeats_byte_for_byte() {
     let sentence = verdict["sentences"][0].as_str().expect("a verdict sentence");
     assert!(sentence.starts_with("Target met") || sentence.starts_with("Target not met"), "{sentence}");
     assert_eq!(sentence.starts_with("Target met"), verdict["target_met"].as_bool().unwrap());
+    // Every learned variant against the reference driver, in a sentence of its own.
+    let against = verdict["sentences"].as_array().unwrap().iter().filter_map(|s| s.as_str()).find(|s| {
+        s.starts_with("Every learned variant collides at most") || s.starts_with("Against the reference driver")
+    });
+    let against = against.expect("a sentence on the variants against the reference driver");
+    assert_eq!(against.starts_with("Every"), verdict["every_variant_beats_reference"].as_bool().unwrap(), "{against}");
     let report = std::fs::read_to_string(folder.join("report.md")).unwrap();
     assert!(report.contains(sentence), "report.md lacks the computed verdict");
     assert!(report.contains("training_curves.png") && report.contains("ablation.png"));

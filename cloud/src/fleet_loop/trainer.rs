@@ -11,7 +11,7 @@
 use crate::library::{PolicyVersion, ScenarioLibrary};
 use crate::trainer::gate::{Decision, Driver, GateReport, gate};
 use crate::trainer::{HeldOut, TrainerError, TrainingPlan, train_variant};
-use risktwin_common::env::Variant;
+use risktwin_common::env::{RiskShaping, Variant};
 use risktwin_learn::{Algo, PolicyNet};
 use std::path::Path;
 use std::time::Duration;
@@ -57,6 +57,7 @@ impl TrainerConfig {
             replay_share: 0.5,
             mutations: 0,
             mutation_radius: 0.1,
+            risk_shaping: RiskShaping::default(),
             threads: 1,
         }
     }

@@ -2,6 +2,7 @@
 //! their own file so that the trainer's modules import them without importing `trainer/mod.rs`.
 
 use crate::library::LibraryError;
+use risktwin_common::env::RiskShaping;
 use risktwin_learn::{Algo, LearnError};
 
 /// Why training or evaluation failed.
@@ -48,6 +49,8 @@ pub struct TrainingPlan {
     pub mutations: usize,
     /// Mutation step as a share of each parameter's range.
     pub mutation_radius: f64,
+    /// How the risk term enters `risk-only`'s and `full`'s training reward.
+    pub risk_shaping: RiskShaping,
     /// Worker threads for evaluation episodes.
     pub threads: usize,
 }
@@ -70,6 +73,7 @@ impl TrainingPlan {
         if !(0.0..=1.0).contains(&self.replay_share) {
             return Err(TrainerError::BadPlan(format!("replay_share {} is out of range [0, 1]", self.replay_share)));
         }
+        self.risk_shaping.validate().map_err(TrainerError::BadPlan)?;
         if self.replay_top + self.background == 0 {
             return Err(TrainerError::BadPlan("replay_top + background must be positive".into()));
         }

@@ -67,9 +67,11 @@ pub fn train_variant(
             specs: curriculum.initial(library, plan, held_out)?,
             share: plan.replay_share,
         },
-        Variant::Base | Variant::RiskOnly => ScenarioSource::all_kinds(Rng::derive(seed, 0x5A4D_504C).next_u64()),
+        Variant::Base | Variant::RiskOnly | Variant::Ttc => {
+            ScenarioSource::all_kinds(Rng::derive(seed, 0x5A4D_504C).next_u64())
+        }
     };
-    let mut env = VecEnv::new(plan.n_envs, source, variant.training_weights())?;
+    let mut env = VecEnv::new(plan.n_envs, source, variant.training_reward(plan.risk_shaping))?;
     let mut learner = Learner::new(plan.algo, &PpoConfig::default(), &SacConfig::default(), plan.n_envs, seed)?;
     let checkpoint = plan.steps.div_ceil(plan.curve_points.max(1) as u64).max(1);
     let phase_steps = plan.steps.div_ceil(u64::from(plan.phases.max(1)));

@@ -5,7 +5,7 @@ use super::curriculum::Curriculum;
 use super::*;
 use crate::generate::{generate, store};
 use crate::library::{Origin, ScenarioLibrary, content_id};
-use risktwin_common::env::Variant;
+use risktwin_common::env::{RiskShaping, Variant};
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::ScenarioKind;
 use risktwin_learn::{Algo, PolicyNet};
@@ -23,6 +23,7 @@ fn plan() -> TrainingPlan {
         replay_share: 0.5,
         mutations: 10,
         mutation_radius: 0.1,
+        risk_shaping: RiskShaping::default(),
         threads: 2,
     }
 }

@@ -2,8 +2,10 @@
 //! of paper eq. 7 computed exactly as `episode::run` computes it.
 
 use super::observe::{ACT_DIM, OBS_DIM, Observer, action_to_controls};
+use super::reward::TrainingReward;
+use crate::geometry::Vec2;
 use crate::metrics::{EpisodeMetrics, MetricsAccumulator, RewardInputs, RewardWeights, StepSample, step_reward};
-use crate::risk::{EgoKinematics, FieldObject, RiskFieldParams};
+use crate::risk::{EgoKinematics, EgoLaneFrame, FieldObject, RiskFieldParams, VehicleState};
 use crate::scenario::{ScenarioKind, ScenarioSpec, build};
 use crate::world::World;
 
@@ -39,26 +41,32 @@ pub struct EpisodeSummary {
 pub struct DrivingEnv {
     world: World,
     kind: ScenarioKind,
-    weights: RewardWeights,
+    reward: TrainingReward,
+    /// `reward`'s weights as `step_reward` takes them.
+    step_weights: RewardWeights,
     field: RiskFieldParams,
     observer: Observer,
     objects: Vec<FieldObject>,
     metrics: MetricsAccumulator,
     progress_prev_m: f64,
+    /// R̄ of the current state, for the potential difference (0 when not needed).
+    risk_prev: f64,
     collision: bool,
     offroad: bool,
 }
 
 impl DrivingEnv {
     /// An environment on `spec` (which must be feasible, as `build` requires), rewarded with
-    /// `weights`; `obs` receives s_0.
-    pub fn new(spec: &ScenarioSpec, weights: RewardWeights, obs: &mut [f32; OBS_DIM]) -> Self {
+    /// `reward`; `obs` receives s_0.
+    pub fn new(spec: &ScenarioSpec, reward: TrainingReward, obs: &mut [f32; OBS_DIM]) -> Self {
         let world = build(spec);
         let mut env = Self {
             progress_prev_m: world.progress_m(),
+            risk_prev: 0.0,
             world,
             kind: spec.kind,
-            weights,
+            reward,
+            step_weights: reward.step_weights(),
             field: RiskFieldParams::default(),
             observer: Observer::default(),
             objects: Vec::with_capacity(32),
@@ -67,6 +75,7 @@ impl DrivingEnv {
             offroad: false,
         };
         env.observe(obs);
+        env.start_potential();
         env
     }
 
@@ -79,6 +88,37 @@ impl DrivingEnv {
         self.progress_prev_m = self.world.progress_m();
         (self.collision, self.offroad) = (false, false);
         self.observe(obs);
+        self.start_potential();
+    }
+
+    /// R̄ of s_0 for the potential (after `observe`, which refreshed the scene).
+    fn start_potential(&mut self) {
+        self.risk_prev = if self.reward.needs_risk() { self.footprint_risk(0.0) } else { 0.0 };
+    }
+
+    /// R̄: the risk field over the true scene at the ego footprint, as `episode::run` samples it.
+    fn footprint_risk(&mut self, jerk_mps3: f64) -> f64 {
+        let w = &self.world;
+        self.objects.clear();
+        self.objects.extend(w.scene().iter().map(|o| FieldObject { obb: o.obb, velocity: o.velocity }));
+        let ego = EgoKinematics {
+            pose: w.ego.pose(),
+            velocity: w.ego.velocity(),
+            lateral_accel_mps2: w.ego.lateral_accel_mps2(),
+            jerk_mps3,
+            footprint: w.ego.params.footprint(),
+        };
+        self.field.evaluate_footprint(&w.road, &self.objects, &ego)
+    }
+
+    /// Time to collision with the nearest object ahead in the ego's lane over the true scene,
+    /// at constant speeds (∞ when none is closing).
+    fn lane_ttc_s(&self) -> f64 {
+        let w = &self.world;
+        let state = |obb, velocity| VehicleState { obb, velocity, accel: Vec2::zeros() };
+        let frame = EgoLaneFrame::new(&w.road, &state(w.ego.obb(), w.ego.velocity()));
+        let ttc = w.scene().iter().map(|o| frame.measure(&w.road, &state(o.obb, o.velocity)).ttc_s);
+        ttc.filter(|t| !t.is_nan()).fold(f64::INFINITY, f64::min)
     }
 
     /// The world being driven.
@@ -102,31 +142,22 @@ impl DrivingEnv {
     /// episode ended.
     pub fn step(&mut self, action: &[f32; ACT_DIM], obs: &mut [f32; OBS_DIM]) -> StepOutcome {
         let report = self.world.advance(action_to_controls(action));
-        let w = &self.world;
         let (collision, offroad) = (report.contacts.collision, report.contacts.offroad);
         // The reward exactly as `episode::run` forms it: footprint risk over the true scene.
-        let jerk = self.metrics.jerk_of(w.ego.state.accel_mps2, w.dt_s);
-        self.objects.clear();
-        self.objects.extend(w.scene().iter().map(|o| FieldObject { obb: o.obb, velocity: o.velocity }));
-        let ego = EgoKinematics {
-            pose: w.ego.pose(),
-            velocity: w.ego.velocity(),
-            lateral_accel_mps2: w.ego.lateral_accel_mps2(),
-            jerk_mps3: jerk,
-            footprint: w.ego.params.footprint(),
-        };
+        let (accel_mps2, dt_s) = (self.world.ego.state.accel_mps2, self.world.dt_s);
+        let jerk = self.metrics.jerk_of(accel_mps2, dt_s);
         // Base variant: risk weight 0, the field need not be evaluated.
-        let risk =
-            if self.weights.risk != 0.0 { self.field.evaluate_footprint(&w.road, &self.objects, &ego) } else { 0.0 };
-        let lane_pos = w.road.locate_heading(ego.pose.position(), ego.pose.heading_rad);
+        let risk = if self.reward.needs_risk() { self.footprint_risk(jerk) } else { 0.0 };
+        let w = &self.world;
+        let lane_pos = w.road.locate_heading(w.ego.pose().position(), w.ego.pose().heading_rad);
         let progress = w.progress_m();
-        let reward = step_reward(
-            &self.weights,
+        let mut reward = step_reward(
+            &self.step_weights,
             &RewardInputs {
                 progress_m: progress - self.progress_prev_m,
                 desired_speed_mps: w.desired_speed_mps,
                 speed_mps: w.ego.state.speed_mps,
-                dt_s: w.dt_s,
+                dt_s,
                 risk,
                 lane_offset_m: lane_pos.frenet.e_y_m,
                 jerk_mps3: jerk,
@@ -134,6 +165,11 @@ impl DrivingEnv {
                 offroad,
             },
         );
+        reward += self.reward.potential_term(self.risk_prev, risk);
+        if self.reward.ttc != 0.0 {
+            reward += self.reward.ttc_term(self.lane_ttc_s(), dt_s);
+        }
+        self.risk_prev = risk;
         self.progress_prev_m = progress;
         (self.collision, self.offroad) = (collision, offroad);
         self.metrics.observe(StepSample {

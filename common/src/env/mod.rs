@@ -10,8 +10,9 @@
 //! - [`ObsPolicy`]: any observation → action function as a [`crate::driver::Policy`], so a
 //!   learned policy is evaluated by `episode::run` with the same metrics as `simulate`.
 //!
-//! Variants (docs/method.md §7) differ only in the reward weights here ([`Variant::weights`];
-//! learners train with [`Variant::training_weights`], whose terminal penalties are scaled down);
+//! Variants (docs/method.md §7) differ only in their training reward ([`Variant::training_reward`]:
+//! eq. 7's weights with the terminal penalties scaled down, the risk term shaped as
+//! [`RiskShaping`] says, and for `ttc` a time-to-collision term instead of the risk field);
 //! `full` additionally draws half its training episodes from the scenario library, which the
 //! trainer supplies as a [`ScenarioSource::Replay`]. The observation is the same for every
 //! variant, so policies stay comparable and only the training signal differs.
@@ -19,12 +20,14 @@
 mod driving;
 pub mod observe;
 mod policy;
+mod reward;
 mod source;
 mod vec_env;
 
 pub use driving::{DrivingEnv, EpisodeSummary, StepOutcome};
 pub use observe::{ACT_DIM, OBS_DIM, Observer, action_to_controls};
 pub use policy::ObsPolicy;
+pub use reward::{RiskShaping, SHAPING_GAMMA, TTC_FLOOR_S, TTC_THRESHOLD_S, TTC_WEIGHT, TrainingReward};
 pub use source::{BENIGN_MIN_TTC_S, DEFAULT_REPLAY_SHARE, ScenarioSource, SourceError, benign_specs};
 pub use vec_env::VecEnv;
 
@@ -50,26 +53,38 @@ pub enum Variant {
     RiskOnly,
     /// Risk reward and risk-ranked library scenarios.
     Full,
+    /// The literature's usual safety term instead of the risk field: base plus a penalty
+    /// ln(TTC/4 s) per second while the time to collision with the car ahead is under 4 s
+    /// (Zhu et al. 2020, "Safe, efficient, and comfortable velocity control based on
+    /// reinforcement learning for autonomous driving", Transp. Res. C 117).
+    Ttc,
 }
 
 impl Variant {
-    pub const ALL: [Variant; 3] = [Variant::Base, Variant::RiskOnly, Variant::Full];
+    pub const ALL: [Variant; 4] = [Variant::Base, Variant::RiskOnly, Variant::Full, Variant::Ttc];
 
-    /// The reward weights of this variant: the documented defaults of [`RewardWeights`], with
-    /// the risk weight zeroed for `base`.
+    /// The eq. 7 weights of this variant: the documented defaults of [`RewardWeights`], with
+    /// the risk weight zeroed for `base` and `ttc`.
     pub fn weights(self) -> RewardWeights {
         let w = RewardWeights::default();
         match self {
-            Variant::Base => RewardWeights { risk: 0.0, ..w },
+            Variant::Base | Variant::Ttc => RewardWeights { risk: 0.0, ..w },
             Variant::RiskOnly | Variant::Full => w,
         }
     }
 
-    /// The weights the learners train with: [`Variant::weights`] with the terminal penalties
-    /// scaled by [`TRAIN_PENALTY_SCALE`]. Evaluation keeps [`Variant::weights`].
-    pub fn training_weights(self) -> RewardWeights {
+    /// What the learners train with: [`Variant::weights`] with the terminal penalties scaled
+    /// by [`TRAIN_PENALTY_SCALE`], the risk term entering as `risk` says, and `ttc`'s TTC term.
+    /// Evaluation scores every variant with `full`'s [`Variant::weights`].
+    pub fn training_reward(self, risk: RiskShaping) -> TrainingReward {
         let w = self.weights();
-        RewardWeights { collision: w.collision * TRAIN_PENALTY_SCALE, offroad: w.offroad * TRAIN_PENALTY_SCALE, ..w }
+        let weights = RewardWeights {
+            collision: w.collision * TRAIN_PENALTY_SCALE,
+            offroad: w.offroad * TRAIN_PENALTY_SCALE,
+            ..w
+        };
+        let ttc = if self == Variant::Ttc { TTC_WEIGHT } else { 0.0 };
+        TrainingReward { weights, risk, ttc }
     }
 
     /// The name used on the command line.
@@ -78,6 +93,7 @@ impl Variant {
             Variant::Base => "base",
             Variant::RiskOnly => "risk-only",
             Variant::Full => "full",
+            Variant::Ttc => "ttc",
         }
     }
 }
@@ -90,7 +106,7 @@ impl fmt::Display for Variant {
 
 /// An unknown variant name.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("unknown variant '{0}' (expected one of base, risk-only, full)")]
+#[error("unknown variant '{0}' (expected one of base, risk-only, full, ttc)")]
 pub struct UnknownVariant(pub String);
 
 impl FromStr for Variant {
@@ -100,5 +116,7 @@ impl FromStr for Variant {
     }
 }
 
+#[cfg(test)]
+mod reward_tests;
 #[cfg(test)]
 mod tests;

@@ -38,7 +38,7 @@ fn keep_lane(o: &[f32; OBS_DIM]) -> [f32; ACT_DIM] {
 fn observations_are_finite_and_scaled() {
     let s = sample(1, ScenarioKind::CutIn, 0);
     let mut obs = [0.0; OBS_DIM];
-    let env = DrivingEnv::new(&s, Variant::Full.weights(), &mut obs);
+    let env = DrivingEnv::new(&s, TrainingReward::eq7(Variant::Full.weights()), &mut obs);
     assert!(obs.iter().all(|x| x.is_finite() && x.abs() <= 10.0), "{obs:?}");
     let w = env.world();
     assert!((obs[0] as f64 - w.ego.state.speed_mps / observe::SPEED_SCALE_MPS).abs() < 1e-6);
@@ -61,7 +61,7 @@ fn observations_show_the_bend_ahead_the_friction_and_the_free_lane_beside() {
         ],
     );
     let mut obs = [0.0; OBS_DIM];
-    let mut env = DrivingEnv::new(&s, Variant::Base.weights(), &mut obs);
+    let mut env = DrivingEnv::new(&s, TrainingReward::eq7(Variant::Base.weights()), &mut obs);
     // The ego starts 50 m before the bend, within its 10 m + 3 s × 18 m/s preview.
     assert!(obs[11].abs() < 1e-6, "straight lead-in under the ego: {obs:?}");
     assert!((obs[12].abs() - 0.02 * 25.0).abs() < 1e-3, "the bend ahead: {obs:?}");
@@ -83,7 +83,7 @@ fn observations_show_the_bend_ahead_the_friction_and_the_free_lane_beside() {
 #[test]
 fn full_throttle_into_a_braking_lead_collides_and_terminates() {
     let mut obs = [0.0; OBS_DIM];
-    let mut env = DrivingEnv::new(&crash_spec(), Variant::Full.weights(), &mut obs);
+    let mut env = DrivingEnv::new(&crash_spec(), TrainingReward::eq7(Variant::Full.weights()), &mut obs);
     let mut last = StepOutcome::default();
     for _ in 0..400 {
         last = env.step(&[0.0, 1.0, 0.0], &mut obs);
@@ -101,13 +101,13 @@ fn full_throttle_into_a_braking_lead_collides_and_terminates() {
 fn reward_signs_progress_positive_risk_negative() {
     let s = sample(2, ScenarioKind::PedestrianCrossing, 3);
     let (mut o1, mut o2) = ([0.0; OBS_DIM], [0.0; OBS_DIM]);
-    let mut base = DrivingEnv::new(&s, Variant::Base.weights(), &mut o1);
-    let mut full = DrivingEnv::new(&s, Variant::Full.weights(), &mut o2);
+    let mut base = DrivingEnv::new(&s, TrainingReward::eq7(Variant::Base.weights()), &mut o1);
+    let mut full = DrivingEnv::new(&s, TrainingReward::eq7(Variant::Full.weights()), &mut o2);
     let (rb, rf) = (base.step(&keep_lane(&o1), &mut o1).reward, full.step(&keep_lane(&o2), &mut o2).reward);
     assert!(rb > 0.0, "driving at the desired speed pays: {rb}");
     assert!(rf < rb, "the risk term only subtracts: {rf} vs {rb}");
     // Standing still and braking earns less than driving on.
-    let mut still = DrivingEnv::new(&s, Variant::Base.weights(), &mut o1);
+    let mut still = DrivingEnv::new(&s, TrainingReward::eq7(Variant::Base.weights()), &mut o1);
     let mut r_still = 0.0;
     for _ in 0..40 {
         r_still = still.step(&[0.0, 0.0, 1.0], &mut o1).reward;
@@ -121,7 +121,7 @@ fn env_rollout_matches_episode_run() {
         let s = (0..20).map(|i| sample(4, kind, i)).find(|s| check_feasible(s).is_ok()).expect("feasible sample");
         let weights = Variant::Full.weights();
         let mut obs = [0.0; OBS_DIM];
-        let mut env = DrivingEnv::new(&s, weights, &mut obs);
+        let mut env = DrivingEnv::new(&s, TrainingReward::eq7(weights), &mut obs);
         let mut reward = 0.0;
         loop {
             let out = env.step(&keep_lane(&obs), &mut obs);
@@ -146,7 +146,8 @@ fn env_rollout_matches_episode_run() {
 fn run_vec(threads: usize) -> (Vec<f32>, Vec<f32>, usize) {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
     pool.install(|| {
-        let mut env = VecEnv::new(16, ScenarioSource::all_kinds(11), Variant::Full.weights()).expect("source");
+        let mut env = VecEnv::new(16, ScenarioSource::all_kinds(11), TrainingReward::eq7(Variant::Full.weights()))
+            .expect("source");
         assert_eq!(env.obs().len(), 16 * OBS_DIM);
         let mut actions = vec![0.0f32; 16 * ACT_DIM];
         let (mut rewards, mut episodes) = (Vec::new(), 0);
@@ -186,7 +187,8 @@ fn variants_parse_and_base_has_no_risk_weight() {
 #[ignore]
 fn env_throughput() {
     let n = 64;
-    let mut env = VecEnv::new(n, ScenarioSource::all_kinds(1), Variant::Full.weights()).expect("source");
+    let mut env =
+        VecEnv::new(n, ScenarioSource::all_kinds(1), TrainingReward::eq7(Variant::Full.weights())).expect("source");
     let mut actions = vec![0.0f32; n * ACT_DIM];
     let mut rng = crate::rng::Rng::new(5);
     let steps = 400;

@@ -6,8 +6,8 @@
 
 use super::driving::{DrivingEnv, EpisodeSummary, StepOutcome};
 use super::observe::{ACT_DIM, OBS_DIM};
+use super::reward::TrainingReward;
 use super::source::{ScenarioSource, SourceError};
-use crate::metrics::RewardWeights;
 use rayon::prelude::*;
 
 /// Environments per rayon task: enough work to amortise scheduling.
@@ -43,8 +43,8 @@ pub struct VecEnv {
 }
 
 impl VecEnv {
-    /// `n` environments drawing scenarios from `source`, rewarded with `weights`.
-    pub fn new(n: usize, source: ScenarioSource, weights: RewardWeights) -> Result<Self, SourceError> {
+    /// `n` environments drawing scenarios from `source`, rewarded with `reward`.
+    pub fn new(n: usize, source: ScenarioSource, reward: TrainingReward) -> Result<Self, SourceError> {
         source.validate()?;
         let mut obs = vec![0.0f32; n * OBS_DIM];
         let slots = obs
@@ -54,7 +54,7 @@ impl VecEnv {
                 let spec = source.spec(i, 0)?;
                 let o: &mut [f32; OBS_DIM] = o.try_into().expect("chunks are OBS_DIM long");
                 Ok(Slot {
-                    env: DrivingEnv::new(&spec, weights, o),
+                    env: DrivingEnv::new(&spec, reward, o),
                     episode: 0,
                     outcome: StepOutcome::default(),
                     finished: None,

@@ -143,7 +143,7 @@ pub struct RunArgs {
     /// A smoke-test sized run (well under a minute on 2 cores).
     #[arg(long)]
     pub quick: bool,
-    /// Learner for the three variants: ppo or sac.
+    /// Learner for the four variants: ppo or sac.
     #[arg(long, default_value = "ppo")]
     pub algo: String,
     #[arg(long, value_enum, default_value_t)]
@@ -259,7 +259,7 @@ pub struct TrainArgs {
     /// `ppo`, `ppo-gru` (recurrent baseline) or `sac`.
     #[arg(long, default_value = "ppo")]
     pub algo: String,
-    /// `base`, `risk-only` or `full`.
+    /// `base`, `risk-only`, `full` or `ttc`.
     #[arg(long, default_value = "full")]
     pub variant: String,
     /// Environment steps to train for.

@@ -41,6 +41,11 @@ impl IdConflicts {
         *at = now;
     }
 
+    /// The session that published `source`'s last sample, if any was numbered.
+    pub fn last_publisher(&self, source: &str) -> Option<ZenohId> {
+        self.last.get(source).map(|(publisher, _)| *publisher)
+    }
+
     /// Per source, how often its samples switched between two live sessions.
     pub fn summary(&self) -> BTreeMap<String, u64> {
         self.switches.clone()

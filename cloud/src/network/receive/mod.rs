@@ -41,6 +41,8 @@ use std::time::{Instant, SystemTime, UNIX_EPOCH};
 use thiserror::Error;
 use tokio::sync::mpsc::UnboundedSender;
 
+#[cfg(test)]
+mod departure_tests;
 mod emit;
 mod load;
 mod report;
@@ -185,6 +187,11 @@ pub struct LiveIngest {
     losses: LossCounts,
     /// Sources published by two live sessions at once.
     conflicts: IdConflicts,
+    /// Sources whose edge left (its liveliness token went), with the session that published
+    /// them last: their next sample decides whether a new process took the name (another
+    /// session: its numbers start over) or the same one came back (a router restart: its
+    /// numbers go on, and what its cache sends again is the old count's, not a new start).
+    departed: HashMap<String, ZenohId>,
     /// How far behind the ingest runs, and what it sheds ([`load`]).
     load: LoadGauge,
     /// Where the key of each stream's first accepted sample goes, to be declared (see
@@ -251,6 +258,7 @@ impl LiveIngest {
             too_large_logged: HashSet::new(),
             losses: LossCounts::default(),
             conflicts: IdConflicts::default(),
+            departed: HashMap::new(),
             load: LoadGauge::default(),
             route_keys: None,
             warnings: None,
@@ -404,6 +412,13 @@ impl LiveIngest {
             self.worker.reject(DropReason::BadKey);
             return Ok(Handled::Dropped(DropReason::BadKey));
         };
+        // The first sample of a departed source: only another session starts its numbers over.
+        if !self.departed.is_empty()
+            && let Some(left) = self.departed.remove(parsed.source)
+            && origin.publisher != Some(left)
+        {
+            self.worker.restart_source(parsed.source);
+        }
         // Before any check: a second process under this id is told by its session, whatever
         // becomes of its samples (numbered like the first's, most are refused as duplicates).
         if let Some(publisher) = origin.publisher {
@@ -539,10 +554,17 @@ impl LiveIngest {
         self.forward_episodes();
     }
 
-    /// Edge `site/source` left: its next process starts its sequence numbers over.
+    /// Edge `site/source` left: a next process starts its sequence numbers over. Whether the
+    /// next sample is from one is known by its session when the last one's is known; otherwise
+    /// the deduplicator decides on the next numbers ([`IngestWorker::restart_source`]).
     pub(crate) fn edge_left(&mut self, site: &str, source: &str) {
         if self.sites.get(source).is_some_and(|s| s == site) {
-            self.worker.restart_source(source);
+            match self.conflicts.last_publisher(source) {
+                Some(publisher) => {
+                    self.departed.insert(source.to_owned(), publisher);
+                }
+                None => self.worker.restart_source(source),
+            }
             if let Some((warner, sink)) = self.warnings.as_mut() {
                 warner.source_left(site, source, &mut **sink);
             }

@@ -168,7 +168,8 @@ pub fn judge(ab: &AblationReport) -> Option<Verdict> {
             )
         })
         .collect();
-    let every_variant_beats_reference = short.is_empty() && !ab.variants.is_empty();
+    // Never vacuous: `judge` has returned already unless base and full were trained.
+    let every_variant_beats_reference = short.is_empty();
     s.push(if every_variant_beats_reference {
         format!(
             "Every learned variant collides at most as often as the reference driver ({:.3}) and succeeds at least as \

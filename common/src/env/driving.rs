@@ -91,9 +91,10 @@ impl DrivingEnv {
         self.start_potential();
     }
 
-    /// R̄ of s_0 for the potential (after `observe`, which refreshed the scene).
+    /// R̄ of s_0 for the potential (after `observe`, which refreshed the scene); a per-step
+    /// risk term never reads it, so no field is evaluated for it then.
     fn start_potential(&mut self) {
-        self.risk_prev = if self.reward.needs_risk() { self.footprint_risk(0.0) } else { 0.0 };
+        self.risk_prev = if self.reward.needs_risk_before() { self.footprint_risk(0.0) } else { 0.0 };
     }
 
     /// R̄: the risk field over the true scene at the ego footprint, as `episode::run` samples it.

@@ -86,6 +86,11 @@ impl TrainingReward {
         self.weights.risk != 0.0
     }
 
+    /// Whether the risk of the state before a step enters the reward (the potential form).
+    pub fn needs_risk_before(&self) -> bool {
+        self.needs_risk() && matches!(self.risk, RiskShaping::Potential { .. })
+    }
+
     /// The shaping term of a step from a state of risk `risk_before` to one of `risk_after`:
     /// γ·Φ(s′) − Φ(s) = k·w_r·(R̄(s) − γ·R̄(s′)); 0 when the risk is per step.
     pub fn potential_term(&self, risk_before: f64, risk_after: f64) -> f64 {

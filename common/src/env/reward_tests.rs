@@ -76,22 +76,16 @@ fn the_ttc_term_is_the_log_ratio_to_four_seconds_below_four_seconds() {
 
 #[test]
 fn closing_on_a_braking_lead_costs_the_ttc_variant_and_not_base() {
-    let spec = crate::scenario::ScenarioSpec::new(
+    let spec = super::tests::spec(
         ScenarioKind::EmergencyBraking,
-        7,
-        [
+        &[
             ("ego_speed_mps", 20.0),
             ("initial_headway_m", 25.0),
             ("braking_decel_mps2", 6.0),
             ("brake_time_s", 0.5),
             ("friction_mu", 1.0),
-        ]
-        .iter()
-        .map(|(k, v)| (k.to_string(), *v))
-        .collect(),
-    )
-    .expect("a valid spec");
-    check_feasible(&spec).expect("feasible");
+        ],
+    );
     let (mut o1, mut o2) = ([0.0; OBS_DIM], [0.0; OBS_DIM]);
     let shaping = RiskShaping::default();
     let mut base = DrivingEnv::new(&spec, Variant::Base.training_reward(shaping), &mut o1);

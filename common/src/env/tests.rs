@@ -6,7 +6,7 @@ use crate::episode;
 use crate::scenario::{ScenarioKind, ScenarioSpec, build, check_feasible, sample};
 use std::collections::BTreeMap;
 
-fn spec(kind: ScenarioKind, params: &[(&str, f64)]) -> ScenarioSpec {
+pub(super) fn spec(kind: ScenarioKind, params: &[(&str, f64)]) -> ScenarioSpec {
     let params: BTreeMap<String, f64> = params.iter().map(|(k, v)| (k.to_string(), *v)).collect();
     let s = ScenarioSpec::new(kind, 7, params).expect("valid test spec");
     check_feasible(&s).expect("feasible test spec");

@@ -163,7 +163,7 @@ fn push_seeds() -> Result<()> {
         trigger_capture_time_ns: 1_000_000_000,
     };
     // The weights a vehicle loads: the actor of a trainer's policy file.
-    let host = PolicyNet::new(Algo::Ppo, &[8], &mut Rng::new(2))?.host()?.ok_or("a PPO policy has a host form")?;
+    let host = PolicyNet::new(Algo::Ppo, &[8], &mut Rng::new(2))?.host()?;
     let mut update = PolicyUpdate {
         header: cloud,
         policy_id: "p".into(),

@@ -16,22 +16,14 @@ pub fn drive(
     weights: &RewardWeights,
     observe: &mut dyn FnMut(&World, &StepReport),
 ) -> EpisodeResult {
-    // Feed-forward policies act through a host-side snapshot (no tensors per step).
-    if let Ok(Some(host)) = policy.host() {
-        let mut scratch = host.scratch();
-        let act = |o: &[f32; OBS_DIM]| host.act_deterministic(o, &mut scratch);
-        let mut p = ObsPolicy::new(act, world.desired_speed_mps, world.dt_s);
+    // Every policy acts through its host-side snapshot (no tensors per step), as at the edge.
+    let Ok(host) = policy.host() else {
+        // A snapshot fails only for a malformed net (never expected): it coasts.
+        let mut p = ObsPolicy::new(|_: &[f32; OBS_DIM]| [0.0f32; ACT_DIM], world.desired_speed_mps, world.dt_s);
         return episode::run_observed(world, &mut p, weights, observe);
-    }
-    let mut state = vec![0.0f32; policy.state_dim()];
-    let act = |o: &[f32; OBS_DIM]| {
-        let mut a = [0.0f32; ACT_DIM];
-        // A failed forward pass (never expected for a well-formed net) coasts.
-        if policy.act_deterministic(o, &mut state, &mut a).is_err() {
-            a = [0.0; ACT_DIM];
-        }
-        a
     };
+    let mut memory = host.memory();
+    let act = |o: &[f32; OBS_DIM]| host.act_deterministic(o, &mut memory);
     let mut p = ObsPolicy::new(act, world.desired_speed_mps, world.dt_s);
     episode::run_observed(world, &mut p, weights, observe)
 }

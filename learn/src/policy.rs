@@ -198,13 +198,12 @@ impl PolicyNet {
         }
     }
 
-    /// A host-side snapshot for fast acting (`None` for the recurrent policy, which acts
-    /// through candle).
-    pub fn host(&self) -> Result<Option<HostPolicy>, LearnError> {
+    /// A host-side snapshot for fast acting: the policy an edge reads from this policy's file.
+    pub fn host(&self) -> Result<HostPolicy, LearnError> {
         Ok(match &self.body {
-            Body::Gaussian { mean, .. } => Some(HostPolicy::new(PolicyKind::Gaussian, snapshot(mean)?)?),
-            Body::Squashed { net } => Some(HostPolicy::new(PolicyKind::Squashed, snapshot(net)?)?),
-            Body::Recurrent { .. } => None,
+            Body::Gaussian { mean, .. } => HostPolicy::new(PolicyKind::Gaussian, snapshot(mean)?)?,
+            Body::Squashed { net } => HostPolicy::new(PolicyKind::Squashed, snapshot(net)?)?,
+            Body::Recurrent { cell, mean, .. } => HostPolicy::recurrent(cell.host()?, snapshot(mean)?)?,
         })
     }
 

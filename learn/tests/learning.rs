@@ -76,32 +76,28 @@ fn save_load_roundtrip_gives_identical_actions() {
     assert!(PolicyNet::load(&dir.path().join("bad.safetensors")).is_err());
 }
 
-/// What an edge does with a saved policy (common's reader, no candle) acts as the candle net.
+/// What an edge does with a saved policy (common's reader, no candle) acts as the candle net,
+/// the recurrent one with its state carried from step to step.
 #[test]
 fn a_saved_policy_acts_the_same_on_the_host_reader() {
     let dir = tempfile::tempdir().expect("tempdir");
     let mut rng = risktwin_common::rng::Rng::new(4);
-    let obs: Vec<f32> = (0..4 * OBS_DIM).map(|_| rng.uniform(-1.0, 1.0) as f32).collect();
-    for algo in [Algo::Ppo, Algo::Sac] {
+    let obs: Vec<f32> = (0..12 * OBS_DIM).map(|_| rng.uniform(-1.0, 1.0) as f32).collect();
+    for algo in Algo::ALL {
         let net = PolicyNet::new(algo, &[16, 8], &mut rng).expect("net");
         let path = dir.path().join(format!("{algo}.safetensors"));
         net.save(&path).expect("save");
         let bytes = std::fs::read(&path).expect("read");
         let host = risktwin_common::net::HostPolicy::from_safetensors(&bytes).expect("a host policy");
         assert_eq!(host.kind().algo(), algo.name());
-        let mut want = vec![0.0; 4 * ACT_DIM];
-        net.act_deterministic(&obs, &mut [], &mut want).expect("act");
-        let mut scratch = host.scratch();
-        for (row, want) in obs.chunks(OBS_DIM).zip(want.chunks(ACT_DIM)) {
-            let got = host.act_deterministic(row.try_into().expect("a row"), &mut scratch);
-            for (g, w) in got.iter().zip(want) {
+        let (mut state, mut memory) = (vec![0.0; net.state_dim()], host.memory());
+        for row in obs.chunks(OBS_DIM) {
+            let mut want = [0.0; ACT_DIM];
+            net.act_deterministic(row, &mut state, &mut want).expect("act");
+            let got = host.act_deterministic(row.try_into().expect("a row"), &mut memory);
+            for (g, w) in got.iter().zip(&want) {
                 assert!((g - w).abs() < 1e-5, "{algo}: {got:?} vs {want:?}");
             }
         }
     }
-    let gru = PolicyNet::new(Algo::PpoGru, &[16, 8], &mut rng).expect("net");
-    let path = dir.path().join("gru.safetensors");
-    gru.save(&path).expect("save");
-    let refused = risktwin_common::net::HostPolicy::from_safetensors(&std::fs::read(&path).expect("read"));
-    assert!(matches!(refused, Err(risktwin_common::net::NetError::Recurrent(_))), "{refused:?}");
 }

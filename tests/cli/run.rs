@@ -213,8 +213,11 @@ fn push_phase_switched_off_or_out_of_range() {
     assert!(!report.contains("## Closed loop over Zenoh") && report.contains("`push_scenarios` is 0"));
 }
 
+/// The other learners by flag: SAC, and the recurrent baseline, whose policy the edge drives
+/// with its GRU state carried from step to step (its results still equal the edge code run
+/// here, exactly).
 #[test]
-fn sac_by_flag_with_a_tiny_config() {
+fn sac_and_ppo_gru_by_flag_with_a_tiny_config() {
     let dir = tempdir().unwrap();
     write_file(
         dir.path(),
@@ -223,15 +226,18 @@ fn sac_by_flag_with_a_tiny_config() {
             "curve_points": 2, "replay_top": 4, "background": 2, "failure_mutations": 2, "eval_per_kind": 1,
             "top_k": 2, "heatmaps": 1}"#,
     );
-    let m = run_ok(dir.path(), &["run", "--config", "tiny.json", "--algo", "sac", "--seed", "3", "--out", "S"]);
-    assert_eq!(m["ablation"]["algo"], "sac");
-    assert!(dir.path().join("S/policy_full.safetensors").is_file());
-    // push_scenarios defaults to 3, capped by top_k 2; the edge drives with the SAC policy.
-    assert_closed_loop(&m, &dir.path().join("S"), "sac", 2);
-    let sentences = m["verdict"]["sentences"].as_array().unwrap();
-    assert!(
-        sentences.iter().any(|s| s.as_str().unwrap().contains("Only 1 seed")),
-        "a one-seed run does not say it falls short of three seeds: {sentences:?}"
-    );
-    assert_eq!(m["verdict"]["target_met"], false);
+    for algo in ["sac", "ppo-gru"] {
+        let m = run_ok(dir.path(), &["run", "--config", "tiny.json", "--algo", algo, "--seed", "3", "--out", algo]);
+        assert_eq!(m["ablation"]["algo"], algo);
+        let policy = std::fs::read(dir.path().join(algo).join("policy_full.safetensors")).expect("the policy file");
+        assert_eq!(risktwin_common::net::file::read_meta(&policy).expect("a policy file").algo, algo);
+        // push_scenarios defaults to 3, capped by top_k 2; the edge drives with this policy.
+        assert_closed_loop(&m, &dir.path().join(algo), algo, 2);
+        let sentences = m["verdict"]["sentences"].as_array().unwrap();
+        assert!(
+            sentences.iter().any(|s| s.as_str().unwrap().contains("Only 1 seed")),
+            "a one-seed run does not say it falls short of three seeds: {sentences:?}"
+        );
+        assert_eq!(m["verdict"]["target_met"], false);
+    }
 }

@@ -8,10 +8,12 @@
 //! field predates it and was trained at the world's step of then and now, 20 Hz. The actor of a feed-forward
 //! policy is an MLP `OBS_DIM → hidden… → out` stored as `<prefix>.<i>.weight` (in × out, F32)
 //! and `<prefix>.<i>.bias` (1 × out, F32), with prefix `actor.mean` and out = ACT_DIM for PPO,
-//! `actor.net` and out = 2·ACT_DIM (mean, log σ) for SAC. Other tensors (PPO's `actor.log_std`,
-//! critics) may be present and are not read.
+//! `actor.net` and out = 2·ACT_DIM (mean, log σ) for SAC. A recurrent policy (`ppo-gru`) has a
+//! GRU of width h = hidden[0] first (`actor.gru.w_x` OBS_DIM × 3h, `actor.gru.w_h` h × 3h,
+//! `actor.gru.b_x` and `actor.gru.b_h` 1 × 3h) and the mean MLP `h → hidden[1..] → ACT_DIM`
+//! after it. Other tensors (PPO's `actor.log_std`, critics) may be present and are not read.
 
-use super::{Dense, HostMlp, HostPolicy, NetError, PolicyKind};
+use super::{Dense, HostGru, HostMlp, HostPolicy, NetError, PolicyKind};
 use crate::env::{ACT_DIM, OBS_DIM};
 use crate::world::DECISION_RATE_HZ;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
@@ -75,10 +77,13 @@ pub fn read_meta(bytes: &[u8]) -> Result<PolicyMeta, NetError> {
 /// Tensor-name prefix of the actor MLP of a `kind` policy.
 pub fn actor_prefix(kind: PolicyKind) -> &'static str {
     match kind {
-        PolicyKind::Gaussian => "actor.mean",
+        PolicyKind::Gaussian | PolicyKind::Recurrent => "actor.mean",
         PolicyKind::Squashed => "actor.net",
     }
 }
+
+/// Tensor-name prefix of the recurrent policy's GRU.
+const GRU_PREFIX: &str = "actor.gru";
 
 /// The values of an F32 tensor of exactly `shape`.
 fn f32_tensor(tensors: &SafeTensors<'_>, name: &str, shape: &[usize]) -> Result<Vec<f32>, NetError> {
@@ -105,45 +110,63 @@ impl HostPolicy {
         let kind = match meta.algo.as_str() {
             "ppo" => PolicyKind::Gaussian,
             "sac" => PolicyKind::Squashed,
-            "ppo-gru" => return Err(NetError::Recurrent(meta.algo)),
+            "ppo-gru" => PolicyKind::Recurrent,
             _ => return Err(NetError::UnknownAlgo(meta.algo)),
         };
         let tensors = SafeTensors::deserialize(bytes).map_err(|e| NetError::Safetensors(e.to_string()))?;
-        let mut sizes = vec![OBS_DIM];
-        sizes.extend_from_slice(&meta.hidden);
+        let dense = |name: &str, n_in: usize, n_out: usize, w: &str, b: &str| {
+            let weight = f32_tensor(&tensors, &format!("{name}.{w}"), &[n_in, n_out])?;
+            let bias = f32_tensor(&tensors, &format!("{name}.{b}"), &[1, n_out])?;
+            Dense::new(name, weight, bias, n_in, n_out)
+        };
+        // The recurrent policy's MLP starts from the GRU's state, h = hidden[0].
+        let (mlp_in, mlp_hidden) = match kind {
+            PolicyKind::Recurrent => (meta.hidden[0], &meta.hidden[1..]),
+            _ => (OBS_DIM, &meta.hidden[..]),
+        };
+        let mut sizes = vec![mlp_in];
+        sizes.extend_from_slice(mlp_hidden);
         sizes.push(kind.out_dim());
         let prefix = actor_prefix(kind);
         let layers = sizes
             .windows(2)
             .enumerate()
-            .map(|(i, io)| {
-                let (n_in, n_out) = (io[0], io[1]);
-                let name = format!("{prefix}.{i}");
-                let w = f32_tensor(&tensors, &format!("{name}.weight"), &[n_in, n_out])?;
-                let b = f32_tensor(&tensors, &format!("{name}.bias"), &[1, n_out])?;
-                Dense::new(&name, w, b, n_in, n_out)
-            })
+            .map(|(i, io)| dense(&format!("{prefix}.{i}"), io[0], io[1], "weight", "bias"))
             .collect::<Result<Vec<_>, _>>()?;
-        HostPolicy::new(kind, HostMlp::from_layers(layers)?)
+        let net = HostMlp::from_layers(layers)?;
+        if kind != PolicyKind::Recurrent {
+            return HostPolicy::new(kind, net);
+        }
+        let h = mlp_in;
+        let gates = h.checked_mul(3).ok_or_else(|| NetError::BadHidden(h.to_string()))?;
+        let x = dense(GRU_PREFIX, OBS_DIM, gates, "w_x", "b_x")?;
+        let state = dense(GRU_PREFIX, h, gates, "w_h", "b_h")?;
+        HostPolicy::recurrent(HostGru::new(x, state)?, net)
     }
 
     /// The actor part of a policy file: what [`HostPolicy::from_safetensors`] reads back (the
     /// `learn` crate's files carry more, e.g. PPO's log σ, and are what training produces).
     pub fn to_safetensors(&self) -> Result<Vec<u8>, NetError> {
         let layers = self.net().layers();
-        let hidden: Vec<usize> = layers.iter().take(layers.len().saturating_sub(1)).map(|l| l.n_out()).collect();
+        let mut hidden: Vec<usize> = self.gru().map(HostGru::hidden).into_iter().collect();
+        hidden.extend(layers.iter().take(layers.len().saturating_sub(1)).map(|l| l.n_out()));
         let prefix = actor_prefix(self.kind());
-        let bytes: Vec<(String, Vec<usize>, Vec<u8>)> = layers
+        let le = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+        let tensors = |name: String, l: &Dense, w: &str, b: &str| {
+            [
+                (format!("{name}.{w}"), vec![l.n_in(), l.n_out()], le(l.weight())),
+                (format!("{name}.{b}"), vec![1, l.n_out()], le(l.bias())),
+            ]
+        };
+        let mut bytes: Vec<(String, Vec<usize>, Vec<u8>)> = layers
             .iter()
             .enumerate()
-            .flat_map(|(i, l)| {
-                let le = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
-                [
-                    (format!("{prefix}.{i}.weight"), vec![l.n_in(), l.n_out()], le(l.weight())),
-                    (format!("{prefix}.{i}.bias"), vec![1, l.n_out()], le(l.bias())),
-                ]
-            })
+            .flat_map(|(i, l)| tensors(format!("{prefix}.{i}"), l, "weight", "bias"))
             .collect();
+        if let Some((x, h)) = self.gru().map(HostGru::maps) {
+            bytes.extend(tensors(GRU_PREFIX.to_owned(), x, "w_x", "b_x"));
+            bytes.extend(tensors(GRU_PREFIX.to_owned(), h, "w_h", "b_h"));
+        }
         let views = bytes
             .iter()
             .map(|(name, shape, data)| Ok((name.as_str(), TensorView::new(Dtype::F32, shape.clone(), data)?)))

@@ -110,14 +110,7 @@ impl HostMlp {
         for (i, l) in self.layers.iter().enumerate() {
             let input: &[f32] = if i == 0 { x } else { &cur[..l.n_in] };
             let dst: &mut [f32] = if i == last { &mut out[..l.n_out] } else { &mut next[..l.n_out] };
-            dst.copy_from_slice(&l.b);
-            // Row of x times (in × out) W: accumulate x_k · W[k, :], which vectorises over out.
-            for (k, &xk) in input.iter().enumerate() {
-                let row = &l.w[k * l.n_out..(k + 1) * l.n_out];
-                for (d, &w) in dst.iter_mut().zip(row) {
-                    *d += xk * w;
-                }
-            }
+            l.apply(input, dst);
             if i != last {
                 tanh_in_place(dst);
                 std::mem::swap(&mut cur, &mut next);
@@ -132,6 +125,17 @@ impl HostMlp {
 }
 
 impl Dense {
+    /// `out` (length `n_out`) ← `x`·W + b for one row `x` (length `n_in`).
+    pub fn apply(&self, x: &[f32], out: &mut [f32]) {
+        out.copy_from_slice(&self.b);
+        // Row of x times (in × out) W: accumulate x_k · W[k, :], which vectorises over out.
+        for (&xk, row) in x.iter().zip(self.w.chunks_exact(self.n_out)) {
+            for (d, &w) in out.iter_mut().zip(row) {
+                *d += xk * w;
+            }
+        }
+    }
+
     /// Weights, (in × out) row-major.
     pub fn weight(&self) -> &[f32] {
         &self.w

@@ -4,7 +4,9 @@
 //! - [`tanh`]: the fast tanh the networks use, shared with learning so both compute the same
 //!   function.
 //! - [`HostMlp`]: a tanh MLP evaluated row by row, allocation-free once its [`Scratch`] exists.
-//! - [`HostPolicy`]: a feed-forward policy's deterministic action, read from a policy file
+//! - [`HostGru`]: the recurrent policy's GRU cell, row by row.
+//! - [`HostPolicy`]: a policy's deterministic action (feed-forward, or recurrent with its state
+//!   in a [`Memory`]), read from a policy file
 //!   (safetensors with metadata, the layout the `learn` crate saves; [`file`]) with every
 //!   shape checked against [`OBS_DIM`](crate::env::OBS_DIM)/[`ACT_DIM`](crate::env::ACT_DIM),
 //!   and turned into a [`crate::driver::Policy`] by [`HostPolicy::driver`] through the
@@ -14,13 +16,15 @@
 //! the wire.
 
 pub mod file;
+mod gru;
 mod mlp;
 mod policy;
 pub mod tanh;
 
 pub use file::POLICY_FORMAT_VERSION;
+pub use gru::{GruScratch, HostGru};
 pub use mlp::{Dense, HostMlp, Scratch};
-pub use policy::{BoxedActor, HostDriver, HostPolicy, PolicyKind};
+pub use policy::{BoxedActor, HostDriver, HostPolicy, Memory, PolicyKind};
 
 /// Why a network or a policy file was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -37,9 +41,9 @@ pub enum NetError {
         "policy file decides at {found} Hz, this build's policies decide at {expected_hz} Hz (once per physics step)"
     )]
     DecisionRate { found: String, expected_hz: f64 },
-    #[error("unknown algorithm '{0}' (a host policy is one of ppo, sac)")]
+    #[error("unknown algorithm '{0}' (a host policy is one of ppo, ppo-gru, sac)")]
     UnknownAlgo(String),
-    #[error("'{0}' is recurrent: it does not run as a host policy")]
+    #[error("'{0}' is recurrent: it is built with its GRU")]
     Recurrent(String),
     #[error("bad hidden sizes '{0}' (comma-separated positive integers)")]
     BadHidden(String),

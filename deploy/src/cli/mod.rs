@@ -143,7 +143,7 @@ pub struct RunArgs {
     /// A smoke-test sized run (well under a minute on 2 cores).
     #[arg(long)]
     pub quick: bool,
-    /// Learner for the four variants: ppo or sac.
+    /// Learner for the four variants: `ppo`, `ppo-gru` (recurrent baseline) or `sac`.
     #[arg(long, default_value = "ppo")]
     pub algo: String,
     #[arg(long, value_enum, default_value_t)]

@@ -63,9 +63,6 @@ impl Progress for StderrProgress {
 pub fn run(args: RunArgs) -> CliResult {
     let mut config = load_config(&args)?;
     let algo: Algo = args.algo.parse().map_err(CliError::input)?;
-    if algo == Algo::PpoGru {
-        return Err(CliError::input("--algo ppo-gru is not supported by run (expected ppo or sac)"));
-    }
     config.training.algo = algo;
     config.training.threads = worker_threads();
     let request = RunRequest { config, seed: args.seed, out_dir: args.out.clone().unwrap_or_else(default_out_dir) };

@@ -25,7 +25,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 /// Algorithms whose network layouts an edge knows.
-pub const KNOWN_ALGOS: [&str; 2] = ["ppo", "sac"];
+pub const KNOWN_ALGOS: [&str; 3] = ["ppo", "ppo-gru", "sac"];
 /// Largest accepted weights file, bytes.
 pub const MAX_WEIGHTS_BYTES: usize = 64 << 20;
 /// Refusals of one reason logged as warnings before they thin out to one in [`LOG_EVERY`]: a

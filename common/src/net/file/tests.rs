@@ -8,13 +8,20 @@ use crate::rng::Rng;
 use crate::scenario::{ScenarioKind, check_feasible, sample};
 use std::sync::Arc;
 
-/// A `kind` policy OBS_DIM → 8 → out with random weights, and `out_bias` on the output layer.
+/// A `kind` policy with random weights and `out_bias` on the output layer: OBS_DIM → 8 → out,
+/// or for the recurrent kind a GRU of 8 units and a linear head 8 → out (`hidden` = [8] both).
 fn policy(kind: PolicyKind, seed: u64, out_bias: &[f32]) -> HostPolicy {
     let mut rng = Rng::new(seed);
     let mut values = |n: usize| (0..n).map(|_| rng.uniform(-0.5, 0.5) as f32).collect::<Vec<_>>();
     let out = kind.out_dim();
-    let hidden = Dense::new("h", values(OBS_DIM * 8), values(8), OBS_DIM, 8).expect("a layer");
     let last = Dense::new("o", values(8 * out), out_bias.to_vec(), 8, out).expect("a layer");
+    if kind == PolicyKind::Recurrent {
+        let x = Dense::new("x", values(OBS_DIM * 24), values(24), OBS_DIM, 24).expect("a layer");
+        let h = Dense::new("h", values(8 * 24), values(24), 8, 24).expect("a layer");
+        let gru = HostGru::new(x, h).expect("a cell");
+        return HostPolicy::recurrent(gru, HostMlp::from_layers(vec![last]).expect("a chain")).expect("a policy");
+    }
+    let hidden = Dense::new("h", values(OBS_DIM * 8), values(8), OBS_DIM, 8).expect("a layer");
     HostPolicy::new(kind, HostMlp::from_layers(vec![hidden, last]).expect("a chain")).expect("a policy")
 }
 
@@ -43,8 +50,8 @@ fn altered(p: &HostPolicy, meta: &[(&str, &str)], tensor: Option<(&str, Dtype, V
 }
 
 #[test]
-fn a_policy_file_round_trips_for_both_kinds() {
-    for kind in [PolicyKind::Gaussian, PolicyKind::Squashed] {
+fn a_policy_file_round_trips_for_every_kind() {
+    for kind in [PolicyKind::Gaussian, PolicyKind::Squashed, PolicyKind::Recurrent] {
         let p = policy(kind, 1, &vec![0.1; kind.out_dim()]);
         let back = HostPolicy::from_safetensors(&p.to_safetensors().expect("bytes")).expect("read back");
         assert_eq!(back, p);
@@ -66,7 +73,8 @@ fn bad_policy_files_are_refused_with_their_reason() {
         (altered(&p, &[("hidden", "8,x")], None), "bad-metadata"),
         (altered(&p, &[("hidden", "16")], None), "bad-tensor"),
         (altered(&p, &[("algo", "dqn")], None), "unsupported-algo"),
-        (altered(&p, &[("algo", "ppo-gru")], None), "unsupported-algo"),
+        // A feed-forward file said to be recurrent: its first layer is not the GRU state's.
+        (altered(&p, &[("algo", "ppo-gru")], None), "bad-tensor"),
         (altered(&p, &[("algo", "sac")], None), "missing-tensor"),
         (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![1, 3], Vec::new()))), "missing-tensor"),
         (altered(&p, &[], Some(("actor.mean.1.bias", Dtype::F32, vec![3], f32s(&[0.0; 3])))), "bad-tensor"),
@@ -80,6 +88,18 @@ fn bad_policy_files_are_refused_with_their_reason() {
         match HostPolicy::from_safetensors(bytes) {
             Ok(_) => panic!("case {i} accepted"),
             Err(e) => assert_eq!(e.reason(), *reason, "case {i}: {e}"),
+        }
+    }
+    let gru = policy(PolicyKind::Recurrent, 2, &[0.0; ACT_DIM]);
+    let cases = [
+        (altered(&gru, &[], Some(("actor.gru.w_h", Dtype::F32, vec![8, 24], Vec::new()))), "missing-tensor"),
+        (altered(&gru, &[], Some(("actor.gru.b_x", Dtype::F32, vec![1, 23], f32s(&[0.0; 23])))), "bad-tensor"),
+        (altered(&gru, &[("hidden", "8,4")], None), "bad-tensor"),
+    ];
+    for (i, (bytes, reason)) in cases.iter().enumerate() {
+        match HostPolicy::from_safetensors(bytes) {
+            Ok(_) => panic!("recurrent case {i} accepted"),
+            Err(e) => assert_eq!(e.reason(), *reason, "recurrent case {i}: {e}"),
         }
     }
     let Err(e) = HostPolicy::from_safetensors(&altered(&p, &[("obs_dim", "13")], None)) else { panic!("accepted") };
@@ -129,4 +149,21 @@ fn a_braking_policy_from_a_file_drives_the_world_through_the_env_mapping() {
         by_policy.avg_speed_mps,
         by_reference.avg_speed_mps
     );
+}
+
+/// The recurrent policy remembers: the same observation gives another action after a history,
+/// and a fresh memory starts over.
+#[test]
+fn a_recurrent_policy_acts_on_its_history_and_a_fresh_memory_starts_over() {
+    let p = policy(PolicyKind::Recurrent, 5, &[0.0; ACT_DIM]);
+    let mut rng = Rng::new(6);
+    let obs: Vec<[f32; OBS_DIM]> = (0..20).map(|_| std::array::from_fn(|_| rng.uniform(-1.0, 1.0) as f32)).collect();
+    let mut memory = p.memory();
+    let first = p.act_deterministic(&obs[0], &mut memory);
+    for o in &obs[1..] {
+        p.act_deterministic(o, &mut memory);
+    }
+    let after_history = p.act_deterministic(&obs[0], &mut memory);
+    assert_ne!(first, after_history, "the state carried nothing");
+    assert_eq!(p.act_deterministic(&obs[0], &mut p.memory()), first);
 }

@@ -120,8 +120,8 @@ impl HostPolicy {
             Dense::new(name, weight, bias, n_in, n_out)
         };
         // The recurrent policy's MLP starts from the GRU's state, h = hidden[0].
-        let (mlp_in, mlp_hidden) = match kind {
-            PolicyKind::Recurrent => (meta.hidden[0], &meta.hidden[1..]),
+        let (mlp_in, mlp_hidden) = match (kind, meta.hidden.split_first()) {
+            (PolicyKind::Recurrent, Some((&h, rest))) => (h, rest),
             _ => (OBS_DIM, &meta.hidden[..]),
         };
         let mut sizes = vec![mlp_in];

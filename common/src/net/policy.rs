@@ -53,7 +53,6 @@ pub struct Memory {
     scratch: Scratch,
     gru: GruScratch,
     state: Vec<f32>,
-    features: Vec<f32>,
 }
 
 /// An observation → action function, boxed so that drivers of any policy share one type.
@@ -104,7 +103,6 @@ impl HostPolicy {
             scratch: self.net.scratch(),
             gru: self.gru.as_ref().map(HostGru::scratch).unwrap_or_default(),
             state: vec![0.0; state],
-            features: vec![0.0; state],
         }
     }
 
@@ -112,12 +110,11 @@ impl HostPolicy {
     /// recurrent state in `memory`).
     pub fn act_deterministic(&self, obs: &[f32; OBS_DIM], memory: &mut Memory) -> [f32; ACT_DIM] {
         let mut out = [0.0f32; 2 * ACT_DIM];
-        let Memory { scratch, gru, state, features } = memory;
+        let Memory { scratch, gru, state } = memory;
         let input: &[f32] = match &self.gru {
             Some(cell) => {
                 cell.step(obs, state, gru);
-                features.copy_from_slice(state);
-                features
+                state
             }
             None => obs,
         };

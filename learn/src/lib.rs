@@ -26,6 +26,7 @@ pub mod policy;
 pub mod ppo;
 pub mod sac;
 pub mod train;
+pub mod warm;
 
 pub use policy::{Algo, PolicyNet};
 

@@ -43,6 +43,9 @@ pub struct PpoConfig {
     pub recurrent: bool,
     /// Initial log σ of the Gaussian policy.
     pub init_log_std: f32,
+    /// Rollouts after a warm start ([`Ppo::imitate`]) that train the critic only: a random
+    /// critic's advantages would otherwise undo the imitated policy in the first updates.
+    pub critic_warmup: usize,
 }
 
 impl Default for PpoConfig {
@@ -61,6 +64,7 @@ impl Default for PpoConfig {
             hidden: vec![64, 64],
             recurrent: false,
             init_log_std: -1.2,
+            critic_warmup: 8,
         }
     }
 }
@@ -116,6 +120,8 @@ pub struct Ppo {
     host_critic: HostMlp,
     scratch: Scratch,
     timings: PpoTimings,
+    /// Rollouts left in which only the critic learns (set by a warm start).
+    frozen_rollouts: usize,
 }
 
 impl Ppo {
@@ -160,6 +166,7 @@ impl Ppo {
             host_critic,
             scratch,
             timings: PpoTimings::default(),
+            frozen_rollouts: 0,
             scaler: ReturnScaler::new(n_envs, f64::from(cfg.gamma)),
             policy,
             critic,
@@ -256,6 +263,42 @@ impl Ppo {
         Ok(())
     }
 
+    /// Warm start (feed-forward policy only): fits the policy's mean to demonstrated actions
+    /// by least squares (`obs` n × OBS_DIM, `actions` n × ACT_DIM), `epochs` passes of shuffled
+    /// minibatches with its own optimiser; the next `critic_warmup` rollouts then train the
+    /// critic only. Returns the mean squared error of the last epoch.
+    pub fn imitate(&mut self, obs: &[f32], actions: &[f32], epochs: usize) -> Result<f32, LearnError> {
+        let Some(mean) = self.policy.mean_mlp() else {
+            return Err(LearnError::BadConfig("a warm start needs the feed-forward PPO policy".into()));
+        };
+        let n = actions.len() / ACT_DIM;
+        if n == 0 || obs.len() != n * OBS_DIM {
+            return Err(LearnError::BadConfig(format!("{} observations for {n} demonstrated actions", obs.len() / OBS_DIM)));
+        }
+        let mean = mean.clone();
+        let mut opt = Adam::new(vars(mean.params()), self.cfg.lr, self.cfg.max_grad_norm)?;
+        let widest = self.cfg.hidden.iter().copied().max().unwrap_or(1).max(1);
+        let mb = 512.min(MAX_ELEMWISE / widest).max(1);
+        let mut last = 0.0f32;
+        for _ in 0..epochs {
+            let perm = self.permutation(n);
+            let (mut sum, mut batches) = (0.0f32, 0usize);
+            for rows in perm.chunks(mb) {
+                let x: Vec<f32> = rows.iter().flat_map(|&k| obs[k * OBS_DIM..(k + 1) * OBS_DIM].to_vec()).collect();
+                let y: Vec<f32> = rows.iter().flat_map(|&k| actions[k * ACT_DIM..(k + 1) * ACT_DIM].to_vec()).collect();
+                let pred = mean.forward(&matrix(&x, rows.len(), OBS_DIM)?)?;
+                let loss = (pred - matrix(&y, rows.len(), ACT_DIM)?)?.sqr()?.mean_all()?;
+                opt.minimise(&loss)?;
+                sum += loss.to_scalar::<f32>()?;
+                batches += 1;
+            }
+            last = sum / batches.max(1) as f32;
+        }
+        self.frozen_rollouts = self.cfg.critic_warmup;
+        self.refresh_host()?;
+        Ok(last)
+    }
+
     /// Where the time of the learner went so far.
     pub fn timings(&self) -> PpoTimings {
         self.timings
@@ -320,6 +363,7 @@ impl Ppo {
             &mut self.returns,
         );
         let stats = if self.cfg.recurrent { self.update_recurrent() } else { self.update_flat() }?;
+        self.frozen_rollouts = self.frozen_rollouts.saturating_sub(1);
         self.refresh_host()?;
         self.timings.update_s += t0.elapsed().as_secs_f64();
         Ok(stats)
@@ -359,7 +403,7 @@ impl Ppo {
         let ratio = log_ratio.exp()?;
         let clipped = ratio.clamp(1.0 - self.cfg.clip, 1.0 + self.cfg.clip)?;
         let surr = (&ratio * &adv)?.minimum(&(clipped * &adv)?)?;
-        let policy_loss = surr.mean_all()?.neg()?;
+        let policy_loss = (surr.mean_all()?.neg()? * if self.frozen_rollouts > 0 { 0.0 } else { 1.0 })?;
         let value = self.critic.forward(features)?;
         let value_loss = (value - ret)?.sqr()?.mean_all()?;
         let entropy = (log_std + (0.5 + f64::from(HALF_LN_TAU)))?.sum_keepdim(D::Minus1)?.mean_all()?;

@@ -101,3 +101,54 @@ fn a_saved_policy_acts_the_same_on_the_host_reader() {
         }
     }
 }
+
+/// The toy's good controller, a₀ = −10x clipped, demonstrated on 4096 states.
+fn toy_demonstrations() -> (Vec<f32>, Vec<f32>) {
+    let mut rng = risktwin_common::rng::Rng::new(5);
+    let (mut obs, mut act) = (Vec::new(), Vec::new());
+    for _ in 0..4096 {
+        let x = rng.uniform(-1.0, 1.0) as f32;
+        let mut o = [0.0f32; OBS_DIM];
+        o[0] = x;
+        obs.extend_from_slice(&o);
+        act.extend_from_slice(&[(-10.0 * x).clamp(-1.0, 1.0), -0.5, -0.5]);
+    }
+    (obs, act)
+}
+
+#[test]
+fn a_warm_start_imitates_and_then_only_the_critic_learns_for_its_warmup() {
+    let cfg = PpoConfig { n_steps: 20, epochs: 4, minibatches: 4, hidden: vec![32, 32], lr: 3e-3, critic_warmup: 2, ..PpoConfig::default() };
+    let mut ppo = Ppo::new(cfg, 16, 4).expect("config");
+    let (obs, act) = toy_demonstrations();
+    let mse = ppo.imitate(&obs, &act, 60).expect("imitates");
+    assert!(mse < 0.01, "imitation error {mse}");
+    let probe = |ppo: &Ppo| {
+        let mut out = vec![0.0f32; 2 * ACT_DIM];
+        ppo.policy().act_deterministic(&obs[..2 * OBS_DIM], &mut [], &mut out).expect("act");
+        out
+    };
+    let imitated = probe(&ppo);
+    for (a, b) in imitated.iter().zip(&act[..2 * ACT_DIM]) {
+        assert!((a - b).abs() < 0.15, "imitated {imitated:?} against {:?}", &act[..2 * ACT_DIM]);
+    }
+    // Without any reinforcement learning the imitation already solves the task.
+    let mut env = Toy::new(16, 4);
+    ppo.learn_rollout(&mut env).expect("rollout");
+    assert_eq!(probe(&ppo), imitated, "the first warm-up rollout leaves the policy alone");
+    ppo.learn_rollout(&mut env).expect("rollout");
+    assert_eq!(probe(&ppo), imitated, "so does the second");
+    assert!(env.recent_return(16) > THRESHOLD, "the imitation drives x to 0: {}", env.recent_return(16));
+    ppo.learn_rollout(&mut env).expect("rollout");
+    assert_ne!(probe(&ppo), imitated, "after the warm-up the policy learns");
+    let bad = ppo.imitate(&obs[..OBS_DIM], &act, 1);
+    assert!(bad.is_err(), "observations and actions must pair up");
+}
+
+#[test]
+fn a_warm_start_needs_the_feed_forward_policy() {
+    let cfg = PpoConfig { recurrent: true, hidden: vec![8, 8], ..PpoConfig::default() };
+    let mut ppo = Ppo::new(cfg, 8, 1).expect("config");
+    let (obs, act) = toy_demonstrations();
+    assert!(ppo.imitate(&obs, &act, 1).is_err());
+}

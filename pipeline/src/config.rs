@@ -68,6 +68,7 @@ impl Default for RunConfig {
                 mutations: 40,
                 mutation_radius: 0.1,
                 risk_shaping: RiskShaping::default(),
+                warm_start: false,
                 threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             },
         }
@@ -178,6 +179,7 @@ struct ConfigFile {
     background: usize,
     replay_share: f64,
     risk_shaping: RiskShaping,
+    warm_start: bool,
     failure_mutations: usize,
     eval_per_kind: usize,
     push_scenarios: usize,
@@ -208,6 +210,7 @@ impl From<RunConfig> for ConfigFile {
             background: t.background,
             replay_share: t.replay_share,
             risk_shaping: t.risk_shaping,
+            warm_start: t.warm_start,
             failure_mutations: t.mutations,
             eval_per_kind: c.eval_per_kind,
             push_scenarios: c.push_scenarios,
@@ -236,6 +239,7 @@ impl From<ConfigFile> for RunConfig {
                 background: f.background,
                 replay_share: f.replay_share,
                 risk_shaping: f.risk_shaping,
+                warm_start: f.warm_start,
                 mutations: f.failure_mutations,
                 mutation_radius: f.mutation_radius,
                 ..default.training

@@ -58,6 +58,7 @@ impl TrainerConfig {
             mutations: 0,
             mutation_radius: 0.1,
             risk_shaping: RiskShaping::default(),
+            warm_start: false,
             threads: 1,
         }
     }

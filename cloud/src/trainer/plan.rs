@@ -51,6 +51,9 @@ pub struct TrainingPlan {
     pub mutation_radius: f64,
     /// How the risk term enters `risk-only`'s and `full`'s training reward.
     pub risk_shaping: RiskShaping,
+    /// Start PPO from an imitation of the reference driver's clean drives
+    /// (`risktwin_learn::warm`); their environment steps count against `steps`.
+    pub warm_start: bool,
     /// Worker threads for evaluation episodes.
     pub threads: usize,
 }

@@ -14,6 +14,7 @@ use risktwin_learn::PolicyNet;
 use risktwin_learn::learner::Learner;
 use risktwin_learn::ppo::PpoConfig;
 use risktwin_learn::sac::SacConfig;
+use risktwin_learn::warm::warm_start;
 pub use risktwin_learn::train::CurvePoint;
 use std::time::Instant;
 
@@ -71,11 +72,17 @@ pub fn train_variant(
             ScenarioSource::all_kinds(Rng::derive(seed, 0x5A4D_504C).next_u64())
         }
     };
-    let mut env = VecEnv::new(plan.n_envs, source, variant.training_reward(plan.risk_shaping))?;
+    let reward = variant.training_reward(plan.risk_shaping);
     let mut learner = Learner::new(plan.algo, &PpoConfig::default(), &SacConfig::default(), plan.n_envs, seed)?;
+    let demo_steps = if plan.warm_start {
+        warm_start(&mut learner, &source, reward, plan.n_envs, Rng::derive(seed, 0xDE30).next_u64())?.env_steps
+    } else {
+        0
+    };
+    let mut env = VecEnv::new(plan.n_envs, source, reward)?;
     let checkpoint = plan.steps.div_ceil(plan.curve_points.max(1) as u64).max(1);
     let phase_steps = plan.steps.div_ceil(u64::from(plan.phases.max(1)));
-    let (mut done, mut next_checkpoint) = (0u64, checkpoint);
+    let (mut done, mut next_checkpoint) = (demo_steps, checkpoint);
     let mut acc: Vec<EpisodeMetrics> = Vec::new();
     let mut curve = Vec::new();
     let mut refreshes = Vec::new();

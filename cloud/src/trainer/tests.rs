@@ -24,6 +24,7 @@ fn plan() -> TrainingPlan {
         mutations: 10,
         mutation_radius: 0.1,
         risk_shaping: RiskShaping::default(),
+        warm_start: false,
         threads: 2,
     }
 }

@@ -17,6 +17,7 @@
 //! trainer supplies as a [`ScenarioSource::Replay`]. The observation is the same for every
 //! variant, so policies stay comparable and only the training signal differs.
 
+mod demo;
 mod driving;
 pub mod observe;
 mod policy;
@@ -24,6 +25,7 @@ mod reward;
 mod source;
 mod vec_env;
 
+pub use demo::{DemoPlan, Demonstrations, IDLE_PEDAL, controls_to_action, demonstrate};
 pub use driving::{DrivingEnv, EpisodeSummary, StepOutcome};
 pub use observe::{ACT_DIM, OBS_DIM, Observer, action_to_controls};
 pub use policy::ObsPolicy;

@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::episode;
+use crate::vehicle::Controls;
 use crate::scenario::{ScenarioKind, ScenarioSpec, build, check_feasible, sample};
 use std::collections::BTreeMap;
 
@@ -208,4 +209,56 @@ fn env_throughput() {
         (n * steps) as f64 / dt,
         rayon::current_num_threads()
     );
+}
+
+#[test]
+fn a_demonstrated_action_commands_what_the_driver_commanded() {
+    for c in [Controls::new(0.1, 0.4, 0.0), Controls::new(-0.05, 0.0, 0.7), Controls::new(0.0, 0.0, 0.0)] {
+        let a = controls_to_action(&c);
+        let back = action_to_controls(&a);
+        assert!((back.steer_rad - c.steer_rad).abs() < 1e-6 && (back.throttle - c.throttle).abs() < 1e-6, "{c:?}");
+        assert!((back.brake - c.brake).abs() < 1e-6, "{c:?}");
+        // An idle pedal sits below 0 by a margin, so imitation noise does not press it.
+        for (pedal, value) in [(c.throttle, a[1]), (c.brake, a[2])] {
+            assert!(pedal > 0.0 || value == IDLE_PEDAL, "{c:?} → {a:?}");
+        }
+    }
+    // Beyond the steering scale the action saturates.
+    assert_eq!(controls_to_action(&Controls::new(1.0, 0.0, 0.0))[0], 1.0);
+}
+
+fn demonstrate_on(specs: Vec<ScenarioSpec>, noise_std: f64, threads: usize) -> Demonstrations {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
+    let plan = DemoPlan { n_envs: 3, steps_per_env: 900, noise_std, seed: 9 };
+    let source = ScenarioSource::List { seed: 2, specs };
+    pool.install(|| demonstrate(&source, TrainingReward::eq7(Variant::Base.weights()), &plan)).expect("drives")
+}
+
+#[test]
+fn demonstrations_keep_only_the_drivers_clean_episodes() {
+    // A low-friction scenario the reference driver crashes in or leaves the road, and a
+    // pedestrian crossing it completes (both found by episode::evaluate).
+    let fails = |s: &ScenarioSpec| {
+        let m = episode::evaluate(s).metrics;
+        m.collision || m.offroad
+    };
+    let crash = (0..200)
+        .map(|i| sample(3, ScenarioKind::LowFriction, i))
+        .find(|s| check_feasible(s).is_ok() && fails(s))
+        .expect("the reference driver fails some low-friction scenario");
+    let clean = (0..200)
+        .map(|i| sample(3, ScenarioKind::PedestrianCrossing, i))
+        .find(|s| check_feasible(s).is_ok() && episode::evaluate(s).metrics.success)
+        .expect("the reference driver completes some pedestrian crossing");
+    let crashes = demonstrate_on(vec![crash.clone()], 0.0, 1);
+    assert!(crashes.episodes > 0);
+    assert_eq!((crashes.kept, crashes.len()), (0, 0), "a crash is not a demonstration");
+    let drives = demonstrate_on(vec![clean.clone()], 0.0, 1);
+    assert_eq!(drives.kept, drives.episodes, "every noise-free drive of it is clean");
+    assert_eq!(drives.obs.len(), drives.len() * OBS_DIM);
+    assert!(drives.len() > 0);
+    // Noisy drives are the same whatever the thread count; the failing scenario stays out.
+    let noisy = demonstrate_on(vec![clean.clone(), crash.clone()], 0.1, 1);
+    assert_eq!(noisy, demonstrate_on(vec![clean, crash], 0.1, 2));
+    assert!(noisy.kept < noisy.episodes && noisy.kept > 0, "{} of {}", noisy.kept, noisy.episodes);
 }

@@ -70,3 +70,12 @@ fn unknown_algorithm_is_refused_before_any_output() {
     assert_input_error(dir.path(), &["run", "--quick", "--algo", "dreamer", "--out", "out"], "dreamer");
     assert!(!dir.path().join("out").exists(), "a refused run created its report folder");
 }
+
+#[test]
+fn a_warm_start_with_another_learner_than_ppo_is_refused_before_any_output() {
+    let dir = tempdir().unwrap();
+    write_file(dir.path(), "c.json", r#"{"warm_start": true}"#);
+    let args = ["run", "--config", "c.json", "--algo", "sac", "--out", "out"];
+    assert_input_error(dir.path(), &args, "warm_start needs --algo ppo");
+    assert!(!dir.path().join("out").exists(), "a refused run created its report folder");
+}

@@ -77,6 +77,9 @@ impl TrainingPlan {
             return Err(TrainerError::BadPlan(format!("replay_share {} is out of range [0, 1]", self.replay_share)));
         }
         self.risk_shaping.validate().map_err(TrainerError::BadPlan)?;
+        if self.warm_start && self.algo != Algo::Ppo {
+            return Err(TrainerError::BadPlan(format!("a warm start needs PPO, not {}", self.algo.name())));
+        }
         if self.replay_top + self.background == 0 {
             return Err(TrainerError::BadPlan("replay_top + background must be positive".into()));
         }

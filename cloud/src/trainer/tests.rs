@@ -116,3 +116,17 @@ fn full_trains_in_phases_and_base_does_not_touch_the_library() {
     assert_eq!(full.refreshes[0].policy, "ppo-full-seed1-phase0");
     assert!(!lib.rank_for_policy("ppo-full-seed1-phase0", None, None).unwrap().is_empty());
 }
+
+#[test]
+fn a_warm_start_counts_its_demonstration_steps_and_needs_ppo() {
+    let (_dir, mut lib) = library(9);
+    let held = HeldOut::new(9, 1);
+    let demo_steps = 8 * risktwin_learn::warm::DEMO_STEPS_PER_ENV as u64;
+    let plan = TrainingPlan { warm_start: true, steps: demo_steps + 512, ..plan() };
+    let warm = train_variant(&plan, Variant::Base, 1, &mut lib, &held, &mut |_, _| {}).unwrap();
+    assert_eq!(warm.env_steps, plan.steps, "the demonstrations and one 512-step rollout");
+    assert!(warm.curve.iter().all(|p| p.env_steps > demo_steps), "{:?}", warm.curve);
+    let sac = TrainingPlan { algo: Algo::Sac, ..plan };
+    let err = train_variant(&sac, Variant::Base, 1, &mut lib, &held, &mut |_, _| {}).unwrap_err();
+    assert!(err.to_string().contains("warm start needs PPO"), "{err}");
+}

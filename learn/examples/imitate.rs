@@ -31,7 +31,7 @@ fn main() {
     let epochs = var("EPOCHS", 20usize);
     for chunk in [epochs / 4, epochs / 4, epochs / 2] {
         let t = Instant::now();
-        let mse = p.imitate(&demos.obs, &demos.actions, chunk.max(1)).expect("imitate");
+        let mse = p.imitate(&demos.obs, &demos.actions, chunk.max(1), plan.noise_std as f32).expect("imitate");
         println!("after {chunk} more epochs: mse {mse:.4} ({:.1} s)", t.elapsed().as_secs_f64());
     }
     let specs = held_out_specs(seed, 12);

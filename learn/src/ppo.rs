@@ -265,9 +265,12 @@ impl Ppo {
 
     /// Warm start (feed-forward policy only): fits the policy's mean to demonstrated actions
     /// by least squares (`obs` n × OBS_DIM, `actions` n × ACT_DIM), `epochs` passes of shuffled
-    /// minibatches with its own optimiser; the next `critic_warmup` rollouts then train the
-    /// critic only. Returns the mean squared error of the last epoch.
-    pub fn imitate(&mut self, obs: &[f32], actions: &[f32], epochs: usize) -> Result<f32, LearnError> {
+    /// minibatches with its own optimiser, and sets the exploration noise σ to `noise_std`
+    /// (the demonstrations' own: the imitation knows the states that noise leads to, and
+    /// PPO's initial σ ≈ 0.3 would wreck it before it learns anything). The next
+    /// `critic_warmup` rollouts then train the critic only. Returns the mean squared error of
+    /// the last epoch.
+    pub fn imitate(&mut self, obs: &[f32], actions: &[f32], epochs: usize, noise_std: f32) -> Result<f32, LearnError> {
         let Some(mean) = self.policy.mean_mlp() else {
             return Err(LearnError::BadConfig("a warm start needs the feed-forward PPO policy".into()));
         };
@@ -294,6 +297,7 @@ impl Ppo {
             }
             last = sum / batches.max(1) as f32;
         }
+        self.policy.set_log_std(noise_std.max(1e-3).ln())?;
         self.frozen_rollouts = self.cfg.critic_warmup;
         self.refresh_host()?;
         Ok(last)

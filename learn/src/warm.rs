@@ -42,6 +42,6 @@ pub fn warm_start(
     let Learner::Ppo(ppo) = learner else {
         return Err(LearnError::BadConfig("a warm start needs a PPO learner".into()));
     };
-    let mse = ppo.imitate(&demos.obs, &demos.actions, IMITATION_EPOCHS)?;
+    let mse = ppo.imitate(&demos.obs, &demos.actions, IMITATION_EPOCHS, DEMO_NOISE_STD as f32)?;
     Ok(WarmStart { env_steps: (n_envs * DEMO_STEPS_PER_ENV) as u64, episodes: demos.episodes, kept: demos.kept, mse })
 }

@@ -121,7 +121,7 @@ fn a_warm_start_imitates_and_then_only_the_critic_learns_for_its_warmup() {
     let cfg = PpoConfig { n_steps: 20, epochs: 4, minibatches: 4, hidden: vec![32, 32], lr: 3e-3, critic_warmup: 2, ..PpoConfig::default() };
     let mut ppo = Ppo::new(cfg, 16, 4).expect("config");
     let (obs, act) = toy_demonstrations();
-    let mse = ppo.imitate(&obs, &act, 60).expect("imitates");
+    let mse = ppo.imitate(&obs, &act, 60, 0.1).expect("imitates");
     assert!(mse < 0.01, "imitation error {mse}");
     let probe = |ppo: &Ppo| {
         let mut out = vec![0.0f32; 2 * ACT_DIM];
@@ -129,6 +129,8 @@ fn a_warm_start_imitates_and_then_only_the_critic_learns_for_its_warmup() {
         out
     };
     let imitated = probe(&ppo);
+    let sigma = ppo.policy().log_std().expect("log σ").expect("Gaussian").map(f32::exp);
+    assert!(sigma.iter().all(|s| (s - 0.1).abs() < 1e-6), "exploration at the demonstrations' noise: {sigma:?}");
     for (a, b) in imitated.iter().zip(&act[..2 * ACT_DIM]) {
         assert!((a - b).abs() < 0.15, "imitated {imitated:?} against {:?}", &act[..2 * ACT_DIM]);
     }
@@ -141,7 +143,7 @@ fn a_warm_start_imitates_and_then_only_the_critic_learns_for_its_warmup() {
     assert!(env.recent_return(16) > THRESHOLD, "the imitation drives x to 0: {}", env.recent_return(16));
     ppo.learn_rollout(&mut env).expect("rollout");
     assert_ne!(probe(&ppo), imitated, "after the warm-up the policy learns");
-    let bad = ppo.imitate(&obs[..OBS_DIM], &act, 1);
+    let bad = ppo.imitate(&obs[..OBS_DIM], &act, 1, 0.1);
     assert!(bad.is_err(), "observations and actions must pair up");
 }
 
@@ -150,5 +152,5 @@ fn a_warm_start_needs_the_feed_forward_policy() {
     let cfg = PpoConfig { recurrent: true, hidden: vec![8, 8], ..PpoConfig::default() };
     let mut ppo = Ppo::new(cfg, 8, 1).expect("config");
     let (obs, act) = toy_demonstrations();
-    assert!(ppo.imitate(&obs, &act, 1).is_err());
+    assert!(ppo.imitate(&obs, &act, 1, 0.1).is_err());
 }

@@ -43,5 +43,10 @@ fn main() {
             "held-out {name}: coll {:.2} succ {:.2} compl {:.2} speed {:.1} off {:.2}",
             f.collision_rate, f.success_rate, f.route_completion, f.avg_speed_mps, f.offroad_rate
         );
+        for kind in risktwin_common::scenario::ScenarioKind::ALL {
+            let k: Vec<_> = specs.iter().zip(&m).filter(|(s, _)| s.kind == kind).map(|(_, m)| m.clone()).collect();
+            let f = FinalMetrics::average(&k);
+            println!("  {kind:20} coll {:.2} succ {:.2} off {:.2} speed {:.1}", f.collision_rate, f.success_rate, f.offroad_rate, f.avg_speed_mps);
+        }
     }
 }

@@ -17,9 +17,6 @@ use crate::rng::Rng;
 use crate::vehicle::Controls;
 use rayon::prelude::*;
 
-/// Where a pedal that is not pressed is put in the action: below 0 by a margin, so that a
-/// policy imitating it with a little noise still does not press it (the mapping clips at 0).
-pub const IDLE_PEDAL: f32 = -0.5;
 
 /// Recorded pairs, row-major: `obs` is n × OBS_DIM, `actions` n × ACT_DIM.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -42,11 +39,14 @@ impl Demonstrations {
     }
 }
 
-/// The action that commands `c`: the inverse of [`super::action_to_controls`] within its range,
-/// an idle pedal at [`IDLE_PEDAL`].
+/// The action that commands `c`: the inverse of [`super::action_to_controls`] within its range.
+/// The pedals are recorded as one signed demand u = throttle − brake, throttle at u and brake
+/// at −u (the idle one below 0 by as much as the other is pressed; the reference driver never
+/// presses both): a regression target continuous through coasting, where a fixed idle value
+/// would make a light brake and none lie far apart, and the fit average them away.
 pub fn controls_to_action(c: &Controls) -> [f32; ACT_DIM] {
-    let pedal = |p: f64| if p > 0.0 { p.min(1.0) as f32 } else { IDLE_PEDAL };
-    [(c.steer_rad / STEER_SCALE_RAD).clamp(-1.0, 1.0) as f32, pedal(c.throttle), pedal(c.brake)]
+    let u = (c.throttle.clamp(0.0, 1.0) - c.brake.clamp(0.0, 1.0)) as f32;
+    [(c.steer_rad / STEER_SCALE_RAD).clamp(-1.0, 1.0) as f32, u, -u]
 }
 
 /// How demonstrations are collected.

@@ -25,7 +25,7 @@ mod reward;
 mod source;
 mod vec_env;
 
-pub use demo::{DemoPlan, Demonstrations, IDLE_PEDAL, controls_to_action, demonstrate};
+pub use demo::{DemoPlan, Demonstrations, controls_to_action, demonstrate};
 pub use driving::{DrivingEnv, EpisodeSummary, StepOutcome};
 pub use observe::{ACT_DIM, OBS_DIM, Observer, action_to_controls};
 pub use policy::ObsPolicy;

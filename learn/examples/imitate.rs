@@ -24,7 +24,13 @@ fn main() {
     let t = Instant::now();
     let source = ScenarioSource::all_kinds(seed);
     let demos = demonstrate(&source, Variant::Base.training_reward(Default::default()), &plan).expect("demos");
-    println!("{} pairs from {} of {} episodes in {:.1} s", demos.len(), demos.kept, demos.episodes, t.elapsed().as_secs_f64());
+    println!(
+        "{} pairs from {} of {} episodes in {:.1} s",
+        demos.len(),
+        demos.kept,
+        demos.episodes,
+        t.elapsed().as_secs_f64()
+    );
     let ppo = PpoConfig { lr: var("LR", 1e-3), ..PpoConfig::default() };
     let mut learner = Learner::new(Algo::Ppo, &ppo, &SacConfig::default(), n_envs, seed).expect("learner");
     let Learner::Ppo(p) = &mut learner else { unreachable!() };
@@ -46,7 +52,10 @@ fn main() {
         for kind in risktwin_common::scenario::ScenarioKind::ALL {
             let k: Vec<_> = specs.iter().zip(&m).filter(|(s, _)| s.kind == kind).map(|(_, m)| m.clone()).collect();
             let f = FinalMetrics::average(&k);
-            println!("  {kind:20} coll {:.2} succ {:.2} off {:.2} speed {:.1}", f.collision_rate, f.success_rate, f.offroad_rate, f.avg_speed_mps);
+            println!(
+                "  {kind:20} coll {:.2} succ {:.2} off {:.2} speed {:.1}",
+                f.collision_rate, f.success_rate, f.offroad_rate, f.avg_speed_mps
+            );
         }
     }
 }

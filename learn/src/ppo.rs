@@ -276,7 +276,10 @@ impl Ppo {
         };
         let n = actions.len() / ACT_DIM;
         if n == 0 || obs.len() != n * OBS_DIM {
-            return Err(LearnError::BadConfig(format!("{} observations for {n} demonstrated actions", obs.len() / OBS_DIM)));
+            return Err(LearnError::BadConfig(format!(
+                "{} observations for {n} demonstrated actions",
+                obs.len() / OBS_DIM
+            )));
         }
         let mean = mean.clone();
         let mut opt = Adam::new(vars(mean.params()), self.cfg.lr, self.cfg.max_grad_norm)?;

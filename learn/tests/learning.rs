@@ -118,7 +118,15 @@ fn toy_demonstrations() -> (Vec<f32>, Vec<f32>) {
 
 #[test]
 fn a_warm_start_imitates_and_then_only_the_critic_learns_for_its_warmup() {
-    let cfg = PpoConfig { n_steps: 20, epochs: 4, minibatches: 4, hidden: vec![32, 32], lr: 3e-3, critic_warmup: 2, ..PpoConfig::default() };
+    let cfg = PpoConfig {
+        n_steps: 20,
+        epochs: 4,
+        minibatches: 4,
+        hidden: vec![32, 32],
+        lr: 3e-3,
+        critic_warmup: 2,
+        ..PpoConfig::default()
+    };
     let mut ppo = Ppo::new(cfg, 16, 4).expect("config");
     let (obs, act) = toy_demonstrations();
     let mse = ppo.imitate(&obs, &act, 60, 0.1).expect("imitates");

@@ -14,8 +14,8 @@ use risktwin_learn::PolicyNet;
 use risktwin_learn::learner::Learner;
 use risktwin_learn::ppo::PpoConfig;
 use risktwin_learn::sac::SacConfig;
-use risktwin_learn::warm::warm_start;
 pub use risktwin_learn::train::CurvePoint;
+use risktwin_learn::warm::warm_start;
 use std::time::Instant;
 
 /// What one training run produced.

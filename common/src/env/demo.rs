@@ -17,7 +17,6 @@ use crate::rng::Rng;
 use crate::vehicle::Controls;
 use rayon::prelude::*;
 
-
 /// Recorded pairs, row-major: `obs` is n × OBS_DIM, `actions` n × ACT_DIM.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Demonstrations {
@@ -65,7 +64,11 @@ pub struct DemoPlan {
 /// pairs of the episodes that ended cleanly. Deterministic for the plan, whatever the thread
 /// count. The episode streams are the source's environment indices offset past `n_envs`, so
 /// they do not replay the first episodes a learner on the same source trains on.
-pub fn demonstrate(source: &ScenarioSource, reward: TrainingReward, plan: &DemoPlan) -> Result<Demonstrations, SourceError> {
+pub fn demonstrate(
+    source: &ScenarioSource,
+    reward: TrainingReward,
+    plan: &DemoPlan,
+) -> Result<Demonstrations, SourceError> {
     source.validate()?;
     let per_env: Vec<Result<Demonstrations, SourceError>> =
         (0..plan.n_envs).into_par_iter().map(|i| drive_stream(source, reward, plan, plan.n_envs + i)).collect();
@@ -112,7 +115,8 @@ fn drive_stream(
             out.obs.append(&mut ep_obs);
             out.actions.append(&mut ep_act);
         }
-        (ep_obs.clear(), ep_act.clear());
+        ep_obs.clear();
+        ep_act.clear();
         episode += 1;
         env.reset(&source.spec(stream, episode)?, &mut obs);
         driver = ReferenceDriver::new(env.world().desired_speed_mps, env.world().ego.params);

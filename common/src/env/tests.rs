@@ -3,8 +3,8 @@
 
 use super::*;
 use crate::episode;
-use crate::vehicle::Controls;
 use crate::scenario::{ScenarioKind, ScenarioSpec, build, check_feasible, sample};
+use crate::vehicle::Controls;
 use std::collections::BTreeMap;
 
 pub(super) fn spec(kind: ScenarioKind, params: &[(&str, f64)]) -> ScenarioSpec {
@@ -254,7 +254,7 @@ fn demonstrations_keep_only_the_drivers_clean_episodes() {
     let drives = demonstrate_on(vec![clean.clone()], 0.0, 1);
     assert_eq!(drives.kept, drives.episodes, "every noise-free drive of it is clean");
     assert_eq!(drives.obs.len(), drives.len() * OBS_DIM);
-    assert!(drives.len() > 0);
+    assert!(!drives.is_empty());
     // Noisy drives are the same whatever the thread count; the failing scenario stays out.
     let noisy = demonstrate_on(vec![clean.clone(), crash.clone()], 0.1, 1);
     assert_eq!(noisy, demonstrate_on(vec![clean, crash], 0.1, 2));

@@ -65,7 +65,9 @@ pub fn run(args: RunArgs) -> CliResult {
     let algo: Algo = args.algo.parse().map_err(CliError::input)?;
     config.training.algo = algo;
     if config.training.warm_start && algo != Algo::Ppo {
-        return Err(CliError::input(format!("warm_start needs --algo ppo (it imitates with the feed-forward policy), not {algo}")));
+        return Err(CliError::input(format!(
+            "warm_start needs --algo ppo (it imitates with the feed-forward policy), not {algo}"
+        )));
     }
     config.training.threads = worker_threads();
     let request = RunRequest { config, seed: args.seed, out_dir: args.out.clone().unwrap_or_else(default_out_dir) };

@@ -14,7 +14,7 @@ use std::path::Path;
 use std::str::FromStr;
 
 use risktwin_common::net::PolicyKind;
-use risktwin_common::net::file::{metadata, read_meta};
+use risktwin_common::net::file::{metadata, read_meta, sort_header};
 pub use risktwin_common::net::{HostPolicy, POLICY_FORMAT_VERSION};
 
 /// Learning algorithm.
@@ -225,8 +225,10 @@ impl PolicyNet {
         let tensors: Vec<(String, Tensor)> =
             self.params().iter().map(|p| (p.name.clone(), p.var.as_tensor().clone())).collect();
         let meta = metadata(self.algo.name(), &self.hidden);
-        safetensors::serialize_to_file(tensors.iter().map(|(n, t)| (n.as_str(), t)), Some(meta), path)
-            .map_err(|e| LearnError::Io(path.display().to_string(), e.to_string()))
+        let io = |e: String| LearnError::Io(path.display().to_string(), e);
+        let bytes = safetensors::serialize(tensors.iter().map(|(n, t)| (n.as_str(), t)), Some(meta))
+            .map_err(|e| io(e.to_string()))?;
+        std::fs::write(path, sort_header(bytes)?).map_err(|e| io(e.to_string()))
     }
 
     /// Loads a policy saved by [`PolicyNet::save`], checking version and dimensions.

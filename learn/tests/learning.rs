@@ -63,6 +63,16 @@ fn save_load_roundtrip_gives_identical_actions() {
         net.save(&path).expect("save");
         let loaded = PolicyNet::load(&path).expect("load");
         assert_eq!(loaded.algo(), algo);
+        // The same policy gives the same bytes (the metadata map is a HashMap, in a new order
+        // each time, until the header is sorted), and so does the host reader's writer.
+        let bytes = std::fs::read(&path).expect("read");
+        let host = || net.host().expect("host").to_safetensors().expect("bytes");
+        let host_bytes = host();
+        for _ in 0..8 {
+            net.save(&path).expect("save");
+            assert_eq!(std::fs::read(&path).expect("read"), bytes, "{algo}");
+            assert_eq!(host(), host_bytes, "{algo}");
+        }
         let (mut s1, mut s2) = (vec![0.0; 4 * net.state_dim()], vec![0.0; 4 * net.state_dim()]);
         let (mut a1, mut a2) = (vec![0.0; 4 * ACT_DIM], vec![0.0; 4 * ACT_DIM]);
         for _ in 0..3 {

@@ -44,6 +44,23 @@ pub fn metadata(algo: &str, hidden: &[usize]) -> HashMap<String, String> {
     ])
 }
 
+/// safetensors writes its metadata map in `HashMap` order, which changes from one map to the
+/// next, so the same policy gave different bytes from run to run. This rewrites a serialised
+/// file's header with every object's keys sorted (serde_json's map is ordered): the same JSON
+/// in another order, hence the same length, so the data offsets stay valid.
+pub fn sort_header(mut bytes: Vec<u8>) -> Result<Vec<u8>, NetError> {
+    let bad = |m: &str| NetError::Safetensors(format!("header: {m}"));
+    let len = bytes.get(..8).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes"))).ok_or_else(|| bad("short"))?;
+    let end = usize::try_from(len).ok().and_then(|n| n.checked_add(8)).filter(|&e| e <= bytes.len());
+    let end = end.ok_or_else(|| bad("length beyond the file"))?;
+    let value: serde_json::Value = serde_json::from_slice(&bytes[8..end]).map_err(|e| bad(&e.to_string()))?;
+    let sorted = serde_json::to_vec(&value).map_err(|e| bad(&e.to_string()))?;
+    let Some(pad) = (end - 8).checked_sub(sorted.len()) else { return Err(bad("grew when sorted")) };
+    bytes[8..8 + sorted.len()].copy_from_slice(&sorted);
+    bytes[end - pad..end].fill(b' ');
+    Ok(bytes)
+}
+
 /// Reads a policy file's metadata and checks its format version, dimensions and decision rate.
 pub fn read_meta(bytes: &[u8]) -> Result<PolicyMeta, NetError> {
     let (_, header) = SafeTensors::read_metadata(bytes).map_err(|e| NetError::Safetensors(e.to_string()))?;
@@ -172,8 +189,9 @@ impl HostPolicy {
             .map(|(name, shape, data)| Ok((name.as_str(), TensorView::new(Dtype::F32, shape.clone(), data)?)))
             .collect::<Result<Vec<_>, safetensors::SafeTensorError>>()
             .map_err(|e| NetError::Safetensors(e.to_string()))?;
-        safetensors::serialize(views, Some(metadata(self.kind().algo(), &hidden)))
-            .map_err(|e| NetError::Safetensors(e.to_string()))
+        let bytes = safetensors::serialize(views, Some(metadata(self.kind().algo(), &hidden)))
+            .map_err(|e| NetError::Safetensors(e.to_string()))?;
+        sort_header(bytes)
     }
 }
 

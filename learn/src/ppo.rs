@@ -46,6 +46,14 @@ pub struct PpoConfig {
     /// Rollouts after a warm start ([`Ppo::imitate`]) that train the critic only: a random
     /// critic's advantages would otherwise undo the imitated policy in the first updates.
     pub critic_warmup: usize,
+    /// After a warm start, the weight of an imitation term added to every update's loss: the
+    /// mean squared error of the policy's mean to the demonstrated actions on a random
+    /// minibatch of them (DAPG, Rajeswaran et al. 2018, "Learning complex dexterous
+    /// manipulation with deep reinforcement learning and demonstrations"). It keeps PPO near
+    /// the driver it imitated while its critic knows little, and fades by `imitation_decay`
+    /// per rollout. 0: none.
+    pub imitation_coef: f64,
+    pub imitation_decay: f64,
 }
 
 impl Default for PpoConfig {
@@ -65,6 +73,8 @@ impl Default for PpoConfig {
             recurrent: false,
             init_log_std: -1.2,
             critic_warmup: 8,
+            imitation_coef: 10.0,
+            imitation_decay: 0.97,
         }
     }
 }
@@ -122,7 +132,19 @@ pub struct Ppo {
     timings: PpoTimings,
     /// Rollouts left in which only the critic learns (set by a warm start).
     frozen_rollouts: usize,
+    /// A warm start's demonstrations and the imitation term's current weight.
+    imitation: Option<Imitation>,
 }
+
+/// Demonstrations kept for the imitation term ([`PpoConfig::imitation_coef`]).
+struct Imitation {
+    obs: Vec<f32>,
+    actions: Vec<f32>,
+    weight: f64,
+}
+
+/// Below this weight the imitation term is dropped.
+const MIN_IMITATION_WEIGHT: f64 = 1e-3;
 
 impl Ppo {
     /// A learner for `n_envs` environments, initialised from `seed`.
@@ -167,6 +189,7 @@ impl Ppo {
             scratch,
             timings: PpoTimings::default(),
             frozen_rollouts: 0,
+            imitation: None,
             scaler: ReturnScaler::new(n_envs, f64::from(cfg.gamma)),
             policy,
             critic,
@@ -302,6 +325,11 @@ impl Ppo {
         }
         self.policy.set_log_std(noise_std.max(1e-3).ln())?;
         self.frozen_rollouts = self.cfg.critic_warmup;
+        self.imitation = (self.cfg.imitation_coef > 0.0).then(|| Imitation {
+            obs: obs.to_vec(),
+            actions: actions.to_vec(),
+            weight: self.cfg.imitation_coef,
+        });
         self.refresh_host()?;
         Ok(last)
     }
@@ -371,6 +399,9 @@ impl Ppo {
         );
         let stats = if self.cfg.recurrent { self.update_recurrent() } else { self.update_flat() }?;
         self.frozen_rollouts = self.frozen_rollouts.saturating_sub(1);
+        if let Some(im) = &mut self.imitation {
+            im.weight *= self.cfg.imitation_decay;
+        }
         self.refresh_host()?;
         self.timings.update_s += t0.elapsed().as_secs_f64();
         Ok(stats)
@@ -446,11 +477,32 @@ impl Ppo {
                     rows.iter().flat_map(|&k| self.obs[k * OBS_DIM..(k + 1) * OBS_DIM].to_vec()).collect();
                 let features = matrix(&obs, rows.len(), OBS_DIM)?;
                 let (loss, s) = self.loss(&features, rows)?;
+                let loss = match self.imitation_loss(rows.len())? {
+                    Some(imitation) => (loss + imitation)?,
+                    None => loss,
+                };
                 self.opt.minimise(&loss)?;
                 stats = s;
             }
         }
         Ok(stats)
+    }
+
+    /// The weighted imitation term on `m` demonstrations drawn at random, if it is still on.
+    fn imitation_loss(&mut self, m: usize) -> Result<Option<Tensor>, LearnError> {
+        let (Some(im), Some(mean)) = (&self.imitation, self.policy.mean_mlp()) else { return Ok(None) };
+        if im.weight < MIN_IMITATION_WEIGHT {
+            return Ok(None);
+        }
+        let n = (im.actions.len() / ACT_DIM) as u64;
+        let (mut x, mut y) = (Vec::with_capacity(m * OBS_DIM), Vec::with_capacity(m * ACT_DIM));
+        for _ in 0..m {
+            let k = self.rng.below(n) as usize;
+            x.extend_from_slice(&im.obs[k * OBS_DIM..(k + 1) * OBS_DIM]);
+            y.extend_from_slice(&im.actions[k * ACT_DIM..(k + 1) * ACT_DIM]);
+        }
+        let pred = mean.forward(&matrix(&x, m, OBS_DIM)?)?;
+        Ok(Some(((pred - matrix(&y, m, ACT_DIM)?)?.sqr()?.mean_all()? * im.weight)?))
     }
 
     /// Minibatches are groups of environments; the GRU is unrolled over the whole rollout from

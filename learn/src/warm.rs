@@ -1,6 +1,6 @@
 //! Warm start: the reference driver's clean drives (with DART noise, [`demonstrate`]) imitated
-//! by the PPO policy before reinforcement learning begins (docs/method.md §7, "Warm start").
-//! Shared by `risktwin train` and the cloud's trainer so both start the same way.
+//! by the PPO policy before reinforcement learning begins (docs/method.md §7, "Warm start"),
+//! for the cloud's trainer (`risktwin run`'s `warm_start`) and `examples/imitate.rs`.
 
 use crate::LearnError;
 use crate::learner::Learner;
@@ -8,8 +8,9 @@ use risktwin_common::env::{DemoPlan, ScenarioSource, TrainingReward, demonstrate
 
 /// Demonstration steps per environment: with `risktwin run`'s 32 environments 131,072 steps
 /// (22 % of its 589,824), about 20 episodes per stream. Measured by `examples/imitate.rs`
-/// (seed 1, held-out collision / success of the imitation alone): 1,024 steps and 20 epochs
-/// 0.27 / 0.33, 4,096 and 60 epochs 0.27 / 0.45.
+/// (seed 1, held-out collision / success of the imitation alone, the reference driver's
+/// 0.13 / 0.55): 1,024 steps and 20 epochs 0.27 / 0.33, 4,096 and 60 epochs 0.27 / 0.45,
+/// and with the pedals as one signed demand (`env::controls_to_action`) 0.13 / 0.45.
 pub const DEMO_STEPS_PER_ENV: usize = 4096;
 /// Noise on the driver's executed action (DART): enough to leave the centre of the lane and
 /// show the way back, small against the steering scale.

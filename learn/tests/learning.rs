@@ -126,8 +126,9 @@ fn toy_demonstrations() -> (Vec<f32>, Vec<f32>) {
     (obs, act)
 }
 
-#[test]
-fn a_warm_start_imitates_and_then_only_the_critic_learns_for_its_warmup() {
+/// A PPO learner on the toy task warm-started from its good controller, with the imitation
+/// term's weight `imitation_coef`, and a probe of its deterministic actions on two states.
+fn warm_toy(imitation_coef: f64) -> (Ppo, impl Fn(&Ppo) -> Vec<f32>, Vec<f32>) {
     let cfg = PpoConfig {
         n_steps: 20,
         epochs: 4,
@@ -135,22 +136,32 @@ fn a_warm_start_imitates_and_then_only_the_critic_learns_for_its_warmup() {
         hidden: vec![32, 32],
         lr: 3e-3,
         critic_warmup: 2,
+        imitation_coef,
         ..PpoConfig::default()
     };
     let mut ppo = Ppo::new(cfg, 16, 4).expect("config");
     let (obs, act) = toy_demonstrations();
     let mse = ppo.imitate(&obs, &act, 60, 0.1).expect("imitates");
     assert!(mse < 0.01, "imitation error {mse}");
-    let probe = |ppo: &Ppo| {
+    let bad = ppo.imitate(&obs[..OBS_DIM], &act, 1, 0.1);
+    assert!(bad.is_err(), "observations and actions must pair up");
+    let probe_obs = obs[..2 * OBS_DIM].to_vec();
+    let probe = move |ppo: &Ppo| {
         let mut out = vec![0.0f32; 2 * ACT_DIM];
-        ppo.policy().act_deterministic(&obs[..2 * OBS_DIM], &mut [], &mut out).expect("act");
+        ppo.policy().act_deterministic(&probe_obs, &mut [], &mut out).expect("act");
         out
     };
+    (ppo, probe, act[..2 * ACT_DIM].to_vec())
+}
+
+#[test]
+fn a_warm_start_imitates_and_then_only_the_critic_learns_for_its_warmup() {
+    let (mut ppo, probe, labels) = warm_toy(0.0);
     let imitated = probe(&ppo);
     let sigma = ppo.policy().log_std().expect("log σ").expect("Gaussian").map(f32::exp);
     assert!(sigma.iter().all(|s| (s - 0.1).abs() < 1e-6), "exploration at the demonstrations' noise: {sigma:?}");
-    for (a, b) in imitated.iter().zip(&act[..2 * ACT_DIM]) {
-        assert!((a - b).abs() < 0.15, "imitated {imitated:?} against {:?}", &act[..2 * ACT_DIM]);
+    for (a, b) in imitated.iter().zip(&labels) {
+        assert!((a - b).abs() < 0.15, "imitated {imitated:?} against {labels:?}");
     }
     // Without any reinforcement learning the imitation already solves the task.
     let mut env = Toy::new(16, 4);
@@ -161,8 +172,24 @@ fn a_warm_start_imitates_and_then_only_the_critic_learns_for_its_warmup() {
     assert!(env.recent_return(16) > THRESHOLD, "the imitation drives x to 0: {}", env.recent_return(16));
     ppo.learn_rollout(&mut env).expect("rollout");
     assert_ne!(probe(&ppo), imitated, "after the warm-up the policy learns");
-    let bad = ppo.imitate(&obs[..OBS_DIM], &act, 1, 0.1);
-    assert!(bad.is_err(), "observations and actions must pair up");
+}
+
+#[test]
+fn the_imitation_term_keeps_fitting_the_demonstrations() {
+    // With the term on, the warm-up rollouts go on fitting the demonstrations (the policy
+    // moves, but stays on them), and the updates after it stay near them too.
+    let (mut ppo, probe, labels) = warm_toy(10.0);
+    let imitated = probe(&ppo);
+    let mut env = Toy::new(16, 4);
+    ppo.learn_rollout(&mut env).expect("rollout");
+    assert_ne!(probe(&ppo), imitated, "the imitation term trains the policy during the warm-up");
+    for _ in 0..4 {
+        ppo.learn_rollout(&mut env).expect("rollout");
+    }
+    let now = probe(&ppo);
+    for (a, b) in now.iter().zip(&labels) {
+        assert!((a - b).abs() < 0.15, "held near the demonstrations: {now:?} against {labels:?}");
+    }
 }
 
 #[test]

@@ -75,7 +75,14 @@ pub fn train_variant(
     let reward = variant.training_reward(plan.risk_shaping);
     let mut learner = Learner::new(plan.algo, &PpoConfig::default(), &SacConfig::default(), plan.n_envs, seed)?;
     let demo_steps = if plan.warm_start {
-        warm_start(&mut learner, &source, reward, plan.n_envs, Rng::derive(seed, 0xDE30).next_u64())?.env_steps
+        let warm = warm_start(&mut learner, &source, reward, plan.n_envs, Rng::derive(seed, 0xDE30).next_u64())?;
+        tracing::info!(
+            "{variant} seed {seed}: warm start from {} of {} demonstrated episodes, imitation error {:.4}",
+            warm.kept,
+            warm.episodes,
+            warm.mse
+        );
+        warm.env_steps
     } else {
         0
     };

@@ -43,8 +43,9 @@ pub struct PpoConfig {
     pub recurrent: bool,
     /// Initial log σ of the Gaussian policy.
     pub init_log_std: f32,
-    /// Rollouts after a warm start ([`Ppo::imitate`]) that train the critic only: a random
-    /// critic's advantages would otherwise undo the imitated policy in the first updates.
+    /// Rollouts after a warm start ([`Ppo::imitate`]) with the PPO objective off (the critic
+    /// learns, and the imitation term below if it is on): a random critic's advantages would
+    /// otherwise undo the imitated policy in the first updates.
     pub critic_warmup: usize,
     /// After a warm start, the weight of an imitation term added to every update's loss: the
     /// mean squared error of the policy's mean to the demonstrated actions on a random
@@ -291,8 +292,8 @@ impl Ppo {
     /// minibatches with its own optimiser, and sets the exploration noise σ to `noise_std`
     /// (the demonstrations' own: the imitation knows the states that noise leads to, and
     /// PPO's initial σ ≈ 0.3 would wreck it before it learns anything). The next
-    /// `critic_warmup` rollouts then train the critic only. Returns the mean squared error of
-    /// the last epoch.
+    /// `critic_warmup` rollouts then run with the PPO objective off. Returns the mean squared
+    /// error of the last epoch.
     pub fn imitate(&mut self, obs: &[f32], actions: &[f32], epochs: usize, noise_std: f32) -> Result<f32, LearnError> {
         let Some(mean) = self.policy.mean_mlp() else {
             return Err(LearnError::BadConfig("a warm start needs the feed-forward PPO policy".into()));
@@ -313,10 +314,7 @@ impl Ppo {
             let perm = self.permutation(n);
             let (mut sum, mut batches) = (0.0f32, 0usize);
             for rows in perm.chunks(mb) {
-                let x: Vec<f32> = rows.iter().flat_map(|&k| obs[k * OBS_DIM..(k + 1) * OBS_DIM].to_vec()).collect();
-                let y: Vec<f32> = rows.iter().flat_map(|&k| actions[k * ACT_DIM..(k + 1) * ACT_DIM].to_vec()).collect();
-                let pred = mean.forward(&matrix(&x, rows.len(), OBS_DIM)?)?;
-                let loss = (pred - matrix(&y, rows.len(), ACT_DIM)?)?.sqr()?.mean_all()?;
+                let loss = imitation_mse(&mean, obs, actions, rows)?;
                 opt.minimise(&loss)?;
                 sum += loss.to_scalar::<f32>()?;
                 batches += 1;
@@ -495,14 +493,8 @@ impl Ppo {
             return Ok(None);
         }
         let n = (im.actions.len() / ACT_DIM) as u64;
-        let (mut x, mut y) = (Vec::with_capacity(m * OBS_DIM), Vec::with_capacity(m * ACT_DIM));
-        for _ in 0..m {
-            let k = self.rng.below(n) as usize;
-            x.extend_from_slice(&im.obs[k * OBS_DIM..(k + 1) * OBS_DIM]);
-            y.extend_from_slice(&im.actions[k * ACT_DIM..(k + 1) * ACT_DIM]);
-        }
-        let pred = mean.forward(&matrix(&x, m, OBS_DIM)?)?;
-        Ok(Some(((pred - matrix(&y, m, ACT_DIM)?)?.sqr()?.mean_all()? * im.weight)?))
+        let rows: Vec<usize> = (0..m).map(|_| self.rng.below(n) as usize).collect();
+        Ok(Some((imitation_mse(mean, &im.obs, &im.actions, &rows)? * im.weight)?))
     }
 
     /// Minibatches are groups of environments; the GRU is unrolled over the whole rollout from
@@ -537,4 +529,14 @@ impl Ppo {
         }
         Ok(stats)
     }
+}
+
+/// Mean squared error of `mean`'s output to the demonstrated actions on `rows` of the
+/// demonstrations (`obs` n × OBS_DIM, `actions` n × ACT_DIM): the warm start's fit and the
+/// imitation term of the updates after it.
+fn imitation_mse(mean: &Mlp, obs: &[f32], actions: &[f32], rows: &[usize]) -> candle_core::Result<Tensor> {
+    let x: Vec<f32> = rows.iter().flat_map(|&k| obs[k * OBS_DIM..(k + 1) * OBS_DIM].iter().copied()).collect();
+    let y: Vec<f32> = rows.iter().flat_map(|&k| actions[k * ACT_DIM..(k + 1) * ACT_DIM].iter().copied()).collect();
+    let pred = mean.forward(&matrix(&x, rows.len(), OBS_DIM)?)?;
+    (pred - matrix(&y, rows.len(), ACT_DIM)?)?.sqr()?.mean_all()
 }

@@ -35,6 +35,14 @@ pub fn gae(
     }
 }
 
+/// Standardises advantages in place (mean 0, std 1; constant ones become 0).
+pub fn standardise(x: &mut [f32]) {
+    let m = x.len().max(1) as f32;
+    let mu = x.iter().sum::<f32>() / m;
+    let sd = (x.iter().map(|a| (a - mu) * (a - mu)).sum::<f32>() / m).sqrt();
+    x.iter_mut().for_each(|a| *a = (*a - mu) / (sd + 1e-8));
+}
+
 /// Scales rewards by the running standard deviation of the discounted return (as in
 /// VecNormalize), so the loss scale does not depend on the reward weights; deterministic.
 #[derive(Debug, Clone)]

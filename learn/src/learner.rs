@@ -43,6 +43,14 @@ impl Learner {
         }
     }
 
+    /// The Lagrange multiplier λ of a constrained PPO learner.
+    pub fn lagrange_multiplier(&self) -> Option<f64> {
+        match self {
+            Learner::Ppo(p) => p.lagrange_multiplier(),
+            Learner::Sac(_) => None,
+        }
+    }
+
     /// PPO's time per phase (zero for SAC, which does not split it).
     pub fn timings(&self) -> PpoTimings {
         match self {

@@ -8,7 +8,8 @@
 //! machine and thread count.
 //!
 //! - [`nn`], [`gru`]: networks; [`policy`]: the policy, saved/loaded as safetensors.
-//! - [`gae`]: advantage estimation and reward scaling; [`ppo`], [`sac`]: the learners.
+//! - [`gae`]: advantage estimation and reward scaling; [`ppo`], [`sac`]: the learners;
+//!   [`lagrange`]: PPO's cost constraint (PPO-Lagrangian).
 //! - [`train`]: the training driver behind `risktwin train` (curves, evaluation, report).
 
 pub mod activation;
@@ -19,6 +20,7 @@ pub mod envs;
 pub mod gae;
 pub mod gru;
 pub mod host;
+pub mod lagrange;
 pub mod learner;
 pub mod nn;
 mod optim;

@@ -7,8 +7,9 @@
 
 use crate::LearnError;
 use crate::envs::Environment;
-use crate::gae::{ReturnScaler, gae};
+use crate::gae::{ReturnScaler, gae, standardise};
 use crate::host::{HostMlp, Scratch, snapshot};
+use crate::lagrange::{CostConstraint, CostSide};
 use crate::nn::{HALF_LN_TAU, Mlp, matrix, normals, vars};
 use crate::optim::Adam;
 use crate::policy::{Algo, PolicyNet, gaussian_log_prob};
@@ -55,6 +56,9 @@ pub struct PpoConfig {
     /// per rollout. 0: none.
     pub imitation_coef: f64,
     pub imitation_decay: f64,
+    /// PPO-Lagrangian ([`crate::lagrange`]): a limit on the share of training episodes that end
+    /// in a collision or off the road (feed-forward only). `None`: unconstrained.
+    pub constraint: Option<CostConstraint>,
 }
 
 impl Default for PpoConfig {
@@ -76,6 +80,7 @@ impl Default for PpoConfig {
             critic_warmup: 8,
             imitation_coef: 10.0,
             imitation_decay: 0.97,
+            constraint: None,
         }
     }
 }
@@ -135,6 +140,8 @@ pub struct Ppo {
     frozen_rollouts: usize,
     /// A warm start's demonstrations and the imitation term's current weight.
     imitation: Option<Imitation>,
+    /// The cost critic and λ of a constrained learner.
+    cost: Option<CostSide>,
 }
 
 /// Demonstrations kept for the imitation term ([`PpoConfig::imitation_coef`]).
@@ -169,10 +176,18 @@ impl Ppo {
         sizes.extend_from_slice(if cfg.recurrent { &cfg.hidden[1..] } else { &cfg.hidden });
         sizes.push(1);
         let critic = Mlp::new("critic", &sizes, 1.0, &mut rng)?;
+        let n = cfg.n_steps * n_envs;
+        let cost = match cfg.constraint {
+            Some(_) if cfg.recurrent => {
+                return Err(LearnError::BadConfig("a cost constraint needs the feed-forward PPO policy".into()));
+            }
+            Some(c) => Some(CostSide::new(c, &sizes, n, n_envs, &mut rng)?),
+            None => None,
+        };
         let mut all = vars(policy.params());
         all.extend(vars(critic.params()));
+        all.extend(cost.iter().flat_map(|c| vars(c.critic.params())));
         let opt = Adam::new(all, cfg.lr, cfg.max_grad_norm)?;
-        let n = cfg.n_steps * n_envs;
         let (host_actor, host_critic) = match policy.mean_mlp() {
             Some(mean) if !cfg.recurrent => (snapshot(mean)?, snapshot(&critic)?),
             _ => (HostMlp::default(), HostMlp::default()),
@@ -191,6 +206,7 @@ impl Ppo {
             timings: PpoTimings::default(),
             frozen_rollouts: 0,
             imitation: None,
+            cost,
             scaler: ReturnScaler::new(n_envs, f64::from(cfg.gamma)),
             policy,
             critic,
@@ -216,6 +232,11 @@ impl Ppo {
     /// The current policy.
     pub fn policy(&self) -> &PolicyNet {
         &self.policy
+    }
+
+    /// The Lagrange multiplier λ of a constrained learner.
+    pub fn lagrange_multiplier(&self) -> Option<f64> {
+        self.cost.as_ref().map(|c| c.lambda)
     }
 
     /// Environment steps per rollout.
@@ -284,6 +305,9 @@ impl Ppo {
             self.host_critic = snapshot(&self.critic)?;
         }
         self.log_std = self.policy.log_std()?.expect("PPO policies have a state-independent log σ");
+        if let Some(cost) = &mut self.cost {
+            cost.refresh_host()?;
+        }
         Ok(())
     }
 
@@ -347,6 +371,11 @@ impl Ppo {
             let rows = t * n..(t + 1) * n;
             self.obs[rows.start * OBS_DIM..rows.end * OBS_DIM].copy_from_slice(env.obs());
             self.act_batch(env.obs())?;
+            if let Some(cost) = &mut self.cost {
+                for (i, o) in env.obs().chunks_exact(OBS_DIM).enumerate() {
+                    cost.values[t * n + i] = cost.value(o, &mut self.scratch);
+                }
+            }
             normals(&mut self.rng, n * ACT_DIM, &mut self.noise);
             for i in 0..n {
                 let k = t * n + i;
@@ -375,6 +404,12 @@ impl Ppo {
                     let v = self.bootstrap_value(&env.final_obs()[i * OBS_DIM..(i + 1) * OBS_DIM], i)?;
                     self.rewards[k] += self.cfg.gamma * v;
                 }
+                if let Some(cost) = &mut self.cost {
+                    let final_obs = &env.final_obs()[i * OBS_DIM..(i + 1) * OBS_DIM];
+                    let cut =
+                        (env.truncated()[i] != 0).then(|| self.cfg.gamma * cost.value(final_obs, &mut self.scratch));
+                    cost.record(k, env.terminated()[i] != 0, self.done_row[i] != 0, cut);
+                }
                 if self.done_row[i] != 0 {
                     self.state[i * sd..(i + 1) * sd].fill(0.0);
                 }
@@ -395,6 +430,20 @@ impl Ppo {
             &mut self.advantages,
             &mut self.returns,
         );
+        if let Some(cost) = &mut self.cost {
+            gae(
+                &cost.costs,
+                &cost.values,
+                &self.done,
+                &cost.last_value,
+                n,
+                self.cfg.gamma,
+                self.cfg.lambda,
+                &mut cost.advantages,
+                &mut cost.returns,
+            );
+            cost.update_lambda();
+        }
         let stats = if self.cfg.recurrent { self.update_recurrent() } else { self.update_flat() }?;
         self.frozen_rollouts = self.frozen_rollouts.saturating_sub(1);
         if let Some(im) = &mut self.imitation {
@@ -408,8 +457,11 @@ impl Ppo {
     /// V(s_T) of the observations after the rollout into `self.last_value` (state not advanced).
     fn act_batch_values_only(&mut self, obs: &[f32]) -> Result<(), LearnError> {
         if self.policy.gru().is_none() {
-            for (o, v) in obs.chunks_exact(OBS_DIM).zip(self.last_value.iter_mut()) {
+            for (i, (o, v)) in obs.chunks_exact(OBS_DIM).zip(self.last_value.iter_mut()).enumerate() {
                 self.host_critic.forward(o, &mut self.scratch, std::slice::from_mut(v));
+                if let Some(cost) = &mut self.cost {
+                    cost.last_value[i] = cost.value(o, &mut self.scratch);
+                }
             }
             return Ok(());
         }
@@ -427,9 +479,14 @@ impl Ppo {
         let actions = matrix(&gather(&self.actions, ACT_DIM), m, ACT_DIM)?;
         let logp_old = matrix(&gather(&self.logp, 1), m, 1)?;
         let mut adv = gather(&self.advantages, 1);
-        let mu = adv.iter().sum::<f32>() / m as f32;
-        let sd = (adv.iter().map(|a| (a - mu) * (a - mu)).sum::<f32>() / m as f32).sqrt();
-        adv.iter_mut().for_each(|a| *a = (*a - mu) / (sd + 1e-8));
+        standardise(&mut adv);
+        if let Some(cost) = &self.cost {
+            // (Â_r − λ·Â_c)/(1 + λ): both standardised, so λ = 1 weighs them equally.
+            let mut cost_adv = gather(&cost.advantages, 1);
+            standardise(&mut cost_adv);
+            let lambda = cost.lambda as f32;
+            adv.iter_mut().zip(&cost_adv).for_each(|(a, c)| *a = (*a - lambda * c) / (1.0 + lambda));
+        }
         let adv = matrix(&adv, m, 1)?;
         let ret = matrix(&gather(&self.returns, 1), m, 1)?;
         let (mean, log_std) = self.policy.head(features)?;
@@ -441,7 +498,11 @@ impl Ppo {
         let surr = (&ratio * &adv)?.minimum(&(clipped * &adv)?)?;
         let policy_loss = (surr.mean_all()?.neg()? * if self.frozen_rollouts > 0 { 0.0 } else { 1.0 })?;
         let value = self.critic.forward(features)?;
-        let value_loss = (value - ret)?.sqr()?.mean_all()?;
+        let mut value_loss = (value - ret)?.sqr()?.mean_all()?;
+        if let Some(cost) = &self.cost {
+            let cost_ret = matrix(&gather(&cost.returns, 1), m, 1)?;
+            value_loss = (value_loss + (cost.critic.forward(features)? - cost_ret)?.sqr()?.mean_all()?)?;
+        }
         let entropy = (log_std + (0.5 + f64::from(HALF_LN_TAU)))?.sum_keepdim(D::Minus1)?.mean_all()?;
         let loss = ((&policy_loss + (&value_loss * self.cfg.vf_coef)?)? - (&entropy * self.cfg.ent_coef)?)?;
         let approx_kl = ((ratio - 1.0)? - log_ratio)?.mean_all()?.to_scalar::<f32>()?;

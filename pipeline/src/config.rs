@@ -12,6 +12,7 @@
 use risktwin_cloud::trainer::TrainingPlan;
 use risktwin_common::env::{DEFAULT_REPLAY_SHARE, RiskShaping};
 use risktwin_learn::Algo;
+use risktwin_learn::lagrange::CostConstraint;
 use serde::{Deserialize, Serialize};
 
 /// The knobs of a run; a `--config` JSON file may set any of those it serialises.
@@ -69,6 +70,7 @@ impl Default for RunConfig {
                 mutation_radius: 0.1,
                 risk_shaping: RiskShaping::default(),
                 warm_start: false,
+                cost_limit: None,
                 threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             },
         }
@@ -146,6 +148,9 @@ impl RunConfig {
         if let Err(message) = t.risk_shaping.validate() {
             return bad(message);
         }
+        if let Some(Err(message)) = t.cost_limit.map(|limit| CostConstraint::new(limit).validate()) {
+            return bad(message);
+        }
         if t.mutations > 100_000 {
             return bad(format!("failure_mutations {} is too large (≤ 100000)", t.mutations));
         }
@@ -180,6 +185,7 @@ struct ConfigFile {
     replay_share: f64,
     risk_shaping: RiskShaping,
     warm_start: bool,
+    cost_limit: Option<f64>,
     failure_mutations: usize,
     eval_per_kind: usize,
     push_scenarios: usize,
@@ -211,6 +217,7 @@ impl From<RunConfig> for ConfigFile {
             replay_share: t.replay_share,
             risk_shaping: t.risk_shaping,
             warm_start: t.warm_start,
+            cost_limit: t.cost_limit,
             failure_mutations: t.mutations,
             eval_per_kind: c.eval_per_kind,
             push_scenarios: c.push_scenarios,
@@ -240,6 +247,7 @@ impl From<ConfigFile> for RunConfig {
                 replay_share: f.replay_share,
                 risk_shaping: f.risk_shaping,
                 warm_start: f.warm_start,
+                cost_limit: f.cost_limit,
                 mutations: f.failure_mutations,
                 mutation_radius: f.mutation_radius,
                 ..default.training

@@ -79,3 +79,14 @@ fn a_warm_start_with_another_learner_than_ppo_is_refused_before_any_output() {
     assert_input_error(dir.path(), &args, "warm_start needs --algo ppo");
     assert!(!dir.path().join("out").exists(), "a refused run created its report folder");
 }
+
+#[test]
+fn a_cost_limit_outside_a_share_or_with_another_learner_than_ppo_is_refused() {
+    let dir = tempdir().unwrap();
+    write_file(dir.path(), "share.json", r#"{"cost_limit": 1.5}"#);
+    assert_input_error(dir.path(), &["run", "--config", "share.json", "--out", "out"], "cost_limit 1.5");
+    write_file(dir.path(), "c.json", r#"{"cost_limit": 0.1}"#);
+    let args = ["run", "--config", "c.json", "--algo", "ppo-gru", "--out", "out"];
+    assert_input_error(dir.path(), &args, "cost_limit needs --algo ppo");
+    assert!(!dir.path().join("out").exists(), "a refused run created its report folder");
+}

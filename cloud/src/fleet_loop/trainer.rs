@@ -59,6 +59,7 @@ impl TrainerConfig {
             mutation_radius: 0.1,
             risk_shaping: RiskShaping::default(),
             warm_start: false,
+            cost_limit: None,
             threads: 1,
         }
     }

@@ -3,6 +3,7 @@
 
 use crate::library::LibraryError;
 use risktwin_common::env::RiskShaping;
+use risktwin_learn::lagrange::CostConstraint;
 use risktwin_learn::{Algo, LearnError};
 
 /// Why training or evaluation failed.
@@ -54,6 +55,9 @@ pub struct TrainingPlan {
     /// Start PPO from an imitation of the reference driver's clean drives
     /// (`risktwin_learn::warm`); their environment steps count against `steps`.
     pub warm_start: bool,
+    /// PPO-Lagrangian (`risktwin_learn::lagrange`): the share of training episodes that may
+    /// end in a collision or off the road; `None` trains unconstrained.
+    pub cost_limit: Option<f64>,
     /// Worker threads for evaluation episodes.
     pub threads: usize,
 }
@@ -79,6 +83,12 @@ impl TrainingPlan {
         self.risk_shaping.validate().map_err(TrainerError::BadPlan)?;
         if self.warm_start && self.algo != Algo::Ppo {
             return Err(TrainerError::BadPlan(format!("a warm start needs PPO, not {}", self.algo.name())));
+        }
+        if let Some(limit) = self.cost_limit {
+            if self.algo != Algo::Ppo {
+                return Err(TrainerError::BadPlan(format!("a cost limit needs PPO, not {}", self.algo.name())));
+            }
+            CostConstraint::new(limit).validate().map_err(TrainerError::BadPlan)?;
         }
         if self.replay_top + self.background == 0 {
             return Err(TrainerError::BadPlan("replay_top + background must be positive".into()));

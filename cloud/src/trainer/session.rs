@@ -11,6 +11,7 @@ use risktwin_common::env::{ScenarioSource, Variant, VecEnv};
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::rng::Rng;
 use risktwin_learn::PolicyNet;
+use risktwin_learn::lagrange::CostConstraint;
 use risktwin_learn::learner::Learner;
 use risktwin_learn::ppo::PpoConfig;
 use risktwin_learn::sac::SacConfig;
@@ -73,7 +74,8 @@ pub fn train_variant(
         }
     };
     let reward = variant.training_reward(plan.risk_shaping);
-    let mut learner = Learner::new(plan.algo, &PpoConfig::default(), &SacConfig::default(), plan.n_envs, seed)?;
+    let ppo = PpoConfig { constraint: plan.cost_limit.map(CostConstraint::new), ..PpoConfig::default() };
+    let mut learner = Learner::new(plan.algo, &ppo, &SacConfig::default(), plan.n_envs, seed)?;
     let demo_steps = if plan.warm_start {
         let warm = warm_start(&mut learner, &source, reward, plan.n_envs, Rng::derive(seed, 0xDE30).next_u64())?;
         tracing::info!(
@@ -106,6 +108,9 @@ pub fn train_variant(
                 if !acc.is_empty() {
                     curve.push(curve_point(done, &acc));
                     acc.clear();
+                }
+                if let Some(lambda) = learner.lagrange_multiplier() {
+                    tracing::info!("{variant} seed {seed}: {done} steps, Lagrange multiplier {lambda:.3}");
                 }
             }
             progress(done.min(plan.steps), plan.steps);

@@ -25,6 +25,7 @@ fn plan() -> TrainingPlan {
         mutation_radius: 0.1,
         risk_shaping: RiskShaping::default(),
         warm_start: false,
+        cost_limit: None,
         threads: 2,
     }
 }
@@ -129,4 +130,19 @@ fn a_warm_start_counts_its_demonstration_steps_and_needs_ppo() {
     let sac = TrainingPlan { algo: Algo::Sac, ..plan };
     let err = train_variant(&sac, Variant::Base, 1, &mut lib, &held, &mut |_, _| {}).unwrap_err();
     assert!(err.to_string().contains("warm start needs PPO"), "{err}");
+}
+
+#[test]
+fn a_cost_limit_trains_with_a_multiplier_and_needs_ppo() {
+    let (_dir, mut lib) = library(10);
+    let held = HeldOut::new(10, 1);
+    let plan = TrainingPlan { cost_limit: Some(0.0), ..plan() };
+    let run = train_variant(&plan, Variant::Base, 1, &mut lib, &held, &mut |_, _| {}).unwrap();
+    assert_eq!(run.env_steps, plan.steps);
+    let sac = TrainingPlan { algo: Algo::Sac, ..plan.clone() };
+    let err = train_variant(&sac, Variant::Base, 1, &mut lib, &held, &mut |_, _| {}).unwrap_err();
+    assert!(err.to_string().contains("cost limit needs PPO"), "{err}");
+    let wide = TrainingPlan { cost_limit: Some(-0.5), ..plan };
+    let err = train_variant(&wide, Variant::Base, 1, &mut lib, &held, &mut |_, _| {}).unwrap_err();
+    assert!(err.to_string().contains("cost_limit -0.5"), "{err}");
 }

@@ -69,6 +69,11 @@ pub fn run(args: RunArgs) -> CliResult {
             "warm_start needs --algo ppo (it imitates with the feed-forward policy), not {algo}"
         )));
     }
+    if config.training.cost_limit.is_some() && algo != Algo::Ppo {
+        return Err(CliError::input(format!(
+            "cost_limit needs --algo ppo (PPO-Lagrangian with the feed-forward policy), not {algo}"
+        )));
+    }
     config.training.threads = worker_threads();
     let request = RunRequest { config, seed: args.seed, out_dir: args.out.clone().unwrap_or_else(default_out_dir) };
     // Nothing fires it: Ctrl-C ends the process, as it always has for `run`.

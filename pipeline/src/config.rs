@@ -9,7 +9,7 @@
 //! differ from the plan's field names. `algo` and `threads` are not in the file: the caller sets
 //! them (`--algo`, the machine's cores).
 
-use risktwin_cloud::trainer::TrainingPlan;
+use risktwin_cloud::trainer::{ReplayRule, TrainingPlan};
 use risktwin_common::env::{DEFAULT_REPLAY_SHARE, RiskShaping};
 use risktwin_learn::Algo;
 use risktwin_learn::lagrange::CostConstraint;
@@ -71,6 +71,7 @@ impl Default for RunConfig {
                 risk_shaping: RiskShaping::default(),
                 warm_start: false,
                 cost_limit: None,
+                replay_rule: ReplayRule::default(),
                 threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             },
         }
@@ -186,6 +187,7 @@ struct ConfigFile {
     risk_shaping: RiskShaping,
     warm_start: bool,
     cost_limit: Option<f64>,
+    replay_rule: ReplayRule,
     failure_mutations: usize,
     eval_per_kind: usize,
     push_scenarios: usize,
@@ -218,6 +220,7 @@ impl From<RunConfig> for ConfigFile {
             risk_shaping: t.risk_shaping,
             warm_start: t.warm_start,
             cost_limit: t.cost_limit,
+            replay_rule: t.replay_rule,
             failure_mutations: t.mutations,
             eval_per_kind: c.eval_per_kind,
             push_scenarios: c.push_scenarios,
@@ -248,6 +251,7 @@ impl From<ConfigFile> for RunConfig {
                 risk_shaping: f.risk_shaping,
                 warm_start: f.warm_start,
                 cost_limit: f.cost_limit,
+                replay_rule: f.replay_rule,
                 mutations: f.failure_mutations,
                 mutation_radius: f.mutation_radius,
                 ..default.training

@@ -150,7 +150,10 @@ fn ablation_section(s: &mut String, m: &RunMetrics) {
                     r.failures,
                     r.children,
                     r.child_failures,
-                    r.training_set,
+                    match r.frontier {
+                        Some(f) => format!("{} ({f} on the frontier)", r.training_set),
+                        None => r.training_set.to_string(),
+                    },
                     r.policy_mean_risk
                 );
             }

@@ -90,3 +90,14 @@ fn a_cost_limit_outside_a_share_or_with_another_learner_than_ppo_is_refused() {
     assert_input_error(dir.path(), &args, "cost_limit needs --algo ppo");
     assert!(!dir.path().join("out").exists(), "a refused run created its report folder");
 }
+
+#[test]
+fn the_frontier_replay_rule_with_sac_or_an_unknown_rule_is_refused() {
+    let dir = tempdir().unwrap();
+    write_file(dir.path(), "c.json", r#"{"replay_rule": "frontier"}"#);
+    let args = ["run", "--config", "c.json", "--algo", "sac", "--out", "out"];
+    assert_input_error(dir.path(), &args, "needs --algo ppo or ppo-gru");
+    write_file(dir.path(), "u.json", r#"{"replay_rule": "hardest"}"#);
+    assert_input_error(dir.path(), &["run", "--config", "u.json", "--out", "out"], "u.json");
+    assert!(!dir.path().join("out").exists(), "a refused run created its report folder");
+}

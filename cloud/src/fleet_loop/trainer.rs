@@ -10,7 +10,7 @@
 
 use crate::library::{PolicyVersion, ScenarioLibrary};
 use crate::trainer::gate::{Decision, Driver, GateReport, gate};
-use crate::trainer::{HeldOut, TrainerError, TrainingPlan, train_variant};
+use crate::trainer::{HeldOut, ReplayRule, TrainerError, TrainingPlan, train_variant};
 use risktwin_common::env::{RiskShaping, Variant};
 use risktwin_learn::{Algo, PolicyNet};
 use std::path::Path;
@@ -60,6 +60,7 @@ impl TrainerConfig {
             risk_shaping: RiskShaping::default(),
             warm_start: false,
             cost_limit: None,
+            replay_rule: ReplayRule::default(),
             threads: 1,
         }
     }

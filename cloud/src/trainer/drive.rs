@@ -4,6 +4,7 @@
 use crate::generate::parallel_map;
 use risktwin_common::env::Variant;
 use risktwin_common::episode::EpisodeResult;
+use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_common::world::{StepReport, World};
 use risktwin_learn::PolicyNet;
@@ -22,4 +23,31 @@ pub fn drive_all(policy: &PolicyNet, specs: &[ScenarioSpec], threads: usize) -> 
 /// weights, calling `observe` after every step (for recordings).
 pub fn drive(policy: &PolicyNet, world: &mut World, observe: &mut dyn FnMut(&World, &StepReport)) -> EpisodeResult {
     risktwin_learn::drive::drive(policy, world, &EVAL_VARIANT.weights(), observe)
+}
+
+/// Per spec, the share of `drives` drives with the policy's exploration noise that reach the
+/// goal (success: no collision, on the road, route completed in time); the noise of spec `i`'s
+/// drive `k` comes from stream `i · drives + k` of `seed`, so the shares do not depend on
+/// `threads`. `None` for a policy without a state-independent σ (SAC).
+pub fn success_shares(
+    policy: &PolicyNet,
+    specs: &[ScenarioSpec],
+    drives: usize,
+    seed: u64,
+    threads: usize,
+) -> Option<Vec<f64>> {
+    policy.log_std().ok()??;
+    let indexed: Vec<(usize, &ScenarioSpec)> = specs.iter().enumerate().collect();
+    let weights = EVAL_VARIANT.weights();
+    let shares = parallel_map(&indexed, threads, |&(i, spec)| {
+        let wins = (0..drives)
+            .filter(|&k| {
+                let mut rng = Rng::derive(seed, (i * drives + k) as u64);
+                risktwin_learn::drive::drive_sampled(policy, &mut build(spec), &weights, &mut rng)
+                    .is_some_and(|r| r.metrics.success)
+            })
+            .count();
+        wins as f64 / drives.max(1) as f64
+    });
+    Some(shares)
 }

@@ -4,7 +4,8 @@
 //! - [`session`]: one training run (PPO or SAC from `risktwin-learn`) of a variant and a seed, in
 //!   phases, with training curves.
 //! - [`curriculum`]: how `full` draws its training scenarios from the library (risk-ranked
-//!   replay, mutation around the policy's failures, refreshed after every phase); `base` and
+//!   replay, mutation around the policy's failures, refreshed after every phase; or the
+//!   frontier of what the policy sometimes completes); `base`, `ttc` and
 //!   `risk-only` sample the five kinds uniformly.
 //! - [`held_out`]: the evaluation set, disjoint from everything trained on.
 //! - [`ablation`]: variants × seeds → per-variant, per-kind metrics with their spread over seeds.
@@ -30,6 +31,6 @@ pub use ablation::{
 };
 pub use floor::{FloorCase, FloorEvaluation, evaluate_floor};
 pub use held_out::HeldOut;
-pub use plan::{TrainerError, TrainingPlan};
+pub use plan::{ReplayRule, TrainerError, TrainingPlan};
 pub use session::{CurvePoint, TrainedPolicy, train_variant};
 pub use stats::{EvalMetrics, EvalSpread, Spread};

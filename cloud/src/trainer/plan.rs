@@ -5,6 +5,7 @@ use crate::library::LibraryError;
 use risktwin_common::env::RiskShaping;
 use risktwin_learn::lagrange::CostConstraint;
 use risktwin_learn::{Algo, LearnError};
+use serde::{Deserialize, Serialize};
 
 /// Why training or evaluation failed.
 #[derive(Debug, thiserror::Error)]
@@ -25,6 +26,21 @@ pub enum TrainerError {
     Io(String),
     #[error("the training run ended without a result (it panicked)")]
     Lost,
+}
+
+/// How `full`'s replay list is chosen after each training phase (docs/method.md §7,
+/// "Variants").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ReplayRule {
+    /// The policy's riskiest scenarios and its failures, with children of the failures.
+    #[default]
+    RiskRanked,
+    /// The frontier: scenarios the policy completes in some but not all of a few drives with
+    /// its exploration noise, most uncertain first, with children of them (the learning
+    /// potential of prioritised level replay, Jiang et al. 2021, as a success-rate estimate).
+    /// Needs a policy with a state-independent σ (PPO).
+    Frontier,
 }
 
 /// How every training run of an ablation is done.
@@ -58,6 +74,8 @@ pub struct TrainingPlan {
     /// PPO-Lagrangian (`risktwin_learn::lagrange`): the share of training episodes that may
     /// end in a collision or off the road; `None` trains unconstrained.
     pub cost_limit: Option<f64>,
+    /// How `full`'s replay list is refreshed.
+    pub replay_rule: ReplayRule,
     /// Worker threads for evaluation episodes.
     pub threads: usize,
 }
@@ -89,6 +107,11 @@ impl TrainingPlan {
                 return Err(TrainerError::BadPlan(format!("a cost limit needs PPO, not {}", self.algo.name())));
             }
             CostConstraint::new(limit).validate().map_err(TrainerError::BadPlan)?;
+        }
+        if self.replay_rule == ReplayRule::Frontier && self.algo == Algo::Sac {
+            return Err(TrainerError::BadPlan(
+                "the frontier replay rule needs PPO (SAC's σ depends on the state)".into(),
+            ));
         }
         if self.replay_top + self.background == 0 {
             return Err(TrainerError::BadPlan("replay_top + background must be positive".into()));

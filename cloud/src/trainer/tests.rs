@@ -26,6 +26,7 @@ fn plan() -> TrainingPlan {
         risk_shaping: RiskShaping::default(),
         warm_start: false,
         cost_limit: None,
+        replay_rule: ReplayRule::default(),
         threads: 2,
     }
 }
@@ -145,4 +146,37 @@ fn a_cost_limit_trains_with_a_multiplier_and_needs_ppo() {
     let wide = TrainingPlan { cost_limit: Some(-0.5), ..plan };
     let err = train_variant(&wide, Variant::Base, 1, &mut lib, &held, &mut |_, _| {}).unwrap_err();
     assert!(err.to_string().contains("cost_limit -0.5"), "{err}");
+}
+
+#[test]
+fn the_frontier_is_what_the_policy_sometimes_completes_most_uncertain_first() {
+    let shares = [0.0, 0.75, 1.0, 0.5, 0.25, 0.25];
+    let risks = [9.0, 0.1, 9.0, 0.2, 0.3, 0.3];
+    let ids: Vec<String> = ["f", "e", "d", "c", "b", "a"].map(String::from).into();
+    assert_eq!(curriculum::frontier_order(&shares, &risks, &ids, 10), vec![3, 5, 4, 1]);
+    assert_eq!(curriculum::frontier_order(&shares, &risks, &ids, 2), vec![3, 5]);
+}
+
+#[test]
+fn noisy_success_shares_are_reproducible_whatever_the_thread_count() {
+    let specs: Vec<_> = generate(&ScenarioKind::ALL, 1, 12, 2).evaluated.into_iter().map(|e| e.spec).collect();
+    let policy = PolicyNet::new(Algo::Ppo, &[8], &mut Rng::new(3)).unwrap();
+    let one = drive::success_shares(&policy, &specs, 2, 5, 1).expect("PPO has a σ");
+    assert_eq!(one.len(), specs.len());
+    assert_eq!(drive::success_shares(&policy, &specs, 2, 5, 2), Some(one));
+    let sac = PolicyNet::new(Algo::Sac, &[8], &mut Rng::new(3)).unwrap();
+    assert_eq!(drive::success_shares(&sac, &specs, 2, 5, 2), None);
+}
+
+#[test]
+fn full_trains_with_the_frontier_rule_and_sac_is_refused_it() {
+    let (_dir, mut lib) = library(11);
+    let held = HeldOut::new(11, 1);
+    let plan = TrainingPlan { replay_rule: ReplayRule::Frontier, ..plan() };
+    let full = train_variant(&plan, Variant::Full, 1, &mut lib, &held, &mut |_, _| {}).unwrap();
+    assert_eq!(full.refreshes.len(), plan.phases as usize - 1);
+    assert!(full.refreshes.iter().all(|r| r.frontier.is_some()), "{:?}", full.refreshes);
+    let sac = TrainingPlan { algo: Algo::Sac, ..plan };
+    let err = train_variant(&sac, Variant::Full, 1, &mut lib, &held, &mut |_, _| {}).unwrap_err();
+    assert!(err.to_string().contains("frontier replay rule needs PPO"), "{err}");
 }

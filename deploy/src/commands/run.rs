@@ -7,7 +7,7 @@ use super::scenarios::worker_threads;
 use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
-use risktwin_cloud::trainer::Spread;
+use risktwin_cloud::trainer::{ReplayRule, Spread};
 use risktwin_learn::Algo;
 use risktwin_pipeline::{Progress, RunConfig, RunError, RunMetrics, RunRequest};
 use std::path::PathBuf;
@@ -73,6 +73,11 @@ pub fn run(args: RunArgs) -> CliResult {
         return Err(CliError::input(format!(
             "cost_limit needs --algo ppo (PPO-Lagrangian with the feed-forward policy), not {algo}"
         )));
+    }
+    if config.training.replay_rule == ReplayRule::Frontier && algo == Algo::Sac {
+        return Err(CliError::input(
+            "replay_rule \"frontier\" needs --algo ppo or ppo-gru (it samples with PPO's σ), not sac",
+        ));
     }
     config.training.threads = worker_threads();
     let request = RunRequest { config, seed: args.seed, out_dir: args.out.clone().unwrap_or_else(default_out_dir) };

@@ -80,7 +80,7 @@ impl Deployment {
         report
     }
 
-    /// Namespaces, veths and processes of this deployment still there.
+    /// Namespaces, veths, processes and the state folder of this deployment still there.
     fn leftovers(&self) -> Vec<String> {
         let tag = self.tag();
         let mut left: Vec<String> = ip(&["netns", "list"])
@@ -97,6 +97,11 @@ impl Deployment {
                 .filter(|n| n.starts_with(&format!("rt{tag}"))),
         );
         left.extend(processes_under(self.dir.path()).into_iter().map(|p| format!("process {p}")));
+        // The supervisor's state folder (its lock, pid, output path) goes with it.
+        let state = std::env::temp_dir().join(format!("risktwin-deploy-{tag}"));
+        if state.exists() {
+            left.push(format!("state folder {}", state.display()));
+        }
         left
     }
 
@@ -481,9 +486,11 @@ fn a_sites_own_router_is_restarted_by_name_and_nothing_is_lost() {
 
 #[test]
 fn a_clock_step_moves_a_hosts_edge_clock_and_the_cloud_counts_what_it_refused() {
-    // At 4 s of a 10 s run: well after the vehicle started publishing, on a loaded machine too.
-    let stepped = THREE_HOSTS.replace("\"--count\", \"300\"", "\"--count\", \"500\"")
-        + "\n[[event]]\nat_s = 4\nclock_step = \"car-1\"\nby_ms = 2000\n";
+    // At 8 s of a 14 s run: well after the vehicle started publishing, on a loaded machine too,
+    // and after the cloud's estimate of its clock was fitted (4 s of samples): a warming one
+    // takes a run of future stamps at their receive times instead of refusing them.
+    let stepped = THREE_HOSTS.replace("\"--count\", \"300\"", "\"--count\", \"700\"")
+        + "\n[[event]]\nat_s = 8\nclock_step = \"car-1\"\nby_ms = 2000\n";
     let d = Deployment::new(&stepped);
     let report = d.run("60s");
     let timeline: Vec<&str> =
@@ -609,6 +616,30 @@ fn down_removes_everything_after_a_crash_and_again_after_that() {
     }
     let o = risktwin(&["deploy", "status", d.file()], LIMIT);
     assert_eq!(o.status.code(), Some(1), "nothing is up");
+}
+
+#[test]
+fn up_without_out_writes_into_a_folder_it_prints_and_down_names_its_report() {
+    let d = Deployment::new(THREE_HOSTS);
+    let o = risktwin(&["deploy", "up", d.file()], LIMIT);
+    assert!(o.status.success(), "deploy up: {}", String::from_utf8_lossy(&o.stderr));
+    let up: Value = serde_json::from_slice(&o.stdout).expect("the status");
+    /// The default output folder lies outside the test's temporary folder: removed however the test ends.
+    struct Remove(PathBuf);
+    impl Drop for Remove {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+    let out = Remove(PathBuf::from(up["out"].as_str().expect("the output folder")));
+    assert!(out.0.join("status.json").exists(), "{up}");
+    let o = risktwin(&["deploy", "down", d.file()], LIMIT);
+    assert!(o.status.success(), "deploy down: {}", String::from_utf8_lossy(&o.stderr));
+    let down: Value = serde_json::from_slice(&o.stdout).expect("down's answer");
+    let report = out.0.join("report.md");
+    assert_eq!(down["report"].as_str(), report.to_str(), "{down}");
+    assert!(report.exists() && down["was_up"] == true, "{down}");
+    assert_eq!(d.leftovers(), Vec::<String>::new());
 }
 
 #[test]

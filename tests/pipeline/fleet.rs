@@ -169,8 +169,9 @@ fn bad_ids_and_endpoints_are_refused_with_exit_2() {
 }
 
 /// Replay over the network: a live run's recording, republished unpaced by `edge replay` with
-/// the recorded receive times attached, into a cloud in `--replay-time` mode, yields the live
-/// cloud's snapshots (same count and digest) and counts.
+/// the recorded receive times attached, into a cloud in `--replay-time` mode (alone, or a
+/// sharded worker and its union), yields the live cloud's snapshots (same count and digest) and
+/// counts.
 #[test]
 fn edge_replay_into_a_second_cloud_rebuilds_the_live_snapshots() {
     let (router, locator) = start_router();
@@ -211,6 +212,29 @@ fn edge_replay_into_a_second_cloud_rebuilds_the_live_snapshots() {
     assert_eq!(replayed["received"], live["received"], "the replayed cloud sees what the live one accepted");
     assert_eq!(replayed["snapshots"], live["snapshots"], "live {live}\nreplayed {replayed}");
     assert_eq!(replayed["snapshot_digest"], live["snapshot_digest"], "replay rebuilds the live snapshots");
+
+    // The same through a sharded worker and a union: the worker forwards each message with its
+    // attachment, and the union ingests at the recorded times too.
+    let client = ["--connect", locator.as_str()];
+    let mut union = Proc::spawn(
+        "union",
+        &[&["cloud", "--roles", "union,twin", "--site", "track", "--replay-time"][..], &client].concat(),
+    );
+    union.wait_line(STEP, |l| l == "ready");
+    let mut worker = Proc::spawn(
+        "worker",
+        &[&["cloud", "--roles", "ingest", "--shard", "--site", "track", "--replay-time"][..], &client].concat(),
+    );
+    worker.wait_line(STEP, |l| l == "ready");
+    let mut replay = Proc::spawn("replay", &["edge", "replay", path, "--speed", "0", "--connect", &locator]);
+    replay.exit_json(STEP);
+    worker.terminate();
+    worker.exit_json(STEP);
+    union.terminate();
+    let unioned = union.exit_json(STEP);
+    assert_eq!(unioned["total_dropped"], 0, "{unioned}");
+    assert_eq!(unioned["received"], live["received"], "{unioned}");
+    assert_eq!(unioned["snapshot_digest"], live["snapshot_digest"], "live {live}\nunion {unioned}");
 
     // Without --replay-time the cloud stamps the replay with its own clock: the counts match
     // but the snapshots are not the live ones (what the attachment is for).

@@ -8,12 +8,14 @@
 //! 3. exactly-once: a duplicate, a number older than the reorder window or an unconfirmed one
 //!    beyond it is refused (`duplicate`, `too-old`, `seq-jump`; see [`super::dedupe`]);
 //! 4. the capture time is mapped onto the cloud clock with the source's clock estimate (built
-//!    from earlier messages only); a mapping later than `receive + future_tolerance` is refused
-//!    (`future-timestamp`) and not fed to the estimator, whose minimum filter one bad timestamp
-//!    would otherwise wreck. A source that sends `clock_reset_after` future timestamps in a row
-//!    has had its clock stepped forward: its estimate is reset and re-anchored (after
-//!    `clock_reset_after_warming_up`, fewer, while the estimate is still warming up: then its
-//!    first samples most likely arrived late and anchored it too high);
+//!    from earlier messages only); a mapping later than `receive + future_tolerance` is not fed
+//!    to the estimator, whose minimum filter one bad timestamp would otherwise wreck. Against a
+//!    fitted estimate it is refused (`future-timestamp`), and a source that sends
+//!    `clock_reset_after` of them in a row has had its clock stepped forward: its estimate is
+//!    reset and re-anchored. While the estimate still warms up (a running minimum of a few
+//!    samples), the estimate is the likelier error — its first samples came late, as a cache's
+//!    burst of old samples does — so the message is taken at its receive time
+//!    ([`IngestCore::warm_clamped`]), and `clock_reset_after_warming_up` in a row re-anchor it;
 //! 5. the estimator takes the message in, and the payload goes to the aligner at its cloud time.
 //!
 //! Accounting: every message ends in exactly one of accepted or one drop reason, and per
@@ -52,7 +54,8 @@ pub struct IngestConfig {
     pub clock_reset_after: u32,
     /// The same while the estimate warms up (no drift fitted yet: the running minimum of a few
     /// seconds): a run of future timestamps then most likely means the first samples arrived
-    /// late (a cloud behind at start) and the anchor is off, not that the clock stepped.
+    /// late (a cloud behind at start, a burst from a cache) and the anchor is off, not that the
+    /// clock stepped. The run's messages are taken at their receive times, not refused.
     pub clock_reset_after_warming_up: u32,
 }
 
@@ -104,6 +107,8 @@ pub struct IngestCore<T> {
     drops: DropCounts,
     accepted: u64,
     clock_resets: u64,
+    /// Future timestamps taken at their receive time while the source's estimate warmed up.
+    warm_clamped: u64,
     /// Streams shed now (bit `i`: stream index `i`), see [`IngestCore::set_shed`].
     shed: u64,
 }
@@ -129,6 +134,7 @@ impl<T: Clone> IngestCore<T> {
             drops: DropCounts::default(),
             accepted: 0,
             clock_resets: 0,
+            warm_clamped: 0,
             shed: 0,
         }
     }
@@ -201,19 +207,32 @@ impl<T: Clone> IngestCore<T> {
         }
         clock.roll_to(msg.receive_ns);
         let mut mapped = clock.to_cloud_ns(msg.capture_ns);
+        let mut teaches = true;
         if mapped.is_some_and(|m| m > msg.receive_ns.saturating_add(self.cfg.future_tolerance_ns)) {
             self.future_streak[s] += 1;
-            let reset_after =
-                if clock.is_fitted() { self.cfg.clock_reset_after } else { self.cfg.clock_reset_after_warming_up };
+            let fitted = clock.is_fitted();
+            let reset_after = if fitted { self.cfg.clock_reset_after } else { self.cfg.clock_reset_after_warming_up };
             if self.future_streak[s] < reset_after {
-                return Err(DropReason::FutureTimestamp);
+                if fitted {
+                    return Err(DropReason::FutureTimestamp);
+                }
+                // Warming up, the estimate of a few samples is the likelier culprit (they came
+                // late: a burst from a cache, a cloud behind): this one is taken at its receive
+                // time, and kept out of the estimate until the run says the anchor was wrong.
+                self.warm_clamped += 1;
+                teaches = false;
+            } else {
+                clock.reset();
+                self.clock_resets += 1;
+                self.future_streak[s] = 0;
             }
-            clock.reset();
-            self.clock_resets += 1;
             mapped = None;
+        } else {
+            self.future_streak[s] = 0;
         }
-        self.future_streak[s] = 0;
-        clock.observe(msg.capture_ns, msg.receive_ns);
+        if teaches {
+            clock.observe(msg.capture_ns, msg.receive_ns);
+        }
         // After the deduplicator and the clock: a shed message counts as received (its number
         // is no gap) and still teaches the estimator.
         if self.shed & (1 << msg.stream.as_usize().min(63)) != 0 {
@@ -276,6 +295,12 @@ impl<T: Clone> IngestCore<T> {
     /// Clock estimates reset after a run of future timestamps.
     pub fn clock_resets(&self) -> u64 {
         self.clock_resets
+    }
+
+    /// Messages that mapped into the future while their source's estimate warmed up, taken at
+    /// their receive time rather than refused (see [`IngestConfig::clock_reset_after_warming_up`]).
+    pub fn warm_clamped(&self) -> u64 {
+        self.warm_clamped
     }
 
     /// The deduplicator (per-key sequence counters, presumed losses).

@@ -77,16 +77,17 @@ pub fn run(args: DeployRunArgs) -> CliResult {
     let duration = args.duration.as_deref().map(duration).transpose()?;
     let out = out_dir(&args.out)?;
     let tag = tag_of(&args.file);
-    let state = state(&tag)?;
-    let Some(_lock) = Lock::try_take(&state.join("lock")).map_err(CliError::runtime)? else {
+    let exe = exe()?;
+    let (state, lock) = take_state(&tag)?;
+    let Some(lock) = lock else {
         return Err(CliError::input(format!(
             "{} is up already (`risktwin deploy down` it first)",
             args.file.display()
         )));
     };
     let write = |name: &str, bytes: &[u8]| std::fs::write(state.join(name), bytes).map_err(CliError::runtime);
-    write("supervisor.pid", std::process::id().to_string().as_bytes())?;
-    write("out", out.as_os_str().as_encoded_bytes())?;
+    write(PID_FILE, std::process::id().to_string().as_bytes())?;
+    write(OUT_FILE, out.as_os_str().as_encoded_bytes())?;
     write(DIGEST_FILE, topology_digest(text.as_bytes()).as_bytes())?;
     let options = Options {
         file: args.file,
@@ -94,7 +95,7 @@ pub fn run(args: DeployRunArgs) -> CliResult {
         out: out.clone(),
         duration,
         seed: args.how.seed,
-        exe: exe()?,
+        exe,
         loopback: args.how.loopback,
         until_down: args.until_down,
     };
@@ -107,23 +108,52 @@ pub fn run(args: DeployRunArgs) -> CliResult {
         libc::signal(libc::SIGHUP, handler);
         libc::signal(libc::SIGPIPE, libc::SIG_IGN);
     }
-    let report = deployment::run(&t, &options, &STOP).map_err(CliError::runtime)?;
-    report.write(&out).map_err(|e| CliError::runtime(format!("writing the report: {e}")))?;
-    // The lock goes with this process, after the report is written: `down` waits for that.
-    print_json(&report)
+    let report = deployment::run(&t, &options, &STOP).map_err(CliError::runtime).and_then(|report| {
+        report.write(&out).map_err(|e| CliError::runtime(format!("writing the report: {e}")))?;
+        Ok(report)
+    });
+    // The lock goes after the report is written (`down` waits for that), with the state folder.
+    remove_state(&state, lock);
+    print_json(&report?)
+}
+
+/// The state folder of `tag` and its lock, `None` if a supervisor holds it. Made again if the
+/// last supervisor removed it between the two.
+fn take_state(tag: &str) -> CliResult<(PathBuf, Option<Lock>)> {
+    loop {
+        let dir = state(tag)?;
+        match Lock::try_take(&dir.join(LOCK_FILE)) {
+            Ok(lock) => return Ok((dir, lock)),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(CliError::runtime(e)),
+        }
+    }
+}
+
+/// Removes a deployment's state folder once its supervisor is done: its pid, where its output
+/// is, its topology's digest, then the lock (held here, see [`Lock::remove`]) and the folder.
+fn remove_state(dir: &Path, lock: Lock) {
+    for name in [PID_FILE, OUT_FILE, DIGEST_FILE] {
+        let _ = std::fs::remove_file(dir.join(name));
+    }
+    if let Err(e) = lock.remove(&dir.join(LOCK_FILE)) {
+        tracing::warn!("removing {}: {e}", dir.join(LOCK_FILE).display());
+    }
+    if let Err(e) = std::fs::remove_dir(dir) {
+        tracing::warn!("removing {}: {e}", dir.display());
+    }
 }
 
 pub fn up(args: DeployUpArgs) -> CliResult {
     topology(&args.file)?;
     let tag = tag_of(&args.file);
-    let state = state(&tag)?;
     if supervisor(&tag)?.is_some() {
         return Err(CliError::input(format!(
             "{} is up already (`risktwin deploy down` it first)",
             args.file.display()
         )));
     }
-    let out = out_dir(&args.out.unwrap_or_else(|| state.join("out")))?;
+    let out = out_dir(&args.out.unwrap_or_else(|| std::env::temp_dir().join(format!("risktwin-out-{tag}"))))?;
     let _ = std::fs::remove_file(out.join("status.json"));
     let log = |name: &str| std::fs::File::create(out.join(name)).map_err(CliError::runtime);
     let DeployHow { seed, loopback } = args.how;
@@ -169,18 +199,23 @@ pub fn up(args: DeployUpArgs) -> CliResult {
     }
 }
 
-/// The pid of the running supervisor of `tag`: `None` when nobody holds its lock.
+/// The pid of the running supervisor of `tag`: `None` when nobody holds its lock (or there is
+/// none: the last supervisor removed it on its way out).
 fn supervisor(tag: &str) -> CliResult<Option<i32>> {
-    let dir = state(tag)?;
-    if Lock::try_take(&dir.join("lock")).map_err(CliError::runtime)?.is_some() {
+    let dir = state_dir(tag);
+    if !Lock::is_held(&dir.join(LOCK_FILE)).map_err(CliError::runtime)? {
         return Ok(None);
     }
-    let pid = std::fs::read_to_string(dir.join("supervisor.pid")).ok().and_then(|p| p.trim().parse::<i32>().ok());
+    let pid = std::fs::read_to_string(dir.join(PID_FILE)).ok().and_then(|p| p.trim().parse::<i32>().ok());
     // Held but not yet named (the supervisor is starting): 0 stands for "up, pid unknown".
     Ok(Some(pid.filter(|&p| p > 1).unwrap_or(0)))
 }
 
-/// The file in a deployment's state folder that holds its topology's digest.
+/// The files of a deployment's state folder: the lock its supervisor holds, the supervisor's
+/// pid, the output folder's path and the topology's digest.
+const LOCK_FILE: &str = "lock";
+const PID_FILE: &str = "supervisor.pid";
+const OUT_FILE: &str = "out";
 const DIGEST_FILE: &str = "topology-digest";
 
 /// The tag of `file`'s deployment: by the file's path, or, when nothing of one is there (the
@@ -217,7 +252,7 @@ fn find_tag(file: &Path) -> CliResult<String> {
 
 /// Where the deployment's output is.
 fn out_of(tag: &str) -> Option<PathBuf> {
-    std::fs::read(state_dir(tag).join("out")).ok().map(|b| PathBuf::from(String::from_utf8_lossy(&b).into_owned()))
+    std::fs::read(state_dir(tag).join(OUT_FILE)).ok().map(|b| PathBuf::from(String::from_utf8_lossy(&b).into_owned()))
 }
 
 pub fn status(args: DeployFileArgs) -> CliResult {
@@ -236,6 +271,8 @@ pub fn status(args: DeployFileArgs) -> CliResult {
 pub fn down(args: DeployFileArgs) -> CliResult {
     // A file that no longer parses can still be taken down: only its path (or bytes) matter here.
     let tag = find_tag(&args.file)?;
+    // Read now: the supervisor removes its state folder on its way out.
+    let report = out_of(&tag).map(|o| o.join("report.md"));
     let was_up = supervisor(&tag)?;
     if let Some(pid) = was_up.filter(|&p| p > 1) {
         // SAFETY: a signal to the process that holds this deployment's lock and named itself.
@@ -250,10 +287,15 @@ pub fn down(args: DeployFileArgs) -> CliResult {
         }
     }
     net::sweep(&tag);
+    // A supervisor killed (by this or anything else) left its state folder.
+    let dir = state_dir(&tag);
+    if let Ok(Some(lock)) = Lock::try_take(&dir.join(LOCK_FILE)) {
+        remove_state(&dir, lock);
+    }
     let left = net::leftovers(&tag);
     if !left.is_empty() {
         return Err(CliError::runtime(format!("could not remove: {}", left.join(", "))));
     }
-    let report = out_of(&tag).map(|o| o.join("report.md")).filter(|r| r.exists());
+    let report = report.filter(|r| r.exists());
     print_json(&json!({ "down": true, "was_up": was_up.is_some(), "report": report }))
 }

@@ -64,13 +64,15 @@ impl Forwarder {
         summary.forward_failed = self.failed.load(Ordering::Relaxed);
     }
 
-    /// Forwards `sample` (its payload shared, not copied) under its edge key's forward key.
+    /// Forwards `sample` (its payload shared, not copied) under its edge key's forward key, with
+    /// its attachment (a replay's receive time, which a `--replay-time` union ingests at).
     pub(super) fn put(&self, sample: &risktwin_transport::zenoh::sample::Sample) {
         let edge_key = sample.key_expr().as_str();
         let (payload, encoding): (ZBytes, Encoding) = (sample.payload().clone(), sample.encoding().clone());
+        let attachment = sample.attachment().cloned();
         let mut declared = self.declared.lock().unwrap_or_else(PoisonError::into_inner);
         let ok = match declared.get(edge_key) {
-            Some(Some(publisher)) => publisher.put(payload).encoding(encoding).wait().is_ok(),
+            Some(Some(publisher)) => publisher.put(payload).encoding(encoding).attachment(attachment).wait().is_ok(),
             known => {
                 if known.is_none() {
                     declared.insert(edge_key.to_owned(), None);
@@ -81,6 +83,7 @@ impl Forwarder {
                 self.session
                     .put(forward_key, payload)
                     .encoding(encoding)
+                    .attachment(attachment)
                     .congestion_control(CongestionControl::Block)
                     .priority(LIVE_PRIORITY)
                     .wait()

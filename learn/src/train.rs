@@ -13,6 +13,7 @@ use crate::learner::Learner;
 use crate::policy::{Algo, PolicyNet};
 use crate::ppo::{PpoConfig, PpoTimings};
 use crate::sac::SacConfig;
+use crate::warm::warm_start;
 use rayon::prelude::*;
 use risktwin_common::env::{DEFAULT_REPLAY_SHARE, RiskShaping, ScenarioSource, Variant, VecEnv, benign_specs};
 use risktwin_common::episode;
@@ -44,6 +45,9 @@ pub struct TrainConfig {
     pub ppo: PpoConfig,
     /// SAC hyper-parameters.
     pub sac: SacConfig,
+    /// Start from an imitation of the reference driver ([`crate::warm`], PPO only); its
+    /// demonstration steps count against `steps`.
+    pub warm_start: bool,
 }
 
 impl TrainConfig {
@@ -61,6 +65,7 @@ impl TrainConfig {
             benign_every: 100_000,
             ppo: PpoConfig::default(),
             sac: SacConfig::default(),
+            warm_start: false,
         }
     }
 }
@@ -206,9 +211,13 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
     };
     let benign = if cfg.benign_eval > 0 { benign_specs(cfg.seed ^ 0xBE91_6000, cfg.benign_eval) } else { Vec::new() };
     let start = Instant::now();
-    let mut env = VecEnv::new(cfg.n_envs, source, cfg.variant.training_reward(RiskShaping::default()))?;
+    let reward = cfg.variant.training_reward(RiskShaping::default());
     let mut learner = Learner::new(cfg.algo, &cfg.ppo, &cfg.sac, cfg.n_envs, cfg.seed)?;
-    let mut done_steps = 0u64;
+    // The same demonstrations' seed as the cloud trainer's warm start.
+    let demo_seed = Rng::derive(cfg.seed, 0xDE30).next_u64();
+    let mut done_steps =
+        if cfg.warm_start { warm_start(&mut learner, &source, reward, cfg.n_envs, demo_seed)?.env_steps } else { 0 };
+    let mut env = VecEnv::new(cfg.n_envs, source, reward)?;
     let mut curve = Vec::new();
     let mut acc: Vec<EpisodeMetrics> = Vec::new();
     let mut next_benign = 0u64;

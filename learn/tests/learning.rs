@@ -240,3 +240,25 @@ fn a_warm_start_needs_the_feed_forward_policy() {
     let (obs, act) = toy_demonstrations();
     assert!(ppo.imitate(&obs, &act, 1, 0.1).is_err());
 }
+
+#[test]
+fn train_with_a_warm_start_counts_the_demonstrations_and_needs_ppo() {
+    use risktwin_common::env::Variant;
+    use risktwin_learn::train::{TrainConfig, train};
+    use risktwin_learn::warm::DEMO_STEPS_PER_ENV;
+    let n_envs = 2;
+    let demo_steps = (n_envs * DEMO_STEPS_PER_ENV) as u64;
+    let cfg = TrainConfig {
+        n_envs,
+        eval_per_kind: 1,
+        warm_start: true,
+        ..TrainConfig::new(Algo::Ppo, Variant::Base, demo_steps + 1, 5)
+    };
+    let warm = train(&cfg, &mut |_, _| {}).expect("trains");
+    assert!(warm.steps > demo_steps, "the demonstrations and one rollout: {}", warm.steps);
+    assert!(warm.curve.iter().all(|c| c.point.env_steps > demo_steps));
+    let cold = train(&TrainConfig { warm_start: false, ..cfg.clone() }, &mut |_, _| {}).expect("trains");
+    assert!(cold.curve.first().is_some_and(|c| c.point.env_steps < demo_steps), "without it, learning from the start");
+    let sac = TrainConfig { warm_start: true, ..TrainConfig::new(Algo::Sac, Variant::Base, 1, 5) };
+    assert!(train(&sac, &mut |_, _| {}).is_err(), "a warm start needs PPO");
+}

@@ -81,4 +81,9 @@ fn bad_flags_exit_2() {
     assert_input_error(dir.path(), &["train", "--variant", "risky", "--out", "o"], "'risky'");
     assert_input_error(dir.path(), &["train", "--steps", "0", "--out", "o"], "--steps");
     assert_input_error(dir.path(), &["train", "--steps", "-5", "--out", "o"], "-5");
+    assert_input_error(
+        dir.path(),
+        &["train", "--algo", "sac", "--warm-start", "--out", "o"],
+        "--warm-start needs --algo ppo",
+    );
 }

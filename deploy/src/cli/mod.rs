@@ -273,6 +273,10 @@ pub struct TrainArgs {
     /// Benign scenarios whose success is measured during training (0: none).
     #[arg(long, default_value_t = 0)]
     pub benign: usize,
+    /// Start from an imitation of the reference driver (PPO only); its demonstration steps
+    /// count against --steps.
+    #[arg(long)]
+    pub warm_start: bool,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }

@@ -21,10 +21,14 @@ pub fn train(args: TrainArgs) -> CliResult {
     if args.steps == 0 {
         return Err(CliError::input("--steps 0: must be positive"));
     }
+    if args.warm_start && algo != Algo::Ppo {
+        return Err(CliError::input(format!("--warm-start needs --algo ppo, not {algo}")));
+    }
     std::fs::create_dir_all(&args.out)
         .map_err(|e| CliError::input(format!("cannot create {}: {e}", args.out.display())))?;
     let mut cfg = TrainConfig::new(algo, variant, args.steps, args.seed);
     cfg.benign_eval = args.benign;
+    cfg.warm_start = args.warm_start;
     let mut last_pct = u64::MAX;
     let report = run_training(&cfg, &mut |done, total| {
         let pct = done * 100 / total.max(1);

@@ -213,10 +213,8 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
     let start = Instant::now();
     let reward = cfg.variant.training_reward(RiskShaping::default());
     let mut learner = Learner::new(cfg.algo, &cfg.ppo, &cfg.sac, cfg.n_envs, cfg.seed)?;
-    // The same demonstrations' seed as the cloud trainer's warm start.
-    let demo_seed = Rng::derive(cfg.seed, 0xDE30).next_u64();
     let mut done_steps =
-        if cfg.warm_start { warm_start(&mut learner, &source, reward, cfg.n_envs, demo_seed)?.env_steps } else { 0 };
+        if cfg.warm_start { warm_start(&mut learner, &source, reward, cfg.n_envs, cfg.seed)?.env_steps } else { 0 };
     let mut env = VecEnv::new(cfg.n_envs, source, reward)?;
     let mut curve = Vec::new();
     let mut acc: Vec<EpisodeMetrics> = Vec::new();

@@ -5,6 +5,7 @@
 use crate::LearnError;
 use crate::learner::Learner;
 use risktwin_common::env::{DemoPlan, ScenarioSource, TrainingReward, demonstrate};
+use risktwin_common::rng::Rng;
 
 /// Demonstration steps per environment: with `risktwin run`'s 32 environments 131,072 steps
 /// (22 % of its 589,824), about 20 episodes per stream. Measured by `examples/imitate.rs`
@@ -30,7 +31,8 @@ pub struct WarmStart {
     pub mse: f32,
 }
 
-/// Collects demonstrations on `source` (with `n_envs` streams) and fits `learner`'s policy to them.
+/// Collects demonstrations on `source` (with `n_envs` streams) and fits `learner`'s policy to them;
+/// the demonstrations' random stream is derived from the training run's `seed`.
 pub fn warm_start(
     learner: &mut Learner,
     source: &ScenarioSource,
@@ -38,6 +40,7 @@ pub fn warm_start(
     n_envs: usize,
     seed: u64,
 ) -> Result<WarmStart, LearnError> {
+    let seed = Rng::derive(seed, 0xDE30).next_u64();
     let plan = DemoPlan { n_envs, steps_per_env: DEMO_STEPS_PER_ENV, noise_std: DEMO_NOISE_STD, seed };
     let demos = demonstrate(source, reward, &plan)?;
     let Learner::Ppo(ppo) = learner else {

@@ -77,7 +77,7 @@ pub fn train_variant(
     let ppo = PpoConfig { constraint: plan.cost_limit.map(CostConstraint::new), ..PpoConfig::default() };
     let mut learner = Learner::new(plan.algo, &ppo, &SacConfig::default(), plan.n_envs, seed)?;
     let demo_steps = if plan.warm_start {
-        let warm = warm_start(&mut learner, &source, reward, plan.n_envs, Rng::derive(seed, 0xDE30).next_u64())?;
+        let warm = warm_start(&mut learner, &source, reward, plan.n_envs, seed)?;
         tracing::info!(
             "{variant} seed {seed}: warm start from {} of {} demonstrated episodes, imitation error {:.4}",
             warm.kept,

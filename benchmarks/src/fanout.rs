@@ -10,6 +10,7 @@
 //! lockstep scene of as many participants, with the truth and reply sizes of that scene.
 
 use crate::BenchError;
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
@@ -77,7 +78,7 @@ impl Tally {
     fn on_reply(&self, payload: &[u8]) {
         let word = |at: usize| payload.get(at..at + 8).and_then(|b| b.try_into().ok()).map(u64::from_le_bytes);
         let (Some(round), Some(echo)) = (word(0), word(8)) else { return };
-        let mut state = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut state = self.state.locked();
         if state.round != round {
             return;
         }
@@ -93,14 +94,14 @@ impl Tally {
 
     /// Waits until every echo answered the current round; false on the timeout.
     fn wait(&self, timeout: Duration) -> bool {
-        let state = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        let state = self.state.locked();
         let (state, _) =
             self.all_in.wait_timeout_while(state, timeout, |s| s.missing > 0).unwrap_or_else(PoisonError::into_inner);
         state.missing == 0
     }
 
     fn start(&self, round: u64) {
-        let mut state = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut state = self.state.locked();
         state.round = round;
         state.answered.fill(false);
         state.missing = state.answered.len();
@@ -188,7 +189,7 @@ pub fn echo(session: &Session, id: usize, reply_bytes: usize) -> Result<(), Benc
         .declare_subscriber(ROUNDS_KEY)
         .callback(move |sample: Sample| {
             let round = sample.payload().to_bytes();
-            let mut reply = reply.lock().unwrap_or_else(PoisonError::into_inner);
+            let mut reply = reply.locked();
             if let Some(stamp) = round.get(..8) {
                 reply[..8].copy_from_slice(stamp);
                 // A failed put shows as an unanswered round at the coordinator.

@@ -101,7 +101,7 @@ fn free_port() -> Result<u16, BenchError> {
 /// [`FleetReport`]), and reports.
 pub async fn cloud_side(
     config: FleetBenchConfig,
-    record_dir: Option<risktwin_cloud::recordings::RotationConfig>,
+    record_dir: Option<risktwin_store::recordings::RotationConfig>,
     publisher: impl Fn(&FleetShare) -> Command,
 ) -> Result<IngestReport, BenchError> {
     let locator = format!("tcp/127.0.0.1:{}", free_port()?);

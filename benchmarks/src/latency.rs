@@ -12,18 +12,20 @@
 //!   every newly covered sample gets latency = now − its put.
 //!
 //! A snapshot at tick `t` is emitted once a message arrives with receive time ≥ `t + lateness`
-//! (see `common::align::aligner`), so ours is about lateness + half a tick + the message
+//! (see `align::aligner`), so ours is about lateness + half a tick + the message
 //! spacing above raw; the report gives the tick and lateness used next to the ratio.
 //! The first [`WARMUP`] samples of each side (clock estimate and connection warm-up) are left out.
 
 use crate::zenoh_throughput::peer_pair;
+use risktwin_align::IngestConfig;
 use risktwin_cloud::network::{CloudError, LiveIngest, Origin};
 use risktwin_cloud::twin::outputs::TwinOutputs;
-use risktwin_common::align::IngestConfig;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
 use risktwin_protos::encode;
 use risktwin_transport::recovery::DEFAULT_OUTAGE;
+use risktwin_transport::sync::LockExt;
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::zenoh::Wait;
 use risktwin_transport::zenoh::qos::{CongestionControl, Priority};
 use risktwin_transport::zenoh::sample::Sample;
@@ -31,8 +33,8 @@ use risktwin_transport::{
     Delivery, EdgeStream, SiteId, SourceId, StreamLoss, StreamPublisher, TransportError, subscribe_edge_streams,
 };
 use serde::Serialize;
-use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 /// Samples of each side left out of the statistics.
 pub const WARMUP: usize = 50;
@@ -108,7 +110,7 @@ pub(crate) fn period(config: LatencyConfig) -> Duration {
 pub(crate) type SentAt = Arc<Mutex<Vec<Option<Instant>>>>;
 
 pub(crate) fn put_instant(sent: &SentAt, seq: usize) -> Option<Instant> {
-    sent.lock().unwrap_or_else(PoisonError::into_inner).get(seq).copied().flatten()
+    sent.locked().get(seq).copied().flatten()
 }
 
 /// How the raw side's publisher sends: `bench latency`'s plain publisher (default priority, not
@@ -141,7 +143,7 @@ pub(crate) async fn raw_side(config: LatencyConfig, qos: RawQos) -> Result<Vec<f
             let Ok(seq) = <[u8; 8]>::try_from(&bytes[..]).map(u64::from_le_bytes) else { return };
             let seq = seq as usize;
             if let Some(t) = put_instant(&sent_cb, seq).filter(|_| seq >= WARMUP) {
-                lat_cb.lock().unwrap_or_else(PoisonError::into_inner).push(now.duration_since(t).as_secs_f64() * 1e3);
+                lat_cb.locked().push(now.duration_since(t).as_secs_f64() * 1e3);
             }
         })
         .await
@@ -157,7 +159,7 @@ pub(crate) async fn raw_side(config: LatencyConfig, qos: RawQos) -> Result<Vec<f
     let start = Instant::now();
     for seq in 0..n {
         tokio::time::sleep_until((start + period(config) * seq as u32).into()).await;
-        sent.lock().unwrap_or_else(PoisonError::into_inner)[seq] = Some(Instant::now());
+        sent.locked()[seq] = Some(Instant::now());
         publisher
             .put((seq as u64).to_le_bytes().to_vec())
             .await
@@ -168,7 +170,7 @@ pub(crate) async fn raw_side(config: LatencyConfig, qos: RawQos) -> Result<Vec<f
     let _ = publisher.undeclare().wait();
     let _ = sub_side.close().wait();
     let _ = pub_side.close().wait();
-    let out = latencies.lock().unwrap_or_else(PoisonError::into_inner).clone();
+    let out = latencies.locked().clone();
     Ok(out)
 }
 
@@ -187,7 +189,7 @@ async fn wait_matching(publisher: &risktwin_transport::zenoh::pubsub::Publisher<
 pub(crate) async fn settle(latencies: &Mutex<Vec<f64>>, want: usize) {
     let mut last = (0, Instant::now());
     loop {
-        let have = latencies.lock().unwrap_or_else(PoisonError::into_inner).len();
+        let have = latencies.locked().len();
         if have >= want {
             return;
         }
@@ -202,7 +204,7 @@ pub(crate) async fn settle(latencies: &Mutex<Vec<f64>>, want: usize) {
 
 /// `source`'s state number `seq`, stamped now, at `x_m` on the x axis driving at `speed_mps`.
 pub(crate) fn state(source: &str, seq: u64, x_m: f64, speed_mps: f64) -> VehicleStateSample {
-    let now_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+    let now_ns = unix_ns();
     VehicleStateSample {
         header: Header {
             source: source.into(),
@@ -245,10 +247,10 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     // The next sample not yet seen in a snapshot.
     let covered = Arc::new(Mutex::new(0usize));
     let loss_ingest = Arc::clone(&ingest);
-    let on_loss = move |loss: StreamLoss| loss_ingest.lock().unwrap_or_else(PoisonError::into_inner).record_loss(&loss);
+    let on_loss = move |loss: StreamLoss| loss_ingest.locked().record_loss(&loss);
     let on_sample = move |_, sample: &Sample| {
         let payload = sample.payload().to_bytes();
-        let mut ingest = ingest_cb.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut ingest = ingest_cb.locked();
         if ingest.handle(sample.key_expr().as_str(), sample.encoding(), &payload, None, Origin::of(sample)).is_err() {
             return;
         }
@@ -260,10 +262,10 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
         };
         // Interpolated between samples k and k+1: the snapshot reflects every sample ≤ k.
         let reflected = (x_m / spacing_m + 1e-6).floor().max(-1.0) as i64;
-        let mut next = covered.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut next = covered.locked();
         while (*next as i64) <= reflected && *next < n {
             if let Some(t) = put_instant(&sent_cb, *next).filter(|_| *next >= WARMUP) {
-                lat_cb.lock().unwrap_or_else(PoisonError::into_inner).push(now.duration_since(t).as_secs_f64() * 1e3);
+                lat_cb.locked().push(now.duration_since(t).as_secs_f64() * 1e3);
             }
             *next += 1;
         }
@@ -278,7 +280,7 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     for seq in 0..n {
         tokio::time::sleep_until((start + period(config) * seq as u32).into()).await;
         let payload = encode(&state("lat-0", seq as u64, seq as f64 * spacing_m, SPEED_MPS));
-        sent.lock().unwrap_or_else(PoisonError::into_inner)[seq] = Some(Instant::now());
+        sent.locked()[seq] = Some(Instant::now());
         publisher.put(payload)?;
     }
     // The last samples are only covered by snapshots after them: none come; count what came.
@@ -287,6 +289,6 @@ async fn our_side(config: LatencyConfig) -> Result<Vec<f64>, CloudError> {
     publisher.undeclare()?;
     let _ = sub_side.close().wait();
     let _ = pub_side.close().wait();
-    let out = latencies.lock().unwrap_or_else(PoisonError::into_inner).clone();
+    let out = latencies.locked().clone();
     Ok(out)
 }

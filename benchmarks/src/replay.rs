@@ -10,8 +10,8 @@
 
 use crate::BenchError;
 use crate::synth::{FleetConfig, SyntheticFleet};
+use risktwin_align::IngestConfig;
 use risktwin_cloud::ingest::{IngestWorker, SnapshotDigest, replay_into};
-use risktwin_common::align::IngestConfig;
 use risktwin_protos::recording::{MessageCursor, Recorder};
 use serde::Serialize;
 use std::io::{BufWriter, Cursor};

@@ -9,7 +9,7 @@
 //! the same.
 
 use crate::standin::{self, StandInError};
-use risktwin_common::align::DropReason;
+use risktwin_align::DropReason;
 use risktwin_transport::EdgeStream;
 use risktwin_transport::keyexpr::parse_edge_key;
 use serde::Serialize;

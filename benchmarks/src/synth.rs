@@ -201,8 +201,8 @@ fn stamp(header: &mut Header, capture_ns: i64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use risktwin_align::IngestConfig;
     use risktwin_cloud::ingest::IngestWorker;
-    use risktwin_common::align::IngestConfig;
     use std::io::Cursor;
 
     #[test]

@@ -27,6 +27,7 @@ use crate::latency::{
     LatencyConfig, RawQos, SentAt, WARMUP, bench_ids, percentile, put_instant, raw_side, settle, state,
 };
 use crate::zenoh_throughput::peer_pair;
+use risktwin_align::{IngestConfig, SourceIndex};
 use risktwin_cloud::ingest::{AcceptedMessage, ObservedKinematics};
 use risktwin_cloud::network::warning::{self as net_warning, NetworkSink, warning_sink};
 use risktwin_cloud::network::{CloudError, LiveIngest, Origin};
@@ -34,7 +35,6 @@ use risktwin_cloud::twin::outputs::TwinOutputs;
 use risktwin_cloud::twin::risk::{RiskAssessor, RiskConfig};
 use risktwin_cloud::twin::scenario_road;
 use risktwin_cloud::warning::{HazardWarner, WarningConfig, WarningSink, WarningSummary};
-use risktwin_common::align::{IngestConfig, SourceIndex};
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::road::Road;
 use risktwin_common::scenario::ScenarioKind;
@@ -42,11 +42,12 @@ use risktwin_common::telemetry::HazardWarning;
 use risktwin_protos::{decode_tagged, encode};
 use risktwin_transport::keyexpr::{CloudToEdge, cloud_to_edge};
 use risktwin_transport::recovery::DEFAULT_OUTAGE;
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::Wait;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Delivery, EdgeStream, StreamLoss, StreamPublisher, TransportError, subscribe_edge_streams};
 use serde::Serialize;
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// The warning path's target: a warning at the vehicle within 5 ms p50 of the state that raised
@@ -192,9 +193,9 @@ impl WarningSink for TimedSink {
         let seq = usize::try_from(warning.trigger_seq).unwrap_or(usize::MAX);
         if key == self.measured_key && warning.trigger_source == "warn-0" && seq >= WARMUP {
             let put = Instant::now();
-            if let Some(receipt) = *self.receipt.lock().unwrap_or_else(PoisonError::into_inner) {
+            if let Some(receipt) = *self.receipt.locked() {
                 let ms = put.duration_since(receipt).as_secs_f64() * 1e3;
-                self.held.lock().unwrap_or_else(PoisonError::into_inner).push(ms);
+                self.held.locked().push(ms);
             }
         }
         ok
@@ -231,14 +232,14 @@ async fn our_side(config: WarningBenchConfig) -> Result<(Vec<f64>, Vec<f64>, War
         let start = Instant::now();
         let payload = sample.payload().to_bytes();
         let key = sample.key_expr().as_str();
-        let mut ingest = ingest_cb.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut ingest = ingest_cb.locked();
         // Under the ingest's lock: no other callback's start can take its place.
-        *receipt.lock().unwrap_or_else(PoisonError::into_inner) = Some(start);
+        *receipt.locked() = Some(start);
         if let Err(e) = ingest.handle(key, sample.encoding(), &payload, None, Origin::of(sample)) {
             tracing::warn!("bench warning: ingest: {e}");
         }
     };
-    let on_loss = move |loss: StreamLoss| loss_ingest.lock().unwrap_or_else(PoisonError::into_inner).record_loss(&loss);
+    let on_loss = move |loss: StreamLoss| loss_ingest.locked().record_loss(&loss);
     let subscriber = subscribe_edge_streams(&cloud_side, Some(&site), on_sample, on_loss).await?;
 
     // The vehicle: its warnings, timed against the put of the state that raised them.
@@ -254,7 +255,7 @@ async fn our_side(config: WarningBenchConfig) -> Result<(Vec<f64>, Vec<f64>, War
                 return;
             }
             if let Some(t) = put_instant(&sent_cb, seq) {
-                lat_cb.lock().unwrap_or_else(PoisonError::into_inner).push(now.duration_since(t).as_secs_f64() * 1e3);
+                lat_cb.locked().push(now.duration_since(t).as_secs_f64() * 1e3);
             }
         })
         .await
@@ -275,7 +276,7 @@ async fn our_side(config: WarningBenchConfig) -> Result<(Vec<f64>, Vec<f64>, War
         let x_m = seq as f64 * spacing_m;
         ahead.put(encode(&state("warn-1", seq as u64, x_m + GAP_M, 0.0)))?;
         let payload = encode(&state("warn-0", seq as u64, x_m, SPEED_MPS));
-        sent.lock().unwrap_or_else(PoisonError::into_inner)[seq] = Some(Instant::now());
+        sent.locked()[seq] = Some(Instant::now());
         publisher.put(payload)?;
     }
     settle(&latencies, n.saturating_sub(WARMUP)).await;
@@ -286,8 +287,8 @@ async fn our_side(config: WarningBenchConfig) -> Result<(Vec<f64>, Vec<f64>, War
     publishers.task.abort();
     let _ = cloud_side.close().wait();
     let _ = edge_side.close().wait();
-    let out = latencies.lock().unwrap_or_else(PoisonError::into_inner).clone();
-    let held = held.lock().unwrap_or_else(PoisonError::into_inner).clone();
-    let summary = ingest.lock().unwrap_or_else(PoisonError::into_inner).warning_summary().unwrap_or_default();
+    let out = latencies.locked().clone();
+    let held = held.locked().clone();
+    let summary = ingest.locked().warning_summary().unwrap_or_default();
     Ok((out, held, summary))
 }

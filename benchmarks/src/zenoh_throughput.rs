@@ -22,6 +22,7 @@ use crate::standin_ingest::StandInCounters;
 use risktwin_cloud::network::CloudError;
 use risktwin_cloud::network::routes::declare_route_keys;
 use risktwin_transport::recovery::{DEFAULT_OUTAGE, cache_samples};
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
@@ -207,7 +208,7 @@ pub(crate) async fn state_path_round(
     let sink_counters = Arc::clone(&counters);
     let sink = move |_: EdgeStream, sample: &Sample| {
         let payload = sample.payload().to_bytes();
-        let mut counters = sink_counters.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut counters = sink_counters.locked();
         let _ = counters.accept(sample.key_expr().as_str(), &payload, std::time::Instant::now());
     };
     let finish = Arc::new(Finish::default());

@@ -10,10 +10,10 @@
 //! its module doc says what does not travel.
 
 use crate::criticality::{RebuildError, Rejected, ScenarioCollector};
-use risktwin_common::commonroad::twin::{footprint_of, road_from_lanelets};
-use risktwin_common::commonroad::{ObstacleState, Scenario, Shape};
 use risktwin_common::geometry::Pose;
 use risktwin_common::telemetry::{Frame, Header, RoadMap, VehicleStateSample};
+use risktwin_commonroad::twin::{footprint_of, road_from_lanelets};
+use risktwin_commonroad::{ObstacleState, Scenario, Shape};
 use risktwin_protos::recording::{MessageCursor, Recorder, RecordingError, UnfinishedRecording};
 use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{EdgeStream, edge_map, edge_stream};
@@ -31,7 +31,7 @@ pub enum FleetRecordingError {
     #[error(transparent)]
     Recording(#[from] RecordingError),
     #[error("the lanelet network cannot be converted to twin lanes: {0}")]
-    Map(#[from] risktwin_common::commonroad::twin::TwinError),
+    Map(#[from] risktwin_commonroad::twin::TwinError),
     #[error("obstacle id {id}: {reason}")]
     Obstacle { id: u64, reason: String },
     #[error(transparent)]

@@ -4,10 +4,10 @@
 //! Episodes are independent, so they run on all cores; results are gathered by candidate index,
 //! which keeps the output identical whatever the number of threads.
 
-use crate::library::{DEFAULT_POLICY, LibraryError, Outcome, Rejection, ScenarioLibrary, ScenarioRecord};
 use risktwin_common::episode::{EpisodeResult, evaluate};
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{Infeasible, MutateError, ScenarioKind, ScenarioSpec, check_feasible, mutate, sample};
+use risktwin_store::library::{DEFAULT_POLICY, LibraryError, Outcome, Rejection, ScenarioLibrary, ScenarioRecord};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -329,7 +329,7 @@ pub fn mutate_stored(
     let mut children: Vec<Child> = evaluated
         .iter()
         .map(|e| Child {
-            id: crate::library::content_id(&e.spec),
+            id: risktwin_store::library::content_id(&e.spec),
             seed: e.spec.seed,
             risk: e.result.risk.score,
             collision: e.result.metrics.collision,

@@ -22,7 +22,7 @@
 //! ```
 //! use risktwin_cloud::ingest::IngestWorker;
 //! use risktwin_cloud::twin::Twin;
-//! use risktwin_common::align::IngestConfig;
+//! use risktwin_align::IngestConfig;
 //! use risktwin_common::geometry::{Footprint, Pose, Vec2};
 //! use risktwin_common::telemetry::{Frame, Header, VehicleStateSample};
 //! use risktwin_transport::EdgeStream;
@@ -60,10 +60,7 @@ pub mod episode_recording;
 pub mod fleet_loop;
 pub mod generate;
 pub mod ingest;
-pub mod library;
 pub mod network;
-pub mod recordings;
-mod sqlite_schema;
 #[cfg(test)]
 mod test_fixtures;
 pub mod trainer;

@@ -41,10 +41,10 @@ impl std::error::Error for CliError {}
 
 pub type CliResult<T = ()> = Result<T, CliError>;
 
-impl From<risktwin_cloud::library::LibraryError> for CliError {
+impl From<risktwin_store::library::LibraryError> for CliError {
     /// A library file at fault (not a library, a wrong schema, a damaged page, a stored value
     /// out of its range) is bad input, exit 2; anything else (I/O, a lock) a runtime failure.
-    fn from(e: risktwin_cloud::library::LibraryError) -> Self {
+    fn from(e: risktwin_store::library::LibraryError) -> Self {
         if e.blames_the_file() { CliError::input(e) } else { CliError::runtime(e) }
     }
 }

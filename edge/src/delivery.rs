@@ -4,17 +4,18 @@
 //! per stream what was acknowledged, what the cloud counts lost and what stayed undelivered,
 //! and when the cloud was gone (docs/keyexpr.md, "Delivery acknowledgements").
 
+use crate::summary::{CloudGone, CloudSeen, DeliverySummary};
 use risktwin_common::delivery::{DeliveryAck, DeliveryLedger};
 use risktwin_protos::decode_tagged;
 use risktwin_transport::keyexpr::{CloudToEdge, cloud_liveliness, cloud_to_edge};
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
 use risktwin_transport::zenoh::sample::SampleKind;
 use risktwin_transport::{EdgeStream, SiteId, SourceId, TransportError};
-use serde::Serialize;
 use std::collections::BTreeMap;
 use std::ops::Range;
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::Notify;
 
@@ -75,56 +76,6 @@ impl Numbering {
 
     pub(crate) fn stream_sent(&self) -> StreamSent {
         StreamSent { numbered: self.next, sent: self.sent, refused: Vec::new(), skipped: self.skipped.clone() }
-    }
-}
-
-/// A period when no cloud's liveliness token was seen.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct CloudGone {
-    /// Seconds after the watch started (the edge's start) that the cloud went.
-    pub at_s: f64,
-    /// Seconds it stayed gone (until it came back, or the edge ended).
-    pub for_s: f64,
-}
-
-/// What the edge says of the cloud in its summary.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct CloudSeen {
-    /// Whether a cloud's token or an acknowledgement was ever seen.
-    pub seen: bool,
-    /// Whether a cloud's token was there when the edge ended.
-    pub alive_at_exit: bool,
-    /// How many cloud sessions acknowledged this edge (two after a cloud restart).
-    pub acknowledged_by: usize,
-    /// The periods it was gone after it was first seen (at most 32 listed).
-    pub gone: Vec<CloudGone>,
-    /// All of them, seconds.
-    pub gone_s: f64,
-}
-
-/// Per stream, what became of what the edge sent (flattened into the edge's summary).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct DeliverySummary {
-    /// Received by a cloud, per stream.
-    pub acknowledged: BTreeMap<String, u64>,
-    /// Counted lost by the cloud, per stream.
-    pub lost: BTreeMap<String, u64>,
-    /// Never accounted for by a cloud, per stream.
-    pub undelivered: BTreeMap<String, u64>,
-    /// Refused by the edge as larger than an edge stream may be, per stream (never sent).
-    pub too_large: BTreeMap<String, u64>,
-    pub cloud: CloudSeen,
-}
-
-impl DeliverySummary {
-    /// All undelivered messages.
-    pub fn total_undelivered(&self) -> u64 {
-        self.undelivered.values().sum()
-    }
-
-    /// All messages the cloud counts lost.
-    pub fn total_lost(&self) -> u64 {
-        self.lost.values().sum()
     }
 }
 
@@ -205,8 +156,8 @@ impl DeliveryWatch {
                             .iter()
                             .filter_map(|name| EdgeStream::from_chunk(name))
                             .fold(0u64, |mask, s| mask | 1 << s.index());
-                        if acks.lock().unwrap_or_else(PoisonError::into_inner).apply(ack) {
-                            *ordered.lock().unwrap_or_else(PoisonError::into_inner) = (mask, Some(Instant::now()));
+                        if acks.locked().apply(ack) {
+                            *ordered.locked() = (mask, Some(Instant::now()));
                         }
                         notify.notify_one();
                     }
@@ -226,7 +177,7 @@ impl DeliveryWatch {
             .history(true)
             .callback(move |sample| {
                 let alive = sample.kind() == SampleKind::Put;
-                let mut presence = seen.lock().unwrap_or_else(PoisonError::into_inner);
+                let mut presence = seen.locked();
                 presence.update(sample.key_expr().as_str(), alive, start, Instant::now());
                 cloud_alive.set(f64::from(u8::from(presence.any_alive())));
                 notify.notify_one();
@@ -244,7 +195,7 @@ impl DeliveryWatch {
         let replies = session.liveliness().get(&key).timeout(PRESENCE_QUERY).await.map_err(|e| query(e.to_string()))?;
         while let Ok(reply) = replies.recv_async().await {
             if let Ok(sample) = reply.result() {
-                let mut presence = presence.lock().unwrap_or_else(PoisonError::into_inner);
+                let mut presence = presence.locked();
                 presence.update(sample.key_expr().as_str(), sample.kind() == SampleKind::Put, start, Instant::now());
                 queried_alive.set(f64::from(u8::from(presence.any_alive())));
             }
@@ -256,7 +207,7 @@ impl DeliveryWatch {
     /// acknowledgement named, while it is younger than [`SHED_HOLD`] (a cloud that stopped
     /// acknowledging does not hold the edge back for ever).
     pub fn shed_mask(&self, now: Instant) -> u64 {
-        match *self.shed.lock().unwrap_or_else(PoisonError::into_inner) {
+        match *self.shed.locked() {
             (mask, Some(at)) if now.duration_since(at) < SHED_HOLD => mask,
             _ => 0,
         }
@@ -273,7 +224,7 @@ impl DeliveryWatch {
             let changed = self.changed.notified();
             let summary = self.summary(sent);
             let received = summary.total_undelivered() == 0 && summary.total_lost() == 0;
-            let alive = self.presence.lock().unwrap_or_else(PoisonError::into_inner).any_alive();
+            let alive = self.presence.locked().any_alive();
             if received || !alive || tokio::time::Instant::now() >= deadline {
                 for subscriber in self.subscribers {
                     subscriber.undeclare().await.map_err(|e| TransportError::Declare {
@@ -289,7 +240,7 @@ impl DeliveryWatch {
     }
 
     fn summary(&self, sent: &[(EdgeStream, StreamSent)]) -> DeliverySummary {
-        let ledger = self.ledger.lock().unwrap_or_else(PoisonError::into_inner);
+        let ledger = self.ledger.locked();
         let mut summary = DeliverySummary {
             acknowledged: BTreeMap::new(),
             lost: BTreeMap::new(),
@@ -311,7 +262,7 @@ impl DeliveryWatch {
     }
 
     fn cloud_seen(&self, acknowledged: bool, clouds: usize) -> CloudSeen {
-        let presence = self.presence.lock().unwrap_or_else(PoisonError::into_inner);
+        let presence = self.presence.locked();
         let now = Instant::now();
         let mut gone = presence.gone.clone();
         let mut gone_total = presence.gone_total;

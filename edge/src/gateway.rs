@@ -19,7 +19,7 @@
 
 use crate::cadence::messages_per_state;
 use crate::clock::EdgeClock;
-use crate::delivery::{DeliverySummary, DeliveryWatch, Numbering, StreamSent};
+use crate::delivery::{DeliveryWatch, Numbering, StreamSent};
 use crate::error::EdgeError;
 use crate::publish::EdgeConfig;
 use crate::scene::{Scene, detected, feasible_spec};
@@ -27,10 +27,12 @@ use crate::shm::{
     ControlEvent, ShmCanFrame, ShmControl, ShmError, ShmObjectList, ShmPayload, ShmPayloadError, ShmQos, ShmSample,
     ShmSubscriber, ShmVehicleState,
 };
+use crate::summary::DeliverySummary;
 use risktwin_common::sensor::PerceivedObject;
 use risktwin_common::telemetry::{CanFrame, Frame, Header, ObjectList, VehicleStateSample};
 use risktwin_common::vehicle::Vehicle;
 use risktwin_protos::encode;
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::{
     Delivery, EdgeStream, Shutdown, StreamPublisher, TransportError, close, connect, declare_alive, retire,
 };
@@ -38,7 +40,7 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 use thiserror::Error;
 use tokio::sync::{mpsc, oneshot};
 
@@ -334,7 +336,7 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<GatewaySumma
     let (tx, mut rx) = mpsc::channel(FORWARD_QUEUE);
     let (ready_tx, ready_rx) = oneshot::channel();
     let stop_flag = Arc::new(AtomicBool::new(shutdown.is_fired()));
-    let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+    let epoch_ns = unix_ns();
     let reader = Reader {
         source: config.id.to_string(),
         clock: EdgeClock::new(config.clock, epoch_ns),

@@ -2,8 +2,7 @@
 //! go out (a counter handle per stream, set to the count the summary keeps), whether a cloud is
 //! there, and at the end what the summary says became of them.
 
-use crate::delivery::DeliverySummary;
-use crate::replay::ReplaySummary;
+use crate::summary::{DeliverySummary, ReplaySummary};
 use risktwin_transport::EdgeStream;
 use risktwin_transport::keyexpr::parse_edge_key;
 use std::collections::BTreeMap;

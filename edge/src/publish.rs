@@ -8,10 +8,11 @@ use crate::clock::{CLOCK_STEPS_EVERY, ClockModel, ClockSteps, EdgeClock};
 use crate::delivery::{DeliveryWatch, StreamSent};
 use crate::error::EdgeError;
 use crate::summary::SentSummary;
-use risktwin_common::align::MAX_EDGE_PAYLOAD_BYTES;
+use risktwin_align::MAX_EDGE_PAYLOAD_BYTES;
 use risktwin_common::telemetry::{Frame, Header};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report};
 use risktwin_transport::recovery::DEFAULT_OUTAGE;
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::zenoh::pubsub::Publisher;
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::{
@@ -19,7 +20,7 @@ use risktwin_transport::{
     declare_alive, protobuf, retire,
 };
 use std::collections::BTreeMap;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 /// What every edge role is configured with.
 #[derive(Debug, Clone)]
@@ -54,7 +55,7 @@ pub struct EdgeConfig {
     pub scenario_seed: u64,
     /// The key whose signature a vehicle needs on a policy update (`--trust-key`); `None`: it
     /// takes no policy from the network.
-    pub trust_key: Option<risktwin_common::policy_signature::PolicyVerifyingKey>,
+    pub trust_key: Option<risktwin_policy::signature::PolicyVerifyingKey>,
     /// Watch the cloud's delivery acknowledgements and its liveliness, wait for them at the end
     /// and report what was not delivered ([`crate::delivery`]); off (`--no-ack`) for an edge
     /// that publishes without a RiskTwin cloud on purpose.
@@ -218,7 +219,7 @@ pub async fn run_producer(
     let tick_period = Duration::from_secs_f64(1.0 / (config.rate_hz * f64::from(producer.ticks_per_base())));
     let start = Instant::now();
     let deadline = config.duration.map(|d| start + d);
-    let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+    let epoch_ns = unix_ns();
     let mut clock = EdgeClock::new(config.clock, epoch_ns);
     let mut steps = config.clock_steps.as_deref().map(ClockSteps::new);
     let mut steps_read = start;
@@ -375,7 +376,7 @@ impl SentSummary {
     pub(crate) fn new(
         config: &EdgeConfig,
         sent: impl IntoIterator<Item = (EdgeStream, u64)>,
-        delivery: Option<crate::delivery::DeliverySummary>,
+        delivery: Option<crate::summary::DeliverySummary>,
     ) -> Self {
         SentSummary {
             site: config.site.to_string(),

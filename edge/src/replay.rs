@@ -8,18 +8,17 @@
 //! numbers of a stream come from the recorded headers, so a number the recording lacks (lost on
 //! the way to the recorder, or before it started) is counted as never sent, not as undelivered.
 
-use crate::delivery::{DeliverySummary, DeliveryWatch, Numbering, StreamSent};
+use crate::delivery::{DeliveryWatch, Numbering, StreamSent};
 use crate::error::EdgeError;
+use crate::summary::{DeliverySummary, ReplaySummary};
 use risktwin_protos::header_seq;
-use risktwin_protos::recording::{RecordingError, SpanCursor, UnfinishedRecording, encode_replay_time};
+use risktwin_protos::recording::{RecordingError, SpanCursor, encode_replay_time};
 use risktwin_transport::keyexpr::{EDGE_MAP_MESSAGE, parse_edge_key, parse_edge_map_key};
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{
     Delivery, EdgeStream, Shutdown, SiteId, SourceId, StreamPublisher, TransportConfig, close, connect, retire,
 };
-use serde::Serialize;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
 use std::time::Duration;
 
 /// How to replay.
@@ -32,44 +31,6 @@ pub struct ReplayConfig {
     pub wait_for_cloud: Duration,
     /// Watch the cloud's delivery acknowledgements of every replayed source (`--no-ack` off).
     pub ack: bool,
-}
-
-/// What a replay published, per key, and what it skipped (topics that are neither an edge stream
-/// nor a road map of the scheme).
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
-pub struct ReplaySummary {
-    pub published: u64,
-    pub skipped: u64,
-    pub by_key: BTreeMap<String, u64>,
-    /// From the first message to the last one handed to Zenoh.
-    pub elapsed_s: f64,
-    /// Published messages per second over `elapsed_s`.
-    pub msgs_per_s: f64,
-    /// Edge-stream messages whose header could not be read (published, their delivery not
-    /// tracked: the cloud drops them as malformed, counted).
-    pub unnumbered: u64,
-    /// What became of each replayed source's messages (`site/source`), when watched.
-    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub delivery: BTreeMap<String, DeliverySummary>,
-    /// What could not be read of each unfinished file (a recorder killed): the caller warns.
-    #[serde(skip)]
-    pub unfinished: Vec<(PathBuf, UnfinishedRecording)>,
-}
-
-impl ReplaySummary {
-    /// Why this replay cannot count as a success, if it cannot: a source's messages that no
-    /// cloud accounted for (see [`DeliverySummary::failure`]).
-    pub fn failure(&self) -> Option<String> {
-        let why: Vec<String> = self
-            .delivery
-            .iter()
-            .filter_map(|(source, d)| {
-                let sent = d.acknowledged.values().chain(d.lost.values()).chain(d.undelivered.values()).sum();
-                d.failure(source, sent)
-            })
-            .collect();
-        (!why.is_empty()).then(|| why.join("; "))
-    }
 }
 
 /// A replayed channel: its publisher, and for an edge stream the source and stream whose

@@ -17,14 +17,14 @@ use risktwin_common::driver::{Policy, ReferenceDriver};
 use risktwin_common::episode::{EpisodeResult, run_observed, with_reference_driver};
 use risktwin_common::geometry::{Footprint, Pose};
 use risktwin_common::metrics::RewardWeights;
-use risktwin_common::net::{HostDriver, HostPolicy};
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, check_feasible, sample};
 use risktwin_common::sensor::PerceivedObject;
 use risktwin_common::telemetry::PolicyRef;
 use risktwin_common::telemetry::{DetectedObject, HazardWarning};
-use risktwin_common::v2x::warning::{Heard, Warning};
 use risktwin_common::vehicle::{Controls, Vehicle, VehicleState};
 use risktwin_common::world::World;
+use risktwin_policy::{HostDriver, HostPolicy};
+use risktwin_v2x::warning::{Heard, Warning};
 use std::fmt;
 use std::sync::Arc;
 
@@ -41,7 +41,7 @@ pub fn feasible_spec(seed: u64, kind: ScenarioKind) -> Result<ScenarioSpec, Edge
 
 /// A scenario world stepping at the world's step with the ego controller; when the scenario's
 /// horizon is reached it starts over, so an edge can publish for as long as it runs. Hazards
-/// the cloud warned of are fused into what the controller sees (`common::v2x::warning::Heard`:
+/// the cloud warned of are fused into what the controller sees (`v2x::warning::Heard`:
 /// the warned objects it does not perceive itself, kept 1 s after last heard).
 pub struct Scene {
     spec: ScenarioSpec,
@@ -111,7 +111,7 @@ pub struct ActivePolicy {
 }
 
 /// What drives the ego: the scenario's reference driver, or a received policy acting on the
-/// training environment's observation through its action mapping (`common::net::HostDriver`).
+/// training environment's observation through its action mapping (`policy::HostDriver`).
 pub enum EgoController {
     /// The IDM/MOBIL reference driver of the scenario.
     Reference(Box<ReferenceDriver>),
@@ -233,8 +233,8 @@ pub fn detected(object: &PerceivedObject) -> DetectedObject {
 pub(crate) mod tests {
     use super::*;
     use risktwin_common::env::OBS_DIM;
-    use risktwin_common::net::{Dense, HostMlp, PolicyKind};
     use risktwin_common::world::STEP_S;
+    use risktwin_policy::{Dense, HostMlp, PolicyKind};
 
     /// A `kind` policy file OBS_DIM → 4 → out: zero weights, so the action is the output bias.
     pub(crate) fn policy_net(kind: PolicyKind, out_bias: &[f32]) -> HostPolicy {

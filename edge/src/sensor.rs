@@ -25,8 +25,9 @@ use crate::shm::{
 use crate::summary::SentSummary;
 use risktwin_common::telemetry::CAN_DLC;
 use risktwin_common::vehicle::Vehicle;
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::{EdgeStream, Shutdown};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 /// How often the start-up handshake looks at the subscriber counts.
 const HANDSHAKE_POLL: Duration = Duration::from_millis(5);
@@ -183,7 +184,7 @@ async fn publish_loop(config: &EdgeConfig, sensor: &mut Sensor, mut stop: Shutdo
     let tick_period = Duration::from_secs_f64(1.0 / (config.rate_hz * f64::from(TICKS_PER_STATE)));
     let start = Instant::now();
     let deadline = config.duration.map(|d| start + d);
-    let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+    let epoch_ns = unix_ns();
     let mut clock = EdgeClock::new(config.clock, epoch_ns);
     let mut tick = 0u64;
     loop {

@@ -11,9 +11,9 @@
 extern crate libfuzzer_sys;
 
 use risktwin_cloud::commonroad_recording::write_scenario;
-use risktwin_common::commonroad::parse_scenario;
+use risktwin_commonroad::parse_scenario;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
-use risktwin_common::policy_signature::PolicySigningKey;
+use risktwin_policy::signature::PolicySigningKey;
 use risktwin_common::rng::Rng;
 use risktwin_common::road::Road;
 use risktwin_common::scenario::{ScenarioKind, sample};
@@ -22,7 +22,7 @@ use risktwin_common::telemetry::{
     CanFrame, DetectedObject, Frame, HazardKind, HazardWarning, Header, ObjectList, Phase, PolicyUpdate, RoadMap,
     RsuObservation, ScenarioPush, SignalPhase, VehicleStateSample,
 };
-use risktwin_common::v2x::sweep::SweepConfig;
+use risktwin_v2x::sweep::SweepConfig;
 use risktwin_edge::fleet::wire::{EgoTruth, Reply, Truth, TruthObject};
 use risktwin_edge::vehicle::push::{PolicyTrust, PushSummary};
 use risktwin_fuzz::{

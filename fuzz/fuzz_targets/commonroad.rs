@@ -4,8 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use risktwin_common::commonroad::criticality::scenario_criticality;
-use risktwin_common::commonroad::parse_scenario;
+use risktwin_commonroad::criticality::scenario_criticality;
+use risktwin_commonroad::parse_scenario;
 
 fuzz_target!(|data: &[u8]| {
     // The binary reads the file as UTF-8 text (`read_xml`): anything else is refused before.

@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use risktwin_common::v2x::sweep::SweepConfig;
+use risktwin_v2x::sweep::SweepConfig;
 use risktwin_pipeline::RunConfig;
 
 fuzz_target!(|data: &[u8]| {

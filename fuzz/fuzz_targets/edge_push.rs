@@ -5,7 +5,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use risktwin_common::policy_signature::PolicySigningKey;
+use risktwin_policy::signature::PolicySigningKey;
 use risktwin_edge::vehicle::push::{PolicyTrust, PushSummary};
 use risktwin_fuzz::{PUSH_KEY_SEED, PUSH_TARGET, PUSH_VEHICLE_ID, Records, push_tag};
 use risktwin_protos::encoding_of;

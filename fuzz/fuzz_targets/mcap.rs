@@ -7,8 +7,8 @@
 use libfuzzer_sys::fuzz_target;
 use risktwin_cloud::commonroad_recording::read_scenario;
 use risktwin_cloud::ingest::{IngestWorker, replay_into};
-use risktwin_common::align::IngestConfig;
-use risktwin_common::commonroad::criticality::scenario_criticality;
+use risktwin_align::IngestConfig;
+use risktwin_commonroad::criticality::scenario_criticality;
 use risktwin_protos::recording::scan::RecordScanner;
 use risktwin_protos::recording::{MessageCursor, read_messages, recover, salvage_messages};
 use std::io::Cursor;

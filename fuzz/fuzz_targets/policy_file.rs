@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use risktwin_common::net::HostPolicy;
+use risktwin_policy::HostPolicy;
 use risktwin_learn::PolicyNet;
 
 fuzz_target!(|data: &[u8]| {

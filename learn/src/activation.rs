@@ -1,8 +1,8 @@
-//! The fast tanh of [`risktwin_common::net::tanh`] as a differentiable candle op, so the
+//! The fast tanh of [`risktwin_policy::tanh`] as a differentiable candle op, so the
 //! candle networks learn with exactly the function their host-side copies act with.
 
 use candle_core::{CpuStorage, CustomOp1, Layout, Result, Shape, Tensor};
-pub use risktwin_common::net::tanh::{tanh, tanh_in_place};
+pub use risktwin_policy::tanh::{tanh, tanh_in_place};
 
 /// [`tanh`] as a candle op with the gradient 1 − tanh².
 struct FastTanh;

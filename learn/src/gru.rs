@@ -4,8 +4,8 @@ use crate::LearnError;
 use crate::bias::bias_add;
 use crate::nn::{Param, const_param, uniform_param};
 use candle_core::{Result, Tensor};
-use risktwin_common::net::{Dense, HostGru};
 use risktwin_common::rng::Rng;
+use risktwin_policy::{Dense, HostGru};
 
 /// h' = (1 − z)⊙n + z⊙h, r = σ(x·W_r + h·U_r + b_r), z = σ(…), n = tanh(x·W_n + b_n + r⊙(h·U_n + c_n)).
 #[derive(Debug, Clone)]

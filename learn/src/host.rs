@@ -1,6 +1,6 @@
 //! Host-side (plain Rust, no autograd) copies of the candle networks for acting: rollouts and
 //! evaluation run the same weights without building tensors or a gradient graph. The host
-//! network itself ([`HostMlp`]) lives in `risktwin_common::net`, so that processes without
+//! network itself ([`HostMlp`]) lives in `risktwin_policy`, so that processes without
 //! candle (edge vehicles) act with the very same code.
 //!
 //! A snapshot is taken after each update ([`snapshot`]); the candle networks stay the single
@@ -8,8 +8,8 @@
 
 use crate::LearnError;
 use crate::nn::Mlp;
-use risktwin_common::net::Dense;
-pub use risktwin_common::net::{HostMlp, Scratch};
+use risktwin_policy::Dense;
+pub use risktwin_policy::{HostMlp, Scratch};
 
 /// A host copy of `mlp`'s current weights.
 pub fn snapshot(mlp: &Mlp) -> Result<HostMlp, LearnError> {

@@ -50,7 +50,7 @@ pub enum LearnError {
     #[error("{0}: {1}")]
     Io(String, String),
     #[error("host network: {0}")]
-    Net(#[from] risktwin_common::net::NetError),
+    Net(#[from] risktwin_policy::NetError),
     #[error(transparent)]
     Source(#[from] risktwin_common::env::SourceError),
 }

@@ -13,9 +13,9 @@ use std::fmt;
 use std::path::Path;
 use std::str::FromStr;
 
-use risktwin_common::net::PolicyKind;
-use risktwin_common::net::file::{metadata, read_meta, sort_header};
-pub use risktwin_common::net::{HostPolicy, POLICY_FORMAT_VERSION};
+use risktwin_policy::PolicyKind;
+use risktwin_policy::file::{metadata, read_meta, sort_header};
+pub use risktwin_policy::{HostPolicy, POLICY_FORMAT_VERSION};
 
 /// Learning algorithm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -99,7 +99,7 @@ fn a_saved_policy_acts_the_same_on_the_host_reader() {
         let path = dir.path().join(format!("{algo}.safetensors"));
         net.save(&path).expect("save");
         let bytes = std::fs::read(&path).expect("read");
-        let host = risktwin_common::net::HostPolicy::from_safetensors(&bytes).expect("a host policy");
+        let host = risktwin_policy::HostPolicy::from_safetensors(&bytes).expect("a host policy");
         assert_eq!(host.kind().algo(), algo.name());
         let (mut state, mut memory) = (vec![0.0; net.state_dim()], host.memory());
         for row in obs.chunks(OBS_DIM) {

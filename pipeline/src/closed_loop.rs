@@ -17,12 +17,10 @@
 
 use crate::error::RunError;
 use crate::push_loop::{self, LoopOutput, LoopRequest};
-use risktwin_cloud::library::{RankedScenario, ScenarioLibrary};
 use risktwin_cloud::network::push::ScenarioPushReport;
 use risktwin_cloud::trainer::drive::drive;
 use risktwin_common::episode::{EpisodeResult, evaluate};
 use risktwin_common::metrics::EpisodeMetrics;
-use risktwin_common::net::HostPolicy;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::{ScenarioKind, build};
 use risktwin_common::telemetry::PolicyRef;
@@ -30,6 +28,8 @@ use risktwin_common::world::STEP_S;
 use risktwin_edge::scene::{ActivePolicy, Tape};
 use risktwin_edge::vehicle::DEFAULT_STATE_RATE_HZ;
 use risktwin_learn::PolicyNet;
+use risktwin_policy::HostPolicy;
+use risktwin_store::library::{RankedScenario, ScenarioLibrary};
 use risktwin_transport::Shutdown;
 use serde::Serialize;
 use std::fmt::Write;

@@ -1,8 +1,8 @@
 //! Why a run stopped. Each variant says whose fault it was ([`RunError::is_input`]), so the
 //! binary can keep docs/cli.md's exit codes (2 for bad input, 1 for a runtime failure).
 
-use risktwin_cloud::library::LibraryError;
 use risktwin_cloud::trainer::TrainerError;
+use risktwin_store::library::LibraryError;
 use std::path::PathBuf;
 
 /// Why `risktwin run` failed.

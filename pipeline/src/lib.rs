@@ -51,7 +51,6 @@ pub use risktwin_transport::Shutdown;
 use closed_loop::ClosedLoop;
 use figures::HeatmapScene;
 use risktwin_cloud::generate::{generate, store};
-use risktwin_cloud::library::{RankedScenario, ScenarioLibrary};
 use risktwin_cloud::trainer::{HeldOut, evaluate_floor, run_ablation};
 use risktwin_common::env::Variant;
 use risktwin_common::episode::field_snapshot;
@@ -59,6 +58,7 @@ use risktwin_common::rng::Rng;
 use risktwin_common::scenario::ScenarioKind;
 use risktwin_common::world::STEP_S;
 use risktwin_learn::PolicyNet;
+use risktwin_store::library::{RankedScenario, ScenarioLibrary};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -6,9 +6,9 @@ use crate::rescore::Rescore;
 use crate::search::{KindSummary, RoundReport};
 use crate::verdict::Verdict;
 use risktwin_cloud::generate::GenerateReport;
-use risktwin_cloud::library::RankedScenario;
 use risktwin_cloud::trainer::{AblationReport, FloorEvaluation};
 use risktwin_common::scenario::ScenarioKind;
+use risktwin_store::library::RankedScenario;
 use serde::Serialize;
 use std::collections::BTreeMap;
 

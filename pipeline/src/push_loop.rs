@@ -15,12 +15,12 @@
 
 use risktwin_cloud::network::push::{EdgeLink, PushError, PushTarget, ScenarioPushReport};
 use risktwin_cloud::network::{CloudConfig, CloudSummary};
-use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_edge::publish::run_producer;
 use risktwin_edge::vehicle::push::{PolicyLine, PushSummary};
 use risktwin_edge::vehicle::{DEFAULT_STATE_RATE_HZ, Vehicle, VehicleSummary};
 use risktwin_edge::{EdgeConfig, EdgeError, Producer, Stamper};
+use risktwin_policy::signature::PolicySigningKey;
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, KeyError};
 use risktwin_transport::router::RouterConfig;
 use risktwin_transport::shutdown::channel;
@@ -87,7 +87,7 @@ pub enum LoopError {
     #[error("closed loop: pushing scenario {id}: {source}")]
     PushScenario { id: String, source: PushError },
     #[error("closed loop: the full policy file: {0}")]
-    PolicyFile(#[from] risktwin_common::net::NetError),
+    PolicyFile(#[from] risktwin_policy::NetError),
 }
 
 /// What to push.

@@ -4,11 +4,11 @@
 
 use crate::error::RunError;
 use risktwin_cloud::episode_recording::EpisodeRecorder;
-use risktwin_cloud::library::{RankedScenario, ScenarioLibrary};
 use risktwin_cloud::trainer::drive::drive;
 use risktwin_common::env::Variant;
 use risktwin_common::scenario::build;
 use risktwin_learn::PolicyNet;
+use risktwin_store::library::{RankedScenario, ScenarioLibrary};
 use std::path::Path;
 
 /// File name of the recording in the report folder.

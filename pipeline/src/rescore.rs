@@ -2,10 +2,10 @@
 //! scenarios; its outcomes are stored in the library under `<algo>-<variant>-final`, next to the
 //! reference driver's, so the ranking can be read per policy.
 
-use risktwin_cloud::library::{LibraryError, Origin, Outcome, RankedScenario, ScenarioLibrary, ScenarioRecord};
 use risktwin_cloud::trainer::drive::drive_all;
 use risktwin_common::env::Variant;
 use risktwin_learn::PolicyNet;
+use risktwin_store::library::{LibraryError, Origin, Outcome, RankedScenario, ScenarioLibrary, ScenarioRecord};
 use serde::Serialize;
 
 /// One policy on the top scenarios.

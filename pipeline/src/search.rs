@@ -4,9 +4,9 @@
 
 use crate::config::RunConfig;
 use risktwin_cloud::generate::{evaluate_all, reference_outcome};
-use risktwin_cloud::library::{LibraryError, ScenarioLibrary, ScenarioRecord};
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, mutate};
+use risktwin_store::library::{LibraryError, ScenarioLibrary, ScenarioRecord};
 use serde::Serialize;
 use std::collections::BTreeMap;
 

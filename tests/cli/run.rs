@@ -230,7 +230,7 @@ fn sac_and_ppo_gru_by_flag_with_a_tiny_config() {
         let m = run_ok(dir.path(), &["run", "--config", "tiny.json", "--algo", algo, "--seed", "3", "--out", algo]);
         assert_eq!(m["ablation"]["algo"], algo);
         let policy = std::fs::read(dir.path().join(algo).join("policy_full.safetensors")).expect("the policy file");
-        assert_eq!(risktwin_common::net::file::read_meta(&policy).expect("a policy file").algo, algo);
+        assert_eq!(risktwin_policy::file::read_meta(&policy).expect("a policy file").algo, algo);
         // push_scenarios defaults to 3, capped by top_k 2; the edge drives with this policy.
         assert_closed_loop(&m, &dir.path().join(algo), algo, 2);
         let sentences = m["verdict"]["sentences"].as_array().unwrap();

@@ -7,10 +7,11 @@ use prost::Message as _;
 use risktwin_protos::foxglove::Log;
 use risktwin_protos::recording::read_messages;
 use risktwin_protos::v1::LinkCondition;
+use risktwin_transport::sync::LockExt;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
-use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 mod v2x;
@@ -50,7 +51,7 @@ struct Deployment {
 
 impl Deployment {
     fn new(topology: &str) -> Deployment {
-        let turn = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
+        let turn = ONE_AT_A_TIME.locked();
         let dir = tempfile::tempdir().expect("a temp dir");
         let file = dir.path().join("topology.toml");
         std::fs::write(&file, topology).expect("writes the topology");

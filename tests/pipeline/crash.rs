@@ -6,9 +6,10 @@
 use crate::peer_python;
 use crate::support::{Proc, start_router};
 use risktwin_protos::recording::{CHUNK_WALL, RecordedMessage, RecordingError, read_messages, salvage_messages};
+use risktwin_transport::wall_clock::unix_ns;
 use std::collections::BTreeMap;
 use std::process::Command;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 const STEP: Duration = Duration::from_secs(60);
 const SITE: &str = "crash";
@@ -40,10 +41,6 @@ with open(sys.argv[1], "rb") as f:
         topics[channel.topic] += 1
 print(json.dumps({"topics": topics, "statistics_messages": summary.statistics.message_count}))
 "#;
-
-fn unix_ns() -> u64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
-}
 
 fn utf8(path: &std::path::Path) -> &str {
     path.to_str().expect("a UTF-8 path")
@@ -86,7 +83,7 @@ fn a_cloud_killed_while_recording_leaves_a_file_that_replays_recovers_and_opens_
         let bytes = std::fs::read(&killed).unwrap_or_default();
         if let Ok((messages, _)) = salvage_messages(&bytes) {
             let newest_ns = messages.iter().map(|m| m.log_time_ns).max().unwrap_or(u64::MAX);
-            let open_for = Duration::from_nanos(unix_ns().saturating_sub(newest_ns));
+            let open_for = Duration::from_nanos((unix_ns() as u64).saturating_sub(newest_ns));
             if states(&messages).len() >= STATES_BEFORE_KILL && open_for >= OPEN_CHUNK_AGE {
                 break messages;
             }
@@ -95,7 +92,7 @@ fn a_cloud_killed_while_recording_leaves_a_file_that_replays_recovers_and_opens_
         std::thread::sleep(POLL);
     };
     cloud.kill();
-    let killed_at_ns = unix_ns();
+    let killed_at_ns = unix_ns() as u64;
     let (status, _) = cloud.wait_exit(STEP);
     assert_eq!(status.code(), None, "the cloud died of the signal, without a summary");
     edge.terminate();

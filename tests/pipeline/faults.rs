@@ -8,9 +8,10 @@
 
 use crate::support::{Certs, Proc, start_router_with};
 use risktwin_protos::recording::read_messages;
+use risktwin_transport::wall_clock::unix_ns;
 use serde_json::Value;
 use std::collections::BTreeMap;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 const STEP: Duration = Duration::from_secs(60);
 const EDGES: [(&str, &str); 2] = [("vehicle", "veh-f"), ("rsu", "rsu-f")];
@@ -22,10 +23,6 @@ const AFTER_HEAL: Duration = Duration::from_millis(1500);
 /// Flow must resume this soon after the new router starts: the 2 s target plus slack for a
 /// loaded 2-core machine (measured 0.21–0.31 s: the clients' next 500 ms retry).
 const RESUME_LIMIT_S: f64 = 3.0;
-
-fn unix_ns() -> u64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
-}
 
 /// What one run with a router restart gave.
 pub(crate) struct Outcome {
@@ -105,7 +102,7 @@ pub(crate) fn run_with_fault(cache_s: &str, fault: Fault, mode: &str, certs: Opt
             router.wait_exit(STEP);
             std::thread::sleep(outage);
             // Measured from the new router's start (its process start-up included): an upper bound.
-            let up_ns = unix_ns();
+            let up_ns = unix_ns() as u64;
             let back_at;
             (router, back_at) = start_router_with(&locator, &router_flags);
             assert_eq!(back_at, locator, "the router is back on the same port");
@@ -120,7 +117,7 @@ pub(crate) fn run_with_fault(cache_s: &str, fault: Fault, mode: &str, certs: Opt
         Fault::CloudStall(stall) => {
             signal(cloud.id(), "STOP");
             std::thread::sleep(stall);
-            let up_ns = unix_ns();
+            let up_ns = unix_ns() as u64;
             signal(cloud.id(), "CONT");
             up_ns
         }

@@ -1,8 +1,8 @@
 //! N vehicles + M RSUs + one cloud around one router.
 
 use crate::support::{Proc, start_router};
+use risktwin_align::IngestConfig;
 use risktwin_cloud::ingest::{IngestWorker, SnapshotDigest};
-use risktwin_common::align::IngestConfig;
 use risktwin_protos::recording::read_messages;
 use risktwin_transport::EdgeStream;
 use serde_json::Value;

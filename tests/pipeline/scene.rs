@@ -71,8 +71,8 @@ fn a_lockstep_recording_scene_of_processes_equals_the_embedded_run_and_simulate(
 #[test]
 fn a_cloud_mirrors_a_realtime_recording_scene_on_its_lanelet_road() {
     let xml = std::fs::read_to_string(PUTTE).expect("the recording");
-    let scenario = risktwin_common::commonroad::parse_scenario(&xml).expect("parses");
-    let (road, _) = risktwin_common::commonroad::twin::road_from_lanelets(&scenario.lanelets).expect("a road");
+    let scenario = risktwin_commonroad::parse_scenario(&xml).expect("parses");
+    let (road, _) = risktwin_commonroad::twin::road_from_lanelets(&scenario.lanelets).expect("a road");
     let (_router, locator) = start_router();
     let net = ["--mode", "client", "--connect", locator.as_str()];
     let mut cloud = Proc::spawn("cloud", &args(&["cloud", "--roles", "ingest,twin,risk"], &net));

@@ -4,9 +4,10 @@
 //! caches, and the union holds every message the edges sent, each once.
 
 use crate::support::{Proc, start_router};
+use risktwin_transport::wall_clock::unix_ns;
 use serde_json::Value;
 use std::collections::BTreeSet;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 const STEP: Duration = Duration::from_secs(60);
 const SITE: &str = "shard";
@@ -18,10 +19,6 @@ const DRIVE_S: &str = "6";
 const BEFORE_KILL: Duration = Duration::from_millis(1500);
 /// The bound on a hand-over, from the kill to the new owner's subscription.
 const HANDOVER: Duration = Duration::from_secs(2);
-
-fn unix_ms() -> u64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis() as u64)
-}
 
 fn count(v: &Value) -> u64 {
     v.as_u64().unwrap_or_else(|| panic!("{v} is not a count"))
@@ -70,7 +67,7 @@ fn three_sharded_workers_one_killed_hand_over_within_2_s_and_the_union_receives_
     let moved: BTreeSet<String> =
         stderr.lines().filter_map(|l| l.split("shard: owns ").nth(1).map(str::to_owned)).collect();
     let victim_id = stderr.lines().find_map(|l| l.split("shard: this worker is ").nth(1)).expect("its id").to_owned();
-    let killed_ms = unix_ms();
+    let killed_ms = (unix_ns() / 1_000_000) as u64;
     workers[victim].kill();
     let sent: Vec<Value> = edges.iter_mut().map(|e| e.exit_json(STEP)).collect();
     let mut survivors = Vec::new();

@@ -4,8 +4,8 @@
 //! with another key, an unsigned one; a vehicle with no trusted key refuses them all.
 
 use crate::support::{Proc, keys, session, start_router};
-use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::telemetry::{Frame, Header, PolicyUpdate};
+use risktwin_policy::signature::PolicySigningKey;
 use risktwin_transport::keyexpr::{CloudToEdge, cloud_to_edge};
 use risktwin_transport::{SiteId, SourceId, protobuf};
 use serde_json::json;

@@ -31,8 +31,9 @@
 use crate::keyexpr::{self, EdgeStream, SiteId, SourceId};
 use crate::recovery::RECOVERY_PRIORITY;
 use crate::session::TransportError;
+use crate::sync::LockExt;
 use std::collections::{HashMap, HashSet};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use zenoh::Session;
 use zenoh::query::{ConsolidationMode, ReplyKeyExpr};
@@ -166,7 +167,7 @@ where
         .allowed_origin(Locality::Remote)
         .callback(move |sample| {
             if let Some(info) = sample.source_info() {
-                sample_keys.lock().unwrap_or_else(PoisonError::into_inner).remember(info.source_id(), &sample);
+                sample_keys.locked().remember(info.source_id(), &sample);
             }
             if let Some(parsed) = keyexpr::parse_edge_key(sample.key_expr().as_str()) {
                 deliver(parsed.stream, &sample);
@@ -179,7 +180,7 @@ where
     let misses = subscriber
         .sample_miss_listener()
         .callback(move |miss: Miss| {
-            let publisher = keys.lock().unwrap_or_else(PoisonError::into_inner).get(&miss.source());
+            let publisher = keys.locked().get(&miss.source());
             let Some((key, last_sn)) = publisher else {
                 on_loss(StreamLoss { key: None, samples: miss.nb() });
                 return;

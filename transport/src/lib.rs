@@ -6,6 +6,9 @@
 //! the message its key carries (`stream::protobuf`). It knows nothing of what a vehicle or the
 //! twin is; message encoding belongs to `risktwin-protos`. The edge and cloud
 //! crates depend on it; `common` never does (it stays free of async and network code).
+//!
+//! Two host helpers every role shares live here too: [`sync::LockExt`] (one rule for a poisoned
+//! lock) and [`wall_clock::unix_ns`].
 
 pub mod edge_subscriber;
 pub mod keyexpr;
@@ -15,7 +18,9 @@ pub mod router;
 pub mod session;
 pub mod shutdown;
 pub mod stream;
+pub mod sync;
 pub mod tls;
+pub mod wall_clock;
 
 pub use edge_subscriber::{
     EdgeStreamSubscriber, Missed, StreamLoss, fetch_cached, requery, subscribe_edge_streams, subscribe_shard_group,

@@ -7,8 +7,9 @@
 //! Without a recorder (no `--metrics-listen`) every facade call is a no-op and nothing is
 //! registered here.
 
+use crate::sync::LockExt;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Mutex, PoisonError};
 
 type Exporter = Box<dyn FnMut() -> bool + Send>;
 
@@ -31,14 +32,14 @@ pub fn enabled() -> bool {
 /// process serves no metrics.
 pub fn on_scrape(export: impl FnMut() -> bool + Send + 'static) {
     if enabled() {
-        EXPORTERS.lock().unwrap_or_else(PoisonError::into_inner).push(Box::new(export));
+        EXPORTERS.locked().push(Box::new(export));
     }
 }
 
 /// Runs every registered exporter (the endpoint's scrape handler calls this), dropping those
 /// whose role has ended.
 pub fn refresh() {
-    EXPORTERS.lock().unwrap_or_else(PoisonError::into_inner).retain_mut(|export| export());
+    EXPORTERS.locked().retain_mut(|export| export());
 }
 
 #[cfg(test)]

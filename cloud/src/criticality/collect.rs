@@ -16,10 +16,10 @@
 //! rectangles (their bounding rectangle), absent velocities and accelerations (0), planning
 //! problems (so the default ego of a rebuilt scenario is its first dynamic obstacle).
 
-use risktwin_common::align::DropReason;
-use risktwin_common::commonroad::{DynamicObstacle, ObstacleState, Scenario, Shape, StaticObstacle};
+use risktwin_align::DropReason;
 use risktwin_common::geometry::Vec2;
 use risktwin_common::telemetry::{RoadMap, VehicleStateSample};
+use risktwin_commonroad::{DynamicObstacle, ObstacleState, Scenario, Shape, StaticObstacle};
 use risktwin_protos::decode;
 use risktwin_transport::EdgeStream;
 use risktwin_transport::keyexpr::{parse_edge_key, parse_edge_map_key};
@@ -36,7 +36,7 @@ pub enum RebuildError {
     #[error("obstacle id {id}: {reason}")]
     Obstacle { id: u64, reason: String },
     #[error(transparent)]
-    Scenario(#[from] risktwin_common::commonroad::CommonRoadError),
+    Scenario(#[from] risktwin_commonroad::CommonRoadError),
 }
 
 /// A message from another site than the collector's (the first message fixed it).

@@ -2,7 +2,7 @@
 //! writes it: the CSV of docs/cli.md, or the JSON document with the pair summaries. One writer, so
 //! the offline and the fleet outputs can be compared byte for byte.
 
-use risktwin_common::commonroad::criticality::ScenarioCriticality;
+use risktwin_commonroad::criticality::ScenarioCriticality;
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;

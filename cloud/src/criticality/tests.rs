@@ -2,11 +2,11 @@
 //! criticality of the scenario itself; bad messages are rejected by reason and change nothing.
 
 use super::*;
-use risktwin_common::commonroad::criticality::scenario_criticality;
-use risktwin_common::commonroad::twin::{footprint_of, road_from_lanelets};
-use risktwin_common::commonroad::{Scenario, parse_scenario};
 use risktwin_common::geometry::Pose;
 use risktwin_common::telemetry::{Frame, Header, RoadMap, VehicleStateSample};
+use risktwin_commonroad::criticality::scenario_criticality;
+use risktwin_commonroad::twin::{footprint_of, road_from_lanelets};
+use risktwin_commonroad::{Scenario, parse_scenario};
 use risktwin_protos::encode;
 
 const MAP_KEY: &str = "risktwin/v1/two/map/map";

@@ -20,10 +20,6 @@ pub mod report;
 pub mod trainer;
 
 use crate::generate::mutate_stored;
-use crate::library::{
-    FleetCounts, FleetEpisode, LibraryError, Origin, Outcome, PolicyVersion, Push, ScenarioLibrary, ScenarioRecord,
-    content_id, policy_label,
-};
 use crate::trainer::TrainerError;
 use crate::trainer::gate::GateReport;
 use crate::twin::watch::WatchedEpisode;
@@ -31,6 +27,10 @@ use risktwin_common::digest::fnv1a64;
 use risktwin_common::episode::EpisodeResult;
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{PolicyRef, ScenarioResult};
+use risktwin_store::library::{
+    FleetCounts, FleetEpisode, LibraryError, Origin, Outcome, PolicyVersion, Push, ScenarioLibrary, ScenarioRecord,
+    content_id, policy_label,
+};
 use serde::Serialize;
 use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};

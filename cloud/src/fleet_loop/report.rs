@@ -3,7 +3,7 @@
 //! the twin's.
 
 use super::{LoopSummary, SetFigures};
-use crate::library::{Outcome, StoredFleetEpisode};
+use risktwin_store::library::{Outcome, StoredFleetEpisode};
 use std::fmt::Write;
 
 /// The report as Markdown.

@@ -1,9 +1,9 @@
 //! The loop's decisions on a real library file, without the network.
 use super::*;
 use crate::generate::{evaluate_all, reference_outcome};
-use crate::library::ScenarioRecord;
 use risktwin_common::scenario::{ScenarioKind, check_feasible, sample};
 use risktwin_common::telemetry::{Frame, Header};
+use risktwin_store::library::ScenarioRecord;
 
 /// A library file of `n` feasible emergency brakings with their reference outcomes, one of
 /// them a collision; its path.

@@ -8,11 +8,11 @@
 //! A run takes seconds, so it runs on a thread of its own, on a snapshot of the library taken
 //! when it was decided on, while the loop goes on.
 
-use crate::library::{PolicyVersion, ScenarioLibrary};
 use crate::trainer::gate::{Decision, Driver, GateReport, gate};
 use crate::trainer::{HeldOut, ReplayRule, TrainerError, TrainingPlan, train_variant};
 use risktwin_common::env::{RiskShaping, Variant};
 use risktwin_learn::{Algo, PolicyNet};
+use risktwin_store::library::{PolicyVersion, ScenarioLibrary};
 use std::path::Path;
 use std::time::Duration;
 

@@ -2,7 +2,7 @@
 //! or two machines) can be compared by one number.
 
 use super::sample::TwinSample;
-use risktwin_common::align::Snapshot;
+use risktwin_align::Snapshot;
 
 const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 const FNV_PRIME: u64 = 0x0000_0100_0000_01b3;

@@ -6,7 +6,7 @@
 
 use super::sample::TwinSample;
 use super::worker::IngestWorker;
-use risktwin_common::align::Snapshot;
+use risktwin_align::Snapshot;
 use risktwin_protos::recording::{MessageCursor, RecordingError};
 use risktwin_transport::EdgeStream;
 use risktwin_transport::keyexpr::parse_edge_key;

@@ -1,6 +1,6 @@
 //! What the aligner holds per source and stream: the decoded content the twin needs.
 
-use risktwin_common::align::{Interpolate, lerp_angle};
+use risktwin_align::{Interpolate, lerp_angle};
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::telemetry::{DetectedObject, Phase, VehicleStateSample};
 use std::sync::Arc;

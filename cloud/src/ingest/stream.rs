@@ -2,7 +2,7 @@
 //! carries and how the aligner treats it. The streams themselves are
 //! [`risktwin_transport::EdgeStream`], defined once with the key scheme.
 
-use risktwin_common::align::{StreamIndex, StreamMode, StreamSpec};
+use risktwin_align::{StreamIndex, StreamMode, StreamSpec};
 use risktwin_common::telemetry::{CanFrame, ObjectList, RsuObservation, SignalPhase, VehicleStateSample};
 use risktwin_protos::WireMessage;
 use risktwin_transport::EdgeStream;

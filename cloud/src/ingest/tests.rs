@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::test_fixtures::state;
-use risktwin_common::align::IngestConfig;
+use risktwin_align::IngestConfig;
 use risktwin_protos::encode;
 use risktwin_protos::recording::{Recorder, read_messages};
 use risktwin_transport::EdgeStream;

@@ -9,7 +9,7 @@
 
 use super::sample::{ObservedKinematics, TwinSample};
 use super::stream::{aligner_index, aligner_specs, proto_name};
-use risktwin_common::align::{
+use risktwin_align::{
     DropReason, Incoming, IngestConfig, IngestCore, PushOutcome, SeqProgress, SequenceScope, Snapshot, SourceIndex,
     SourceTable, StreamIndex,
 };
@@ -225,7 +225,7 @@ impl<W: Write + Seek> IngestWorker<W> {
 
     /// The name behind a snapshot's source index.
     pub fn source_name(&self, index: usize) -> Option<&str> {
-        self.sources.name(risktwin_common::align::SourceIndex(index as u32))
+        self.sources.name(risktwin_align::SourceIndex(index as u32))
     }
 
     pub fn stats(&self) -> &IngestStats {
@@ -233,7 +233,7 @@ impl<W: Write + Seek> IngestWorker<W> {
     }
 
     /// Sequence numbers skipped and not (yet) seen, per source, per stream (streams with none
-    /// left out): the deduplicator's `presumed_lost` ([`risktwin_common::align::dedupe`]). With
+    /// left out): the deduplicator's `presumed_lost` ([`risktwin_align::dedupe`]). With
     /// one sequence per source (`SequenceScope::PerSource`) it is reported under `(all)`.
     pub fn presumed_lost(&self) -> BTreeMap<String, BTreeMap<String, u64>> {
         let mut lost = BTreeMap::new();

@@ -9,20 +9,9 @@
 //! under the ingest's lock (a few hash lookups per source) and put outside it, by a task, never
 //! from the receive callback.
 
-use super::receive::LiveIngest;
-use super::routes::DeclaredKeys;
-use risktwin_common::delivery::{DeliveryAck, StreamAck};
-use risktwin_common::telemetry::{Frame, Header};
-use risktwin_protos::{WireMessage, encode};
-use risktwin_transport::keyexpr::{CloudToEdge, cloud_to_edge};
-use risktwin_transport::zenoh::Session;
-use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::zenoh::session::ZenohId;
-use risktwin_transport::{SiteId, SourceId, protobuf};
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-use tokio::task::JoinHandle;
+use std::time::{Duration, Instant};
 
 /// How often the ingest acknowledges.
 pub const ACK_PERIOD: Duration = Duration::from_millis(500);
@@ -79,7 +68,7 @@ impl AckSources {
     /// The sources to acknowledge at `now` (site, source, publisher), at most `max`, the longest
     /// unacknowledged first; they count as acknowledged from now on. Sources quiet for longer
     /// than [`ACK_REPEAT`] are forgotten.
-    fn due(&mut self, now: Instant, max: usize) -> Vec<(String, String, Option<ZenohId>)> {
+    pub(super) fn due(&mut self, now: Instant, max: usize) -> Vec<(String, String, Option<ZenohId>)> {
         self.sources.retain(|_, s| now.duration_since(s.changed) <= ACK_REPEAT);
         let mut due: Vec<(&String, &mut AckSource)> = self.sources.iter_mut().collect();
         if due.len() > max {
@@ -95,87 +84,11 @@ impl AckSources {
             .collect()
     }
 
-    fn next_seq(&mut self) -> u64 {
+    pub(super) fn next_seq(&mut self) -> u64 {
         let seq = self.seq;
         self.seq += 1;
         seq
     }
-}
-
-impl LiveIngest {
-    /// The acknowledgements due at `now` from the cloud session `cloud`: (key, payload).
-    pub(crate) fn due_acks(&mut self, now: Instant, cloud: &str, max: usize) -> Vec<(String, Vec<u8>)> {
-        let wall_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
-        let shed: Vec<String> = self.shed_streams().iter().map(|s| s.as_str().to_owned()).collect();
-        let due = self.acks_mut().due(now, max);
-        let mut out = Vec::with_capacity(due.len());
-        for (site, source, publisher) in due {
-            let (Ok(site_id), Ok(source_id), Some(publisher)) = (SiteId::new(&site), SourceId::new(&source), publisher)
-            else {
-                // A sample without its publisher's session (not an advanced publisher's) cannot be
-                // acknowledged to one process; an invalid id has no key.
-                continue;
-            };
-            let streams: Vec<StreamAck> = self
-                .progress(&source)
-                .into_iter()
-                .map(|(stream, p)| StreamAck {
-                    stream: stream.as_str().to_owned(),
-                    next_seq: p.next_seq,
-                    received: p.received,
-                    lost: p.lost,
-                })
-                .collect();
-            let header = Header {
-                source: "cloud".to_owned(),
-                seq: self.acks_mut().next_seq(),
-                capture_time_ns: wall_ns,
-                publish_time_ns: wall_ns,
-                frame: Frame::World,
-            };
-            let ack = DeliveryAck {
-                header,
-                edge_source: source,
-                edge_session: publisher.to_string(),
-                cloud_session: cloud.to_owned(),
-                streams,
-                shed: shed.clone(),
-            };
-            out.push((cloud_to_edge(&site_id, &source_id, CloudToEdge::Ack), encode(&ack)));
-        }
-        out
-    }
-}
-
-/// Publishes the ingest's acknowledgements every [`ACK_PERIOD`] until aborted.
-pub(crate) fn spawn_acks(session: Session, ingest: Arc<Mutex<LiveIngest>>) -> JoinHandle<()> {
-    tokio::spawn(async move {
-        let cloud = session.zid().to_string();
-        let encoding = protobuf(DeliveryAck::PROTO_NAME);
-        let mut keys = DeclaredKeys::default();
-        let mut every = tokio::time::interval(ACK_PERIOD);
-        every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-        loop {
-            every.tick().await;
-            let acks = ingest.lock().unwrap_or_else(PoisonError::into_inner).due_acks(
-                Instant::now(),
-                &cloud,
-                MAX_ACKS_PER_PERIOD,
-            );
-            let now = Instant::now();
-            for (key, payload) in acks {
-                let put = match keys.get(&session, &key, now).await {
-                    Some(declared) => session.put(declared, payload),
-                    None => session.put(&key, payload),
-                };
-                // Latest-value data: a full link drops it, and the next period's says the same or more.
-                if let Err(e) = put.encoding(encoding.clone()).congestion_control(CongestionControl::Drop).await {
-                    tracing::warn!("ingest: acknowledgement on {key} not sent: {e}");
-                }
-            }
-            keys.forget_idle(&session, now).await;
-        }
-    })
 }
 
 #[cfg(test)]

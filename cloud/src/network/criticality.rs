@@ -15,12 +15,13 @@
 //! (`--site` picks one when several are on the network).
 
 use crate::criticality::{Pushed, RebuildError, ReportFormat, ScenarioCollector, write_report};
-use crate::library::{LibraryError, Outcome, REPLAY_POLICY, RecordedCase, ScenarioLibrary};
-use risktwin_common::commonroad::criticality::{CriticalityError, scenario_criticality};
-use risktwin_common::commonroad::twin::{EgoMode, TwinScene, resimulate};
-use risktwin_common::commonroad::{Scenario, to_xml};
 use risktwin_common::world::STEP_S;
+use risktwin_commonroad::criticality::{CriticalityError, scenario_criticality};
+use risktwin_commonroad::twin::{EgoMode, TwinScene, resimulate};
+use risktwin_commonroad::{Scenario, to_xml};
 use risktwin_protos::check_encoding;
+use risktwin_store::library::{LibraryError, Outcome, REPLAY_POLICY, RecordedCase, ScenarioLibrary};
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
 use risktwin_transport::zenoh::sample::Locality;
@@ -28,7 +29,7 @@ use risktwin_transport::{EdgeStream, SiteId, TransportError, keyexpr};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use thiserror::Error;
 
@@ -272,7 +273,7 @@ pub(crate) async fn subscribe(
         .callback(move |sample| {
             let payload = sample.payload().to_bytes();
             let encoding = sample.encoding().to_string();
-            let mut collect = collect.lock().unwrap_or_else(PoisonError::into_inner);
+            let mut collect = collect.locked();
             collect.handle(sample.key_expr().as_str(), &encoding, &payload);
         })
         .await
@@ -332,7 +333,7 @@ mod tests {
 
     /// The scenario a stored case's XML reads back as.
     fn two_cars_as_rebuilt(xml: &str) -> Scenario {
-        risktwin_common::commonroad::parse_scenario(xml).expect("the stored XML parses")
+        risktwin_commonroad::parse_scenario(xml).expect("the stored XML parses")
     }
 
     #[test]

@@ -2,10 +2,11 @@
 
 use super::liveliness::LivenessLog;
 use super::receive::LiveIngest;
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
 use risktwin_transport::{SiteId, TransportError, watch_liveliness};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 
 /// Starts watching the edges at `site` (every site if `None`), recording joins and leaves; an
 /// edge that left is a new incarnation for `ingest` when it comes back (a restarted process
@@ -18,9 +19,9 @@ pub async fn watch_edges(
     ingest: Arc<Mutex<LiveIngest>>,
 ) -> Result<Subscriber<()>, TransportError> {
     watch_liveliness(session, site, move |change| {
-        log.lock().unwrap_or_else(PoisonError::into_inner).record(&change);
+        log.locked().record(&change);
         if !change.alive {
-            ingest.lock().unwrap_or_else(PoisonError::into_inner).edge_left(&change.site, &change.source);
+            ingest.locked().edge_left(&change.site, &change.source);
         }
     })
     .await

@@ -13,25 +13,26 @@
 use super::liveliness::LivenessLog;
 use super::push::header;
 use super::receive::LiveIngest;
+use super::summary::LoopRoleSummary;
 use super::{CloudConfig, CloudError};
 use crate::fleet_loop::trainer::TrainJob;
 use crate::fleet_loop::{FleetLoop, LoopSummary, PolicyOrder, PushOrder};
-use crate::library::PolicyVersion;
 use crate::trainer::TrainerError;
 use crate::trainer::gate::GateReport;
 use crate::twin::watch::WatchedEpisode;
-use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::telemetry::{PolicyUpdate, ScenarioPush, ScenarioResult};
+use risktwin_policy::signature::PolicySigningKey;
 use risktwin_protos::{decode_tagged, encode, v1};
+use risktwin_store::library::PolicyVersion;
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report_all, parse_edge_report_key};
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::{Shutdown, SiteId, SourceId, TransportError, protobuf};
-use serde::Serialize;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc::UnboundedReceiver;
 use tokio::sync::oneshot;
@@ -48,21 +49,6 @@ struct ResultCounts {
     source_mismatch: AtomicU64,
 }
 
-/// What the loop role did, for the cloud's summary.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct LoopRoleSummary {
-    #[serde(flatten)]
-    pub fleet: LoopSummary,
-    /// Results received on the wire.
-    pub results_received: u64,
-    /// Results that did not decode (or were tagged with another schema), dropped.
-    pub results_malformed: u64,
-    /// Results whose header named another edge than their key, dropped.
-    pub results_source_mismatch: u64,
-    /// The twin's watch: episodes with ticks, results it had not watched, ticks dropped.
-    pub watch: crate::twin::watch::WatchCounts,
-}
-
 /// The running role: undeclare `results`, then await `task`.
 pub(crate) struct LoopRole {
     pub(crate) results: Subscriber<()>,
@@ -75,7 +61,7 @@ impl LoopRole {
     pub(crate) async fn finish(self, ingest: &Mutex<LiveIngest>) -> Result<LoopRoleSummary, CloudError> {
         self.results.undeclare().await.map_err(|e| super::undeclare_error("result subscriber", e))?;
         let fleet = self.task.await.map_err(|e| super::join_error("loop", e))??;
-        let watch = lock(ingest).watch_counts();
+        let watch = ingest.locked().watch_counts();
         Ok(LoopRoleSummary {
             fleet,
             results_received: self.counts.received.load(Ordering::Relaxed),
@@ -84,10 +70,6 @@ impl LoopRole {
             watch,
         })
     }
-}
-
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 /// Starts the loop role: the result subscriber and the task running `fleet`.
@@ -120,7 +102,7 @@ pub(crate) async fn start(
                         counts.source_mismatch.fetch_add(1, Ordering::Relaxed);
                         tracing::warn!("loop: dropped a result on {site}/{edge} from {}", result.header.source);
                     }
-                    Ok(result) => lock(&ingest).episode_result(site, edge, result),
+                    Ok(result) => ingest.locked().episode_result(site, edge, result),
                     Err(e) => {
                         counts.malformed.fetch_add(1, Ordering::Relaxed);
                         tracing::warn!("loop: dropped a result from {site}/{edge}: {e}");
@@ -192,7 +174,7 @@ async fn drive(
                 record(&mut fleet, &ingest, &liveness, &mut events);
             }
             _ = idle.tick() => {
-                lock(&ingest).expire_episodes();
+                ingest.locked().expire_episodes();
                 let alive = live_vehicles(&ingest, &liveness);
                 for order in fleet.policy_orders(&alive).inspect_err(|e| failed(e))? {
                     pushes.policy(&order).await.inspect_err(|e| failed(e))?;
@@ -228,8 +210,8 @@ async fn drive(
 /// `state` stream the ingest has received (an RSU has none), at a site where no scene runs (a
 /// scene's participants drive the scene).
 fn live_vehicles(ingest: &Mutex<LiveIngest>, liveness: &Mutex<LivenessLog>) -> Vec<(String, String)> {
-    let ingest = lock(ingest);
-    let alive = lock(liveness).alive().into_iter();
+    let ingest = ingest.locked();
+    let alive = liveness.locked().alive().into_iter();
     alive.filter(|(site, edge)| !ingest.is_scene_site(site) && ingest.states_from(site, edge) > 0).collect()
 }
 
@@ -243,9 +225,9 @@ fn record(fleet: &mut FleetLoop, ingest: &Mutex<LiveIngest>, liveness: &Mutex<Li
     if events.is_empty() {
         return;
     }
-    let mut sites: Vec<String> = lock(liveness).alive().into_iter().map(|(site, _)| site).collect();
+    let mut sites: Vec<String> = liveness.locked().alive().into_iter().map(|(site, _)| site).collect();
     sites.dedup();
-    let mut ingest = lock(ingest);
+    let mut ingest = ingest.locked();
     for e in events {
         *seq += 1;
         let event = v1::LoopEvent {
@@ -282,7 +264,7 @@ struct Pushes {
 impl Pushes {
     /// Starts the twin's watch of `order`'s episode, then sends it.
     async fn scenario(&mut self, order: &PushOrder, ingest: &Mutex<LiveIngest>) -> Result<(), CloudError> {
-        lock(ingest).watch_episode(&order.site, &order.edge, &order.spec_id, &order.spec, Some(order.push_seq));
+        ingest.locked().watch_episode(&order.site, &order.edge, &order.spec_id, &order.spec, Some(order.push_seq));
         let push = ScenarioPush { header: header(self.sent), spec_id: order.spec_id.clone(), spec: order.spec.clone() };
         self.put(&order.site, &order.edge, CloudToEdge::Scenario, encode(&push)).await?;
         tracing::info!(

@@ -8,9 +8,9 @@
 //! answered with an error reply whose payload is the reason as UTF-8 text; the queryable keeps
 //! serving.
 
-use crate::library::{RankedScenario, ScenarioLibrary};
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
 use risktwin_protos::v1;
+use risktwin_store::library::{RankedScenario, ScenarioLibrary};
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::handlers::FifoChannelHandler;
 use risktwin_transport::zenoh::query::{Query, Queryable};
@@ -191,8 +191,8 @@ mod tests {
 
     /// Stores `n` feasible cut-ins with their reference-driver outcomes; returns how many.
     pub(crate) fn store_evaluated(library: &mut ScenarioLibrary, n: usize) -> usize {
-        use crate::library::{DEFAULT_POLICY, Outcome, ScenarioRecord};
         use risktwin_common::scenario::{check_feasible, sample};
+        use risktwin_store::library::{DEFAULT_POLICY, Outcome, ScenarioRecord};
         let records: Vec<ScenarioRecord> = (0..100)
             .map(|i| sample(7, ScenarioKind::CutIn, i))
             .filter(|s| check_feasible(s).is_ok())

@@ -1,17 +1,14 @@
 //! The cloud's live Prometheus metrics (docs/metrics.md). Every count is the JSON summary's own,
-//! copied at each scrape ([`watch`]) and once more at the end, so the two never disagree and the
+//! copied at each scrape (`receive::watch_metrics`) and once more at the end, so the two never disagree and the
 //! receive path does no work for them; only the twin's snapshot lag is observed as it happens
 //! (a histogram needs each value), once per snapshot.
 
-use super::LiveIngest;
-use super::fleet_loop::LoopRoleSummary;
-use super::liveliness::{LivenessLog, LivenessSummary};
-use super::summary::IngestSummary;
+use super::liveliness::LivenessSummary;
+use super::summary::{IngestSummary, LoopRoleSummary};
 use crate::fleet_loop::LoopSummary;
 use crate::twin::outputs::TwinCounts;
 use crate::warning::WarningSummary;
 use std::collections::{BTreeMap, HashMap};
-use std::sync::{Arc, Mutex, PoisonError, Weak};
 
 /// The histogram of how far each snapshot's tick lay behind the cloud's clock, s.
 pub(super) const SNAPSHOT_LAG: &str = "risktwin_twin_snapshot_lag_seconds";
@@ -23,22 +20,6 @@ pub(super) struct Snapshot {
     pub(super) sites: HashMap<String, String>,
     pub(super) twin: Option<TwinCounts>,
     pub(super) warning: Option<WarningSummary>,
-}
-
-/// Has every scrape copy the counts of `ingest` and `liveness` while the cloud runs.
-pub(super) fn watch(ingest: &Arc<Mutex<LiveIngest>>, liveness: &Arc<Mutex<LivenessLog>>) {
-    // Weak: the cloud takes the ingest apart at shutdown, and exports the final counts itself.
-    let (ingest, liveness): (Weak<_>, Weak<_>) = (Arc::downgrade(ingest), Arc::downgrade(liveness));
-    risktwin_transport::metrics::on_scrape(move || {
-        let (Some(ingest), Some(liveness)) = (ingest.upgrade(), liveness.upgrade()) else { return false };
-        // Only the copy holds the ingest's lock: the receive path must not wait for the export
-        // (a stall of a second would skew every source's clock estimate).
-        let snapshot = ingest.lock().unwrap_or_else(PoisonError::into_inner).metrics_snapshot();
-        export_ingest(&snapshot.ingest, &snapshot.sites, snapshot.twin.as_ref());
-        snapshot.warning.iter().for_each(export_warning);
-        export_liveliness(&liveness.lock().unwrap_or_else(PoisonError::into_inner).summary());
-        true
-    });
 }
 
 /// Per source and stream counts, labelled with the source's site.

@@ -5,7 +5,7 @@
 //! the crate) or `transport` (the `risktwin-transport` crate it builds on). Everything here only
 //! moves bytes in and out and keeps counts: what the cloud computes lives in
 //! [`crate::ingest`] (decode, validate, align), [`crate::twin`] (the twin, its per-tick scene
-//! and risk outputs), [`crate::criticality`] and [`crate::library`].
+//! and risk outputs), [`crate::criticality`] and [`risktwin_store::library`].
 //!
 //! - `ingest`: subscribe to every edge→cloud stream, hand each sample to [`LiveIngest`] (which
 //!   runs the [`crate::ingest::IngestWorker`]), optionally record what was accepted to MCAP,
@@ -63,20 +63,20 @@ mod wire_tests;
 
 use crate::fleet_loop::trainer::TrainerConfig;
 use crate::fleet_loop::{FleetLoop, LoopConfig};
-use crate::library::ScenarioLibrary;
-use crate::recordings::RotationConfig;
 use crate::twin::outputs::{TwinOutputs, TwinSummary};
 use crate::twin::risk::{RiskAssessor, RiskConfig};
 use crate::viz::{VizConfig, VizError, VizRole, VizSummary};
 use crate::warning::{HazardWarner, WarningConfig, WarningSink, WarningSummary};
 use criticality::{CriticalityCollect, CriticalityConfig, CriticalityRoleError, CriticalitySummary};
-use fleet_loop::LoopRoleSummary;
 use library::LibrarySummary;
 use liveliness::LivenessLog;
 pub use receive::{Handled, LiveIngest, OUTPUT_SCHEMAS, Origin, RecordError, RecordTo, RecordingFile};
-use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::road::Road;
+use risktwin_policy::signature::PolicySigningKey;
 use risktwin_protos::recording::decode_replay_time;
+use risktwin_store::library::ScenarioLibrary;
+use risktwin_store::recordings::RotationConfig;
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Shutdown, SiteId, StreamLoss, TransportConfig, TransportError, close, connect};
 use serde::Serialize;
@@ -85,6 +85,7 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 pub use summary::IngestSummary;
+use summary::LoopRoleSummary;
 use thiserror::Error;
 
 /// A cloud worker role (docs/cli.md: `--roles ingest,twin,risk,library,criticality,trainer`).
@@ -174,7 +175,7 @@ pub enum CloudError {
     #[error("risk field: {0}")]
     Field(#[from] risktwin_common::risk::FieldError),
     #[error(transparent)]
-    Library(#[from] crate::library::LibraryError),
+    Library(#[from] risktwin_store::library::LibraryError),
     #[error(transparent)]
     Transport(#[from] TransportError),
     #[error(transparent)]
@@ -200,7 +201,7 @@ pub struct CloudConfig {
     /// properly on shutdown).
     pub record: Option<PathBuf>,
     /// Record as [`record`](Self::record) does, into rotating segments with a catalogue
-    /// ([`crate::recordings`]); not with `record`.
+    /// ([`risktwin_store::recordings`]); not with `record`.
     pub record_dir: Option<RotationConfig>,
     /// Replay-ingest mode: take each message's receive time from its replay-time attachment
     /// (put there by `risktwin edge replay`) instead of the cloud's clock, so that a replayed
@@ -418,7 +419,7 @@ pub async fn run(
         (None, Some(rotation)) => Some(RecordTo::Segments(rotation)),
         (None, None) => None,
     };
-    let mut ingest_config = risktwin_common::align::ingest::IngestConfig::default();
+    let mut ingest_config = risktwin_align::ingest::IngestConfig::default();
     if config.shard {
         // A worker that takes a source over sees it from the middle: its count starts at the
         // first number it gets (the union counts from 0).
@@ -481,13 +482,13 @@ pub async fn run(
             key,
             reason: e.to_string(),
         })?;
-        (Some(token), Some(ack::spawn_acks(session.clone(), Arc::clone(&ingest))))
+        (Some(token), Some(receive::spawn_acks(session.clone(), Arc::clone(&ingest))))
     } else {
         (None, None)
     };
     let liveness = Arc::new(Mutex::new(LivenessLog::default()));
     if risktwin_transport::metrics::enabled() {
-        live_metrics::watch(&ingest, &liveness);
+        receive::watch_metrics(&ingest, &liveness);
     }
     let edges = edges::watch_edges(&session, config.site.as_ref(), Arc::clone(&liveness), Arc::clone(&ingest)).await?;
     let library_task = queryable.map(|(q, lib)| tokio::spawn(library::serve(q, lib, shutdown.clone())));
@@ -504,8 +505,8 @@ pub async fn run(
     shutdown.wait().await;
     if subscriber.is_some() || shard.is_some() || union.is_some() || crit_subscriber.is_some() {
         let last_sample = || {
-            let ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner).last_sample();
-            ingest.max(crit.lock().unwrap_or_else(PoisonError::into_inner).last_sample())
+            let ingest = ingest.locked().last_sample();
+            ingest.max(crit.locked().last_sample())
         };
         drain(last_sample, config.drain_quiet, config.drain_max).await;
     }
@@ -555,7 +556,7 @@ pub async fn run(
         None => None,
     };
     // The publisher task ends once the ingest lets go of its sender and the queue is empty.
-    ingest.lock().unwrap_or_else(PoisonError::into_inner).close_publisher();
+    ingest.locked().close_publisher();
     publisher.await.map_err(|e| join_error("publisher", e))??;
     close(session).await?;
     // The subscribers are undeclared, so their callbacks (the other owners) go; Zenoh drops a
@@ -578,7 +579,7 @@ pub async fn run(
     let ingest = ingest.into_inner().unwrap_or_else(PoisonError::into_inner);
     let warning = ingest.warning_summary();
     let (ingest, twin) = ingest.finish()?;
-    let liveliness = liveness.lock().unwrap_or_else(PoisonError::into_inner).summary();
+    let liveliness = liveness.locked().summary();
     let viz = match viz {
         Some(viz) => Some(viz.finish().await),
         None => None,
@@ -593,7 +594,7 @@ pub async fn run(
     // the run without losing the recording or the database.
     let criticality = match config.criticality.as_ref().filter(|_| config.has(Role::Criticality)) {
         Some(crit_config) => {
-            let collected = std::mem::take(&mut *crit.lock().unwrap_or_else(PoisonError::into_inner));
+            let collected = std::mem::take(&mut *crit.locked());
             Some(collected.finish(crit_config, crit_library.as_mut())?)
         }
         None => None,
@@ -623,7 +624,7 @@ async fn flush_recording(ingest: Arc<Mutex<LiveIngest>>, mut shutdown: Shutdown)
     loop {
         tokio::select! {
             _ = every.tick() => {
-                if let Err(e) = ingest.lock().unwrap_or_else(PoisonError::into_inner).flush_recording_if_due() {
+                if let Err(e) = ingest.locked().flush_recording_if_due() {
                     tracing::error!("recording: {e}");
                     return;
                 }
@@ -654,7 +655,7 @@ fn ingest_sink_then(
         // Contiguous payloads (the common case) are borrowed, not copied.
         let payload = sample.payload().to_bytes();
         let replay_ns = sample.attachment().and_then(|a| decode_replay_time(&a.to_bytes()));
-        let handled = ingest.lock().unwrap_or_else(PoisonError::into_inner).handle(
+        let handled = ingest.locked().handle(
             sample.key_expr().as_str(),
             sample.encoding(),
             &payload,
@@ -672,7 +673,7 @@ fn ingest_sink_then(
 
 /// The edge-stream subscriber's loss reports: counted in the ingest's summary.
 fn loss_sink(ingest: Arc<Mutex<LiveIngest>>) -> impl Fn(StreamLoss) + Send + Sync + 'static {
-    move |loss| ingest.lock().unwrap_or_else(PoisonError::into_inner).record_loss(&loss)
+    move |loss| ingest.locked().record_loss(&loss)
 }
 
 /// Lets samples already on their way arrive: waits until none came for `quiet` (as `last_sample`

@@ -5,13 +5,14 @@
 //! awaited on `…/<id>/scenario_result`.
 
 use risktwin_common::metrics::EpisodeMetrics;
-use risktwin_common::policy_signature::PolicySigningKey;
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{Frame, Header, PolicyRef, PolicyUpdate, ScenarioPush, ScenarioResult};
+use risktwin_policy::signature::PolicySigningKey;
 use risktwin_protos::{decode_tagged, encode};
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport, cloud_to_edge, edge_report, liveliness_token};
 use risktwin_transport::stream::watch_edge_alive;
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::handlers::FifoChannelHandler;
 use risktwin_transport::zenoh::pubsub::Subscriber;
@@ -19,7 +20,7 @@ use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::{Shutdown, SiteId, SourceId, TransportConfig, TransportError, close, connect, protobuf};
 use serde::Serialize;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 use thiserror::Error;
 use tokio::sync::watch;
 
@@ -72,7 +73,7 @@ pub struct PolicyPushReport {
 
 /// The header of a cloud→edge message, stamped now.
 pub(crate) fn header(seq: u64) -> Header {
-    let now_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+    let now_ns = unix_ns();
     Header { source: "cloud".to_owned(), seq, capture_time_ns: now_ns, publish_time_ns: now_ns, frame: Frame::World }
 }
 

@@ -15,11 +15,12 @@ use crate::twin::risk::RiskAssessor;
 use risktwin_common::telemetry::{ObjectList, RoadMap, VehicleStateSample};
 use risktwin_protos::decode_tagged;
 use risktwin_transport::keyexpr::{self, SceneTopic, parse_scene_ground_truth_key, parse_scene_topic_key, scene_topic};
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
 use risktwin_transport::{SiteId, TransportError};
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 
 /// Subscribes to the scene maps of `site` (every site if `None`), feeding them to `ingest`.
 pub(crate) async fn subscribe_maps(
@@ -35,15 +36,15 @@ pub(crate) async fn subscribe_maps(
         .callback(move |sample| {
             let Some(site) = parse_scene_topic_key(sample.key_expr().as_str(), SceneTopic::Map) else { return };
             let payload = sample.payload().to_bytes();
-            let mut last = last.lock().unwrap_or_else(PoisonError::into_inner);
+            let mut last = last.locked();
             if last.get(site).is_some_and(|bytes| bytes[..] == payload[..]) {
-                ingest.lock().unwrap_or_else(PoisonError::into_inner).scene_seen(site);
+                ingest.locked().scene_seen(site);
                 return;
             }
             match decode_tagged::<RoadMap>(&sample.encoding().to_string(), &payload) {
                 Ok(map) => {
                     last.insert(site.to_owned(), payload.into_owned());
-                    let mut live = ingest.lock().unwrap_or_else(PoisonError::into_inner);
+                    let mut live = ingest.locked();
                     live.scene_seen(site);
                     live.set_warning_road(site, &map.road);
                     live.set_viz_road(site, &map.road);
@@ -53,9 +54,7 @@ pub(crate) async fn subscribe_maps(
                     // samples (they would wait, and their receive times with them).
                     let (ingest, site) = (Arc::clone(&ingest), site.to_owned());
                     std::thread::spawn(move || match RiskAssessor::new(map.road, config) {
-                        Ok(assessor) => {
-                            ingest.lock().unwrap_or_else(PoisonError::into_inner).set_site_risk(&site, assessor)
-                        }
+                        Ok(assessor) => ingest.locked().set_site_risk(&site, assessor),
                         Err(e) => {
                             tracing::warn!("risk: site {site}'s road map is unusable ({e}); it keeps the default road")
                         }
@@ -63,7 +62,7 @@ pub(crate) async fn subscribe_maps(
                 }
                 Err(e) => {
                     tracing::warn!("risk: dropped site {site}'s scene map: {e}");
-                    ingest.lock().unwrap_or_else(PoisonError::into_inner).reject(e.drop_reason());
+                    ingest.locked().reject(e.drop_reason());
                 }
             }
         })
@@ -122,7 +121,7 @@ fn hand_over(
     site: &str,
     truth: Result<GroundTruth, risktwin_protos::DecodeError>,
 ) {
-    let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
+    let mut ingest = ingest.locked();
     match truth {
         Ok(truth) => {
             if let Err(e) = ingest.observe_truth(key, site, truth) {

@@ -1,12 +1,14 @@
 //! The cloud's JSON summary of what the ingest saw: per source and stream received, dropped,
 //! lost, recovered and presumed lost, and how far the twin lagged the cloud's clock.
 
-use super::receive::STREAMS;
 use crate::ingest::{IngestStats, SnapshotDigest};
 use crate::twin::fidelity::distribution::Distribution;
 use risktwin_transport::EdgeStream;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
+
+/// How many edge streams a per-stream count array holds.
+pub(super) const STREAMS: usize = EdgeStream::ALL.len();
 
 /// What the ingest saw, as printed in the cloud's JSON summary.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Default)]
@@ -59,10 +61,10 @@ pub struct IngestSummary {
     pub id_conflicts: BTreeMap<String, u64>,
     /// Overload: the shedding level, how long the ingest shed, and its load measure
     /// (docs/keyexpr.md, "Overload").
-    pub overload: super::receive::LoadSummary,
+    pub overload: LoadSummary,
     /// The segments of a rotating recording (`--record-dir`), when recording so.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub segments: Option<crate::recordings::SegmentsSummary>,
+    pub segments: Option<risktwin_store::recordings::SegmentsSummary>,
 }
 
 /// A lag's distribution, µs (the 95th percentile to 1 ms, exact up to 2 s).
@@ -109,4 +111,32 @@ pub(super) fn per_stream_names(counts: &HashMap<String, [u64; STREAMS]>) -> BTre
         EdgeStream::ALL.iter().zip(counts).filter(|(_, n)| **n > 0).map(|(s, n)| (s.as_str().to_owned(), *n)).collect()
     };
     counts.iter().map(|(source, counts)| (source.clone(), named(counts))).collect()
+}
+
+/// The overload part of the ingest's summary.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct LoadSummary {
+    /// The shedding level at the end (0 none, 1 CAN, 2 all but states).
+    pub shed_level: u8,
+    /// The highest level reached.
+    pub shed_level_max: u8,
+    /// Seconds spent shedding (whole windows).
+    pub shedding_s: u64,
+    /// The least delay of live states over the last full window, ms (the load measure).
+    pub queue_delay_ms: Option<u64>,
+}
+
+/// What the loop role did, for the cloud's summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LoopRoleSummary {
+    #[serde(flatten)]
+    pub fleet: crate::fleet_loop::LoopSummary,
+    /// Results received on the wire.
+    pub results_received: u64,
+    /// Results that did not decode (or were tagged with another schema), dropped.
+    pub results_malformed: u64,
+    /// Results whose header named another edge than their key, dropped.
+    pub results_source_mismatch: u64,
+    /// The twin's watch: episodes with ticks, results it had not watched, ticks dropped.
+    pub watch: crate::twin::watch::WatchCounts,
 }

@@ -11,11 +11,12 @@
 use super::receive::{LiveIngest, Origin};
 use risktwin_protos::recording::decode_replay_time;
 use risktwin_transport::keyexpr::{self, edge_key_of_ingested};
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::zenoh::pubsub::Subscriber;
 use risktwin_transport::zenoh::sample::Locality;
 use risktwin_transport::{SiteId, TransportError};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 
 /// Forwarded keys declared at most (five streams of 100,000 sources, the ingest's source limit).
 const MAX_DECLARED: usize = 500_000;
@@ -42,15 +43,15 @@ pub async fn subscribe(
             let payload = sample.payload().to_bytes();
             let replay_ns = sample.attachment().and_then(|a| decode_replay_time(&a.to_bytes()));
             {
-                let mut seen = seen.lock().unwrap_or_else(PoisonError::into_inner);
+                let mut seen = seen.locked();
                 let forwarded = sample.key_expr().as_str();
                 if !seen.contains(forwarded) && seen.len() < MAX_DECLARED {
                     seen.insert(forwarded.to_owned());
                     let _ = keys.send(forwarded.to_owned());
                 }
             }
-            let mut buffer = buffer.lock().unwrap_or_else(PoisonError::into_inner);
-            let mut ingest = ingest.lock().unwrap_or_else(PoisonError::into_inner);
+            let mut buffer = buffer.locked();
+            let mut ingest = ingest.locked();
             let Some(edge_key) = edge_key_of_ingested(sample.key_expr().as_str(), &mut buffer) else {
                 ingest.reject_bad_key();
                 return;

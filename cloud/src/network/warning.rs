@@ -16,12 +16,13 @@ use crate::warning::{WarningSink, WarningSummary};
 use risktwin_common::telemetry::HazardWarning;
 use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::protobuf;
+use risktwin_transport::sync::LockExt;
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::zenoh::pubsub::Publisher;
 use risktwin_transport::zenoh::qos::{CongestionControl, Priority};
 use risktwin_transport::zenoh::{Session, Wait};
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{SystemTime, UNIX_EPOCH};
+use std::sync::{Arc, Mutex};
 use tokio::sync::{mpsc, watch};
 use tokio::task::JoinHandle;
 
@@ -67,7 +68,7 @@ pub fn warning_sink(session: &Session) -> (NetworkSink, WarningPublishers) {
         while let Some(change) = rx.recv().await {
             match change {
                 Change::Declare(key) => {
-                    if held.lock().unwrap_or_else(PoisonError::into_inner).contains_key(&key) {
+                    if held.locked().contains_key(&key) {
                         continue;
                     }
                     let publisher = on
@@ -79,14 +80,14 @@ pub fn warning_sink(session: &Session) -> (NetworkSink, WarningPublishers) {
                         .await;
                     match publisher {
                         Ok(p) => {
-                            held.lock().unwrap_or_else(PoisonError::into_inner).insert(key, p);
+                            held.locked().insert(key, p);
                         }
                         // The warnings still go out, put one by one.
                         Err(e) => tracing::warn!("warning: declaring the publisher of {key} failed: {e}"),
                     }
                 }
                 Change::Undeclare(key) => {
-                    let gone = held.lock().unwrap_or_else(PoisonError::into_inner).remove(&key);
+                    let gone = held.locked().remove(&key);
                     if let Some(p) = gone
                         && let Err(e) = p.undeclare().await
                     {
@@ -94,7 +95,7 @@ pub fn warning_sink(session: &Session) -> (NetworkSink, WarningPublishers) {
                     }
                 }
             }
-            count_tx.send_replace(held.lock().unwrap_or_else(PoisonError::into_inner).len());
+            count_tx.send_replace(held.locked().len());
         }
     });
     let sink = NetworkSink { session: session.clone(), declared, changes, via_publisher: 0, one_off: 0 };
@@ -115,10 +116,9 @@ impl WarningSink for NetworkSink {
         // The header's publish time: now, as the put goes out (the warner, clock-free, leaves the
         // trigger's receive time there).
         let mut stamped = warning.clone();
-        stamped.header.publish_time_ns =
-            SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64);
+        stamped.header.publish_time_ns = unix_ns();
         let payload = encode(&stamped);
-        let declared = self.declared.lock().unwrap_or_else(PoisonError::into_inner);
+        let declared = self.declared.locked();
         if let Some(publisher) = declared.get(key) {
             let ok = publisher.put(payload).wait().is_ok();
             self.via_publisher += u64::from(ok);

@@ -8,18 +8,15 @@ use super::{CloudConfig, Role};
 use risktwin_common::telemetry::{HazardKind, HazardWarning, VehicleStateSample};
 use risktwin_protos::{decode_tagged, encode};
 use risktwin_transport::connect;
+use risktwin_transport::wall_clock::unix_ns;
 use std::collections::BTreeMap;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
 use tokio::time::timeout;
 
-fn now_ns() -> i64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64)
-}
-
 /// `source`'s state number `seq`, stamped now, at (`x_m`, `y_m`) driving east at `vx_mps`.
 fn state(source: &str, seq: u64, x_m: f64, y_m: f64, vx_mps: f64) -> VehicleStateSample {
-    let mut s = crate::test_fixtures::state(source, seq, now_ns());
+    let mut s = crate::test_fixtures::state(source, seq, unix_ns());
     s.pose.x_m = x_m;
     s.pose.y_m = y_m;
     s.velocity.x = vx_mps;
@@ -91,7 +88,7 @@ async fn a_collision_course_is_warned_a_safe_pair_is_not_and_bad_input_is_counte
         assert!(matches!(pair, ("veh-a", "veh-b") | ("veh-b", "veh-a")), "{w:?}");
         // Stamped at the put, after the trigger's time (the clock mapping's tolerance aside).
         let (captured, published) = (w.header.capture_time_ns, w.header.publish_time_ns);
-        assert!(published >= captured - 100_000_000 && published <= now_ns(), "{w:?}");
+        assert!(published >= captured - 100_000_000 && published <= unix_ns(), "{w:?}");
         // Both stand in a lane of the cloud's default road (lane TTC) or off it (contact
         // predicted at a 50 ms step). The gap is 15.5 m less what veh-a's state moved on to the
         // trigger's time: its age, up to 200 ms, depends on timing, and is a little negative

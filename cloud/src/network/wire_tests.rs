@@ -6,10 +6,10 @@ use super::test_harness::{Router, STEP, start_cloud, state_publisher};
 use risktwin_common::telemetry::VehicleStateSample;
 use risktwin_protos::encode;
 use risktwin_protos::recording::read_messages;
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::{Delivery, EdgeStream, SiteId, SourceId, StreamPublisher, connect, protobuf, shutdown};
 use std::collections::BTreeMap;
 use std::time::Duration;
-use std::time::{SystemTime, UNIX_EPOCH};
 use tokio::time::timeout;
 
 /// The `seq`-th state of a 50 Hz stream starting at `epoch_ns`.
@@ -29,7 +29,7 @@ async fn bad_wire_input_is_counted_by_reason_and_the_worker_carries_on() {
     let sender = connect(&router.client).await.unwrap();
     let key = "risktwin/v1/site/veh-1/state";
     let publisher = state_publisher(&sender, key.to_owned()).await;
-    let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64;
+    let epoch_ns = unix_ns();
     let record = |source: &str, seq: u64| encode(&state(source, seq, epoch_ns));
     let mut nan = state("veh-1", 3, epoch_ns);
     nan.speed_mps = f64::NAN;
@@ -83,7 +83,7 @@ async fn forged_sequence_numbers_far_ahead_do_not_cut_the_genuine_stream_off() {
     let (cloud_stop, cloud) = start_cloud(CloudConfig::new(router.client.clone())).await;
     let sender = connect(&router.client).await.unwrap();
     let publisher = state_publisher(&sender, "risktwin/v1/site/veh-1/state".to_owned()).await;
-    let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64;
+    let epoch_ns = unix_ns();
     let genuine = 300u64;
     for seq in 0..genuine {
         if seq == 100 || seq == 200 {
@@ -118,7 +118,7 @@ async fn two_processes_under_one_id_are_reported() {
         let (_trigger, never) = shutdown::channel();
         assert!(publisher.wait_for_subscriber(STEP, never).await.unwrap(), "the cloud subscribes");
     }
-    let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64;
+    let epoch_ns = unix_ns();
     for seq in 0..20 {
         for publisher in &publishers {
             publisher.put(encode(&state("veh-1", seq, epoch_ns))).unwrap();

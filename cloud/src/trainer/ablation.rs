@@ -9,12 +9,12 @@ use super::plan::{TrainerError, TrainingPlan};
 use super::session::{CurvePoint, train_variant};
 use super::stats::{EvalMetrics, EvalSpread, Spread};
 use crate::generate::parallel_map;
-use crate::library::ScenarioLibrary;
 use risktwin_common::env::Variant;
 use risktwin_common::episode;
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
 use risktwin_learn::PolicyNet;
+use risktwin_store::library::ScenarioLibrary;
 use serde::Serialize;
 use std::collections::BTreeMap;
 

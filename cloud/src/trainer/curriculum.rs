@@ -19,10 +19,10 @@ use super::drive::{drive_all, success_shares};
 use super::held_out::HeldOut;
 use super::plan::{ReplayRule, TrainerError, TrainingPlan};
 use crate::generate::{evaluate_all, reference_outcome};
-use crate::library::{Origin, Outcome, ScenarioLibrary, ScenarioRecord, content_id};
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{ScenarioSpec, mutate};
 use risktwin_learn::PolicyNet;
+use risktwin_store::library::{Origin, Outcome, ScenarioLibrary, ScenarioRecord, content_id};
 use serde::Serialize;
 use std::collections::BTreeSet;
 

@@ -7,10 +7,10 @@
 //! (a scenario the search found no clean drive for may still have one).
 
 use crate::generate::parallel_map;
-use crate::library::content_id;
 use risktwin_common::metrics::{Ending, EpisodeMetrics};
 use risktwin_common::planner::{self, Verdict};
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
+use risktwin_store::library::content_id;
 use serde::Serialize;
 
 use super::ablation::PolicyEvaluation;

@@ -10,10 +10,10 @@
 use super::drive::drive_all;
 use super::held_out::HeldOut;
 use super::reference_episodes;
-use crate::library::{LibraryError, ScenarioLibrary, content_id};
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_learn::PolicyNet;
+use risktwin_store::library::{LibraryError, ScenarioLibrary, content_id};
 use serde::Serialize;
 
 /// How much lower the candidate's mean route completion may be than the deployed version's on a

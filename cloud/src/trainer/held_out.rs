@@ -4,9 +4,9 @@
 //! content id is in the set.
 
 use super::plan::TrainerError;
-use crate::library::content_id;
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, check_feasible, sample};
+use risktwin_store::library::content_id;
 use std::collections::BTreeSet;
 
 /// Stream tag of the held-out sampler ("HELDOUT" in ASCII), distinct from generation's run seed

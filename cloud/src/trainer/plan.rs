@@ -1,10 +1,10 @@
 //! What a training run is asked to do ([`TrainingPlan`]) and why the trainer fails ([`TrainerError`]):
 //! their own file so that the trainer's modules import them without importing `trainer/mod.rs`.
 
-use crate::library::LibraryError;
 use risktwin_common::env::RiskShaping;
 use risktwin_learn::lagrange::CostConstraint;
 use risktwin_learn::{Algo, LearnError};
+use risktwin_store::library::LibraryError;
 use serde::{Deserialize, Serialize};
 
 /// Why training or evaluation failed.

@@ -6,7 +6,6 @@
 use super::curriculum::{Curriculum, Refresh};
 use super::held_out::HeldOut;
 use super::plan::{TrainerError, TrainingPlan};
-use crate::library::ScenarioLibrary;
 use risktwin_common::env::{ScenarioSource, Variant, VecEnv};
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::rng::Rng;
@@ -17,6 +16,7 @@ use risktwin_learn::ppo::PpoConfig;
 use risktwin_learn::sac::SacConfig;
 pub use risktwin_learn::train::CurvePoint;
 use risktwin_learn::warm::warm_start;
+use risktwin_store::library::ScenarioLibrary;
 use std::time::Instant;
 
 /// What one training run produced.

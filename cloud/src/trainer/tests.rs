@@ -4,11 +4,11 @@
 use super::curriculum::Curriculum;
 use super::*;
 use crate::generate::{generate, store};
-use crate::library::{Origin, ScenarioLibrary, content_id};
 use risktwin_common::env::{RiskShaping, Variant};
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::ScenarioKind;
 use risktwin_learn::{Algo, PolicyNet};
+use risktwin_store::library::{Origin, ScenarioLibrary, content_id};
 use std::collections::BTreeSet;
 
 fn plan() -> TrainingPlan {

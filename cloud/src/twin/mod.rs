@@ -24,7 +24,7 @@ pub mod watch;
 
 use crate::ingest::stream::aligner_index;
 use crate::ingest::{ObservedKinematics, TwinSample};
-use risktwin_common::align::{Snapshot, SourceIndex, ValueStatus};
+use risktwin_align::{Snapshot, SourceIndex, ValueStatus};
 use risktwin_common::geometry::{Pose, Vec2, wrap_angle};
 use risktwin_common::road::Road;
 use risktwin_common::scenario::{ScenarioKind, build, check_feasible, sample};

@@ -9,7 +9,7 @@ use super::fidelity::{Fidelity, SeriesPoint, VehicleFidelity};
 use super::risk::{RiskAssessment, RiskAssessor, RiskConfig};
 use super::watch::EpisodeWatch;
 use super::{SiteTwin, Twin};
-use risktwin_common::align::Snapshot;
+use risktwin_align::Snapshot;
 use risktwin_common::telemetry::{Frame, Header, ObjectList, ScenarioResult, VehicleStateSample};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};

@@ -4,7 +4,7 @@ use super::risk::{RiskAssessor, RiskConfig};
 use super::*;
 use crate::ingest::IngestWorker;
 use crate::test_fixtures::state;
-use risktwin_common::align::IngestConfig;
+use risktwin_align::IngestConfig;
 use risktwin_common::road::Road;
 use risktwin_protos::encode;
 use std::io::Cursor;

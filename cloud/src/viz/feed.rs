@@ -3,9 +3,10 @@
 //! room for instead of waiting. It never blocks, so the ingest may call it on its receive path.
 
 use risktwin_common::road::Road;
+use risktwin_transport::sync::LockExt;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::mpsc::{Sender, UnboundedSender};
 
@@ -65,7 +66,7 @@ pub(crate) struct VizCounts {
 
 impl VizShared {
     pub(crate) fn counts(&self) -> std::sync::MutexGuard<'_, VizCounts> {
-        self.counts.lock().unwrap_or_else(PoisonError::into_inner)
+        self.counts.locked()
     }
 }
 

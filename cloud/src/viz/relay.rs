@@ -11,9 +11,10 @@ use risktwin_protos::FILE_DESCRIPTOR_SET;
 use risktwin_protos::convert::foxglove::{FOXGLOVE_SCENE_UPDATE, road_scene};
 use risktwin_transport::SiteId;
 use risktwin_transport::keyexpr::{CloudOutput, cloud_output, parse_cloud_output_key};
+use risktwin_transport::wall_clock::unix_ns;
 use std::collections::{BTreeSet, HashMap};
 use std::sync::Arc;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 use tokio::sync::mpsc::{Receiver, UnboundedReceiver};
 
 /// How often every site's road is sent again.
@@ -90,7 +91,7 @@ impl Relay {
         if !channel.has_sinks() {
             return;
         }
-        let now_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64);
+        let now_ns = unix_ns() as u64;
         let road = self.site_roads.get(site).unwrap_or(&self.default_road);
         let update = road_scene(now_ns as i64, road);
         self.log(&topic, FOXGLOVE_SCENE_UPDATE, now_ns, &prost::Message::encode_to_vec(&update));

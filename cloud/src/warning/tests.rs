@@ -1,7 +1,7 @@
 //! The warner on hand-made states: who is warned, about whom, how often, and what it skips.
 
 use super::*;
-use risktwin_common::align::SourceIndex;
+use risktwin_align::SourceIndex;
 use risktwin_common::telemetry::HazardKind;
 
 const MS: i64 = 1_000_000;

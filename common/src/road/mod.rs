@@ -8,10 +8,12 @@
 
 mod builders;
 mod lane;
+pub mod lanelet;
 mod lines;
 mod ring;
 
 pub use lane::{Frenet, Lane, LaneId};
+pub use lanelet::{Adjacency, Lanelet, LaneletNetwork};
 pub use lines::RoadLines;
 
 use crate::geometry::{Obb, Vec2};

@@ -1,14 +1,15 @@
 //! `risktwin criticality`: HW, THW, TTC and a_long,req of a CommonRoad scenario's ego against
 //! every other dynamic obstacle (docs/cli.md), plus PET and minimum distance per pair in JSON.
 
+use super::recorded::read_commonroad;
 use super::recover::{open_recording, warn_unfinished};
 use crate::cli::CriticalityArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_table};
 use risktwin_cloud::commonroad_recording::read_scenario;
 use risktwin_cloud::criticality::{ReportFormat, write_report};
-use risktwin_common::commonroad::criticality::{ScenarioCriticality, scenario_criticality};
-use risktwin_common::commonroad::{Scenario, parse_scenario};
+use risktwin_commonroad::Scenario;
+use risktwin_commonroad::criticality::{ScenarioCriticality, scenario_criticality};
 
 pub fn criticality(args: CriticalityArgs) -> CliResult {
     let (path, scenario) = match (&args.commonroad, &args.mcap) {
@@ -25,12 +26,6 @@ pub fn criticality(args: CriticalityArgs) -> CliResult {
     };
     let out = std::io::BufWriter::new(std::io::stdout().lock());
     write_report(out, format, &scenario.benchmark_id, &measures).map_err(CliError::runtime)
-}
-
-/// Reads and parses a CommonRoad file; every problem is an input error naming the file.
-pub fn read_commonroad(path: &std::path::Path) -> CliResult<Scenario> {
-    let text = super::recorded::read_xml(path)?;
-    parse_scenario(&text).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
 }
 
 /// Rebuilds a scenario from a recording of `risktwin import commonroad`.
@@ -52,7 +47,7 @@ fn print_pairs(m: &ScenarioCriticality) -> CliResult {
         .iter()
         .map(|p| {
             let cells = m.cells.iter().filter(|c| c.other_id == p.other_id);
-            let min = |f: fn(&risktwin_common::commonroad::criticality::CellMeasures) -> f64| {
+            let min = |f: fn(&risktwin_commonroad::criticality::CellMeasures) -> f64| {
                 cells.clone().map(f).filter(|x| !x.is_nan()).fold(f64::INFINITY, f64::min)
             };
             vec![

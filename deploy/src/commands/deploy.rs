@@ -8,11 +8,10 @@
 //! pid file, says whether a deployment of FILE is up; the pid file only says whom to signal.
 
 use crate::cli::{DeployFileArgs, DeployHow, DeployRunArgs, DeployUpArgs};
-use crate::emulate::deployment::{
-    self, Options, STATE_DIR_PREFIX, prepare_state_dir, state_dir, tag_of, topology_digest,
-};
+use crate::emulate::deployment;
 use crate::emulate::lock::Lock;
 use crate::emulate::net;
+use crate::emulate::options::{Options, STATE_DIR_PREFIX, prepare_state_dir, state_dir, tag_of, topology_digest};
 use crate::error::{CliError, CliResult};
 use crate::output::print_json;
 use crate::topology::{Topology, parse};

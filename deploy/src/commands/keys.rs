@@ -5,7 +5,7 @@ use super::input_file::read_text_bounded;
 use crate::cli::KeysGenerateArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::print_json;
-use risktwin_common::policy_signature::{PolicySigningKey, PolicyVerifyingKey};
+use risktwin_policy::signature::{PolicySigningKey, PolicyVerifyingKey};
 use std::io::Write;
 use std::path::Path;
 

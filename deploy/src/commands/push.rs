@@ -10,9 +10,9 @@ use super::source;
 use crate::cli::{PushCommand, PushPolicyArgs, PushScenarioArgs, PushTo};
 use crate::error::{CliError, CliResult};
 use crate::output::print_json;
-use risktwin_cloud::library::content_id;
 use risktwin_cloud::network::push::{PushError, PushTarget, push_policy, push_scenario};
 use risktwin_edge::vehicle::push::MAX_WEIGHTS_BYTES;
+use risktwin_store::library::content_id;
 use risktwin_transport::{SiteId, SourceId};
 use std::time::Duration;
 

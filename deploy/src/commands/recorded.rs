@@ -2,14 +2,13 @@
 //! recorded case of a library (`--db FILE --id ID`). Both are the same XML parsed the same way,
 //! so `simulate` and `risk-field` print the same bytes for either.
 
-use super::criticality::read_commonroad;
 use super::input_file::read_text_bounded;
 use super::source::open_existing_library;
 use crate::cli::ScenarioSource;
 use crate::error::{CliError, CliResult};
-use risktwin_cloud::library::ScenarioLibrary;
-use risktwin_common::commonroad::limits::MAX_XML_BYTES;
-use risktwin_common::commonroad::{Scenario, parse_scenario};
+use risktwin_commonroad::limits::MAX_XML_BYTES;
+use risktwin_commonroad::{Scenario, parse_scenario};
+use risktwin_store::library::ScenarioLibrary;
 use std::path::Path;
 
 /// A parsed CommonRoad scenario, its ego and where it came from.
@@ -37,6 +36,12 @@ impl CommonRoadInput {
 /// it (and reading no more than that from a file that grows or never ends, such as a FIFO).
 pub fn read_xml(path: &Path) -> CliResult<String> {
     read_text_bounded(path, MAX_XML_BYTES as u64, "")
+}
+
+/// Reads and parses a CommonRoad file; every problem is an input error naming the file.
+pub fn read_commonroad(path: &Path) -> CliResult<Scenario> {
+    let text = read_xml(path)?;
+    parse_scenario(&text).map_err(|e| CliError::input(format!("{}: {e}", path.display())))
 }
 
 /// The CommonRoad scenario `source` names: `--commonroad FILE`, or `--db/--id` of a recorded case;

@@ -33,7 +33,7 @@ fn load_config(args: &RunArgs) -> CliResult<RunConfig> {
 
 /// `./risktwin-out/<UTC timestamp>` (`20261127-133700`).
 fn default_out_dir() -> PathBuf {
-    let stamp = risktwin_cloud::recordings::utc_stamp(std::time::SystemTime::now());
+    let stamp = risktwin_store::recordings::utc_stamp(std::time::SystemTime::now());
     PathBuf::from("risktwin-out").join(stamp.trim_end_matches('Z').replace('T', "-"))
 }
 

@@ -5,11 +5,11 @@ use crate::cli::{GenerateArgs, MutateArgs, RankArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_cloud::generate::{MutationError, generate_into, mutate_stored};
-use risktwin_cloud::library::{
-    COMMONROAD_KIND, REPLAY_POLICY, RankOutcome, RankedCase, RankedScenario, ScenarioLibrary,
-};
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::MutateError;
+use risktwin_store::library::{
+    COMMONROAD_KIND, REPLAY_POLICY, RankOutcome, RankedCase, RankedScenario, ScenarioLibrary,
+};
 use serde::Serialize;
 
 /// Worker threads for episode batches: all cores.

@@ -6,9 +6,9 @@
 use super::recorded::CommonRoadInput;
 use crate::cli::SimulateArgs;
 use crate::error::{CliError, CliResult};
-use risktwin_cloud::library::Outcome;
-use risktwin_common::commonroad::twin::{EgoMode, Resimulation, resimulate};
 use risktwin_common::world::STEP_S;
+use risktwin_commonroad::twin::{EgoMode, Resimulation, resimulate};
+use risktwin_store::library::Outcome;
 
 /// Re-runs `input` with the ego driven by `policy` (`idm` or `replay`).
 pub fn resimulate_input(input: &CommonRoadInput, policy: &str) -> CliResult<Resimulation> {

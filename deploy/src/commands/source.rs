@@ -3,8 +3,8 @@
 use super::input_file::{MAX_CONFIG_BYTES, read_text_bounded};
 use crate::cli::ScenarioSource;
 use crate::error::{CliError, CliResult};
-use risktwin_cloud::library::ScenarioLibrary;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec, check_feasible};
+use risktwin_store::library::ScenarioLibrary;
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -1,13 +1,13 @@
-//! `risktwin v2x channel`: the sidelink channel of `risktwin_common::v2x::channel` by distance;
+//! `risktwin v2x channel`: the sidelink channel of `risktwin_v2x::channel` by distance;
 //! `risktwin v2x sweep`: a grid of V2X experiments in virtual time (`risktwin_pipeline::v2x_sweep`).
 
 use super::input_file::{MAX_CONFIG_BYTES, read_text_bounded};
 use crate::cli::{V2xChannelArgs, V2xSweepArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
-use risktwin_common::v2x::channel::{ChannelPoint, LinkBudget, PathLoss};
-use risktwin_common::v2x::sweep::SweepConfig;
 use risktwin_pipeline::v2x_sweep;
+use risktwin_v2x::channel::{ChannelPoint, LinkBudget, PathLoss};
+use risktwin_v2x::sweep::SweepConfig;
 use serde::Serialize;
 
 #[derive(Serialize)]

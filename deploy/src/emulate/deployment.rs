@@ -7,18 +7,18 @@
 
 use super::net::{Net, sweep};
 use super::network_log::NetworkLog;
+use super::options::{Options, tag_of};
 use super::plan::{CLOCK_STEPS_FILE, Hop, Planned, argv, file_stem, is_edge, plan};
-use super::relay::{self, LinkShape, LinkState, Relay, RelayCounts};
+use super::relay::{self, HopView, LinkShape, LinkState, Relay, RelayCounts};
 use super::report::{self, Report, TimelineEntry};
 use super::supervise::Supervised;
 use super::tls;
 use crate::topology::{Action, Link, Target, Topology};
-use risktwin_common::digest::fnv1a64;
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::io::Write as _;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpListener, TcpStream};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -41,27 +41,6 @@ const TICK: Duration = Duration::from_millis(20);
 /// How often `status.json` is rewritten.
 const STATUS_EVERY: Duration = Duration::from_millis(500);
 
-/// How a deployment is run.
-#[derive(Debug, Clone)]
-pub struct Options {
-    /// The topology file, as given (for the report and the tag).
-    pub file: PathBuf,
-    /// Its text.
-    pub text: String,
-    /// Where hosts' logs, the status and the report go.
-    pub out: PathBuf,
-    /// Until a signal when `None`.
-    pub duration: Option<Duration>,
-    /// Seeds the links' jitter.
-    pub seed: u64,
-    /// The `risktwin` binary the processes run.
-    pub exe: PathBuf,
-    /// Loopback even where namespaces could be made.
-    pub loopback: bool,
-    /// Keep running after every edge process has ended.
-    pub until_down: bool,
-}
-
 /// Why a deployment failed (after a complete teardown): a process did not come up, a relay
 /// could not listen, a file could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -70,45 +49,6 @@ pub struct DeployError(String);
 
 fn runtime(what: impl std::fmt::Display) -> DeployError {
     DeployError(what.to_string())
-}
-
-/// The tag of a topology file: its canonical path's digest, 6 hex digits (names of namespaces
-/// and veths carry it; `deploy down FILE` finds them by it).
-pub fn tag_of(file: &Path) -> String {
-    let path = std::fs::canonicalize(file).unwrap_or_else(|_| file.to_path_buf());
-    format!("{:06x}", fnv1a64(path.as_os_str().as_encoded_bytes().iter().copied()) & 0xff_ffff)
-}
-
-/// Where a deployment of `tag` keeps its lock, its supervisor's pid and where its output is.
-pub fn state_dir(tag: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("{STATE_DIR_PREFIX}{tag}"))
-}
-
-/// A topology file's digest: FNV-1a of its bytes, 16 hex digits.
-pub fn topology_digest(text: &[u8]) -> String {
-    format!("{:016x}", fnv1a64(text.iter().copied()))
-}
-
-/// The start of a state folder's name; its tag follows.
-pub const STATE_DIR_PREFIX: &str = "risktwin-deploy-";
-
-/// Makes the state folder of `tag` (owner only), or checks that the one there is a folder of
-/// this user's and not a link: its name is predictable, and root writes into it.
-pub fn prepare_state_dir(tag: &str) -> std::io::Result<PathBuf> {
-    use std::os::unix::fs::{DirBuilderExt, MetadataExt};
-    let dir = state_dir(tag);
-    match std::fs::DirBuilder::new().mode(0o700).create(&dir) {
-        Ok(()) => return Ok(dir),
-        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
-        Err(e) => return Err(e),
-    }
-    let meta = std::fs::symlink_metadata(&dir)?;
-    // SAFETY: geteuid has no preconditions.
-    if !meta.is_dir() || meta.uid() != unsafe { libc::geteuid() } || meta.mode() & 0o022 != 0 {
-        let what = format!("{} is not a private folder of this user's: remove it", dir.display());
-        return Err(std::io::Error::other(what));
-    }
-    Ok(dir)
 }
 
 /// Removes the namespaces of a deployment, however it ends (its processes go with their
@@ -490,16 +430,6 @@ pub fn run(t: &Topology, o: &Options, stop: &AtomicBool) -> Result<Report, Deplo
 fn append_line(file: &Path, line: &str) -> std::io::Result<()> {
     let mut f = std::fs::OpenOptions::new().create(true).append(true).open(file)?;
     f.write_all(format!("{line}\n").as_bytes())
-}
-
-/// What the report and the status show of a hop.
-pub struct HopView {
-    pub name: String,
-    pub base: LinkShape,
-    /// What it applies now (a degradation changes it).
-    pub shape: LinkShape,
-    pub counts: Arc<RelayCounts>,
-    pub partitioned: bool,
 }
 
 fn hop_views(hops: &[HopRun]) -> Vec<HopView> {

@@ -5,6 +5,7 @@ pub mod deployment;
 pub mod lock;
 pub mod net;
 pub mod network_log;
+pub mod options;
 pub mod plan;
 pub mod relay;
 pub mod report;

@@ -4,16 +4,16 @@
 //! Stamped with the wall clock, the clock of the cloud's recording: opened together with it,
 //! Foxglove shows when the network degraded beside what the twin saw.
 
-use super::deployment::HopView;
+use super::relay::HopView;
 use crate::topology::Jitter;
 use risktwin_protos::convert::foxglove::timestamp;
 use risktwin_protos::recording::{Recorder, RecordingError};
 use risktwin_protos::v1::LinkCondition;
+use risktwin_transport::wall_clock::unix_ns;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::Path;
 use std::sync::atomic::Ordering;
-use std::time::{SystemTime, UNIX_EPOCH};
 
 /// Full protobuf name of a link's condition.
 const LINK_CONDITION: &str = "risktwin.v1.LinkCondition";
@@ -28,10 +28,6 @@ pub const LINK_TOPIC: &str = "/deploy/link/";
 /// the live recorder's 1 s bound, which would otherwise wait for the next write.
 pub struct NetworkLog {
     recorder: Option<Recorder<BufWriter<File>>>,
-}
-
-fn now_ns() -> u64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
 }
 
 impl NetworkLog {
@@ -52,12 +48,12 @@ impl NetworkLog {
 
     /// A line of the timeline.
     pub fn note(&mut self, what: &str) {
-        self.with(|r| r.record_log(TIMELINE_TOPIC, now_ns(), "deploy", what));
+        self.with(|r| r.record_log(TIMELINE_TOPIC, unix_ns() as u64, "deploy", what));
     }
 
     /// Every hop's condition now.
     pub fn links(&mut self, hops: &[HopView]) {
-        let t = now_ns();
+        let t = unix_ns() as u64;
         self.with(|r| {
             for h in hops {
                 r.record_proto(&format!("{LINK_TOPIC}{}", h.name), LINK_CONDITION, t, &condition(h, t))?;

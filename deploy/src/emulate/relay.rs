@@ -12,10 +12,11 @@
 use crate::topology::Jitter;
 use risktwin_common::histogram::Histogram;
 use risktwin_common::rng::Rng;
+use risktwin_transport::sync::LockExt;
 use std::io;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
@@ -76,7 +77,7 @@ pub const MAX_CONNECTION_TIMES: usize = 1000;
 impl RelayCounts {
     fn connected(&self) {
         self.connections.fetch_add(1, Ordering::Relaxed);
-        let mut times = self.connected_at.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut times = self.connected_at.locked();
         if times.len() < MAX_CONNECTION_TIMES {
             times.push(std::time::Instant::now());
         }
@@ -251,6 +252,16 @@ fn delay_of(shape: &LinkShape, rng: &mut Rng) -> Duration {
         Some(Jitter::Uniform { max_ms }) => rng.uniform(-max_ms, max_ms) * 1e-3,
     };
     Duration::from_secs_f64((shape.latency.as_secs_f64() + jitter_s).max(0.0))
+}
+
+/// What the report and the status show of a hop.
+pub struct HopView {
+    pub name: String,
+    pub base: LinkShape,
+    /// What it applies now (a degradation changes it).
+    pub shape: LinkShape,
+    pub counts: Arc<RelayCounts>,
+    pub partitioned: bool,
 }
 
 #[cfg(test)]

@@ -3,17 +3,18 @@
 //! its relays against the configured one, per edge and stream sent / received / recovered / lost / missing, each
 //! process's restarts, the event timeline.
 
-use super::deployment::{HopView, Options, topology_digest};
 use super::net::Net;
+use super::options::{Options, topology_digest};
 use super::plan::{PARTICIPANTS_EXT, Planned};
+use super::relay::HopView;
 use super::supervise::Supervised;
 use crate::topology::Jitter;
+use risktwin_transport::sync::LockExt;
 use serde::Serialize;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
-use std::sync::PoisonError;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
@@ -162,8 +163,7 @@ impl Report {
                     connected_at_s: h
                         .counts
                         .connected_at
-                        .lock()
-                        .unwrap_or_else(PoisonError::into_inner)
+                        .locked()
                         .iter()
                         .map(|t| t.saturating_duration_since(begun).as_secs_f64())
                         .collect(),

@@ -1,7 +1,11 @@
 //! From the file as written to a checked [`Topology`]: names resolved, values in range, every
 //! host able to reach a router. The first mistake is reported with its line.
 
-use super::events::{Event, check_event};
+use super::checked::{
+    Endpoint, Event, Host, Link, MAX_BANDWIDTH_MBPS, MAX_LATENCY_MS, MIN_BANDWIDTH_MBPS, Process, Site, Topology,
+    TopologyError,
+};
+use super::events::check_event;
 use super::model::{File, Jitter, ROLES, Restart};
 use std::collections::HashMap;
 use std::ops::Range;
@@ -11,48 +15,6 @@ use toml::Spanned;
 const DEFAULT_QUEUE_KIB: u64 = 256;
 /// The largest queue, KiB (1 GiB).
 const MAX_QUEUE_KIB: u64 = 1 << 20;
-/// The longest latency and jitter a link may have, ms (a minute).
-pub(super) const MAX_LATENCY_MS: f64 = 60_000.0;
-/// The bandwidths a link may have, Mbit/s (1 kbit/s to 1 Tbit/s).
-pub(super) const MIN_BANDWIDTH_MBPS: f64 = 0.001;
-pub(super) const MAX_BANDWIDTH_MBPS: f64 = 1e6;
-
-/// A checked topology.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Topology {
-    /// Mutual TLS and access rules on every link: the deployment makes a CA and a certificate
-    /// per process.
-    pub tls: bool,
-    pub sites: Vec<Site>,
-    pub hosts: Vec<Host>,
-    pub links: Vec<Link>,
-    /// In the order of their times.
-    pub events: Vec<Event>,
-}
-
-#[derive(Debug, Clone, PartialEq)]
-pub struct Site {
-    pub name: String,
-    /// Whether the site has its own router.
-    pub router: bool,
-}
-
-#[derive(Debug, Clone, PartialEq)]
-pub struct Host {
-    pub name: String,
-    /// Index into [`Topology::sites`].
-    pub site: usize,
-    pub run: Vec<Process>,
-}
-
-#[derive(Debug, Clone, PartialEq)]
-pub struct Process {
-    /// One of [`ROLES`].
-    pub role: &'static str,
-    pub args: Vec<String>,
-    pub restart: Restart,
-}
-
 /// Arguments the deployment gives: addresses are assigned, never written.
 const GIVEN_ARGS: [&str; 12] = [
     "--connect",
@@ -68,41 +30,7 @@ const GIVEN_ARGS: [&str; 12] = [
     "--tls-cert",
     "--tls-key",
 ];
-/// One end of a link.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Endpoint {
-    /// Index into [`Topology::sites`].
-    Site(usize),
-    /// Index into [`Topology::hosts`].
-    Host(usize),
-}
-
-#[derive(Debug, Clone, PartialEq)]
-pub struct Link {
-    pub name: String,
-    pub ends: [Endpoint; 2],
-    pub latency_ms: f64,
-    pub jitter: Option<Jitter>,
-    /// `None`: as fast as the host forwards.
-    pub bandwidth_mbps: Option<f64>,
-    pub queue_kib: u64,
-}
-
-/// A mistake in a topology file, with the line it is on (1-based).
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("line {line}: {message}")]
-pub struct TopologyError {
-    pub line: usize,
-    pub message: String,
-}
-
 /// Parses and checks the topology file `text`.
-/// Whether site `site` runs its router on a gateway of its own: it has a router and no host of
-/// it runs one.
-pub fn router_on_gateway(sites: &[Site], hosts: &[Host], site: usize) -> bool {
-    sites[site].router && !hosts.iter().any(|h| h.site == site && h.run.iter().any(|p| p.role == "router"))
-}
-
 pub fn parse(text: &str) -> Result<Topology, TopologyError> {
     let at = |span: Range<usize>, message: String| TopologyError { line: line_of(text, span.start), message };
     let file: File = toml::from_str(text).map_err(|e| {

@@ -1,9 +1,9 @@
 //! The event schedule of a topology: partitions, degraded links, killed and restarted
 //! processes and stepped clocks, their names resolved against the checked hosts and links.
 
-use super::check::{
-    Endpoint, Host, Link, MAX_BANDWIDTH_MBPS, MAX_LATENCY_MS, MIN_BANDWIDTH_MBPS, Site, TopologyError,
-    router_on_gateway,
+use super::checked::{
+    Action, Endpoint, Event, Host, Link, MAX_BANDWIDTH_MBPS, MAX_LATENCY_MS, MIN_BANDWIDTH_MBPS, Site, Target,
+    TopologyError, router_on_gateway,
 };
 use super::model::EventDef;
 use std::collections::HashMap;
@@ -13,49 +13,6 @@ use toml::Spanned;
 
 /// The latest an event may be scheduled, s (a day).
 const MAX_EVENT_S: f64 = 86_400.0;
-
-/// A scheduled event.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Event {
-    pub at: Duration,
-    /// How long a partition or a degradation lasts (`None`: to the end of the run).
-    pub lasts: Option<Duration>,
-    pub action: Action,
-}
-
-#[derive(Debug, Clone, PartialEq)]
-pub enum Action {
-    /// Cut these links (indices into [`Topology::links`]) and these hosts off their site's
-    /// network (indices into [`Topology::hosts`]).
-    Partition {
-        links: Vec<usize>,
-        hosts: Vec<usize>,
-    },
-    Degrade {
-        link: usize,
-        latency_ms: Option<f64>,
-        bandwidth_mbps: Option<f64>,
-    },
-    /// Kill a process (its restart policy brings it back).
-    Kill(Target),
-    /// Stop a process and start it again.
-    Restart(Target),
-    /// Step the clocks of a host's processes.
-    ClockStep {
-        host: usize,
-        by_ms: f64,
-    },
-}
-
-/// The process a `kill` or `restart` names.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Target {
-    /// Process `process` of host `host` (`host/role`).
-    Hosted { host: usize, process: usize },
-    /// The router of site `site` that runs on the site's gateway (`site/router`: no host of the
-    /// site runs one).
-    SiteRouter { site: usize },
-}
 
 /// The largest clock step, ms (a day).
 pub const MAX_CLOCK_STEP_MS: f64 = 86_400_000.0;

@@ -5,9 +5,10 @@
 //!
 
 mod check;
+mod checked;
 mod events;
 mod model;
 
-pub use check::{Endpoint, Link, Topology, parse, router_on_gateway};
-pub use events::{Action, Target};
+pub use check::parse;
+pub use checked::{Action, Endpoint, Link, Target, Topology, router_on_gateway};
 pub use model::{Jitter, Restart};

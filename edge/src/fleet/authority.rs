@@ -1,7 +1,7 @@
 //! The physics authority: steps the scene's world at the world's own step, hands each step's
 //! truth to every participant through a [`Plane`] and advances with the ego's controls.
 //! The episode is measured exactly as `risktwin simulate` measures it (`common::episode`; a
-//! recording's as `simulate --commonroad` does, `common::commonroad::twin::ResimStepper`).
+//! recording's as `simulate --commonroad` does, `commonroad::twin::ResimStepper`).
 
 use super::onboard::Onboard;
 use super::physics::SceneWorld;
@@ -12,9 +12,9 @@ use risktwin_common::digest::{FNV_OFFSET, fnv1a64_step};
 use risktwin_common::episode::run_stepped;
 use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
 use risktwin_common::risk::RiskTerms;
-use risktwin_common::v2x::cam::CamState;
-use risktwin_common::v2x::messages::{V2xSummary, VirtualScene};
 use risktwin_common::vehicle::Controls;
+use risktwin_v2x::cam::CamState;
+use risktwin_v2x::messages::{V2xSummary, VirtualScene};
 use serde::Serialize;
 use std::collections::BTreeMap;
 

@@ -29,17 +29,18 @@ pub mod net;
 pub mod onboard;
 pub mod physics;
 pub mod recording;
+mod reliable;
 pub mod streams;
 pub mod v2x;
 pub mod wire;
 
 use physics::SceneWorld;
 pub use recording::Recording;
-use risktwin_common::commonroad::twin::RECORDING_SEED;
 use risktwin_common::digest::fnv1a64;
 use risktwin_common::scenario::{ScenarioSpec, build};
-use risktwin_common::v2x::messages::MessageChannel;
 use risktwin_common::world::EGO_OBJECT_ID;
+use risktwin_commonroad::twin::RECORDING_SEED;
+use risktwin_v2x::messages::MessageChannel;
 use std::fmt;
 use thiserror::Error;
 
@@ -398,9 +399,9 @@ mod tests {
 
     #[test]
     fn the_v2x_channel_is_part_of_the_scene_and_named_in_it() {
-        use risktwin_common::v2x::channel::{LinkBudget, PathLoss};
-        use risktwin_common::v2x::latency::Latency;
-        use risktwin_common::v2x::link::V2xChannel;
+        use risktwin_v2x::channel::{LinkBudget, PathLoss};
+        use risktwin_v2x::latency::Latency;
+        use risktwin_v2x::link::V2xChannel;
         let plain = cut_in(3, 1).expect("scene");
         let channel = |latency| {
             let channel =

@@ -11,8 +11,8 @@
 use super::authority::Plane;
 use super::onboard::{Onboard, vehicle_state};
 use super::physics::SceneWorld;
+use super::reliable::{reliable_publisher, transport};
 use super::streams::Streams;
-use super::streams::unix_ns;
 use super::v2x::{V2xLayer, V2xReport, cam_state};
 use super::wire::{Reply, SceneEnd, Truth, controls_of};
 use super::{Role, SceneError, SceneSetup};
@@ -23,15 +23,16 @@ use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{
     SCENE_CHUNK, SceneTopic, scene_ground_truth, scene_replies, scene_reply, scene_topic, scene_truth,
 };
+use risktwin_transport::sync::LockExt;
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
-use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
 use risktwin_transport::{SiteId, SourceId, protobuf};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::mpsc::RecvTimeoutError;
-use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 /// How long the plane waits before it names who failed.
@@ -56,20 +57,6 @@ const MAP_EVERY_STEPS: u64 = 20;
 
 /// How often a participant repeats its join until the first truth arrives.
 const JOIN_REPEAT: Duration = Duration::from_millis(200);
-
-fn transport(what: &str) -> impl Fn(Box<dyn std::error::Error + Send + Sync>) -> SceneError + '_ {
-    move |e| SceneError::Transport(format!("{what}: {e}"))
-}
-
-/// The plane's publishers are reliable and block on congestion: lockstep needs every message.
-pub(super) fn reliable_publisher(session: &Session, key: String) -> Result<Publisher<'static>, SceneError> {
-    session
-        .declare_publisher(key.clone())
-        .congestion_control(CongestionControl::Block)
-        .reliability(Reliability::Reliable)
-        .wait()
-        .map_err(transport(&key))
-}
 
 /// The road map of a scene's world, as the authority publishes it (the same bytes each time):
 /// the road, and a recording's lanelets.
@@ -127,15 +114,10 @@ struct Answers {
     malformed: u64,
 }
 
-/// A poisoned lock only means another thread panicked while holding it; the counts stay usable.
-pub(super) fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
-    mutex.lock().unwrap_or_else(PoisonError::into_inner)
-}
-
 impl Tally {
     fn on_reply(&self, payload: &[u8]) {
         let reply = Reply::decode(payload);
-        let mut answers = lock(&self.state);
+        let mut answers = self.state.locked();
         match reply {
             Ok(Reply::Join { participant, scene, describe, .. }) if answers.joining => {
                 answers.joins.push((participant, scene, describe));
@@ -249,7 +231,7 @@ impl ZenohAuthority {
 
     fn await_joins(&mut self, setup: &SceneSetup) -> Result<(), SceneError> {
         let joined = self.take_joins(setup);
-        let mut answers = lock(&self.tally.state);
+        let mut answers = self.tally.state.locked();
         answers.joining = false;
         answers.joins.clear();
         joined
@@ -259,7 +241,7 @@ impl ZenohAuthority {
         let (digest, ours) = (setup.digest(), setup.describe());
         let deadline = Instant::now() + self.timeouts.join;
         let mut joined = vec![false; self.tally.participants.len()];
-        let mut answers = lock(&self.tally.state);
+        let mut answers = self.tally.state.locked();
         while joined.iter().any(|j| !j) {
             for (participant, scene, describe) in std::mem::take(&mut answers.joins) {
                 let Some(k) = self.tally.participants.iter().position(|p| *p == participant) else {
@@ -301,7 +283,7 @@ impl ZenohAuthority {
 
     /// Replies that did not decode, counted and dropped.
     pub fn malformed(&self) -> u64 {
-        lock(&self.tally.state).malformed
+        self.tally.state.locked().malformed
     }
 
     fn publish(&mut self, truth: &Truth) -> Result<(), SceneError> {
@@ -355,7 +337,7 @@ impl Plane for ZenohAuthority {
         };
         let deadline = self.realtime.as_ref().map_or(start + self.timeouts.step, |rt| start + rt.period);
         {
-            let mut answers = lock(&self.tally.state);
+            let mut answers = self.tally.state.locked();
             answers.step = Some(truth.step);
             answers.answered.fill(false);
             answers.missing = self.tally.participants.len();
@@ -364,7 +346,7 @@ impl Plane for ZenohAuthority {
         self.publish(truth)?;
         // A handle of its own, so that the answers can be read while `self` concludes the step.
         let tally = Arc::clone(&self.tally);
-        let mut answers = lock(&tally.state);
+        let mut answers = tally.state.locked();
         loop {
             let now = Instant::now();
             if answers.missing == 0 || now >= deadline {
@@ -530,7 +512,7 @@ impl Answering {
         if let Err(e) = self.outbox.put(reply).wait().map_err(transport("reply")) {
             return Some(Err(e));
         }
-        *lock(&self.last) = Some((truth.step, Instant::now()));
+        *self.last.locked() = Some((truth.step, Instant::now()));
         self.streams.publish(&self.stack, &truth).err().map(Err)
     }
 }
@@ -592,7 +574,7 @@ pub fn run_participant(
     let answer = {
         let answering = Arc::clone(&answering);
         move |payload: &[u8]| {
-            let mut answering = lock(&answering);
+            let mut answering = answering.locked();
             if answering.over {
                 return;
             }
@@ -626,11 +608,11 @@ pub fn run_participant(
     let mut next_join = Instant::now();
     loop {
         let now = Instant::now();
-        let last_step = *lock(&last);
+        let last_step = *last.locked();
         let wake = match last_step {
             None if now >= join_deadline => {
                 let waited_s = timeouts.join.as_secs();
-                let unheard = lock(&answering).v2x.as_ref().map(V2xLayer::unheard).unwrap_or_default();
+                let unheard = answering.locked().v2x.as_ref().map(V2xLayer::unheard).unwrap_or_default();
                 if !unheard.is_empty() {
                     return Err(SceneError::V2xUnheard { ids: unheard.join(", "), waited_s });
                 }
@@ -638,7 +620,7 @@ pub fn run_participant(
             }
             None => {
                 if now >= next_join {
-                    let answering = lock(&answering);
+                    let answering = answering.locked();
                     // With V2X, the join waits until every V2X sender of the scene is heard.
                     let ready = answering.v2x.as_ref().map_or(Ok(true), V2xLayer::hello)?;
                     if ready {
@@ -659,10 +641,10 @@ pub fn run_participant(
                 if let Ok(summary) = &mut ended {
                     let started = Instant::now();
                     // Here, not on the truth's callback: the V2X end waits for the last messages.
-                    let v2x = lock(&answering).v2x.take();
+                    let v2x = answering.locked().v2x.take();
                     summary.v2x = v2x.map(V2xLayer::finish);
                     // The streams' caches stay a while for the cloud to fetch what the link lost last.
-                    let linger = lock(&answering).streams.linger();
+                    let linger = answering.locked().streams.linger();
                     std::thread::sleep(linger.saturating_sub(started.elapsed()));
                 }
                 return ended;

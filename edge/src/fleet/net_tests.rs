@@ -3,6 +3,7 @@
 use super::super::wire::SCHEMA_VERSION;
 use super::*;
 use risktwin_common::scenario::{ScenarioKind, build};
+use risktwin_transport::sync::LockExt;
 
 fn tally(step: u64) -> Tally {
     let answers = Answers { step: Some(step), answered: vec![false; 2], missing: 2, ..Answers::default() };
@@ -17,10 +18,10 @@ fn the_tally_counts_each_participant_once_for_the_current_step_only() {
     tally.on_reply(&Reply::step("v9", 3, None).encode());
     tally.on_reply(&Reply::step("rsu0", 3, None).encode());
     tally.on_reply(&Reply::step("rsu0", 3, None).encode());
-    assert_eq!(lock(&tally.state).missing, 1, "another step, a stranger and a repeat do not count");
+    assert_eq!(tally.state.locked().missing, 1, "another step, a stranger and a repeat do not count");
     tally.on_reply(&[0xFF, 0x00, 0x13]);
     tally.on_reply(&Reply::step("v0", 3, Some(brake)).encode());
-    let answers = lock(&tally.state);
+    let answers = tally.state.locked();
     assert_eq!((answers.missing, answers.answered.as_slice()), (0, &[true, true][..]));
     assert_eq!((answers.ego, answers.malformed), (Some(brake), 1));
 }
@@ -29,21 +30,21 @@ fn the_tally_counts_each_participant_once_for_the_current_step_only() {
 fn joins_are_queued_for_the_stepping_thread_until_stepping_starts() {
     let tally = tally(0);
     {
-        let mut answers = lock(&tally.state);
+        let mut answers = tally.state.locked();
         (answers.step, answers.joining) = (None, true);
     }
     let join =
         |id: &str| Reply::Join { schema: SCHEMA_VERSION, participant: id.into(), scene: 7, describe: "d".into() };
     tally.on_reply(&join("v0").encode());
     tally.on_reply(&join("v9").encode());
-    let answers = lock(&tally.state);
+    let answers = tally.state.locked();
     let ids: Vec<&str> = answers.joins.iter().map(|(id, ..)| id.as_str()).collect();
     assert_eq!(ids, ["v0", "v9"], "an unknown participant is refused by the stepping thread, by name");
     assert_eq!(answers.missing, 2);
     drop(answers);
-    lock(&tally.state).joining = false;
+    tally.state.locked().joining = false;
     tally.on_reply(&join("v0").encode());
-    assert_eq!(lock(&tally.state).joins.len(), 2, "a join repeated after stepping started is dropped");
+    assert_eq!(tally.state.locked().joins.len(), 2, "a join repeated after stepping started is dropped");
 }
 
 #[test]

@@ -8,7 +8,6 @@
 
 use super::wire::Truth;
 use super::{Role, SceneError, SceneSetup, SceneSource};
-use risktwin_common::commonroad::twin::ego_sensor;
 use risktwin_common::driver::{DriverView, Policy, ReferenceDriver};
 use risktwin_common::episode::with_reference_driver;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
@@ -18,6 +17,7 @@ use risktwin_common::sensor::{PerceivedObject, SceneObject, Sensor, SensorParams
 use risktwin_common::telemetry::{DetectedObject, Header, VehicleStateSample};
 use risktwin_common::vehicle::Controls;
 use risktwin_common::world::EGO_OBJECT_ID;
+use risktwin_commonroad::twin::ego_sensor;
 
 /// Noise stream of connected traffic vehicle k's sensor (k = its traffic index).
 const AGENT_SENSOR_STREAM: u64 = 0xA6E0_0000;

@@ -3,10 +3,10 @@
 //! played back). Either gives the same truth message and the same road-map message.
 
 use super::wire::Truth;
-use risktwin_common::commonroad::LaneletNetwork;
-use risktwin_common::commonroad::twin::ResimStepper;
 use risktwin_common::road::Road;
 use risktwin_common::world::World;
+use risktwin_commonroad::LaneletNetwork;
+use risktwin_commonroad::twin::ResimStepper;
 
 /// A scene's world.
 // One per scene, stepped in place: the variants' sizes cost nothing worth a box.

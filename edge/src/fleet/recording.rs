@@ -5,9 +5,9 @@
 //! stepped by [`ResimStepper`] with the controls of the ego's process.
 
 use super::SceneError;
-use risktwin_common::commonroad::twin::{EgoMode, ResimStepper, TwinScene};
-use risktwin_common::commonroad::{Scenario, parse_scenario};
 use risktwin_common::digest::fnv1a64;
+use risktwin_commonroad::twin::{EgoMode, ResimStepper, TwinScene};
+use risktwin_commonroad::{Scenario, parse_scenario};
 use std::sync::Arc;
 
 /// A parsed CommonRoad file, its ego, and the digest of its bytes (the scene's identity).
@@ -92,7 +92,7 @@ mod tests {
     use super::*;
     use crate::fleet::authority::{Embedded, run_scene};
     use crate::fleet::{Role, SceneSetup, SceneSource};
-    use risktwin_common::commonroad::twin::resimulate;
+    use risktwin_commonroad::twin::resimulate;
 
     fn xml(name: &str) -> String {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../data/commonroad/{name}.xml"));

@@ -32,6 +32,7 @@ use risktwin_common::world::STEP_S;
 use risktwin_protos::encode;
 use risktwin_transport::keyexpr::{EdgeReport, edge_report, liveliness_token};
 use risktwin_transport::recovery::{DEFAULT_OUTAGE, LIVE_PRIORITY};
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::zenoh::Wait;
 use risktwin_transport::zenoh::liveliness::LivelinessToken;
 use risktwin_transport::zenoh::pubsub::Publisher;
@@ -39,7 +40,7 @@ use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
 use risktwin_transport::zenoh::{Session, bytes::ZBytes};
 use risktwin_transport::{Delivery, EdgeStream, SiteId, SourceId, StreamPublisher, protobuf};
 use std::collections::{BTreeMap, VecDeque};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 /// Physics steps per perception or RSU message: 10 Hz from the 20 Hz simulation.
 const STEPS_PER_OBJECT_LIST: u64 = 2;
@@ -119,11 +120,6 @@ pub struct Streams {
     _alive: LivelinessToken,
     /// Wall time at the scene's t = 0 by this participant's clock, ns since the Unix epoch.
     epoch_ns: Option<i64>,
-}
-
-/// The wall clock, ns since the Unix epoch.
-pub(super) fn unix_ns() -> i64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64)
 }
 
 impl Streams {

@@ -6,7 +6,6 @@
 //! messages never leave a scene (the cloud's streams stay protobuf); [`SCHEMA_VERSION`] is in
 //! every message and in the scene digest, and a mismatch is refused by name.
 
-use risktwin_common::commonroad::twin::ResimStepper;
 use risktwin_common::geometry::{Footprint, Obb, Pose, Vec2};
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;
@@ -15,6 +14,7 @@ use risktwin_common::telemetry::DetectedObject;
 use risktwin_common::vehicle::Controls;
 use risktwin_common::vehicle::Vehicle;
 use risktwin_common::world::World;
+use risktwin_commonroad::twin::ResimStepper;
 use serde::{Deserialize, Serialize};
 
 /// Version of the physics-plane messages; bump on any change to them.

@@ -1,12 +1,12 @@
 //! What a vehicle does with the cloud's pushes: scenario pushes are validated (decodable,
 //! complete, in range, feasible) before the vehicle runs them; policy updates are validated
 //! (decodable, a known algorithm, weights of sane size that load as a policy of this build's
-//! observation and action sizes and decision rate — `common::net::HostPolicy`; a file without
+//! observation and action sizes and decision rate — `policy::HostPolicy`; a file without
 //! a decision rate predates the field and is taken as 20 Hz — and whose file names the same
 //! algorithm, a version above every one accepted of its policy id while this process runs, also
 //! after another policy drove since) and then drive the vehicle. Before any of that, a policy
 //! update must carry the cloud's ed25519 signature over its weights and metadata, addressed to
-//! this vehicle ([`PolicyTrust`], `common::policy_signature`): without a trusted key every
+//! this vehicle ([`PolicyTrust`], `policy::signature`): without a trusted key every
 //! update is refused (`unverifiable`), an unsigned one is `unsigned`, one that does not verify
 //! `bad-signature`, one signed for another vehicle `wrong-vehicle`; refused weights are never
 //! loaded. A refused push is counted by reason and logged; the vehicle keeps running what it was
@@ -15,10 +15,10 @@
 //! refused by reason.
 
 use crate::scene::ActivePolicy;
-use risktwin_common::net::HostPolicy;
-use risktwin_common::policy_signature::{PolicyVerifyingKey, SignatureError};
 use risktwin_common::scenario::check_feasible;
 use risktwin_common::telemetry::{HazardWarning, PolicyRef, PolicyUpdate, ScenarioPush};
+use risktwin_policy::HostPolicy;
+use risktwin_policy::signature::{PolicyVerifyingKey, SignatureError};
 use risktwin_protos::decode_tagged;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -236,10 +236,10 @@ impl PushSummary {
 mod tests {
     use super::*;
     use risktwin_common::env::OBS_DIM;
-    use risktwin_common::net::PolicyKind;
-    use risktwin_common::policy_signature::PolicySigningKey;
     use risktwin_common::scenario::ScenarioKind;
     use risktwin_common::telemetry::{Frame, Header};
+    use risktwin_policy::PolicyKind;
+    use risktwin_policy::signature::PolicySigningKey;
     use risktwin_protos::{encode, encoding_of};
 
     const SCENARIO: &str = "application/protobuf;risktwin.v1.ScenarioPush";

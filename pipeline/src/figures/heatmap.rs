@@ -5,11 +5,11 @@
 use super::canvas::{Bitmap, FONT, FigureError, register_fonts};
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
-use risktwin_common::commonroad::LaneletNetwork;
-use risktwin_common::commonroad::twin::{CommonRoadField, lanelet_layers};
 use risktwin_common::episode::FieldSnapshot;
 use risktwin_common::geometry::{Obb, Vec2};
 use risktwin_common::risk::{HeatmapLayers, RiskGrid, road_layers};
+use risktwin_commonroad::LaneletNetwork;
+use risktwin_commonroad::twin::{CommonRoadField, lanelet_layers};
 
 /// Pixels per grid cell, reduced for large grids so an image stays below [`MAX_PIXELS`], and
 /// raised for small ones so the map keeps [`MIN_MAP_PX`] (room for the legend and the labels).

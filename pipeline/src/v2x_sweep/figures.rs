@@ -4,9 +4,9 @@
 use super::table::same_but_latency;
 use crate::figures::{Bitmap, FigureError, Panel, Series, line_panels};
 use risktwin_common::histogram::Histogram;
-use risktwin_common::v2x::channel::{LinkBudget, PathLoss};
-use risktwin_common::v2x::sps_reference::published_curve;
-use risktwin_common::v2x::sweep::{Cell, Row, SweepResult, latency_label, mean_latency_ms};
+use risktwin_v2x::channel::{LinkBudget, PathLoss};
+use risktwin_v2x::sps_reference::published_curve;
+use risktwin_v2x::sweep::{Cell, Row, SweepResult, latency_label, mean_latency_ms};
 
 pub const PDR_FILE: &str = "pdr_vs_distance.png";
 pub const LATENCY_FILE: &str = "latency_cdf.png";

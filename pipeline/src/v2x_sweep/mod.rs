@@ -1,4 +1,4 @@
-//! `risktwin v2x sweep`: runs a sweep's grid in virtual time (`risktwin_common::v2x::sweep`) and
+//! `risktwin v2x sweep`: runs a sweep's grid in virtual time (`risktwin_v2x::sweep`) and
 //! writes its folder: the config as run, one CSV row per cell, kind and seed, the scenes drawn,
 //! the figures and `report.md`. Every file is a function of the config alone (no timings), so
 //! the same config gives byte-identical files.
@@ -7,8 +7,8 @@ mod figures;
 mod table;
 
 use crate::figures::{FigureError, write_png};
-use risktwin_common::v2x::sps_reference::{published_curve, reproduced_curve};
-use risktwin_common::v2x::sweep::{self, Grid, SweepConfig, SweepResult, latency_label, mean_latency_ms};
+use risktwin_v2x::sps_reference::{published_curve, reproduced_curve};
+use risktwin_v2x::sweep::{self, Grid, SweepConfig, SweepResult, latency_label, mean_latency_ms};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 

@@ -1,6 +1,6 @@
 //! The table of the latency at which cooperative warnings stop preventing crashes.
 
-use risktwin_common::v2x::sweep::{Cell, SweepResult, mean_latency_ms};
+use risktwin_v2x::sweep::{Cell, SweepResult, mean_latency_ms};
 use std::fmt::Write as _;
 
 /// Warnings "still prevent crashes" while they prevent at least this share of the crashes the

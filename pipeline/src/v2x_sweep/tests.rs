@@ -1,6 +1,6 @@
 use super::*;
-use risktwin_common::v2x::latency::Latency;
-use risktwin_common::v2x::sweep::Bursts;
+use risktwin_v2x::latency::Latency;
+use risktwin_v2x::sweep::Bursts;
 
 #[test]
 fn a_sweep_folder_is_byte_identical_for_the_same_config() {

@@ -23,7 +23,7 @@ mod warning;
 pub(crate) mod tests;
 
 use prost::Message;
-use risktwin_common::align::DropReason;
+use risktwin_align::DropReason;
 use risktwin_common::telemetry;
 
 /// Why a wire message is not a valid domain value.

@@ -5,9 +5,9 @@
 
 use super::{LiveIngest, Origin};
 use risktwin_protos::encode;
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::zenoh::session::ZenohId;
 use risktwin_transport::{EdgeStream, protobuf};
-use std::time::{SystemTime, UNIX_EPOCH};
 
 const KEY: &str = "risktwin/v1/s1/veh-1/state";
 
@@ -17,7 +17,7 @@ fn session(n: u8) -> ZenohId {
 
 /// Captured a second ago, 1 ms apart: never ahead of the cloud's clock.
 fn feed(ingest: &mut LiveIngest, seqs: std::ops::Range<u64>, publisher: u8, recovered: bool) {
-    let epoch_ns = SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64 - 1_000_000_000;
+    let epoch_ns = unix_ns() - 1_000_000_000;
     for seq in seqs {
         let sample = crate::test_fixtures::state("veh-1", seq, epoch_ns + seq as i64 * 1_000_000);
         let origin = Origin { recovered, publisher: Some(session(publisher)) };

@@ -16,6 +16,7 @@
 //! vehicles' states, which are never shed (the twin is made of them). The streams shed go to the
 //! edges in the delivery acknowledgements, so that they stop sending them at the source.
 
+use crate::network::summary::LoadSummary;
 use risktwin_transport::EdgeStream;
 use std::time::{Duration, Instant};
 
@@ -107,19 +108,6 @@ impl LoadGauge {
             queue_delay_ms: self.last_least_ns.map(|ns| ns.max(0) as u64 / 1_000_000),
         }
     }
-}
-
-/// The overload part of the ingest's summary.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
-pub struct LoadSummary {
-    /// The shedding level at the end (0 none, 1 CAN, 2 all but states).
-    pub shed_level: u8,
-    /// The highest level reached.
-    pub shed_level_max: u8,
-    /// Seconds spent shedding (whole windows).
-    pub shedding_s: u64,
-    /// The least delay of live states over the last full window, ms (the load measure).
-    pub queue_delay_ms: Option<u64>,
 }
 
 #[cfg(test)]

@@ -12,8 +12,8 @@
 use super::ack::AckSources;
 use super::id_conflicts::IdConflicts;
 use super::loss::LossCounts;
+use super::summary::STREAMS;
 use crate::ingest::{AcceptedMessage, IngestWorker, ObservedKinematics, SnapshotDigest};
-use crate::recordings::{RotationConfig, SegmentError, Segments};
 use crate::twin::fidelity::distribution::Distribution;
 use crate::twin::outputs::TwinOutputs;
 use crate::twin::risk::{RiskAssessor, RiskConfig};
@@ -21,14 +21,15 @@ use crate::twin::watch::{WatchCounts, WatchedEpisode};
 use crate::viz::VizFeed;
 use crate::warning::{HazardWarner, WarningSink, WarningSummary};
 use load::LoadGauge;
-pub use load::LoadSummary;
-use risktwin_common::align::{DropReason, IngestConfig, MAX_EDGE_PAYLOAD_BYTES, SeqProgress};
+use risktwin_align::{DropReason, IngestConfig, MAX_EDGE_PAYLOAD_BYTES, SeqProgress};
 use risktwin_common::scenario::ScenarioSpec;
 use risktwin_common::telemetry::{ObjectList, ScenarioResult, VehicleStateSample};
 use risktwin_protos::convert::foxglove::{FOXGLOVE_GRID, FOXGLOVE_SCENE_UPDATE};
 use risktwin_protos::recording::{Recorder, RecordingError};
+use risktwin_store::recordings::{RotationConfig, SegmentError, Segments};
 use risktwin_transport::keyexpr::{CloudOutput, cloud_output, parse_edge_key};
 use risktwin_transport::recovery::is_recovered;
+use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::zenoh::bytes::Encoding;
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::session::ZenohId;
@@ -37,19 +38,20 @@ use std::collections::{HashMap, HashSet};
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::Path;
-use std::time::{Instant, SystemTime, UNIX_EPOCH};
+use std::time::Instant;
 use thiserror::Error;
 use tokio::sync::mpsc::UnboundedSender;
 
+mod acks;
 #[cfg(test)]
 mod departure_tests;
 mod emit;
 mod load;
 mod report;
 
+pub(super) use acks::spawn_acks;
 use emit::emit;
-
-pub(super) const STREAMS: usize = EdgeStream::ALL.len();
+pub(super) use report::watch_metrics;
 
 /// Sources whose wrong-schema samples are logged; beyond, they are only counted.
 const MAX_LOGGED: usize = 100;
@@ -329,7 +331,7 @@ impl LiveIngest {
     /// A message of a scene's ground truth, received on `key`: recorded there (its own
     /// topics, beside the twin's) and measured against by the twin.
     pub fn observe_truth(&mut self, key: &str, site: &str, truth: GroundTruth) -> Result<(), RecordingError> {
-        let log_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64);
+        let log_ns = unix_ns() as u64;
         if let Some(rec) = self.worker.recorder_mut() {
             match &truth {
                 GroundTruth::Vehicle { sample, .. } => rec.record(key, log_ns, sample)?,
@@ -399,7 +401,7 @@ impl LiveIngest {
             tracing::warn!("ingest: live states wait {delay_ms} ms at least: shedding level {level} ({shed:?})");
         }
         let wall_ns = match (self.replay_time, replay_ns) {
-            (false, _) => SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64),
+            (false, _) => unix_ns(),
             (true, Some(t)) => t,
             (true, None) => {
                 self.worker.reject(DropReason::NoReplayTime);
@@ -618,7 +620,7 @@ impl LiveIngest {
         event: &risktwin_protos::v1::LoopEvent,
     ) -> Result<(), RecordingError> {
         let (Some(rec), Ok(site)) = (self.worker.recorder_mut(), SiteId::new(site)) else { return Ok(()) };
-        let log_ns = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64);
+        let log_ns = unix_ns() as u64;
         let channel = rec.channel(&cloud_output(&site, CloudOutput::Loop), LOOP_EVENT)?;
         rec.write(channel, log_ns, log_ns, &prost::Message::encode_to_vec(event))
     }

@@ -3,11 +3,14 @@
 
 use super::{LiveIngest, RecordError};
 use crate::network::live_metrics::{self, Snapshot};
+use crate::network::liveliness::LivenessLog;
 use crate::network::summary::{IngestSummary, LagSummary, per_stream_names, summarize};
-use crate::recordings::Segments;
 use crate::twin::outputs::{TwinOutputs, TwinSummary};
+use risktwin_store::recordings::Segments;
+use risktwin_transport::sync::LockExt;
 use std::collections::BTreeMap;
 use std::io::Write;
+use std::sync::{Arc, Mutex, Weak};
 
 impl LiveIngest {
     /// Closes the recording (so the file is a valid MCAP) and returns the summary, with the
@@ -57,4 +60,20 @@ impl LiveIngest {
             warning: self.warning_summary(),
         }
     }
+}
+
+/// Has every scrape copy the counts of `ingest` and `liveness` while the cloud runs.
+pub(in crate::network) fn watch_metrics(ingest: &Arc<Mutex<LiveIngest>>, liveness: &Arc<Mutex<LivenessLog>>) {
+    // Weak: the cloud takes the ingest apart at shutdown, and exports the final counts itself.
+    let (ingest, liveness): (Weak<_>, Weak<_>) = (Arc::downgrade(ingest), Arc::downgrade(liveness));
+    risktwin_transport::metrics::on_scrape(move || {
+        let (Some(ingest), Some(liveness)) = (ingest.upgrade(), liveness.upgrade()) else { return false };
+        // Only the copy holds the ingest's lock: the receive path must not wait for the export
+        // (a stall of a second would skew every source's clock estimate).
+        let snapshot = ingest.locked().metrics_snapshot();
+        live_metrics::export_ingest(&snapshot.ingest, &snapshot.sites, snapshot.twin.as_ref());
+        snapshot.warning.iter().for_each(live_metrics::export_warning);
+        live_metrics::export_liveliness(&liveness.locked().summary());
+        true
+    });
 }

@@ -3,13 +3,14 @@
 use super::ShardSummary;
 use risktwin_transport::keyexpr::{self, parse_edge_key};
 use risktwin_transport::recovery::LIVE_PRIORITY;
+use risktwin_transport::sync::LockExt;
 use risktwin_transport::zenoh::bytes::{Encoding, ZBytes};
 use risktwin_transport::zenoh::pubsub::Publisher;
 use risktwin_transport::zenoh::qos::CongestionControl;
 use risktwin_transport::zenoh::{Session, Wait};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex};
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
@@ -52,7 +53,7 @@ impl Forwarder {
     /// Declares the forward of `edge_key` now unless it is: a fetch's samples, put in a burst,
     /// would each be routed the slow way (about a millisecond) before the task declared it.
     pub(super) async fn prepare(&self, edge_key: &str) {
-        let absent = !self.declared.lock().unwrap_or_else(PoisonError::into_inner).contains_key(edge_key);
+        let absent = !self.declared.locked().contains_key(edge_key);
         if absent {
             declare_forward(&self.session, &self.declared, edge_key.to_owned()).await;
         }
@@ -70,7 +71,7 @@ impl Forwarder {
         let edge_key = sample.key_expr().as_str();
         let (payload, encoding): (ZBytes, Encoding) = (sample.payload().clone(), sample.encoding().clone());
         let attachment = sample.attachment().cloned();
-        let mut declared = self.declared.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut declared = self.declared.locked();
         let ok = match declared.get(edge_key) {
             Some(Some(publisher)) => publisher.put(payload).encoding(encoding).attachment(attachment).wait().is_ok(),
             known => {
@@ -109,7 +110,7 @@ async fn declare_forward(
         .await;
     match publisher {
         Ok(p) => {
-            declared.lock().unwrap_or_else(PoisonError::into_inner).insert(edge_key, Some(p));
+            declared.locked().insert(edge_key, Some(p));
         }
         Err(e) => tracing::warn!("shard: declaring the forward of {edge_key}: {e} (put one by one)"),
     }

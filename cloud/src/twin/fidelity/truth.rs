@@ -5,7 +5,7 @@
 use super::super::{SiteTwin, TwinObject, TwinVehicle};
 use crate::ingest::ObservedKinematics;
 use crate::twin::risk::SELF_RADIUS_M;
-use risktwin_common::align::{Interpolate, lerp_angle};
+use risktwin_align::{Interpolate, lerp_angle};
 use risktwin_common::geometry::Pose;
 use risktwin_common::telemetry::{DetectedObject, VehicleStateSample};
 use std::collections::{BTreeMap, VecDeque};

@@ -1,9 +1,9 @@
 //! A vehicle's side of the RSUs' batches (warnings and CPMs), in real time: kept as they come,
 //! waited for by the step that needs them, decided as virtual time decides them.
 
-use super::super::streams::unix_ns;
 use super::{AHEAD_STEPS, Inbox, Receiving, RsuBatch, WARNING_WAIT};
-use risktwin_common::v2x::warning::Warning;
+use risktwin_transport::wall_clock::unix_ns;
+use risktwin_v2x::warning::Warning;
 use std::sync::{MutexGuard, PoisonError};
 use std::time::Instant;
 

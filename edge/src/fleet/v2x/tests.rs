@@ -3,9 +3,10 @@
 use super::*;
 use risktwin_common::geometry::{Obb, Vec2};
 use risktwin_common::sensor::ObjectKind;
-use risktwin_common::v2x::channel::{LinkBudget, PathLoss};
-use risktwin_common::v2x::latency::Latency;
-use risktwin_common::v2x::link::V2xChannel;
+use risktwin_transport::sync::LockExt;
+use risktwin_v2x::channel::{LinkBudget, PathLoss};
+use risktwin_v2x::latency::Latency;
+use risktwin_v2x::link::V2xChannel;
 
 const SCENE: u64 = 9;
 
@@ -61,7 +62,7 @@ fn every_cam_is_decided_counted_or_waits_and_none_is_dropped_silently() {
     let other_scene = WireV2x { schema: V2X_SCHEMA, scene: SCENE + 1, sender: "v1".into(), body: cam(0, 0) };
     inbox.on_sample(&key("v1"), &postcard::to_allocvec(&other_scene).expect("encodes"));
     {
-        let state = lock(&inbox.state);
+        let state = inbox.state.locked();
         assert_eq!(state.tally.copies, 1, "the first CAM only");
         let why = "a repeat, a sender on another's key, a stranger, an RSU, garbage, NaN";
         assert_eq!((state.malformed, state.foreign), (6, 1), "{why}");
@@ -73,7 +74,7 @@ fn every_cam_is_decided_counted_or_waits_and_none_is_dropped_silently() {
     inbox.on_sample(&key("v0"), &message("v0", cam(2, 3)));
     inbox.on_sample(&key("v0"), &message("v0", cam(3, 1 + AHEAD_STEPS + 1)));
     {
-        let state = lock(&inbox.state);
+        let state = inbox.state.locked();
         assert_eq!((state.tally.copies, state.waiting.len(), state.ahead), (1, 1, 1));
         assert!(!state.settled(), "a CAM waits, and no sender announced its end");
         assert_eq!(state.undecided(), 1, "the waiting CAM; the sequence numbers are all there");
@@ -82,7 +83,7 @@ fn every_cam_is_decided_counted_or_waits_and_none_is_dropped_silently() {
     // v1's CAMs 0 to 2 were never taken (its NaN one was refused): its end announces 4.
     inbox.on_sample(&key("v0"), &message("v0", V2xBody::End { cams: 4 }));
     inbox.on_sample(&key("v1"), &message("v1", V2xBody::End { cams: 4 }));
-    let state = lock(&inbox.state);
+    let state = inbox.state.locked();
     assert_eq!((state.tally.copies, state.waiting.len()), (2, 0), "the waiting CAM decided at its step");
     assert!(!state.settled());
     assert_eq!(state.undecided(), 4, "v1's four: announced, none taken");
@@ -95,12 +96,12 @@ fn a_cam_of_a_step_no_longer_held_is_stale_and_hostile_times_neither_panic_nor_h
         inbox.on_step(step, Some((0.0, 0.0)));
     }
     inbox.on_sample(&key("v0"), &message("v0", cam(0, 3)));
-    assert_eq!(lock(&inbox.state).stale, 1);
+    assert_eq!(inbox.state.locked().stale, 1);
     for (seq, sent_unix_ns) in [(1, i64::MAX), (2, i64::MIN), (3, unix_ns() - 1_000_000_000)] {
         let body = V2xBody::Cam(WireCam { seq, step: 20, made_s: 0.0, sent_unix_ns, state: [1.0, 0.0, 0.0, 0.0] });
         inbox.on_sample(&key("v0"), &message("v0", body));
     }
-    let state = lock(&inbox.state);
+    let state = inbox.state.locked();
     assert_eq!((state.tally.copies, state.tally.passed), (3, 3), "1 m on a highway");
     assert_eq!(state.late, 2, "sent long ago: their latency has passed");
     let latest = state.held.iter().map(|Reverse(h)| h.due).max().expect("held");
@@ -148,12 +149,12 @@ fn warned_vehicle() -> Inbox {
 fn a_participant_is_ready_once_every_sender_it_decides_said_hello() {
     let inbox = warned_vehicle();
     for sender in ["v1", "rsu0", "rsu1"] {
-        assert!(!lock(&inbox.state).heard_everyone(), "before {sender}");
+        assert!(!inbox.state.locked().heard_everyone(), "before {sender}");
         inbox.on_sample(&key(sender), &message(sender, V2xBody::Hello));
     }
-    assert!(lock(&inbox.state).heard_everyone());
+    assert!(inbox.state.locked().heard_everyone());
     inbox.on_sample(&key("v7"), &message("v7", V2xBody::Hello));
-    assert_eq!(lock(&inbox.state).malformed, 1, "not of the scene");
+    assert_eq!(inbox.state.locked().malformed, 1, "not of the scene");
 }
 
 #[test]
@@ -165,12 +166,12 @@ fn a_hostile_rsu_batch_neither_panics_nor_shuts_out_the_genuine_ones() {
     }
     inbox.on_sample(&key("rsu1"), &message("rsu1", batch(0, u64::MAX, vec![pedestrian(7)])));
     {
-        let state = lock(&inbox.state);
+        let state = inbox.state.locked();
         assert_eq!((state.ahead, state.malformed), (2, 1), "far ahead twice; sequence numbers that overflow");
     }
     inbox.on_sample(&key("rsu0"), &message("rsu0", batch(0, 0, vec![pedestrian(7)])));
     inbox.on_sample(&key("rsu1"), &message("rsu1", batch(0, 0, Vec::new())));
-    let state = inbox.decide_warnings_through(lock(&inbox.state), 0);
+    let state = inbox.decide_warnings_through(inbox.state.locked(), 0);
     assert_eq!((state.tally.warning_copies, state.warning_batches_lost), (1, 0), "the genuine batch decided");
 }
 
@@ -200,7 +201,7 @@ fn rsu_warnings_are_decided_in_step_order_and_bad_or_missing_batches_are_counted
         b.cpm.as_mut().expect("a CPM").objects[1].obb.half_width_m = f64::INFINITY;
     }
     inbox.on_sample(&key("rsu1"), &message("rsu1", nan_cpm));
-    let state = inbox.decide_warnings_through(lock(&inbox.state), 0);
+    let state = inbox.decide_warnings_through(inbox.state.locked(), 0);
     assert_eq!(state.malformed, 5);
     assert_eq!((state.tally.warning_copies, state.warning_batches_late), (3, 0), "step 0's three copies");
     assert_eq!(state.rsus[0].batches.len(), 1, "rsu0's step 1 waits for the step that needs it");
@@ -215,27 +216,27 @@ fn rsu_warnings_are_decided_in_step_order_and_bad_or_missing_batches_are_counted
     drop(state);
     // rsu1 never sends step 1: the wait ends, the batch is counted late once.
     let started = Instant::now();
-    let state = inbox.decide_warnings_through(lock(&inbox.state), 1);
+    let state = inbox.decide_warnings_through(inbox.state.locked(), 1);
     assert!(started.elapsed() >= WARNING_WAIT, "waited for it");
     assert_eq!((state.tally.warning_copies, state.warning_batches_late), (3, 1));
     drop(state);
-    let state = inbox.decide_warnings_through(lock(&inbox.state), 1);
+    let state = inbox.decide_warnings_through(inbox.state.locked(), 1);
     assert_eq!(state.warning_batches_late, 1, "not counted twice");
     drop(state);
     // rsu0's step 2 never comes, its step 3 does: one batch lost.
     inbox.on_sample(&key("rsu0"), &message("rsu0", batch(3, 2, Vec::new())));
-    assert_eq!(lock(&inbox.state).warning_batches_lost, 1);
+    assert_eq!(inbox.state.locked().warning_batches_lost, 1);
 }
 
 #[test]
 fn an_rsu_ignores_the_warnings_of_another_and_a_scene_without_warnings_refuses_them() {
     let rsu = inbox();
     rsu.on_sample(&key("v0"), &message("v0", batch(0, 0, vec![pedestrian(7)])));
-    assert_eq!(lock(&rsu.state).malformed, 1, "no warnings in this scene");
+    assert_eq!(rsu.state.locked().malformed, 1, "no warnings in this scene");
     let mut rsu = inbox();
     rsu.warners = vec!["rsu0".into(), "rsu1".into()];
     rsu.on_sample(&key("rsu1"), &message("rsu1", batch(0, 0, vec![pedestrian(7)])));
-    let state = lock(&rsu.state);
+    let state = rsu.state.locked();
     assert_eq!((state.malformed, state.tally.warning_copies), (0, 0), "not for an RSU, and not malformed");
 }
 

@@ -12,9 +12,9 @@
 //! - [`viz`]: the live twin served to the Foxglove app over its WebSocket protocol (the same
 //!   topics and schemas as a recording);
 //! - [`fleet_loop`]: the closed loop over the fleet (what the `loop` role decides), on the
-//!   library's state;
-//! - [`library`]: the scenario library (SQLite); [`criticality`]: CommonRoad criticality of a
-//!   replayed scenario; [`trainer`], [`generate`], [`episode_recording`]: the offline side.
+//!   library's state (the SQLite stores are `risktwin-store`'s);
+//! - [`criticality`]: CommonRoad criticality of a replayed scenario; [`trainer`], [`generate`],
+//!   [`episode_recording`]: the offline side.
 //!
 //! The ingest and the twin need no network: feed a worker encoded messages, and the twin
 //! follows its snapshots.

@@ -1,5 +1,5 @@
 //! Throughput of the pure ingest core (an `#[ignore]`d measurement that prints, not a timed
-//! test). Run: `cargo test -p risktwin-common --release align::bench -- --ignored --nocapture`.
+//! test). Run: `cargo test -p risktwin-align --release bench_tests -- --ignored --nocapture`.
 
 use super::ingest::{IngestConfig, IngestCore};
 use super::interp::tests::TestPose;

@@ -10,12 +10,12 @@
 //! lockstep scene of as many participants, with the truth and reply sizes of that scene.
 
 use crate::BenchError;
-use risktwin_transport::sync::LockExt;
+use risktwin_transport::sync::{CondvarExt, LockExt};
 use risktwin_transport::zenoh::qos::{CongestionControl, Reliability};
 use risktwin_transport::zenoh::sample::Sample;
 use risktwin_transport::zenoh::{Session, Wait};
 use serde::Serialize;
-use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 /// Where the rounds go out; answers come back on `REPLIES/<echo>`.
@@ -95,8 +95,7 @@ impl Tally {
     /// Waits until every echo answered the current round; false on the timeout.
     fn wait(&self, timeout: Duration) -> bool {
         let state = self.state.locked();
-        let (state, _) =
-            self.all_in.wait_timeout_while(state, timeout, |s| s.missing > 0).unwrap_or_else(PoisonError::into_inner);
+        let (state, _) = self.all_in.waited_while(state, timeout, |s| s.missing > 0);
         state.missing == 0
     }
 

@@ -4,11 +4,11 @@
 //! `deploy/bench/criticality-vs-crime.sh` beside the per-process time and CriMe's evaluation.
 //!
 //! ```sh
-//! cargo bench -p risktwin-common --bench criticality -- [--repeat N] [FILE.xml EGO_ID]...
+//! cargo bench -p risktwin-commonroad --bench criticality -- [--repeat N] [FILE.xml EGO_ID]...
 //! ```
 //!
 //! Without scenarios it times every `data/commonroad/*.xml` whose `.yaml` names an ego
-//! (`ego_id:`). Relative paths are from `common/` (cargo runs benches there). Prints one line
+//! (`ego_id:`). Relative paths are from `commonroad/` (cargo runs benches there). Prints one line
 //! per scenario: `in_process_ms best=… median=… read_parse_median=… cells=… file=…`.
 
 use risktwin_commonroad::criticality::scenario_criticality;

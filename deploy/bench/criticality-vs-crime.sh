@@ -7,7 +7,7 @@
 # - ours per process: `risktwin criticality --format csv` (every pair, every step), wall time of
 #   the whole process (start-up and file reading included), best and median of $REPEAT runs;
 # - ours in process: reading, parsing and all measures without the process
-#   (`cargo bench -p risktwin-common --bench criticality`), median of $REPEAT runs;
+#   (`cargo bench -p risktwin-commonroad --bench criticality`), median of $REPEAT runs;
 # and the ratios CriMe / ours (on the medians). Prints a Markdown table (docs/results.md).
 # Usage: deploy/bench/criticality-vs-crime.sh [SCENARIO.xml EGO_ID]...
 #   (default: every data/commonroad/*.xml whose .yaml names an ego, `ego_id:`)
@@ -20,7 +20,7 @@ if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import commonroad_cri
   "$venv/bin/pip" install -q commonroad-crime==0.4.5
 fi
 cargo build --release -q -p risktwin
-cargo bench -q -p risktwin-common --bench criticality --no-run
+cargo bench -q -p risktwin-commonroad --bench criticality --no-run
 if [ $# -eq 0 ]; then
   for yaml in data/commonroad/*.yaml; do
     ego=$(sed -n 's/^ *ego_id: *\([0-9][0-9]*\).*/\1/p' "$yaml" | head -1)
@@ -36,7 +36,7 @@ while [ $# -ge 2 ]; do
   shift 2
   crime=$("$venv/bin/python" tests/peers/crime_reference.py "$xml" "$ego" --time --repeat "${CRIME_REPEAT:-1}" |
     sed -n 's/^crime_seconds=//p')
-  in_process=$(cargo bench -q -p risktwin-common --bench criticality -- --repeat "$repeat" "$PWD/$xml" "$ego" |
+  in_process=$(cargo bench -q -p risktwin-commonroad --bench criticality -- --repeat "$repeat" "$PWD/$xml" "$ego" |
     sed -n 's/.* median=\([0-9.]*\) .*/\1/p')
   python3 - "$xml" "$ego" "$crime" "$in_process" "$repeat" <<'PY'
 import statistics, subprocess, sys, time

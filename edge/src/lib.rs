@@ -21,7 +21,7 @@ pub mod rsu;
 pub mod scene;
 pub mod sensor;
 pub mod shm;
-mod summary;
+pub mod summary;
 pub mod vehicle;
 
 pub use clock::{ClockModel, EdgeClock};

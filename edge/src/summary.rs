@@ -35,6 +35,16 @@ impl SentSummary {
 }
 
 impl DeliverySummary {
+    /// All undelivered messages.
+    pub fn total_undelivered(&self) -> u64 {
+        self.undelivered.values().sum()
+    }
+
+    /// All messages the cloud counts lost.
+    pub fn total_lost(&self) -> u64 {
+        self.lost.values().sum()
+    }
+
     /// Why an edge (`source`, which sent `sent` messages) cannot count its run a success, if it
     /// cannot: messages sent that no cloud accounted for, or messages refused as too large.
     pub fn failure(&self, source: &str, sent: u64) -> Option<String> {
@@ -103,18 +113,6 @@ pub struct DeliverySummary {
     /// Refused by the edge as larger than an edge stream may be, per stream (never sent).
     pub too_large: BTreeMap<String, u64>,
     pub cloud: CloudSeen,
-}
-
-impl DeliverySummary {
-    /// All undelivered messages.
-    pub fn total_undelivered(&self) -> u64 {
-        self.undelivered.values().sum()
-    }
-
-    /// All messages the cloud counts lost.
-    pub fn total_lost(&self) -> u64 {
-        self.lost.values().sum()
-    }
 }
 
 /// What a replay published, per key, and what it skipped (topics that are neither an edge stream

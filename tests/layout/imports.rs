@@ -1,9 +1,11 @@
 //! The import graph among one crate's files, read from its source text.
 //!
 //! A file imports another when it names an item of that file's module through `crate::`,
-//! `super::` or `self::` (in a `use` or inline). A module's own children are its parts: the
-//! arrows from a module to the modules below it are left out, so a child reaching up to its
-//! parent is no circle; test code (`#[cfg(test)]` modules and files) is left out too.
+//! `super::` or `self::` (in a `use` or inline). A name that a module only imports (`use` or
+//! `pub use`) leads on to the module that defines it, so a re-export hides no circle. A module's
+//! own children are its parts: the arrows from a module to the modules below it are left out,
+//! so a child reaching up to its parent is no circle; test code (`#[cfg(test)]` items and
+//! files) is left out too.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -13,13 +15,17 @@ pub struct Crate {
     pub modules: BTreeMap<Vec<String>, PathBuf>,
     /// The code of each module's file, comments, strings and test code blanked out.
     code: BTreeMap<Vec<String>, String>,
+    /// The names each module imports, with the path each stands for.
+    imported: BTreeMap<Vec<String>, BTreeMap<String, Vec<String>>>,
 }
 
 impl Crate {
     /// Reads the crate whose root file is `root` (`src/lib.rs` or `src/main.rs`).
     pub fn read(root: &Path) -> Crate {
-        let mut krate = Crate { modules: BTreeMap::new(), code: BTreeMap::new() };
+        let mut krate = Crate { modules: BTreeMap::new(), code: BTreeMap::new(), imported: BTreeMap::new() };
         krate.add(Vec::new(), root.to_path_buf(), true);
+        let imported = krate.code.iter().map(|(m, code)| (m.clone(), krate.imported_names(m, code))).collect();
+        krate.imported = imported;
         krate
     }
 
@@ -62,8 +68,35 @@ impl Crate {
         graph
     }
 
-    /// The deepest module of this crate that `path` (from inside `from`) reaches.
+    /// The names `module`'s `use` declarations bring in, each with its path from `module`
+    /// (`crate::…`, `super::…` or `self::…`; paths into other crates are left out).
+    fn imported_names(&self, module: &[String], code: &str) -> BTreeMap<String, Vec<String>> {
+        let mut names = BTreeMap::new();
+        for (mut path, alias) in use_declarations(code) {
+            let first = path.first().cloned().unwrap_or_default();
+            let mut child = module.to_vec();
+            child.push(first.clone());
+            if self.modules.contains_key(&child) && !["crate", "super", "self"].contains(&first.as_str()) {
+                path.insert(0, "self".to_owned());
+            }
+            if ["crate", "super", "self"].contains(&path[0].as_str())
+                && let Some(name) = alias.or_else(|| path.last().cloned())
+                && name != "self"
+                && name != "*"
+            {
+                names.insert(name, path);
+            }
+        }
+        names
+    }
+
+    /// The module of this crate that defines what `path` (from inside `from`) names: the
+    /// deepest module it walks through, or where that module's import of the next name leads.
     fn resolve(&self, from: &[String], path: &[String]) -> Option<Vec<String>> {
+        self.resolve_within(from, path, 8)
+    }
+
+    fn resolve_within(&self, from: &[String], path: &[String], hops: u32) -> Option<Vec<String>> {
         let mut at: Vec<String> = from.to_vec();
         let mut rest = path;
         match rest.first().map(String::as_str) {
@@ -80,6 +113,7 @@ impl Crate {
             }
             _ => return None,
         }
+        let mut walked = 0;
         for segment in rest {
             let mut next = at.clone();
             next.push(segment.clone());
@@ -87,6 +121,14 @@ impl Crate {
                 break;
             }
             at = next;
+            walked += 1;
+        }
+        if let Some(name) = rest.get(walked)
+            && hops > 0
+            && let Some(import) = self.imported.get(&at).and_then(|names| names.get(name))
+            && let Some(defined) = self.resolve_within(&at, import, hops - 1)
+        {
+            return Some(defined);
         }
         Some(at)
     }
@@ -155,8 +197,13 @@ fn child_modules(code: &str) -> Vec<(String, Option<String>)> {
     let mut out = Vec::new();
     let mut attrs: Vec<String> = Vec::new();
     for line in code.lines().map(str::trim) {
-        if line.starts_with("#[") {
-            attrs.push(line.to_owned());
+        let mut line = line;
+        while line.starts_with("#[") {
+            let end = line.find(']').map_or(line.len(), |e| e + 1);
+            attrs.push(line[..end].to_owned());
+            line = line[end..].trim_start();
+        }
+        if line.is_empty() && !attrs.is_empty() {
             continue;
         }
         let decl = line.strip_prefix("pub ").or_else(|| strip_restricted_pub(line)).unwrap_or(line);
@@ -180,6 +227,24 @@ fn strip_restricted_pub(line: &str) -> Option<&str> {
     let rest = line.strip_prefix("pub(")?;
     let close = rest.find(')')?;
     Some(rest[close + 1..].trim_start())
+}
+
+/// Every `use` declaration of the code, expanded: each path with its `as` name, if any.
+fn use_declarations(code: &str) -> Vec<(Vec<String>, Option<String>)> {
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(at) = code[from..].find("use ").map(|a| from + a) {
+        let b = code.as_bytes();
+        let starts_word = at == 0 || !(b[at - 1].is_ascii_alphanumeric() || b[at - 1] == b'_');
+        let end = code[at..].find(';').map_or(code.len(), |e| at + e);
+        if starts_word {
+            let mut trees = Vec::new();
+            expand_use_tree_named(&code[at + 4..end], &mut Vec::new(), &mut trees);
+            out.extend(trees);
+        }
+        from = end.max(at + 4);
+    }
+    out
 }
 
 /// Every `crate::…`, `super::…` and `self::…` path the code names, `use` trees expanded.
@@ -216,22 +281,31 @@ fn referenced_paths(code: &str) -> Vec<Vec<String>> {
 
 /// Expands a `use` tree (`a::{b, c::{d, self}}`) after `prefix` into whole paths.
 fn expand_use_tree(tree: &str, prefix: &mut Vec<String>, out: &mut Vec<Vec<String>>) {
+    let mut named = Vec::new();
+    expand_use_tree_named(tree, prefix, &mut named);
+    out.extend(named.into_iter().map(|(path, _)| path));
+}
+
+/// [`expand_use_tree`], each path with its `as` name.
+fn expand_use_tree_named(tree: &str, prefix: &mut Vec<String>, out: &mut Vec<(Vec<String>, Option<String>)>) {
     let tree = tree.trim();
     let (head, group) = match tree.find('{') {
         Some(open) if tree.ends_with('}') => (&tree[..open], Some(&tree[open + 1..tree.len() - 1])),
         _ => (tree, None),
     };
     let depth = prefix.len();
-    let head = head.split(" as ").next().unwrap_or(head);
+    let mut split = head.split(" as ");
+    let head = split.next().unwrap_or(head);
+    let alias = split.next().map(|a| a.trim().to_owned());
     prefix.extend(head.split("::").map(str::trim).filter(|s| !s.is_empty() && *s != "*").map(str::to_owned));
     match group {
-        None => out.push(prefix.clone()),
+        None => out.push((prefix.clone(), alias)),
         Some(group) => {
             for part in split_top_level(group) {
                 if part.trim() == "self" {
-                    out.push(prefix.clone());
+                    out.push((prefix.clone(), None));
                 } else if !part.trim().is_empty() {
-                    expand_use_tree(part, prefix, out);
+                    expand_use_tree_named(part, prefix, out);
                 }
             }
         }
@@ -337,38 +411,47 @@ fn ident_before(b: &[u8], i: usize) -> bool {
     i > 0 && (b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_')
 }
 
-/// `code` without its `#[cfg(test)]` modules written inline.
+/// `code` without its `#[cfg(test)]` items (an inline module, a `use`, a function: to the `;`
+/// or the matching brace, whichever ends the item); `mod x;` declarations stay for
+/// [`child_modules`], which leaves the test ones out.
 fn strip_tests(code: &str) -> String {
+    const ATTR: &str = "#[cfg(test)]";
     let mut out = code.to_owned();
     let mut from = 0;
-    while let Some(at) = out[from..].find("#[cfg(test)]").map(|a| from + a) {
-        let after = &out[at + "#[cfg(test)]".len()..];
-        let item = after.trim_start();
-        let item = item.strip_prefix("pub ").or_else(|| strip_restricted_pub(item)).unwrap_or(item);
-        let inline_mod = item.strip_prefix("mod ").is_some_and(|rest| {
-            let name_end = rest.find(|c: char| !(c.is_alphanumeric() || c == '_')).unwrap_or(rest.len());
-            rest[name_end..].trim_start().starts_with('{')
-        });
-        if !inline_mod {
-            from = at + 1;
-            continue;
-        }
-        let open = at + out[at..].find('{').expect("an inline module has a brace");
-        let mut depth = 0;
-        let mut end = out.len();
-        for (i, c) in out[open..].char_indices() {
-            match c {
-                '{' => depth += 1,
-                '}' => {
-                    depth -= 1;
-                    if depth == 0 {
-                        end = open + i + 1;
-                        break;
+    while let Some(at) = out[from..].find(ATTR).map(|a| from + a) {
+        let item = at + ATTR.len();
+        let (semi, brace) = (out[item..].find(';'), out[item..].find('{'));
+        let end = match (semi, brace) {
+            (Some(s), b) if b.is_none_or(|b| s < b) => {
+                let decl = out[item..item + s].trim();
+                let decl = decl.rsplit(']').next().unwrap_or(decl).trim();
+                if decl.starts_with("mod ") || decl.contains(" mod ") {
+                    from = item;
+                    continue;
+                }
+                item + s + 1
+            }
+            (_, Some(b)) => {
+                let open = item + b;
+                let mut depth = 0;
+                let mut end = out.len();
+                for (i, c) in out[open..].char_indices() {
+                    match c {
+                        '{' => depth += 1,
+                        '}' => {
+                            depth -= 1;
+                            if depth == 0 {
+                                end = open + i + 1;
+                                break;
+                            }
+                        }
+                        _ => {}
                     }
                 }
-                _ => {}
+                end
             }
-        }
+            _ => out.len(),
+        };
         out.replace_range(at..end, &"\n".repeat(out[at..end].matches('\n').count()));
         from = at;
     }
@@ -393,6 +476,32 @@ mod tests {
         let paths: Vec<String> =
             referenced_paths(&strip_tests(&blank_comments_and_strings(code))).iter().map(|p| p.join("::")).collect();
         assert_eq!(paths, ["crate::a"]);
+    }
+
+    #[test]
+    fn a_re_export_leads_on_to_the_module_that_defines_the_name() {
+        let dir = tempdir();
+        let write = |path: &str, text: &str| {
+            let file = dir.join(path);
+            std::fs::create_dir_all(file.parent().unwrap()).unwrap();
+            std::fs::write(file, text).unwrap();
+        };
+        write("lib.rs", "mod p;\nmod x;\n");
+        write("p/mod.rs", "mod c;\npub use c::Thing;\n");
+        write("p/c.rs", "use crate::x::Other;\npub struct Thing;\n");
+        write("x.rs", "use crate::p::Thing;\npub struct Other;\n#[cfg(test)] use crate::p::c::Thing as T;\n");
+        let krate = Crate::read(&dir.join("lib.rs"));
+        let m = |s: &str| s.split('/').filter(|x| !x.is_empty()).map(str::to_owned).collect::<Vec<_>>();
+        assert_eq!(circles(&krate.imports()), vec![vec![m("p/c"), m("x")]]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A fresh folder of this test's own under the system's temporary folder.
+    fn tempdir() -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("risktwin-layout-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
     }
 
     #[test]

@@ -1,6 +1,8 @@
-//! One rule for a lock whose holder panicked, instead of one per call site.
+//! One rule for a lock whose holder panicked, instead of one per call site: for locking
+//! ([`LockExt`]) and for waiting on a condition variable ([`CondvarExt`]).
 
-use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::sync::{Condvar, Mutex, MutexGuard, PoisonError, WaitTimeoutResult};
+use std::time::Duration;
 
 /// [`Mutex::lock`] that takes the data over from a holder that panicked.
 ///
@@ -15,6 +17,40 @@ pub trait LockExt<T: ?Sized> {
 impl<T: ?Sized> LockExt<T> for Mutex<T> {
     fn locked(&self) -> MutexGuard<'_, T> {
         self.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// [`Condvar`]'s waits under the same rule as [`LockExt`]: the guard comes back poisoned or not.
+pub trait CondvarExt {
+    /// [`Condvar::wait`].
+    fn waited<'a, T>(&self, guard: MutexGuard<'a, T>) -> MutexGuard<'a, T>;
+    /// [`Condvar::wait_timeout`], without saying whether it timed out.
+    fn waited_for<'a, T>(&self, guard: MutexGuard<'a, T>, timeout: Duration) -> MutexGuard<'a, T>;
+    /// [`Condvar::wait_timeout_while`].
+    fn waited_while<'a, T>(
+        &self,
+        guard: MutexGuard<'a, T>,
+        timeout: Duration,
+        condition: impl FnMut(&mut T) -> bool,
+    ) -> (MutexGuard<'a, T>, WaitTimeoutResult);
+}
+
+impl CondvarExt for Condvar {
+    fn waited<'a, T>(&self, guard: MutexGuard<'a, T>) -> MutexGuard<'a, T> {
+        self.wait(guard).unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn waited_for<'a, T>(&self, guard: MutexGuard<'a, T>, timeout: Duration) -> MutexGuard<'a, T> {
+        self.wait_timeout(guard, timeout).unwrap_or_else(PoisonError::into_inner).0
+    }
+
+    fn waited_while<'a, T>(
+        &self,
+        guard: MutexGuard<'a, T>,
+        timeout: Duration,
+        condition: impl FnMut(&mut T) -> bool,
+    ) -> (MutexGuard<'a, T>, WaitTimeoutResult) {
+        self.wait_timeout_while(guard, timeout, condition).unwrap_or_else(PoisonError::into_inner)
     }
 }
 

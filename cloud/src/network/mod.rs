@@ -51,7 +51,7 @@ mod receive;
 pub mod routes;
 mod scene;
 pub mod shard;
-mod summary;
+pub mod summary;
 #[cfg(test)]
 mod test_harness;
 mod union;

@@ -119,7 +119,7 @@ fn cropping_the_map_keeps_the_field_of_the_whole_map() {
     }
 }
 
-/// Cost of one field over a real map (release: `cargo test --release -p risktwin-common --lib
+/// Cost of one field over a real map (release: `cargo test --release -p risktwin-commonroad --lib
 /// field_speed -- --ignored --nocapture`) over the scenarios of data/commonroad/.
 #[test]
 #[ignore = "timing, prints"]

@@ -15,10 +15,10 @@ mod http;
 use crate::cli::MetricsArgs;
 use crate::error::{CliError, CliResult};
 use metrics_exporter_prometheus::{Matcher, PrometheusBuilder, PrometheusHandle};
-use risktwin_transport::sync::LockExt;
+use risktwin_transport::sync::{CondvarExt, LockExt};
 use risktwin_transport::wall_clock::unix_ns;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpListener};
-use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 /// The longest a role that ends waits for its last scrape (Prometheus' default interval is 15 s).
@@ -97,11 +97,7 @@ impl MetricsEndpoint {
         let wait = log.interval.map_or(LAST_SCRAPE_MAX, |i| (i * 2).clamp(Duration::from_secs(1), LAST_SCRAPE_MAX));
         tracing::info!("metrics: serving the final counts until the next scrape (at most {:.1} s)", wait.as_secs_f64());
         let seen = self.scrapes.seen.locked();
-        let (_seen, _) = self
-            .scrapes
-            .served
-            .wait_timeout_while(seen, wait, |now| now.count == log.count)
-            .unwrap_or_else(PoisonError::into_inner);
+        let (_seen, _) = self.scrapes.served.waited_while(seen, wait, |now| now.count == log.count);
     }
 }
 
@@ -135,7 +131,7 @@ fn install(role: &str) -> CliResult<PrometheusHandle> {
     let commit = env!("RISKTWIN_COMMIT");
     metrics::gauge!("risktwin_build_info", "version" => version, "commit" => commit, "role" => role.to_owned())
         .set(1.0);
-    let started_s = unix_ns() as f64 * 1e-9;
+    let started_s = Duration::from_nanos(unix_ns() as u64).as_secs_f64();
     metrics::gauge!("process_start_time_seconds").set(started_s);
     Ok(handle)
 }

@@ -40,7 +40,7 @@ pub struct Host {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Process {
-    /// One of [`ROLES`].
+    /// One of [`ROLES`](super::model::ROLES).
     pub role: &'static str,
     pub args: Vec<String>,
     pub restart: Restart,

@@ -23,7 +23,7 @@ use risktwin_protos::{WireMessage, encode};
 use risktwin_transport::keyexpr::{
     SCENE_CHUNK, SceneTopic, scene_ground_truth, scene_replies, scene_reply, scene_topic, scene_truth,
 };
-use risktwin_transport::sync::LockExt;
+use risktwin_transport::sync::{CondvarExt, LockExt};
 use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
 use risktwin_transport::zenoh::sample::Sample;
@@ -32,7 +32,7 @@ use risktwin_transport::{SiteId, SourceId, protobuf};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::mpsc::RecvTimeoutError;
-use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 /// How long the plane waits before it names who failed.
@@ -262,7 +262,7 @@ impl ZenohAuthority {
                 let ids = missing.map(|(p, _)| p.as_str()).collect::<Vec<_>>().join(", ");
                 return Err(SceneError::NotJoined { ids, waited_s: self.timeouts.join.as_secs() });
             }
-            answers = self.tally.ready.wait_timeout(answers, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
+            answers = self.tally.ready.waited_for(answers, deadline - now);
         }
         Ok(())
     }
@@ -352,7 +352,7 @@ impl Plane for ZenohAuthority {
             if answers.missing == 0 || now >= deadline {
                 break;
             }
-            answers = tally.ready.wait_timeout(answers, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
+            answers = tally.ready.waited_for(answers, deadline - now);
         }
         answers.step = None;
         let ego = answers.ego;

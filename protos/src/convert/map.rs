@@ -6,9 +6,9 @@
 use super::geometry::{header, vec_from, vec_to};
 use super::{ConvertError, finite, invalid, non_negative, positive};
 use crate::v1;
+use risktwin_common::road::{Adjacency, Lanelet, LaneletNetwork};
 use risktwin_common::road::{Crosswalk, FrictionPatch, Lane, Road};
 use risktwin_common::telemetry::RoadMap;
-use risktwin_commonroad::{Adjacency, Lanelet, LaneletNetwork};
 use std::collections::HashSet;
 
 impl From<&RoadMap> for v1::RoadMap {

@@ -493,7 +493,7 @@ fn measure_vehicle_state_encode_decode() {
 
 #[test]
 fn lanelets_travel_with_their_bounds_and_links() {
-    use risktwin_commonroad::{Adjacency, Lanelet, LaneletNetwork};
+    use risktwin_common::road::{Adjacency, Lanelet, LaneletNetwork};
     let mut a = Lanelet::new(
         10,
         vec![Vec2::new(0.0, 3.0), Vec2::new(50.0, 3.25)],

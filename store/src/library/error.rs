@@ -34,7 +34,6 @@ impl LibraryError {
     /// the run (I/O, a lock held too long): the CLI's bad input (exit 2) against a runtime
     /// failure (exit 1).
     pub fn blames_the_file(&self) -> bool {
-        use rusqlite::ErrorCode::{DatabaseCorrupt, NotADatabase};
         match self {
             LibraryError::NotSqlite { .. }
             | LibraryError::NotALibrary { .. }
@@ -43,13 +42,7 @@ impl LibraryError {
             | LibraryError::BadRow { .. }
             | LibraryError::WrongSchema { .. } => true,
             LibraryError::Open { source: e, .. } | LibraryError::Sqlite(e) => {
-                matches!(e.sqlite_error_code(), Some(DatabaseCorrupt | NotADatabase))
-                    || matches!(
-                        e,
-                        rusqlite::Error::InvalidColumnType(..)
-                            | rusqlite::Error::FromSqlConversionFailure(..)
-                            | rusqlite::Error::IntegralValueOutOfRange(..)
-                    )
+                crate::sqlite_schema::blames_sqlite_file(e)
             }
             LibraryError::InvalidRecord { .. } | LibraryError::UnknownScenario(_) => false,
         }

@@ -229,7 +229,7 @@ mod tests {
         assert_eq!(count(&lib, "scenarios"), 2);
     }
 
-    /// Run with `cargo test -p risktwin-cloud --release --lib library -- --ignored --nocapture`.
+    /// Run with `cargo test -p risktwin-store --release --lib library -- --ignored --nocapture`.
     #[test]
     #[ignore = "measurement, prints the insert rate"]
     fn insert_rate_of_ten_thousand_rows() {

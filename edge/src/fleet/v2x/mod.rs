@@ -39,7 +39,7 @@ use super::{Role, SceneError, SceneSetup};
 use risktwin_common::histogram::Histogram;
 use risktwin_common::sensor::PerceivedObject;
 use risktwin_transport::keyexpr::{scene_v2x, scene_v2x_all};
-use risktwin_transport::sync::LockExt;
+use risktwin_transport::sync::{CondvarExt, LockExt};
 use risktwin_transport::wall_clock::unix_ns;
 use risktwin_transport::zenoh::pubsub::{Publisher, Subscriber};
 use risktwin_transport::zenoh::sample::Sample;
@@ -52,7 +52,7 @@ use rsu::{RsuBatches, after};
 use serde::Serialize;
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap};
-use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use wire::V2X_SCHEMA;
@@ -378,9 +378,9 @@ impl Inbox {
             state = match state.held.peek() {
                 Some(&Reverse(held)) => {
                     let wait = held.due.saturating_duration_since(now);
-                    self.wake.wait_timeout(state, wait).unwrap_or_else(PoisonError::into_inner).0
+                    self.wake.waited_for(state, wait)
                 }
-                None => self.wake.wait(state).unwrap_or_else(PoisonError::into_inner),
+                None => self.wake.waited(state),
             };
         }
     }
@@ -599,7 +599,7 @@ impl V2xLayer {
             if now >= deadline {
                 break;
             }
-            state = self.inbox.taken.wait_timeout(state, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
+            state = self.inbox.taken.waited_for(state, deadline - now);
         }
         // The warnings of the last step are decided (counted), as virtual time decides them;
         // none is heard any more.

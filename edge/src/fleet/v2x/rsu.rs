@@ -2,9 +2,10 @@
 //! waited for by the step that needs them, decided as virtual time decides them.
 
 use super::{AHEAD_STEPS, Inbox, Receiving, RsuBatch, WARNING_WAIT};
+use risktwin_transport::sync::CondvarExt;
 use risktwin_transport::wall_clock::unix_ns;
 use risktwin_v2x::warning::Warning;
-use std::sync::{MutexGuard, PoisonError};
+use std::sync::MutexGuard;
 use std::time::Instant;
 
 /// One RSU's warning batches, as a vehicle receives them.
@@ -84,7 +85,7 @@ impl Inbox {
                 tracing::warn!("V2X {}: RSU warnings of step {step} not here after {WARNING_WAIT:?}", self.id);
                 break;
             }
-            state = self.taken.wait_timeout(state, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
+            state = self.taken.waited_for(state, deadline - now);
         }
         let receiving = &mut *state;
         let mut ready: Vec<(u64, usize, RsuBatch, i64)> = Vec::new();

@@ -12,6 +12,7 @@
 //!   and turned into a [`risktwin_common::driver::Policy`] by [`HostPolicy::driver`] through the
 //!   training environment's own observation and action mapping ([`risktwin_common::env::ObsPolicy`]).
 //! - [`signature`]: the cloud's ed25519 signature over a policy update, and the keys.
+//! - [`spec`]: how a driver is named on the command line ([`spec::DriverSpec`]).
 //!
 //! A policy that does not fit is a typed [`NetError`], never a panic: the bytes may come off
 //! the wire.
@@ -21,6 +22,7 @@ mod gru;
 mod mlp;
 mod policy;
 pub mod signature;
+pub mod spec;
 pub mod tanh;
 
 pub use file::POLICY_FORMAT_VERSION;

@@ -12,6 +12,7 @@ mod contract_scenarios;
 mod criticality;
 mod damaged_recording;
 mod determinism;
+mod driver;
 mod floor;
 mod hostile_commonroad;
 mod mutate;

@@ -81,7 +81,11 @@ fn simulate_replays_or_drives_a_recorded_scenario() {
         }
     }
     let xml = fixture("OSC_CutIn-1_2_T-1.xml");
-    assert_input_error(dir.path(), &["simulate", "--commonroad", &xml, "--policy", "ppo.bin"], "unknown policy");
+    assert_input_error(
+        dir.path(),
+        &["simulate", "--commonroad", &xml, "--policy", "ppo.bin"],
+        "unknown driver 'ppo.bin'",
+    );
 }
 
 #[test]

@@ -161,7 +161,11 @@ fn bad_ids_files_and_stored_xml_are_input_errors() {
     }
     assert!(!dir.path().join("missing.db").exists());
     assert_input_error(dir.path(), &["simulate", "--db", "lib.db", "--id", &id, "--ego", "4"], "--ego 4");
-    assert_input_error(dir.path(), &["simulate", "--db", "lib.db", "--id", &id, "--policy", "ppo"], "unknown policy");
+    assert_input_error(
+        dir.path(),
+        &["simulate", "--db", "lib.db", "--id", &id, "--policy", "ppo"],
+        "unknown driver 'ppo'",
+    );
     assert_input_error(dir.path(), &["risk-field", "--db", "lib.db", "--id", &id, "--time", "9999"], "case");
     assert_input_error(dir.path(), &["import", "commonroad", &xml], "--out");
     // Nothing is created when the file or the ego is bad.

@@ -23,6 +23,7 @@ pub use v2x::*;
 
 use crate::output::Format;
 use clap::{ArgGroup, Args, Parser, Subcommand};
+use risktwin_policy::spec::DriverSpec;
 use std::path::PathBuf;
 
 #[derive(Debug, Parser)]
@@ -285,9 +286,10 @@ pub struct TrainArgs {
 pub struct SimulateArgs {
     #[command(flatten)]
     pub source: ScenarioSource,
-    /// `idm` (the reference driver), or `replay` (the recorded ego; `--commonroad` only).
-    #[arg(long, default_value = "idm")]
-    pub policy: String,
+    /// Who drives the ego: `idm` (the reference driver), `replay` (the recorded ego; CommonRoad
+    /// scenarios only) or `PATH.safetensors` (a policy file as `risktwin train` writes it).
+    #[arg(long = "driver", visible_alias = "policy", value_name = "SPEC", default_value = "idm")]
+    pub driver: DriverSpec,
     /// Write a per-step CSV trace of the ego and its nearest object here.
     #[arg(long)]
     pub trace: Option<PathBuf>,

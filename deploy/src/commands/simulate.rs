@@ -1,4 +1,4 @@
-//! `risktwin simulate`: one episode of a scenario with the reference driver.
+//! `risktwin simulate`: one episode of a scenario with the driver `--driver` names.
 
 use super::recorded::commonroad_input;
 use super::source;
@@ -6,9 +6,12 @@ use crate::cli::SimulateArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_cloud::episode_recording::EpisodeRecorder;
+use risktwin_common::driver::Policy;
 use risktwin_common::episode;
 use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
 use risktwin_common::world::{StepReport, World};
+use risktwin_policy::HostPolicy;
+use risktwin_policy::spec::DriverSpec;
 
 pub fn simulate(args: SimulateArgs) -> CliResult {
     if let Some(mut input) = commonroad_input(&args.source)? {
@@ -18,12 +21,18 @@ pub fn simulate(args: SimulateArgs) -> CliResult {
             Format::Table | Format::Csv => print_metrics(&run.metrics, args.format),
         };
     }
-    if args.policy != "idm" {
-        return Err(CliError::input(format!("unknown policy '{}' (available: idm)", args.policy)));
-    }
     let spec = source::load(&args.source)?;
     let mut trace = args.trace.as_ref().map(|_| String::from(TRACE_HEADER));
-    let (mut world, mut driver) = episode::with_reference_driver(&spec);
+    let (mut world, reference) = episode::with_reference_driver(&spec);
+    let mut driver: Box<dyn Policy> = match &args.driver {
+        DriverSpec::Reference => Box::new(reference),
+        DriverSpec::Replay => {
+            return Err(CliError::input(
+                "--driver replay plays a recording's ego: give --commonroad FILE or a recorded case (--db, --id)",
+            ));
+        }
+        DriverSpec::PolicyFile(path) => Box::new(load_policy(path)?.driver(world.desired_speed_mps, world.dt_s)),
+    };
     let mut recorder = match &args.record {
         None => None,
         Some(path) => {
@@ -35,7 +44,7 @@ pub fn simulate(args: SimulateArgs) -> CliResult {
         }
     };
     let mut record_error = None;
-    let result = episode::run_observed(&mut world, &mut driver, &RewardWeights::default(), &mut |w, r| {
+    let result = episode::run_observed(&mut world, driver.as_mut(), &RewardWeights::default(), &mut |w, r| {
         if let Some(rows) = trace.as_mut() {
             trace_row(rows, w, r);
         }
@@ -56,6 +65,14 @@ pub fn simulate(args: SimulateArgs) -> CliResult {
         Format::Json => print_json(&result.metrics),
         Format::Table | Format::Csv => print_metrics(&result.metrics, args.format),
     }
+}
+
+/// The policy of a policy file, every field and tensor checked before the episode starts.
+fn load_policy(path: &std::path::Path) -> CliResult<std::sync::Arc<HostPolicy>> {
+    let bytes = std::fs::read(path).map_err(|e| CliError::input(format!("driver {}: {e}", path.display())))?;
+    let policy =
+        HostPolicy::from_safetensors(&bytes).map_err(|e| CliError::input(format!("driver {}: {e}", path.display())))?;
+    Ok(std::sync::Arc::new(policy))
 }
 
 const TRACE_HEADER: &str =

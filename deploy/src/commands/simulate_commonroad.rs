@@ -1,4 +1,4 @@
-//! `risktwin simulate --commonroad FILE [--ego ID] [--policy idm|replay]` (or `--db FILE --id ID`
+//! `risktwin simulate --commonroad FILE [--ego ID] [--driver idm|replay]` (or `--db FILE --id ID`
 //! of a recorded case): a recorded scenario re-run in the twin — recorded traffic played back,
 //! the ego replayed or driven closed-loop by the reference driver from its recorded initial
 //! state — measured like any episode.
@@ -8,6 +8,7 @@ use crate::cli::SimulateArgs;
 use crate::error::{CliError, CliResult};
 use risktwin_common::world::STEP_S;
 use risktwin_commonroad::twin::{EgoMode, Resimulation, resimulate};
+use risktwin_policy::spec::DriverSpec;
 use risktwin_store::library::Outcome;
 
 /// Re-runs `input` with the ego driven by `policy` (`idm` or `replay`).
@@ -35,9 +36,18 @@ pub fn simulate(args: &SimulateArgs, input: &mut CommonRoadInput) -> CliResult<R
     if args.trace.is_some() || args.record.is_some() {
         return Err(CliError::input("--trace and --record are not available with a CommonRoad scenario"));
     }
-    let run = resimulate_input(input, &args.policy)?;
+    let policy = match &args.driver {
+        DriverSpec::Reference | DriverSpec::Replay => args.driver.label(),
+        DriverSpec::PolicyFile(path) => {
+            return Err(CliError::input(format!(
+                "driver {}: a policy file drives generated scenarios; a CommonRoad scenario's ego is driven by idm or replay",
+                path.display()
+            )));
+        }
+    };
+    let run = resimulate_input(input, &policy)?;
     if let Some((library, id)) = &mut input.case {
-        library.add_recorded_outcome(id, &outcome_of(&run, &args.policy))?;
+        library.add_recorded_outcome(id, &outcome_of(&run, &policy))?;
     }
     Ok(run)
 }

@@ -38,7 +38,7 @@ fn a_trained_policy_file_drives_simulate_and_a_bad_spec_or_file_is_refused_by_na
     sim("missing.safetensors", "driver missing.safetensors");
     write_file(dir.path(), "junk.safetensors", "not a policy");
     sim("junk.safetensors", "driver junk.safetensors: not a safetensors file");
-    // A safetensors file of another shape: the actor's tensors are checked before any step.
+    // A policy file for another observation: its metadata is checked against this build first.
     let policy = std::fs::read(dir.path().join("weak/policy.safetensors")).expect("the policy file");
     let text = String::from_utf8_lossy(&policy[..200]).to_string();
     assert!(text.contains("\"obs_dim\":\"24\""), "metadata as written: {text}");

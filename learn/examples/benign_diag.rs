@@ -1,7 +1,7 @@
 //! Where a trained policy fails on the benign set: each benign scenario's outcome with its kind
 //! and parameters, and a per-kind tally. `POLICY=path/policy.safetensors SEED=1 BENIGN=40
 //! cargo run --release -p risktwin-learn --example benign_diag`
-use risktwin_common::env::{Variant, benign_specs};
+use risktwin_common::env::benign_specs;
 use risktwin_learn::PolicyNet;
 use risktwin_learn::train::evaluate_policy;
 use std::collections::BTreeMap;
@@ -13,7 +13,7 @@ fn main() {
     let n: usize = std::env::var("BENIGN").ok().and_then(|s| s.parse().ok()).unwrap_or(40);
     let policy = PolicyNet::load(&path).expect("policy");
     let specs = benign_specs(seed ^ 0xBE91_6000, n);
-    let metrics = evaluate_policy(&policy, &specs, Variant::Base);
+    let metrics = evaluate_policy(&policy, &specs);
     let mut tally: BTreeMap<String, [u32; 5]> = BTreeMap::new();
     for (s, m) in specs.iter().zip(&metrics) {
         let outcome = if m.success {

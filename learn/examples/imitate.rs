@@ -41,7 +41,7 @@ fn main() {
         println!("after {chunk} more epochs: mse {mse:.4} ({:.1} s)", t.elapsed().as_secs_f64());
     }
     let specs = held_out_specs(seed, 12);
-    let imitated = evaluate_policy(learner.policy(), &specs, Variant::Base);
+    let imitated = evaluate_policy(learner.policy(), &specs);
     let reference: Vec<_> = specs.iter().map(|s| risktwin_common::episode::evaluate(s).metrics).collect();
     for (name, m) in [("imitation", imitated), ("reference", reference)] {
         let f = FinalMetrics::average(&m);

@@ -186,9 +186,11 @@ pub fn risk_ranked_specs(seed: u64, per_kind: usize) -> Vec<ScenarioSpec> {
     scored.into_iter().map(|(_, s)| s).collect()
 }
 
-/// Drives each spec with the policy's deterministic action ([`crate::drive::drive`]).
-pub fn evaluate_policy(policy: &PolicyNet, specs: &[ScenarioSpec], variant: Variant) -> Vec<EpisodeMetrics> {
-    let weights = variant.weights();
+/// Drives each spec with the policy's deterministic action ([`crate::drive::drive`]), scored
+/// as every evaluation scores (`full`'s weights, whatever the policy trained with): the metrics
+/// `risktwin simulate --driver` prints for the same file.
+pub fn evaluate_policy(policy: &PolicyNet, specs: &[ScenarioSpec]) -> Vec<EpisodeMetrics> {
+    let weights = Variant::Full.weights();
     specs
         .par_iter()
         .map(|spec| crate::drive::drive(policy, &mut build(spec), &weights, &mut |_, _| {}).metrics)
@@ -227,7 +229,7 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
         let policy = learner.policy();
         let benign_success = if !benign.is_empty() && done_steps >= next_benign {
             next_benign = done_steps + cfg.benign_every;
-            let m = evaluate_policy(policy, &benign, cfg.variant);
+            let m = evaluate_policy(policy, &benign);
             let rate = m.iter().filter(|m| m.success).count() as f64 / m.len() as f64;
             if rate >= 0.9 && benign_90.is_none() {
                 benign_90 = Some(start.elapsed().as_secs_f64());
@@ -258,8 +260,7 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
     let wall_s = start.elapsed().as_secs_f64();
     let timings = learner.timings();
     let policy = learner.policy().clone();
-    let final_metrics =
-        FinalMetrics::average(&evaluate_policy(&policy, &held_out_specs(cfg.seed, cfg.eval_per_kind), cfg.variant));
+    let final_metrics = FinalMetrics::average(&evaluate_policy(&policy, &held_out_specs(cfg.seed, cfg.eval_per_kind)));
     Ok(TrainReport {
         algo: cfg.algo,
         variant: cfg.variant,

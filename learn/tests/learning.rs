@@ -262,3 +262,23 @@ fn train_with_a_warm_start_counts_the_demonstrations_and_needs_ppo() {
     let sac = TrainConfig { warm_start: true, ..TrainConfig::new(Algo::Sac, Variant::Base, 1, 5) };
     assert!(train(&sac, &mut |_, _| {}).is_err(), "a warm start needs PPO");
 }
+
+#[test]
+fn evaluation_scores_every_policy_with_the_evaluation_weights() {
+    use risktwin_common::env::Variant;
+    use risktwin_common::metrics::RewardWeights;
+    use risktwin_common::scenario::build;
+    use risktwin_learn::train::{evaluate_policy, held_out_specs};
+    let mut rng = risktwin_common::rng::Rng::new(5);
+    let policy = PolicyNet::new(Algo::Ppo, &[16, 8], &mut rng).expect("net");
+    let specs = held_out_specs(1, 1);
+    let evaluated = evaluate_policy(&policy, &specs);
+    let mut risk_counted = false;
+    for (spec, m) in specs.iter().zip(&evaluated) {
+        let drive =
+            |w: &RewardWeights| risktwin_learn::drive::drive(&policy, &mut build(spec), w, &mut |_, _| {}).metrics;
+        assert_eq!(*m, drive(&RewardWeights::default()), "what `simulate --driver` prints for this file");
+        risk_counted |= m.reward != drive(&Variant::Base.weights()).reward;
+    }
+    assert!(risk_counted, "base's weights (no risk term) would have scored some episode otherwise");
+}

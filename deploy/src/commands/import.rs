@@ -11,6 +11,7 @@ use crate::output::{Format, print_json, print_table};
 use risktwin_cloud::commonroad_recording::{FleetRecordingError, ImportSummary, write_scenario};
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::risk::RiskTerms;
+use risktwin_commonroad::twin::EgoMode;
 use risktwin_store::library::{REPLAY_POLICY, RecordedCase, ScenarioLibrary};
 use serde::Serialize;
 use std::fs::File;
@@ -48,7 +49,7 @@ pub fn commonroad(args: ImportCommonRoadArgs) -> CliResult {
     // a foreign `--db` file leaves no recording behind.
     let reference = match &args.db {
         Some(db) => {
-            let run = resimulate_input(&input, REPLAY_POLICY)?;
+            let run = resimulate_input(&input, EgoMode::Replay)?;
             Some((ScenarioLibrary::open(db).map_err(CliError::input)?, run))
         }
         None => None,

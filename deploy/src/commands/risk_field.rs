@@ -9,6 +9,7 @@ use crate::cli::RiskFieldArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_common::episode::{FieldSnapshot, field_snapshot};
+use risktwin_commonroad::twin::EgoMode;
 use risktwin_commonroad::twin::field_at;
 use risktwin_pipeline::figures::heatmap::heatmap;
 use risktwin_pipeline::figures::{Bitmap, FigureError, HeatmapScene, write_png};
@@ -83,7 +84,7 @@ fn commonroad_field(args: &RiskFieldArgs, input: &CommonRoadInput) -> CliResult 
         );
         draw(png, heatmap(&HeatmapScene::of_commonroad(&field, &scenario.lanelets, title)))?;
     }
-    let replay = resimulate_input(input, "replay")?;
+    let replay = resimulate_input(input, EgoMode::Replay)?;
     let (max, mean, argmax) = field.stats();
     let g = &field.grid;
     let summary = FieldSummary {

@@ -11,17 +11,8 @@ use risktwin_commonroad::twin::{EgoMode, Resimulation, resimulate};
 use risktwin_policy::spec::DriverSpec;
 use risktwin_store::library::Outcome;
 
-/// Re-runs `input` with the ego driven by `policy` (`idm` or `replay`).
-pub fn resimulate_input(input: &CommonRoadInput, policy: &str) -> CliResult<Resimulation> {
-    let mode = match policy {
-        "idm" => EgoMode::ReferenceDriver,
-        "replay" => EgoMode::Replay,
-        other => {
-            return Err(CliError::input(format!(
-                "unknown policy '{other}' for a CommonRoad scenario (available: idm, replay)"
-            )));
-        }
-    };
+/// Re-runs `input` with the ego driven as `mode` says.
+pub fn resimulate_input(input: &CommonRoadInput, mode: EgoMode) -> CliResult<Resimulation> {
     resimulate(&input.scenario, input.ego_id, mode, STEP_S)
         .map_err(|e| CliError::input(format!("{}: {e}", input.shown)))
 }
@@ -36,8 +27,9 @@ pub fn simulate(args: &SimulateArgs, input: &mut CommonRoadInput) -> CliResult<R
     if args.trace.is_some() || args.record.is_some() {
         return Err(CliError::input("--trace and --record are not available with a CommonRoad scenario"));
     }
-    let policy = match &args.driver {
-        DriverSpec::Reference | DriverSpec::Replay => args.driver.label(),
+    let mode = match &args.driver {
+        DriverSpec::Reference => EgoMode::ReferenceDriver,
+        DriverSpec::Replay => EgoMode::Replay,
         DriverSpec::PolicyFile(path) => {
             return Err(CliError::input(format!(
                 "driver {}: a policy file drives generated scenarios; a CommonRoad scenario's ego is driven by idm or replay",
@@ -45,9 +37,9 @@ pub fn simulate(args: &SimulateArgs, input: &mut CommonRoadInput) -> CliResult<R
             )));
         }
     };
-    let run = resimulate_input(input, &policy)?;
+    let run = resimulate_input(input, mode)?;
     if let Some((library, id)) = &mut input.case {
-        library.add_recorded_outcome(id, &outcome_of(&run, &policy))?;
+        library.add_recorded_outcome(id, &outcome_of(&run, &args.driver.label()))?;
     }
     Ok(run)
 }

@@ -56,6 +56,9 @@ pub struct EdgeConfig {
     /// The key whose signature a vehicle needs on a policy update (`--trust-key`); `None`: it
     /// takes no policy from the network.
     pub trust_key: Option<risktwin_policy::signature::PolicyVerifyingKey>,
+    /// The learned driver a vehicle starts with (`--driver`); `None`: the reference driver. A
+    /// signed policy update from the cloud replaces it.
+    pub driver: Option<crate::scene::ActivePolicy>,
     /// Watch the cloud's delivery acknowledgements and its liveliness, wait for them at the end
     /// and report what was not delivered ([`crate::delivery`]); off (`--no-ack`) for an edge
     /// that publishes without a RiskTwin cloud on purpose.
@@ -79,6 +82,7 @@ impl EdgeConfig {
             kind: risktwin_common::scenario::ScenarioKind::CutIn,
             scenario_seed: 0,
             trust_key: None,
+            driver: None,
             ack: true,
         }
     }

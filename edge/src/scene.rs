@@ -23,10 +23,10 @@ use risktwin_common::telemetry::PolicyRef;
 use risktwin_common::telemetry::{DetectedObject, HazardWarning};
 use risktwin_common::vehicle::{Controls, Vehicle, VehicleState};
 use risktwin_common::world::World;
-use risktwin_policy::{HostDriver, HostPolicy};
+use risktwin_policy::HostDriver;
+use risktwin_policy::model::DriverModel;
 use risktwin_v2x::warning::{Heard, Warning};
 use std::fmt;
-use std::sync::Arc;
 
 /// Candidates tried before giving up on finding a feasible scenario.
 const MAX_CANDIDATES: u64 = 1000;
@@ -58,7 +58,7 @@ impl Scene {
     }
 
     /// The world of `spec` at t = 0, driven by `policy` when given.
-    fn with_policy(spec: ScenarioSpec, policy: Option<ActivePolicy>) -> Self {
+    pub fn with_policy(spec: ScenarioSpec, policy: Option<ActivePolicy>) -> Self {
         let (world, controller) = EgoController::world(&spec, policy.as_ref());
         Scene { spec, world, controller, policy, heard: Heard::default() }
     }
@@ -101,13 +101,14 @@ impl Scene {
     }
 }
 
-/// A policy received from the cloud, checked and ready to drive.
+/// A learned driver, checked and ready to drive: a policy received from the cloud, or the
+/// model file an edge vehicle starts with (`edge vehicle --driver`).
 #[derive(Debug, Clone)]
 pub struct ActivePolicy {
-    /// Which policy and version.
+    /// Which policy and version (a model file: its label, version 0).
     pub id: PolicyRef,
-    /// Its network, shared by every world it drives.
-    pub net: Arc<HostPolicy>,
+    /// Its model, shared by every world it drives.
+    pub model: DriverModel,
 }
 
 /// What drives the ego: the scenario's reference driver, or a received policy acting on the
@@ -142,7 +143,7 @@ impl EgoController {
 
     /// `policy` driving in `world` (its desired speed and step are part of the observation).
     pub fn learned(world: &World, policy: &ActivePolicy) -> EgoController {
-        let driver = Arc::clone(&policy.net).driver(world.desired_speed_mps, world.dt_s);
+        let driver = policy.model.driver(world.desired_speed_mps, world.dt_s);
         EgoController::Learned { id: policy.id.clone(), driver: Box::new(driver) }
     }
 
@@ -234,7 +235,8 @@ pub(crate) mod tests {
     use super::*;
     use risktwin_common::env::OBS_DIM;
     use risktwin_common::world::STEP_S;
-    use risktwin_policy::{Dense, HostMlp, PolicyKind};
+    use risktwin_policy::{Dense, HostMlp, HostPolicy, PolicyKind};
+    use std::sync::Arc;
 
     /// A `kind` policy file OBS_DIM → 4 → out: zero weights, so the action is the output bias.
     pub(crate) fn policy_net(kind: PolicyKind, out_bias: &[f32]) -> HostPolicy {
@@ -255,7 +257,8 @@ pub(crate) mod tests {
         let reference = Tape::record(&spec, None);
         // Full brake from the first step.
         let id = PolicyRef { policy_id: "brake".into(), version: 2 };
-        let policy = ActivePolicy { id: id.clone(), net: Arc::new(policy_net(PolicyKind::Gaussian, &[0.0, 0.0, 1.0])) };
+        let net = Arc::new(policy_net(PolicyKind::Gaussian, &[0.0, 0.0, 1.0]));
+        let policy = ActivePolicy { id: id.clone(), model: DriverModel::Native(net) };
         let braking = Tape::record(&spec, Some(&policy));
         assert_eq!(braking.driven_by.as_ref(), Some(&id));
         let last = |t: &Tape| t.steps.last().map(|s| (s.state.x_m, s.state.speed_mps)).expect("steps");

@@ -29,6 +29,7 @@ use risktwin_edge::scene::{ActivePolicy, Tape};
 use risktwin_edge::vehicle::DEFAULT_STATE_RATE_HZ;
 use risktwin_learn::PolicyNet;
 use risktwin_policy::HostPolicy;
+use risktwin_policy::model::DriverModel;
 use risktwin_store::library::{RankedScenario, ScenarioLibrary};
 use risktwin_transport::Shutdown;
 use serde::Serialize;
@@ -143,7 +144,7 @@ pub fn push_phase(
     };
     let output = push_loop::run_loop(&request, shutdown, progress)?;
     let id = PolicyRef { policy_id: request.policy_id.clone(), version: request.version };
-    let active = ActivePolicy { id: id.clone(), net: Arc::new(host) };
+    let active = ActivePolicy { id: id.clone(), model: DriverModel::Native(Arc::new(host)) };
     let mut compared = Vec::new();
     for (((spec_id, spec), kind), (reference, pushed)) in
         request.scenarios.iter().zip(kinds).zip(output.by_reference.iter().zip(&output.by_policy))

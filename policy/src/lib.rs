@@ -9,9 +9,11 @@
 //!   in a [`Memory`]), read from a policy file
 //!   (safetensors with metadata, the layout the `learn` crate saves; [`file`]) with every
 //!   shape checked against [`OBS_DIM`](risktwin_common::env::OBS_DIM)/[`ACT_DIM`](risktwin_common::env::ACT_DIM),
-//!   and turned into a [`risktwin_common::driver::Policy`] by [`HostPolicy::driver`] through the
+//!   and turned into a [`risktwin_common::driver::Policy`] by [`model::DriverModel::driver`] through the
 //!   training environment's own observation and action mapping ([`risktwin_common::env::ObsPolicy`]).
 //! - [`signature`]: the cloud's ed25519 signature over a policy update, and the keys.
+//! - [`model`]: a driver model read from a file (either format), and its label.
+//! - [`onnx`]: ONNX models as drivers (tract), and a host policy written as one.
 //! - [`spec`]: how a driver is named on the command line ([`spec::DriverSpec`]).
 //!
 //! A policy that does not fit is a typed [`NetError`], never a panic: the bytes may come off
@@ -20,12 +22,19 @@
 pub mod file;
 mod gru;
 mod mlp;
+pub mod model;
+pub mod onnx;
 mod policy;
 pub mod signature;
 pub mod spec;
 pub mod tanh;
 
 pub use file::POLICY_FORMAT_VERSION;
+#[cfg(test)]
+use test_policy::random_policy;
+
+#[cfg(test)]
+mod test_policy;
 pub use gru::{GruScratch, HostGru};
 pub use mlp::{Dense, HostMlp, Scratch};
 pub use policy::{BoxedActor, HostDriver, HostPolicy, Memory, PolicyKind};

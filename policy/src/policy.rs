@@ -129,12 +129,10 @@ impl HostPolicy {
         a
     }
 
-    /// A driver for a world with this desired speed and step (`world.desired_speed_mps`,
-    /// `world.dt_s`): observation and action exactly as in training, memory from zero.
-    pub fn driver(self: Arc<Self>, desired_speed_mps: f64, dt_s: f64) -> HostDriver {
+    /// The deterministic action as an observation → action function, memory from zero.
+    pub fn actor(self: Arc<Self>) -> BoxedActor {
         let mut memory = self.memory();
-        let act: BoxedActor = Box::new(move |obs| self.act_deterministic(obs, &mut memory));
-        ObsPolicy::new(act, desired_speed_mps, dt_s)
+        Box::new(move |obs| self.act_deterministic(obs, &mut memory))
     }
 }
 

@@ -1,5 +1,6 @@
 //! `--driver SPEC`: one way to name who drives (docs/driver-interface.md). `simulate` takes the
-//! reference driver, a recording's ego or a policy file as `risktwin train` writes it.
+//! reference driver, a recording's ego, a policy file as `risktwin train` writes it, or its
+//! ONNX model.
 
 use crate::support::{assert_input_error, generate, ok_json, ok_stdout, rank, write_file};
 use tempfile::tempdir;
@@ -31,7 +32,7 @@ fn a_trained_policy_file_drives_simulate_and_a_bad_spec_or_file_is_refused_by_na
     let sim = |driver: &str, needle: &str| {
         assert_input_error(dir.path(), &["simulate", "--db", "lib.db", "--id", id, "--driver", driver], needle);
     };
-    for bad in ["ppo", "model.onnx", "IDM"] {
+    for bad in ["ppo", "model.pt", "IDM"] {
         sim(bad, &format!("unknown driver '{bad}' (accepted: idm"));
     }
     sim("replay", "--driver replay plays a recording's ego");
@@ -47,9 +48,18 @@ fn a_trained_policy_file_drives_simulate_and_a_bad_spec_or_file_is_refused_by_na
     other[at + 11..at + 13].copy_from_slice(b"25");
     std::fs::write(dir.path().join("wide.safetensors"), other).expect("a file written");
     sim("wide.safetensors", "obs_dim = '25'");
-    // A recording's ego is driven by idm or replay only (so far).
+    // A recording's ego is driven closed-loop by a model file too, from its recorded start.
     let xml = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/crime/OSC_CutIn-1_2_T-1.xml");
     let xml = xml.to_str().expect("a UTF-8 path");
-    let args = ["simulate", "--commonroad", xml, "--driver", "weak/policy.safetensors"];
-    assert_input_error(dir.path(), &args, "a policy file drives generated scenarios");
+    let on_recording =
+        |driver: &str| ok_json(dir.path(), &["simulate", "--commonroad", xml, "--driver", driver, "--format", "json"]);
+    let (learned, replayed) = (on_recording("weak/policy.safetensors"), on_recording("replay"));
+    assert!(learned["steps"].as_u64().is_some_and(|s| s > 0), "{learned}");
+    assert_ne!(learned, replayed, "the policy drives, it does not replay the recording");
+    assert_eq!(learned["steps"], on_recording("weak/policy.onnx")["steps"], "its ONNX model drives the same");
+    // train's ONNX model of the same policy drives too, and the same.
+    let onnx = simulate(&ids[0], "--driver", "weak/policy.onnx");
+    let native = simulate(&ids[0], "--driver", "weak/policy.safetensors");
+    let steps = |text: &str| serde_json::from_str::<serde_json::Value>(text).expect("JSON")["steps"].clone();
+    assert_eq!(steps(&onnx), steps(&native), "the same episode length");
 }

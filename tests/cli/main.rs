@@ -13,6 +13,7 @@ mod criticality;
 mod damaged_recording;
 mod determinism;
 mod driver;
+mod evaluate;
 mod floor;
 mod hostile_commonroad;
 mod mutate;

@@ -38,6 +38,11 @@ fn a_barely_trained_policy_is_held_back_and_one_no_worse_is_pushed() {
         assert_eq!(same[set]["candidate"], same[set]["deployed"], "the same policy drives the same: {same}");
         assert_eq!(same[set]["newly_colliding"], Value::Array(Vec::new()));
     }
+    // Any driver against any other: the policy's ONNX model (train writes it beside the file)
+    // drives as the file, so the gate lets it through against it.
+    let onnx = regress(dir.path(), &["--against", "weak/policy.onnx"]);
+    assert_eq!(onnx["decision"], "push", "{onnx}");
+    assert!(onnx["deployed"].as_str().is_some_and(|l| l.starts_with("weak/policy.onnx@")), "{onnx}");
 }
 
 #[test]
@@ -48,9 +53,11 @@ fn bad_gate_input_is_refused_by_name() {
         let args = ["scenarios", "regress", "--db", "lib.db", "--policy", policy];
         assert_input_error(dir.path(), &[&args[..], extra].concat(), needle);
     };
-    gate("missing.safetensors", &[], "policy missing.safetensors");
-    gate("lib.db", &[], "policy lib.db");
-    gate("lib.db", &["--per-kind", "0"], "--per-kind 0 is out of range");
-    let missing_db = ["scenarios", "regress", "--db", "missing.db", "--policy", "lib.db"];
+    gate("missing.safetensors", &[], "driver missing.safetensors");
+    gate("lib.db", &[], "unknown driver 'lib.db'");
+    gate("missing.onnx", &[], "driver missing.onnx");
+    gate("idm", &["--against", "replay"], "--against replay plays a recording's ego");
+    gate("idm", &["--per-kind", "0"], "--per-kind 0 is out of range");
+    let missing_db = ["scenarios", "regress", "--db", "missing.db", "--policy", "idm"];
     assert_input_error(dir.path(), &missing_db, "missing.db");
 }

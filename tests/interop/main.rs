@@ -2,6 +2,7 @@
 //! with the official Python `mcap` reader and `mcap-protobuf-support` decoder.
 
 mod episode;
+mod onnx_models;
 mod peer_cache;
 mod peer_python;
 

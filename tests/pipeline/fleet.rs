@@ -158,6 +158,9 @@ fn bad_ids_and_endpoints_are_refused_with_exit_2() {
         &["edge", "rsu", "--id", "r", "--site", "*"],
         &["edge", "vehicle", "--id", "v", "--connect", "not-a-locator"],
         &["edge", "vehicle", "--id", "v", "--cache-s", "nan"],
+        &["edge", "vehicle", "--id", "v", "--driver", "missing.onnx"],
+        &["edge", "vehicle", "--id", "v", "--driver", "replay"],
+        &["edge", "rsu", "--id", "r", "--driver", "idm"],
         &["cloud", "--roles", "ingest,nonsense"],
         &["cloud", "--roles", "ingest", "--fidelity-report", "rep"],
     ] {

@@ -69,6 +69,33 @@ fn a_lockstep_recording_scene_of_processes_equals_the_embedded_run_and_simulate(
 }
 
 #[test]
+fn a_learned_ego_driver_drives_the_scene_in_every_process_as_simulate_drives_it() {
+    let dir = tempfile::tempdir().expect("a temp dir");
+    let out = dir.path().join("p");
+    let train =
+        ["train", "--steps", "2048", "--variant", "base", "--out", out.to_str().expect("UTF-8"), "--format", "json"];
+    let mut p = Proc::spawn("train", &train);
+    assert!(p.wait_exit(Duration::from_secs(120)).0.success(), "train failed:\n{}", p.drain_stderr());
+    let model = out.join("policy.onnx");
+    let model = model.to_str().expect("UTF-8");
+    let run = |argv: &[&str]| {
+        let mut p = Proc::spawn("scene", argv);
+        let (status, stdout) = p.wait_exit(Duration::from_secs(120));
+        assert!(status.success(), "{argv:?} failed:\n{}", p.drain_stderr());
+        stdout
+    };
+    let scene = args(&args(&["scene", "run"], &RECORDING), &["--driver", model]);
+    let embedded = run(&args(&scene, &["--embedded"]));
+    assert_eq!(run(&scene), embedded, "every participant drives the same model: byte for byte");
+    let outcome: Value = serde_json::from_str(&embedded).expect("JSON");
+    let by_idm: Value =
+        serde_json::from_str(&run(&args(&["scene", "run"], &args(&RECORDING, &["--embedded"])))).expect("JSON");
+    assert_ne!(outcome["metrics"], by_idm["metrics"], "the model drives, not the reference driver");
+    let simulated = run(&["simulate", "--commonroad", PUTTE, "--driver", model, "--format", "json"]);
+    assert_eq!(outcome["metrics"], serde_json::from_str::<Value>(&simulated).expect("JSON"), "scene and simulate");
+}
+
+#[test]
 fn a_cloud_mirrors_a_realtime_recording_scene_on_its_lanelet_road() {
     let xml = std::fs::read_to_string(PUTTE).expect("the recording");
     let scenario = risktwin_commonroad::parse_scenario(&xml).expect("parses");

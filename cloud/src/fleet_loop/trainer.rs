@@ -12,8 +12,10 @@ use crate::trainer::gate::{Decision, Driver, GateReport, gate};
 use crate::trainer::{HeldOut, ReplayRule, TrainerError, TrainingPlan, train_variant};
 use risktwin_common::env::{RiskShaping, Variant};
 use risktwin_learn::{Algo, PolicyNet};
+use risktwin_policy::model::DriverModel;
 use risktwin_store::library::{PolicyVersion, ScenarioLibrary};
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// The policy id of the versions the trainer produces.
@@ -93,9 +95,12 @@ impl TrainJob {
             Some(v) => Some(policy_from(&v.weights, &self.dir.path().join("deployed.safetensors"))?),
             None => None,
         };
-        let driver = deployed.as_ref().map_or(Driver::Reference, Driver::Policy);
+        let host = |p: &PolicyNet| p.host().map(|h| DriverModel::Native(Arc::new(h)));
+        let candidate = host(&trained.policy)?;
+        let deployed = deployed.as_ref().map(host).transpose()?;
+        let driver = deployed.as_ref().map_or(Driver::Reference, Driver::Model);
         let gate_start = std::time::Instant::now();
-        let report = gate(&library, &trained.policy, driver, &held_out, plan.threads)?;
+        let report = gate(&library, Driver::Model(&candidate), driver, &held_out, plan.threads)?;
         tracing::info!(
             "trainer: version {} trained in {:.1} s ({} steps), gated in {:.1} s",
             self.version,

@@ -1,17 +1,45 @@
 //! Driving a learned policy through `episode::run`, so its metrics and risk terms are exactly
-//! those of `simulate` and of the library's reference-driver outcomes.
+//! those of `simulate` and of the library's reference-driver outcomes; [`Driver`] names any
+//! driver an evaluation may hold (the reference driver, a trained policy, a user's model).
 
 use crate::generate::parallel_map;
 use risktwin_common::env::Variant;
-use risktwin_common::episode::EpisodeResult;
+use risktwin_common::episode::{self, EpisodeResult};
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_common::world::{StepReport, World};
 use risktwin_learn::PolicyNet;
+use risktwin_policy::model::DriverModel;
 
 /// Every evaluation is scored with the full reward weights, so the reward column compares
 /// variants on one scale (base trains without the risk term but is judged like the others).
 pub const EVAL_VARIANT: Variant = Variant::Full;
+
+/// Who drives a set of scenarios.
+#[derive(Clone, Copy)]
+pub enum Driver<'a> {
+    /// The reference driver (IDM/MOBIL).
+    Reference,
+    /// A driver model: a trained policy on the host, or an ONNX model.
+    Model(&'a DriverModel),
+}
+
+impl Driver<'_> {
+    /// Each spec's episode on `threads` workers, in spec order.
+    pub fn episodes(self, specs: &[ScenarioSpec], threads: usize) -> Vec<EpisodeResult> {
+        match self {
+            Driver::Reference => parallel_map(specs, threads, episode::evaluate),
+            Driver::Model(model) => parallel_map(specs, threads, |spec| drive_model(model, &mut build(spec))),
+        }
+    }
+}
+
+/// Drives a built world with a driver model, scored with the evaluation weights: for a host
+/// policy the same episode as [`drive`] of the policy it was taken from.
+pub fn drive_model(model: &DriverModel, world: &mut World) -> EpisodeResult {
+    let mut driver = model.driver(world.desired_speed_mps, world.dt_s);
+    episode::run(world, &mut driver, &EVAL_VARIANT.weights())
+}
 
 /// Drives each spec with the policy's deterministic action on `threads` workers; results in
 /// spec order.

@@ -7,36 +7,16 @@
 //! candidate newly collides in are listed beside them (a candidate may trade one collision for
 //! another).
 
-use super::drive::drive_all;
+pub use super::drive::Driver;
 use super::held_out::HeldOut;
-use super::reference_episodes;
 use risktwin_common::metrics::EpisodeMetrics;
 use risktwin_common::scenario::ScenarioSpec;
-use risktwin_learn::PolicyNet;
 use risktwin_store::library::{LibraryError, ScenarioLibrary, content_id};
 use serde::Serialize;
 
 /// How much lower the candidate's mean route completion may be than the deployed version's on a
 /// set (a share of the route): 2 %, about one scenario in 50 stopping short.
 pub const COMPLETION_TOLERANCE: f64 = 0.02;
-
-/// Who drives a set.
-#[derive(Clone, Copy)]
-pub enum Driver<'a> {
-    /// The reference driver (IDM/MOBIL).
-    Reference,
-    /// A trained policy's deterministic action.
-    Policy(&'a PolicyNet),
-}
-
-impl Driver<'_> {
-    fn episodes(self, specs: &[ScenarioSpec], threads: usize) -> Vec<EpisodeMetrics> {
-        match self {
-            Driver::Reference => reference_episodes(specs, threads),
-            Driver::Policy(policy) => drive_all(policy, specs, threads).into_iter().map(|r| r.metrics).collect(),
-        }
-    }
-}
 
 /// One driver on one set.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -69,7 +49,8 @@ pub struct SetComparison {
 
 impl SetComparison {
     fn of(specs: &[ScenarioSpec], candidate: Driver<'_>, deployed: Driver<'_>, threads: usize) -> Self {
-        let (ours, theirs) = (candidate.episodes(specs, threads), deployed.episodes(specs, threads));
+        let metrics = |d: Driver<'_>| d.episodes(specs, threads).into_iter().map(|r| r.metrics).collect::<Vec<_>>();
+        let (ours, theirs) = (metrics(candidate), metrics(deployed));
         let newly = specs.iter().zip(ours.iter().zip(&theirs)).filter(|(_, (c, d))| c.collision && !d.collision);
         SetComparison {
             scenarios: specs.len(),
@@ -119,13 +100,12 @@ pub struct GateReport {
 /// `held_out`, on `threads` workers.
 pub fn gate(
     library: &ScenarioLibrary,
-    candidate: &PolicyNet,
+    candidate: Driver<'_>,
     deployed: Driver<'_>,
     held_out: &HeldOut,
     threads: usize,
 ) -> Result<GateReport, LibraryError> {
     let regression: Vec<ScenarioSpec> = library.regression_set()?.into_iter().map(|case| case.spec).collect();
-    let candidate = Driver::Policy(candidate);
     let regression = SetComparison::of(&regression, candidate, deployed, threads);
     let held_out = SetComparison::of(&held_out.specs, candidate, deployed, threads);
     let reasons: Vec<String> =

@@ -12,6 +12,7 @@
 //! - [`floor`]: the achievable floor of the held-out set, from the privileged planner.
 //! - [`gate`]: the regression gate a policy version passes before it is pushed.
 //! - [`stats`]: the metrics of paper table 1 (plus S_risk) and their spread.
+//! - [`outcomes`]: a driver's outcome shares and means with 95 % intervals.
 
 pub mod ablation;
 pub mod curriculum;
@@ -19,6 +20,7 @@ pub mod drive;
 pub mod floor;
 pub mod gate;
 pub mod held_out;
+pub mod outcomes;
 mod plan;
 pub mod session;
 pub mod stats;

@@ -27,7 +27,7 @@ mod vec_env;
 
 pub use demo::{DemoPlan, Demonstrations, controls_to_action, demonstrate};
 pub use driving::{DrivingEnv, EpisodeSummary, StepOutcome};
-pub use observe::{ACT_DIM, OBS_DIM, Observer, action_to_controls};
+pub use observe::{ACT_DIM, OBS_DIM, OBSERVATION_VERSION, Observer, action_to_controls};
 pub use policy::ObsPolicy;
 pub use reward::{RiskShaping, SHAPING_GAMMA, TTC_FLOOR_S, TTC_THRESHOLD_S, TTC_WEIGHT, TrainingReward};
 pub use source::{BENIGN_MIN_TTC_S, DEFAULT_REPLAY_SHARE, ScenarioSource, SourceError, benign_specs};

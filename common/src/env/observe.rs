@@ -43,6 +43,9 @@ use crate::geometry::{Vec2, wrap_angle};
 use crate::risk::{EgoKinematics, FieldObject, RiskFieldParams, field::footprint_samples};
 use crate::vehicle::Controls;
 
+/// Version of the observation and action contract (docs/driver-interface.md): what feature
+/// each index holds, its scale, and the action mapping; bumped when any of them changes.
+pub const OBSERVATION_VERSION: u32 = 1;
 /// Length of the observation vector.
 pub const OBS_DIM: usize = 24;
 /// Length of the action vector: steering, throttle, brake.

@@ -28,7 +28,7 @@ mod tests;
 pub use ego::{RECORDING_SEED, ego_sensor};
 pub use heatmap::lanelet_layers;
 pub use playback::{Playback, PlaybackState, footprint_of, kind_of};
-pub use resim::resimulate;
+pub use resim::{resimulate, resimulate_driven};
 pub use road::road_from_lanelets;
 pub use scene::TwinScene;
 pub use snapshot::{CommonRoadField, field_at};

@@ -20,17 +20,43 @@ pub fn resimulate(
     mode: EgoMode,
     step_s: f64,
 ) -> Result<Resimulation, TwinError> {
+    match mode {
+        EgoMode::Replay => run(scenario, ego_id, mode, step_s, |_| None),
+        EgoMode::ReferenceDriver => run(scenario, ego_id, mode, step_s, |scene| Some(Box::new(scene.ego_driver()))),
+    }
+}
+
+/// [`resimulate`] in closed loop with a driver of the caller's, made from the scene (its ego's
+/// desired speed and parameters): a learned policy drives the recorded ego's vehicle, perceiving
+/// through the same sensor as the reference driver, measured the same way.
+pub fn resimulate_driven<'d>(
+    scenario: &Scenario,
+    ego_id: Option<u64>,
+    step_s: f64,
+    driver: impl FnOnce(&TwinScene) -> Box<dyn Policy + 'd>,
+) -> Result<Resimulation, TwinError> {
+    run(scenario, ego_id, EgoMode::ReferenceDriver, step_s, |scene| Some(driver(scene)))
+}
+
+/// The run: `driver` of the scene drives (closed loop), or none does (a replay).
+fn run<'d>(
+    scenario: &Scenario,
+    ego_id: Option<u64>,
+    mode: EgoMode,
+    step_s: f64,
+    driver: impl FnOnce(&TwinScene) -> Option<Box<dyn Policy + 'd>>,
+) -> Result<Resimulation, TwinError> {
     check_step(step_s)?;
     let scene = TwinScene::new(scenario, ego_id)?;
-    let mut driver = scene.ego_driver();
+    let mut driver = driver(&scene);
     let footprint = scene.ego.footprint;
     let (mut sensor, mut rng) = ego_sensor();
     let mut perceived = Vec::new();
     let mut run = ResimStepper::new(&scenario.lanelets, scene, mode, step_s)?;
     while !run.finished() {
-        let controls = match mode {
-            EgoMode::Replay => Controls::default(),
-            EgoMode::ReferenceDriver => {
+        let controls = match driver.as_mut() {
+            None => Controls::default(),
+            Some(driver) => {
                 let vehicle = run.vehicle();
                 let pose = vehicle.pose();
                 sensor.perceive(pose, run.objects(), &mut rng, &mut perceived);

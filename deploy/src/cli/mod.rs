@@ -42,6 +42,10 @@ pub enum Command {
     Scenarios(ScenariosCommand),
     /// Simulate one episode with the reference driver.
     Simulate(SimulateArgs),
+    /// Evaluate a driver (policy file, ONNX model or the reference driver) on the held-out set
+    /// or a library's scenarios: per-kind outcome shares and means with 95 % intervals, beside
+    /// the reference driver and, with --floor, the achievable floor.
+    Evaluate(EvaluateArgs),
     /// Train a driving policy (PPO, recurrent PPO or SAC) on the twin.
     Train(TrainArgs),
     /// Evaluate the driving risk field around the ego.
@@ -101,6 +105,7 @@ impl Command {
             | Command::Deploy(_) => true,
             Command::Scenarios(_)
             | Command::Simulate(_)
+            | Command::Evaluate(_)
             | Command::Train(_)
             | Command::RiskField(_)
             | Command::Criticality(_)
@@ -163,8 +168,8 @@ pub enum ScenariosCommand {
     /// Feasible variations of one stored scenario, simulated with the reference driver and
     /// stored as its mutations.
     Mutate(MutateArgs),
-    /// The regression gate by hand: a policy file against the deployed version (default: the
-    /// reference driver) on the library's regression set and the held-out set.
+    /// The regression gate by hand: a driver (policy file or ONNX model) against the deployed
+    /// one (default: the reference driver) on the library's regression set and the held-out set.
     Regress(RegressArgs),
 }
 
@@ -172,12 +177,13 @@ pub enum ScenariosCommand {
 pub struct RegressArgs {
     #[arg(long)]
     pub db: PathBuf,
-    /// The candidate policy (a `.safetensors` file as `risktwin train` writes it).
-    #[arg(long)]
-    pub policy: PathBuf,
-    /// The version deployed now (a policy file); default: the reference driver.
-    #[arg(long)]
-    pub against: Option<PathBuf>,
+    /// The candidate driver: `PATH.safetensors` (a policy file as `risktwin train` writes it),
+    /// `PATH.onnx` (an ONNX model, docs/driver-interface.md) or `idm`.
+    #[arg(long = "driver", visible_alias = "policy", value_name = "SPEC")]
+    pub driver: DriverSpec,
+    /// The driver deployed now, named as `--driver`.
+    #[arg(long, value_name = "SPEC", default_value = "idm")]
+    pub against: DriverSpec,
     /// The run seed whose held-out set is driven (`risktwin run --seed`).
     #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
@@ -219,6 +225,10 @@ pub struct FloorArgs {
     /// The run seed whose held-out set is searched (`risktwin run --seed`).
     #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
+    /// A driver to show beside the floor, scenario by scenario (`PATH.safetensors`,
+    /// `PATH.onnx` or `idm`, as `simulate --driver`).
+    #[arg(long, value_name = "SPEC")]
+    pub driver: Option<DriverSpec>,
     /// Worker threads (default: all cores); the result does not depend on it.
     #[arg(long, allow_negative_numbers = true)]
     pub threads: Option<u64>,
@@ -268,7 +278,7 @@ pub struct TrainArgs {
     pub steps: u64,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Folder for the policy (policy.safetensors) and curves (curves.csv).
+    /// Folder for the policy (policy.safetensors, policy.onnx) and curves (curves.csv).
     #[arg(long)]
     pub out: PathBuf,
     /// Benign scenarios whose success is measured during training (0: none).
@@ -283,11 +293,47 @@ pub struct TrainArgs {
 }
 
 #[derive(Debug, Args)]
+pub struct EvaluateArgs {
+    /// Who drives: `PATH.onnx`, `PATH.safetensors` or `idm` (docs/driver-interface.md).
+    #[arg(long = "driver", visible_alias = "policy", value_name = "SPEC")]
+    pub driver: DriverSpec,
+    /// Drive this library's scenarios (instead of the held-out set) and store every episode's
+    /// outcome there under the driver's label.
+    #[arg(long, conflicts_with = "held_out")]
+    pub db: Option<PathBuf>,
+    /// Drive the held-out set of `risktwin run --seed S` (the default).
+    #[arg(long)]
+    pub held_out: bool,
+    /// Drive these CommonRoad scenarios (each with its default ego) instead: the recorded
+    /// traffic played back, the ego driven closed-loop from its recorded initial state.
+    #[arg(long, value_name = "FILE", num_args = 1.., conflicts_with_all = ["db", "held_out", "floor"])]
+    pub commonroad: Vec<PathBuf>,
+    /// The run seed whose held-out set is driven.
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true, conflicts_with = "db")]
+    pub seed: u64,
+    /// Held-out scenarios per kind.
+    #[arg(long, default_value_t = 12, allow_negative_numbers = true, conflicts_with = "db")]
+    pub per_kind: u64,
+    /// Also search the achievable floor (the privileged planner) of every scenario.
+    #[arg(long)]
+    pub floor: bool,
+    /// Write a report folder: report.md, metrics.json and figures.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Worker threads (default: all cores); the result does not depend on it.
+    #[arg(long, allow_negative_numbers = true)]
+    pub threads: Option<u64>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+#[derive(Debug, Args)]
 pub struct SimulateArgs {
     #[command(flatten)]
     pub source: ScenarioSource,
     /// Who drives the ego: `idm` (the reference driver), `replay` (the recorded ego; CommonRoad
-    /// scenarios only) or `PATH.safetensors` (a policy file as `risktwin train` writes it).
+    /// scenarios only), `PATH.safetensors` (a policy file as `risktwin train` writes it) or
+    /// `PATH.onnx` (an ONNX model, docs/driver-interface.md).
     #[arg(long = "driver", visible_alias = "policy", value_name = "SPEC", default_value = "idm")]
     pub driver: DriverSpec,
     /// Write a per-step CSV trace of the ego and its nearest object here.

@@ -185,6 +185,11 @@ pub struct EdgeArgs {
     /// the network is refused (`unverifiable`).
     #[arg(long)]
     pub trust_key: Option<std::path::PathBuf>,
+    /// `edge vehicle`: the driver it starts with, `idm` (default), `PATH.safetensors` or
+    /// `PATH.onnx` (docs/driver-interface.md), checked in full before the vehicle starts; a
+    /// signed policy update replaces it.
+    #[arg(long, value_name = "SPEC")]
+    pub driver: Option<risktwin_policy::spec::DriverSpec>,
     /// Publish without waiting for (or reporting) the cloud's delivery acknowledgements: for an
     /// edge with no RiskTwin cloud on purpose (another subscriber, a capture). Without it, an
     /// edge whose messages were not all acknowledged exits 1 (docs/keyexpr.md).

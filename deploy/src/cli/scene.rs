@@ -84,6 +84,11 @@ pub struct SceneArgs {
     /// (ETSI object inclusion rules, checked at 10 Hz), and the vehicles fuse what they hear.
     #[arg(long)]
     pub v2x_cpm: bool,
+    /// Who drives the ego: `idm` (default), `PATH.safetensors` or `PATH.onnx`
+    /// (docs/driver-interface.md); every participant loads the same file (its label, with the
+    /// file's digest, is part of the scene).
+    #[arg(long, value_name = "SPEC")]
+    pub driver: Option<risktwin_policy::spec::DriverSpec>,
 }
 
 #[derive(Debug, Args)]

@@ -2,6 +2,7 @@
 //! publishing real telemetry) until its count, duration or a signal, and print what it sent per
 //! stream as JSON on stdout.
 
+use super::driver::LoadedDriver;
 use super::recover::warn_unfinished;
 use super::router::{transport_config, with_signals};
 use crate::cli::{EdgeArgs, ReplayArgs};
@@ -13,8 +14,11 @@ use risktwin_edge::{ClockModel, EdgeConfig, EdgeError, gateway, rsu, sensor, veh
 use risktwin_transport::{SiteId, SourceId};
 use std::time::Duration;
 
+/// The role name of `edge vehicle` (its metrics and the one role that takes `--driver`).
+const VEHICLE_ROLE: &str = "edge-vehicle";
+
 pub fn vehicle(args: EdgeArgs) -> CliResult {
-    let (config, metrics) = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ, "edge-vehicle")?;
+    let (config, metrics) = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ, VEHICLE_ROLE)?;
     let summary =
         with_signals(|shutdown| async move { vehicle::run(&config, shutdown).await.map_err(CliError::runtime) })?;
     print_json(&summary)?;
@@ -119,5 +123,12 @@ fn edge_config(args: EdgeArgs, default_rate_hz: f64, role: &str) -> CliResult<(E
     config.clock_steps = args.clock_steps;
     config.ack = !args.no_ack;
     config.trust_key = args.trust_key.as_deref().map(super::keys::read_trust_key).transpose()?;
+    config.driver = match &args.driver {
+        Some(_) if role != VEHICLE_ROLE => {
+            return Err(CliError::input("--driver names a vehicle's driver: edge vehicle only"));
+        }
+        Some(spec) => LoadedDriver::load(spec, "--driver")?.active(),
+        None => None,
+    };
     Ok((config, metrics_endpoint::start(&args.metrics, role)?))
 }

@@ -1,24 +1,38 @@
 //! `risktwin scenarios floor`: the privileged planner on the held-out set of `risktwin run`,
 //! per kind against the reference driver.
 
-use super::scenarios::worker_threads;
+use super::driver::LoadedDriver;
+use super::scenarios::threads_flag;
 use super::source::parse_kinds;
 use crate::cli::FloorArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_cloud::trainer::{EvalMetrics, FloorCase, HeldOut, PolicyEvaluation, evaluate_floor, reference_episodes};
+use risktwin_common::metrics::Ending;
 use risktwin_common::scenario::ScenarioKind;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-/// The floor of one kind (or of all): the planner's drives and the reference driver's episodes.
+/// The floor of one kind (or of all): the planner's drives, the reference driver's episodes
+/// and, with `--driver`, that driver's.
 #[derive(Debug, Serialize)]
 struct KindFloor {
     scenarios: u64,
     avoidable: u64,
     planner: EvalMetrics,
     reference: EvalMetrics,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    driver: Option<EvalMetrics>,
+}
+
+/// One scenario's floor and, with `--driver`, how that driver's episode ended.
+#[derive(Debug, Serialize)]
+struct CaseRow {
+    #[serde(flatten)]
+    case: FloorCase,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    driver_ended: Option<Ending>,
 }
 
 /// The JSON document (docs/cli.md).
@@ -26,9 +40,12 @@ struct KindFloor {
 struct FloorDoc {
     seed: u64,
     per_kind: u64,
+    /// The `--driver`'s label.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    driver: Option<String>,
     overall: KindFloor,
     by_kind: BTreeMap<ScenarioKind, KindFloor>,
-    cases: Vec<FloorCase>,
+    cases: Vec<CaseRow>,
     /// Wall time of the search, s (the one field that differs between runs).
     wall_s: f64,
 }
@@ -38,11 +55,8 @@ pub fn floor(args: FloorArgs) -> CliResult {
     if !(1..=10_000).contains(&args.count) {
         return Err(CliError::input(format!("--count {} is out of range [1, 10000]", args.count)));
     }
-    let threads = match args.threads {
-        None => worker_threads(),
-        Some(t @ 1..=1024) => t as usize,
-        Some(t) => return Err(CliError::input(format!("--threads {t} is out of range [1, 1024]"))),
-    };
+    let threads = threads_flag(args.threads)?;
+    let driver = args.driver.as_ref().map(|spec| LoadedDriver::load(spec, "--driver")).transpose()?;
     let started = Instant::now();
     let held_out = HeldOut::new(args.seed, args.count as usize);
     let specs: Vec<_> = held_out.specs.into_iter().filter(|s| kinds.contains(&s.kind)).collect();
@@ -51,22 +65,32 @@ pub fn floor(args: FloorArgs) -> CliResult {
     let reference_runs = reference_episodes(&specs, threads);
     let floor = evaluate_floor(&specs, &reference_runs, threads);
     let reference = PolicyEvaluation::from_episodes(&specs, &reference_runs);
+    let driver_runs: Option<Vec<_>> =
+        driver.as_ref().map(|d| d.driver().episodes(&specs, threads).into_iter().map(|r| r.metrics).collect());
+    let driven = driver_runs.as_ref().map(|runs| PolicyEvaluation::from_episodes(&specs, runs));
     let wall_s = started.elapsed().as_secs_f64();
+    let pick = |e: &PolicyEvaluation, kind: Option<ScenarioKind>| kind.map_or(e.overall, |k| e.by_kind[&k]);
     let of = |kind: Option<ScenarioKind>| {
-        let (planner, reference) = match kind {
-            None => (floor.planner.overall, reference.overall),
-            Some(k) => (floor.planner.by_kind[&k], reference.by_kind[&k]),
-        };
-        KindFloor { scenarios: planner.episodes, avoidable: floor.avoidable(kind), planner, reference }
+        let (planner, reference) = (pick(&floor.planner, kind), pick(&reference, kind));
+        let driver = driven.as_ref().map(|e| pick(e, kind));
+        KindFloor { scenarios: planner.episodes, avoidable: floor.avoidable(kind), planner, reference, driver }
     };
+    let cases = floor.cases.iter().enumerate().map(|(i, case)| CaseRow {
+        case: case.clone(),
+        driver_ended: driver_runs.as_ref().map(|runs| runs[i].ending()),
+    });
     let doc = FloorDoc {
         seed: args.seed,
         per_kind: args.count,
+        driver: driver.as_ref().map(|d| d.label.clone()),
         overall: of(None),
         by_kind: kinds.iter().map(|&k| (k, of(Some(k)))).collect(),
-        cases: floor.cases.clone(),
+        cases: cases.collect(),
         wall_s,
     };
+    if let Some(d) = &driver {
+        d.warn_faults();
+    }
     match args.format {
         Format::Json => print_json(&doc),
         Format::Csv => print_csv(&doc.cases),
@@ -89,34 +113,48 @@ fn print_kinds(doc: &FloorDoc) -> CliResult {
             format!("{:.2}", k.reference.collision_rate),
             format!("{:.2}", k.reference.success_rate),
         ]
+        .into_iter()
+        .chain(k.driver.iter().flat_map(|d| [format!("{:.2}", d.collision_rate), format!("{:.2}", d.success_rate)]))
+        .collect::<Vec<_>>()
     };
     let mut rows: Vec<Vec<String>> = doc.by_kind.iter().map(|(kind, k)| row(kind.to_string(), k)).collect();
     rows.push(row("all".into(), &doc.overall));
-    print_table(
-        &[
-            "kind",
-            "scenarios",
-            "avoidable",
-            "planner collision",
-            "planner offroad",
-            "planner out of time",
-            "reference collision",
-            "reference success",
-        ],
-        &rows,
-    )?;
+    let mut header = vec![
+        "kind",
+        "scenarios",
+        "avoidable",
+        "planner collision",
+        "planner offroad",
+        "planner out of time",
+        "reference collision",
+        "reference success",
+    ];
+    if doc.driver.is_some() {
+        header.extend(["driver collision", "driver success"]);
+    }
+    print_table(&header, &rows)?;
+    if let Some(label) = &doc.driver {
+        eprintln!("driver: {label}");
+    }
     eprintln!("{:.1} s wall", doc.wall_s);
     Ok(())
 }
 
 /// One row per scenario.
-fn print_csv(cases: &[FloorCase]) -> CliResult {
+fn print_csv(cases: &[CaseRow]) -> CliResult {
+    let driven = cases.first().is_some_and(|c| c.driver_ended.is_some());
     println!(
-        "id,kind,seed,verdict,ended,route_completion,min_ttc_s,min_distance_m,avg_speed_mps,sim_steps,reference_ended"
+        "id,kind,seed,verdict,ended,route_completion,min_ttc_s,min_distance_m,avg_speed_mps,sim_steps,reference_ended{}",
+        if driven { ",driver_ended" } else { "" }
     );
-    for c in cases {
+    for row in cases {
+        let c = &row.case;
+        let driver = match &row.driver_ended {
+            Some(e) => format!(",{}", serde_name(e)?),
+            None => String::new(),
+        };
         println!(
-            "{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{}{driver}",
             c.id,
             c.kind,
             c.seed,

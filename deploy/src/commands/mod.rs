@@ -9,7 +9,9 @@ mod certs;
 pub mod cloud;
 mod criticality;
 mod deploy;
+mod driver;
 mod edge;
+mod evaluate;
 mod floor;
 mod import;
 mod input_file;
@@ -46,6 +48,7 @@ pub fn dispatch(cli: Cli) -> CliResult {
         Command::Scenarios(ScenariosCommand::Mutate(a)) => scenarios::mutate(a),
         Command::Scenarios(ScenariosCommand::Regress(a)) => regress::regress(a),
         Command::Simulate(a) => simulate::simulate(a),
+        Command::Evaluate(a) => evaluate::evaluate(a),
         Command::Train(a) => train::train(a),
         Command::RiskField(a) => risk_field::risk_field(a),
         Command::Criticality(a) => criticality::criticality(a),

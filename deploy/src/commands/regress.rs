@@ -1,31 +1,33 @@
 //! `risktwin scenarios regress`: the regression gate by hand ([`risktwin_cloud::trainer::gate`]).
 
+use super::driver::LoadedDriver;
 use super::scenarios::worker_threads;
 use super::source::open_existing_library;
 use crate::cli::RegressArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_cloud::trainer::HeldOut;
-use risktwin_cloud::trainer::gate::{Driver, SetComparison, gate};
-use risktwin_learn::PolicyNet;
-use std::path::Path;
-
-fn load(path: &Path) -> CliResult<PolicyNet> {
-    PolicyNet::load(path).map_err(|e| CliError::input(format!("policy {}: {e}", path.display())))
-}
+use risktwin_cloud::trainer::gate::{SetComparison, gate};
 
 pub fn regress(args: RegressArgs) -> CliResult {
     if args.per_kind == 0 || args.per_kind > 1000 {
         return Err(CliError::input(format!("--per-kind {} is out of range [1, 1000]", args.per_kind)));
     }
     let library = open_existing_library(&args.db)?;
-    let candidate = load(&args.policy)?;
-    let deployed = args.against.as_deref().map(load).transpose()?;
-    let deployed = deployed.as_ref().map_or(Driver::Reference, Driver::Policy);
+    let candidate = LoadedDriver::load(&args.driver, "--driver")?;
+    let deployed = LoadedDriver::load(&args.against, "--against")?;
     let held_out = HeldOut::new(args.seed, args.per_kind as usize);
-    let report = gate(&library, &candidate, deployed, &held_out, worker_threads()).map_err(CliError::runtime)?;
+    let report = gate(&library, candidate.driver(), deployed.driver(), &held_out, worker_threads())
+        .map_err(CliError::runtime)?;
+    candidate.warn_faults();
+    deployed.warn_faults();
     match args.format {
-        Format::Json => print_json(&report),
+        Format::Json => {
+            let mut doc = serde_json::to_value(&report).map_err(CliError::runtime)?;
+            doc["candidate"] = candidate.label.into();
+            doc["deployed"] = deployed.label.into();
+            print_json(&doc)
+        }
         _ => {
             let row = |set: &str, c: &SetComparison| {
                 vec![
@@ -38,6 +40,7 @@ pub fn regress(args: RegressArgs) -> CliResult {
             };
             let header =
                 ["set", "scenarios", "collisions (candidate / deployed)", "successes", "mean route completion"];
+            println!("candidate: {}\ndeployed: {}", candidate.label, deployed.label);
             print_table(&header, &[row("regression", &report.regression), row("held-out", &report.held_out)])?;
             println!("decision: {:?}", report.decision);
             for reason in &report.reasons {

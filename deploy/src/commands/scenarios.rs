@@ -17,6 +17,15 @@ pub fn worker_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
+/// A `--threads` flag: all cores when absent, else 1 to 1024.
+pub fn threads_flag(threads: Option<u64>) -> CliResult<usize> {
+    match threads {
+        None => Ok(worker_threads()),
+        Some(t @ 1..=1024) => Ok(t as usize),
+        Some(t) => Err(CliError::input(format!("--threads {t} is out of range [1, 1024]"))),
+    }
+}
+
 pub fn generate(args: GenerateArgs) -> CliResult {
     let kinds = parse_kinds(&args.kind)?;
     if args.count == 0 || args.count > 1_000_000 {

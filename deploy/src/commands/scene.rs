@@ -5,6 +5,7 @@
 //! Every role is a Zenoh peer listening on loopback only (the router introduces them). Every
 //! child is killed and reaped however the run ends.
 
+use super::driver::LoadedDriver;
 use super::recorded::read_xml;
 use super::router::transport_config;
 use super::source::{parse_kinds, read_spec_file};
@@ -13,7 +14,7 @@ use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json};
 use risktwin_edge::fleet::authority::{Embedded, Paced, SceneOutcome, run_scene};
 use risktwin_edge::fleet::net::{Deadlines, Timeouts, ZenohAuthority, run_participant};
-use risktwin_edge::fleet::{Recording, Role, SceneError, SceneSetup, SceneSource};
+use risktwin_edge::fleet::{EgoDriver, Recording, Role, SceneError, SceneSetup, SceneSource};
 use risktwin_edge::scene::feasible_spec;
 use risktwin_transport::zenoh::Session;
 use risktwin_transport::{SiteId, TransportConfig, connect};
@@ -83,7 +84,14 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
             return Err(CliError::input(format!("{flag} needs --v2x-model")));
         }
     }
-    Ok(setup.with_v2x(v2x).with_warnings(args.v2x_warnings).with_cpm(args.v2x_cpm))
+    let ego_driver = match &args.driver {
+        Some(spec) => {
+            let loaded = LoadedDriver::load(spec, "--driver")?;
+            loaded.model.map(|file| EgoDriver { label: loaded.label, model: file.model })
+        }
+        None => None,
+    };
+    Ok(setup.with_v2x(v2x).with_warnings(args.v2x_warnings).with_cpm(args.v2x_cpm).with_ego_driver(ego_driver))
 }
 
 /// The V2X channel the arguments ask for, seeded by the scene (`None`: no V2X).
@@ -442,6 +450,9 @@ fn scene_argv(args: &SceneArgs) -> Vec<String> {
         if on {
             argv.push(flag.to_owned());
         }
+    }
+    if let Some(driver) = &args.driver {
+        argv.extend(["--driver".to_owned(), driver.to_string()]);
     }
     argv
 }

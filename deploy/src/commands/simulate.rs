@@ -1,5 +1,6 @@
 //! `risktwin simulate`: one episode of a scenario with the driver `--driver` names.
 
+use super::driver::load_model;
 use super::recorded::commonroad_input;
 use super::source;
 use crate::cli::SimulateArgs;
@@ -10,7 +11,6 @@ use risktwin_common::driver::Policy;
 use risktwin_common::episode;
 use risktwin_common::metrics::{EpisodeMetrics, RewardWeights};
 use risktwin_common::world::{StepReport, World};
-use risktwin_policy::HostPolicy;
 use risktwin_policy::spec::DriverSpec;
 
 pub fn simulate(args: SimulateArgs) -> CliResult {
@@ -31,7 +31,10 @@ pub fn simulate(args: SimulateArgs) -> CliResult {
                 "--driver replay plays a recording's ego: give --commonroad FILE or a recorded case (--db, --id)",
             ));
         }
-        DriverSpec::PolicyFile(path) => Box::new(load_policy(path)?.driver(world.desired_speed_mps, world.dt_s)),
+        DriverSpec::PolicyFile(_) | DriverSpec::Onnx(_) => match load_model(&args.driver)? {
+            Some(file) => Box::new(file.model.driver(world.desired_speed_mps, world.dt_s)),
+            None => Box::new(reference),
+        },
     };
     let mut recorder = match &args.record {
         None => None,
@@ -65,14 +68,6 @@ pub fn simulate(args: SimulateArgs) -> CliResult {
         Format::Json => print_json(&result.metrics),
         Format::Table | Format::Csv => print_metrics(&result.metrics, args.format),
     }
-}
-
-/// The policy of a policy file, every field and tensor checked before the episode starts.
-fn load_policy(path: &std::path::Path) -> CliResult<std::sync::Arc<HostPolicy>> {
-    let bytes = std::fs::read(path).map_err(|e| CliError::input(format!("driver {}: {e}", path.display())))?;
-    let policy =
-        HostPolicy::from_safetensors(&bytes).map_err(|e| CliError::input(format!("driver {}: {e}", path.display())))?;
-    Ok(std::sync::Arc::new(policy))
 }
 
 const TRACE_HEADER: &str =

@@ -1,5 +1,5 @@
-//! `risktwin train`: trains a policy on the twin and writes it (safetensors) and its training
-//! curves (CSV) into the output folder. Progress goes to stderr.
+//! `risktwin train`: trains a policy on the twin and writes it (safetensors, and its actor as
+//! ONNX) and its training curves (CSV) into the output folder. Progress goes to stderr.
 //!
 //! `wall_s`, `env_steps_per_s` and `profile_s` (PPO's wall time in environment stepping, acting
 //! and updates) are measurements and differ between runs; every other field
@@ -41,6 +41,9 @@ pub fn train(args: TrainArgs) -> CliResult {
     let _ = writeln!(std::io::stderr());
     let policy_path = args.out.join("policy.safetensors");
     report.policy.save(&policy_path).map_err(CliError::runtime)?;
+    // The same actor as an ONNX model (docs/driver-interface.md), for other tools and runtimes.
+    let onnx = report.policy.host().map_err(CliError::runtime)?.to_onnx();
+    std::fs::write(args.out.join("policy.onnx"), onnx).map_err(CliError::runtime)?;
     std::fs::write(args.out.join("curves.csv"), curves_csv(&report.curve)).map_err(CliError::runtime)?;
     let doc = json!({
         "algo": algo.name(),

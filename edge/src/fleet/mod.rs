@@ -40,6 +40,7 @@ use risktwin_common::digest::fnv1a64;
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_common::world::EGO_OBJECT_ID;
 use risktwin_commonroad::twin::RECORDING_SEED;
+use risktwin_policy::model::DriverModel;
 use risktwin_v2x::messages::MessageChannel;
 use std::fmt;
 use thiserror::Error;
@@ -135,6 +136,22 @@ pub struct SceneSetup {
     warnings: bool,
     /// With V2X: the RSUs send CPMs of what they perceive, which the vehicles fuse.
     cpm: bool,
+    /// The ego's learned driver (`None`: the scenario's reference driver).
+    ego_driver: Option<EgoDriver>,
+}
+
+/// A model file driving a scene's ego, known by its label (path and digest: part of the
+/// scene's identity, so every participant drives the same file).
+#[derive(Debug, Clone)]
+pub struct EgoDriver {
+    pub label: String,
+    pub model: DriverModel,
+}
+
+impl PartialEq for EgoDriver {
+    fn eq(&self, other: &Self) -> bool {
+        self.label == other.label
+    }
 }
 
 impl SceneSetup {
@@ -176,7 +193,17 @@ impl SceneSetup {
             return Err(SceneError::TooManyConnected { asked: connected, needed, available, what, which });
         }
         let agents = candidates[..needed as usize].to_vec();
-        Ok(SceneSetup { source, connected, rsus, agents, without: Vec::new(), v2x: None, warnings: false, cpm: false })
+        Ok(SceneSetup {
+            source,
+            connected,
+            rsus,
+            agents,
+            without: Vec::new(),
+            v2x: None,
+            warnings: false,
+            cpm: false,
+            ego_driver: None,
+        })
     }
 
     /// The same scene with connected traffic vehicles `ids` (`v1`, …) taken out of the world: a
@@ -226,6 +253,17 @@ impl SceneSetup {
     pub fn with_cpm(mut self, on: bool) -> Self {
         self.cpm = on;
         self
+    }
+
+    /// The same scene with the ego driven by `driver` (`None`: the reference driver).
+    pub fn with_ego_driver(mut self, driver: Option<EgoDriver>) -> Self {
+        self.ego_driver = driver;
+        self
+    }
+
+    /// The ego's learned driver, if it has one.
+    pub fn ego_driver(&self) -> Option<&EgoDriver> {
+        self.ego_driver.as_ref()
     }
 
     /// Whether the scene's RSUs send CPMs over V2X.
@@ -285,7 +323,9 @@ impl SceneSetup {
         let warnings = if self.warnings() { &b"\0warn"[..] } else { &[][..] };
         let cpm = if self.cpm() { &b"\0cpm"[..] } else { &[][..] };
         let rsus = warnings.iter().chain(cpm).copied();
-        fnv1a64(head.iter().flatten().copied().chain(without).chain(scenario).chain(v2x).chain(rsus))
+        // Last, so that a scene with the reference driver keeps the digest it always had.
+        let driver = self.ego_driver.iter().flat_map(|d| b"\0driver\0".iter().chain(d.label.as_bytes()).copied());
+        fnv1a64(head.iter().flatten().copied().chain(without).chain(scenario).chain(v2x).chain(rsus).chain(driver))
     }
 
     /// The physics step, s: the world's own, as in the library and `risktwin run`.

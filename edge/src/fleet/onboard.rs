@@ -8,7 +8,7 @@
 
 use super::wire::Truth;
 use super::{Role, SceneError, SceneSetup, SceneSource};
-use risktwin_common::driver::{DriverView, Policy, ReferenceDriver};
+use risktwin_common::driver::{DriverView, Policy};
 use risktwin_common::episode::with_reference_driver;
 use risktwin_common::geometry::{Footprint, Pose, Vec2};
 use risktwin_common::rng::Rng;
@@ -33,7 +33,7 @@ pub struct Onboard {
     /// The ego's road and footprint, as its driver sees them.
     road: Road,
     ego_footprint: Footprint,
-    driver: Option<ReferenceDriver>,
+    driver: Option<Box<dyn Policy + Send>>,
     sensor: Sensor,
     rng: Rng,
     /// A roadside unit's mast.
@@ -48,7 +48,7 @@ pub struct Onboard {
 struct Basis {
     road: Road,
     ego_footprint: Footprint,
-    driver: ReferenceDriver,
+    driver: Box<dyn Policy + Send>,
     sensor: Sensor,
     rng: Rng,
     route: Lane,
@@ -56,13 +56,18 @@ struct Basis {
 }
 
 impl Basis {
-    fn of(source: &SceneSource) -> Basis {
-        match source {
+    /// The basis of `setup`'s scenario; the ego's driver is the setup's learned one (acting
+    /// through the training environment's mapping at the world's step) or the reference driver.
+    fn of(setup: &SceneSetup) -> Basis {
+        let learned = |desired_speed_mps: f64, dt_s: f64| {
+            setup.ego_driver().map(|d| Box::new(d.model.driver(desired_speed_mps, dt_s)) as Box<dyn Policy + Send>)
+        };
+        match &setup.source {
             SceneSource::Generated(spec) => {
-                let (world, driver) = with_reference_driver(spec);
+                let (world, reference) = with_reference_driver(spec);
                 Basis {
                     ego_footprint: world.ego.params.footprint(),
-                    driver,
+                    driver: learned(world.desired_speed_mps, world.dt_s).unwrap_or_else(|| Box::new(reference)),
                     route: world.road.lane(world.route.lane).clone(),
                     route_start_s_m: world.route.start_s_m,
                     road: world.road,
@@ -77,7 +82,8 @@ impl Basis {
                 Basis {
                     road: scene.road.clone(),
                     ego_footprint: scene.ego.footprint,
-                    driver: scene.ego_driver(),
+                    driver: learned(scene.ego_desired_speed_mps(), setup.step_s())
+                        .unwrap_or_else(|| Box::new(scene.ego_driver())),
                     sensor,
                     rng,
                     route: scene.ego_route(),
@@ -92,7 +98,7 @@ impl Onboard {
     /// The stack of participant `id` of `setup`.
     pub fn new(setup: &SceneSetup, id: &str) -> Result<Onboard, SceneError> {
         let role = setup.role_of(id)?;
-        let Basis { road, ego_footprint, driver, sensor, rng, route, route_start_s_m } = Basis::of(&setup.source);
+        let Basis { road, ego_footprint, driver, sensor, rng, route, route_start_s_m } = Basis::of(setup);
         let seed = setup.seed();
         let around = SensorParams { fov_rad: std::f64::consts::TAU, occlusion: false, ..SensorParams::default() };
         let sensor_of = |params| Sensor::new(params).map_err(|e| SceneError::Failed { reason: e.to_string() });

@@ -25,6 +25,7 @@ use crate::scene::{ActivePolicy, Scene, Tape, detected, feasible_spec};
 use crate::summary::SentSummary;
 use push::{PolicyTrust, PushSummary, ResultLine};
 use risktwin_common::telemetry::{CAN_DLC, CanFrame, DetectedObject, ObjectList, ScenarioResult};
+use risktwin_policy::model::DriverModel;
 use risktwin_protos::encode;
 use risktwin_transport::keyexpr::{CloudToEdge, EdgeReport};
 use risktwin_transport::{EdgeStream, Shutdown};
@@ -83,7 +84,7 @@ pub struct VehicleSummary {
 impl Vehicle {
     /// The vehicle of `config`'s scenario.
     pub fn new(config: &EdgeConfig) -> Result<Self, EdgeError> {
-        let scene = Scene::new(feasible_spec(config.scenario_seed, config.kind)?);
+        let scene = Scene::with_policy(feasible_spec(config.scenario_seed, config.kind)?, config.driver.clone());
         let segment = Segment::at_rest(scene.world.ego.clone());
         Ok(Vehicle {
             id: config.id.as_str().to_owned(),
@@ -91,7 +92,7 @@ impl Vehicle {
             scene,
             pushed: None,
             on_tape: false,
-            policy: None,
+            policy: config.driver.clone(),
             segment,
             perceived: Vec::new(),
             pushes: PushSummary::default(),
@@ -215,7 +216,10 @@ impl Producer for Vehicle {
             }
             CloudToEdge::Policy => {
                 if let Some(policy) = self.pushes.policy(encoding, payload, &self.trust) {
-                    let kind = policy.net.kind().algo();
+                    let kind = match &policy.model {
+                        DriverModel::Native(net) => net.kind().algo(),
+                        DriverModel::Onnx(_) => "onnx",
+                    };
                     tracing::info!(
                         "edge: driving with policy {} version {} ({kind})",
                         policy.id.policy_id,
@@ -291,7 +295,7 @@ pub async fn run(config: &EdgeConfig, shutdown: Shutdown) -> Result<VehicleSumma
 mod tests {
     use super::*;
     use risktwin_common::geometry::{Footprint, Vec2};
-    use risktwin_common::telemetry::{Frame, HazardKind, HazardWarning, Header};
+    use risktwin_common::telemetry::{Frame, HazardKind, HazardWarning, Header, PolicyRef};
     use risktwin_protos::encoding_of;
     use risktwin_transport::{SiteId, SourceId};
 
@@ -325,6 +329,23 @@ mod tests {
             trigger_seq: 1,
             trigger_capture_time_ns: 1,
         }
+    }
+
+    #[test]
+    fn a_vehicle_starts_with_the_driver_it_is_given_an_onnx_model_too() {
+        // The braking policy of the scene tests, exported and read back as ONNX.
+        let braking = crate::scene::tests::policy_net(risktwin_policy::PolicyKind::Gaussian, &[0.0, 0.0, 1.0]);
+        let onnx = risktwin_policy::onnx::OnnxPolicy::from_bytes(&braking.to_onnx()).expect("the export loads");
+        let id = PolicyRef { policy_id: "brake.onnx@000000000000".into(), version: 0 };
+        let mut config = EdgeConfig::new(SiteId::new("site").unwrap(), SourceId::new("veh-1").unwrap(), 50.0);
+        config.driver = Some(ActivePolicy { id: id.clone(), model: DriverModel::Onnx(std::sync::Arc::new(onnx)) });
+        let mut v = Vehicle::new(&config).expect("a feasible scenario");
+        assert_eq!(v.scene.driven_by(), Some(&id));
+        for _ in 0..5 {
+            let step = v.scene.step();
+            assert_eq!((step.controls.brake, step.controls.throttle), (1.0, 0.0), "the model brakes");
+        }
+        assert_eq!(vehicle("veh-1").scene.driven_by(), None, "without one: the reference driver");
     }
 
     #[test]

@@ -18,6 +18,7 @@ use crate::scene::ActivePolicy;
 use risktwin_common::scenario::check_feasible;
 use risktwin_common::telemetry::{HazardWarning, PolicyRef, PolicyUpdate, ScenarioPush};
 use risktwin_policy::HostPolicy;
+use risktwin_policy::model::DriverModel;
 use risktwin_policy::signature::{PolicyVerifyingKey, SignatureError};
 use risktwin_protos::decode_tagged;
 use serde::Serialize;
@@ -201,7 +202,7 @@ impl PushSummary {
                     weights_bytes: update.weights.len(),
                 });
                 let id = PolicyRef { policy_id: update.policy_id, version: update.version };
-                Some(ActivePolicy { id, net: Arc::new(net) })
+                Some(ActivePolicy { id, model: DriverModel::Native(Arc::new(net)) })
             }
             Err((reason, detail)) => {
                 Self::refuse(&mut self.policies_refused, "policy update", reason, &detail);

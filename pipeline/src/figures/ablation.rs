@@ -2,7 +2,7 @@
 //! that the best variant reaches full height (flipped where lower is better), the raw means
 //! written on the bars.
 
-use super::canvas::{Bitmap, FONT, FigureError, PALETTE, register_fonts};
+use super::canvas::{Bitmap, FONT, FigureError, PALETTE, bar_legend, register_fonts};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use risktwin_cloud::trainer::stats::HIGHER_IS_BETTER;
@@ -104,14 +104,7 @@ pub fn ablation(ab: &AblationReport) -> Result<Bitmap, FigureError> {
                 }))
                 .map_err(FigureError::draw)?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font((FONT, 15))
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK.mix(0.4))
-            .draw()
-            .map_err(FigureError::draw)?;
+        bar_legend(&mut chart)?;
         root.present().map_err(FigureError::draw)?;
     }
     Ok(image)

@@ -1,6 +1,8 @@
 //! What every figure is drawn on: the embedded font, the palette, the RGB bitmap and its PNG
 //! file. Its own module so that the figures import it without importing `figures/mod.rs`.
 
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::*;
 use plotters::style::{FontStyle, RGBColor, register_font};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -67,6 +69,20 @@ impl Bitmap {
         let i = 3 * (y as usize * self.width as usize + x as usize);
         [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
     }
+}
+
+/// The legend of a bar chart (the ablation, the shares): upper right, on a light box.
+pub(super) fn bar_legend<'a, 'b: 'a>(
+    chart: &mut ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+) -> Result<(), FigureError> {
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .label_font((FONT, 15))
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK.mix(0.4))
+        .draw()
+        .map_err(FigureError::draw)
 }
 
 /// Makes the embedded font known to plotters (once per process).

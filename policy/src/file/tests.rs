@@ -2,28 +2,12 @@
 //! policy read from a file driving a world through the training environment's mapping.
 
 use super::*;
+use crate::random_policy as policy;
 use risktwin_common::episode::{self, with_reference_driver};
 use risktwin_common::metrics::RewardWeights;
 use risktwin_common::rng::Rng;
 use risktwin_common::scenario::{ScenarioKind, check_feasible, sample};
 use std::sync::Arc;
-
-/// A `kind` policy with random weights and `out_bias` on the output layer: OBS_DIM → 8 → out,
-/// or for the recurrent kind a GRU of 8 units and a linear head 8 → out (`hidden` = [8] both).
-fn policy(kind: PolicyKind, seed: u64, out_bias: &[f32]) -> HostPolicy {
-    let mut rng = Rng::new(seed);
-    let mut values = |n: usize| (0..n).map(|_| rng.uniform(-0.5, 0.5) as f32).collect::<Vec<_>>();
-    let out = kind.out_dim();
-    let last = Dense::new("o", values(8 * out), out_bias.to_vec(), 8, out).expect("a layer");
-    if kind == PolicyKind::Recurrent {
-        let x = Dense::new("x", values(OBS_DIM * 24), values(24), OBS_DIM, 24).expect("a layer");
-        let h = Dense::new("h", values(8 * 24), values(24), 8, 24).expect("a layer");
-        let gru = HostGru::new(x, h).expect("a cell");
-        return HostPolicy::recurrent(gru, HostMlp::from_layers(vec![last]).expect("a chain")).expect("a policy");
-    }
-    let hidden = Dense::new("h", values(OBS_DIM * 8), values(8), OBS_DIM, 8).expect("a layer");
-    HostPolicy::new(kind, HostMlp::from_layers(vec![hidden, last]).expect("a chain")).expect("a policy")
-}
 
 /// A policy file with one tensor or metadata entry changed (an empty value removes the entry).
 fn altered(p: &HostPolicy, meta: &[(&str, &str)], tensor: Option<(&str, Dtype, Vec<usize>, Vec<u8>)>) -> Vec<u8> {
@@ -139,7 +123,7 @@ fn a_braking_policy_from_a_file_drives_the_world_through_the_env_mapping() {
     let brake = policy(PolicyKind::Gaussian, 3, &[0.0, -5.0, 5.0]);
     let brake = Arc::new(HostPolicy::from_safetensors(&brake.to_safetensors().expect("bytes")).expect("read"));
     let (mut world, _) = with_reference_driver(&spec);
-    let mut driver = brake.driver(world.desired_speed_mps, world.dt_s);
+    let mut driver = crate::model::DriverModel::Native(brake).driver(world.desired_speed_mps, world.dt_s);
     let v0 = world.ego.state.speed_mps;
     let by_policy = episode::run(&mut world, &mut driver, &weights).metrics;
     assert!(world.ego.state.speed_mps < 0.1, "braked to a stop from {v0} m/s: {}", world.ego.state.speed_mps);

@@ -13,6 +13,11 @@ use crate::traffic::{IdmParams, MobilParams, idm_accel};
 use crate::vehicle::actuator::drive_limit_mps2;
 use crate::vehicle::{Controls, VehicleParams};
 
+/// The reference driver's name: its `--driver` SPEC and the label its outcomes are stored under.
+pub const REFERENCE_LABEL: &str = "idm";
+/// A recording's ego played back as it drove: its SPEC and outcome label.
+pub const REPLAY_LABEL: &str = "replay";
+
 /// What a policy sees each step.
 #[derive(Debug, Clone, Copy)]
 pub struct DriverView<'a> {

@@ -5,6 +5,7 @@ use super::onnx::{OnnxError, OnnxPolicy};
 use super::{BoxedActor, HostDriver, HostPolicy, NetError};
 use risktwin_common::env::ObsPolicy;
 use sha2::{Digest, Sha256};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -37,8 +38,8 @@ pub enum DriverModel {
 pub enum ModelError {
     #[error("driver {path}: {error}")]
     Read { path: PathBuf, error: std::io::Error },
-    #[error("driver {path}: {bytes} bytes, more than a driver model may be ({MAX_MODEL_BYTES})")]
-    TooLarge { path: PathBuf, bytes: u64 },
+    #[error("driver {path}: more than the {MAX_MODEL_BYTES} bytes a driver model may be")]
+    TooLarge { path: PathBuf },
     #[error("driver {path}: {error}")]
     Policy { path: PathBuf, error: NetError },
     #[error("driver {path}: {error}")]
@@ -58,11 +59,9 @@ impl ModelFile {
     /// Reads and checks the model at `path` (every field, tensor and, for ONNX, the probe).
     pub fn load(path: &Path, format: ModelFormat) -> Result<Self, ModelError> {
         let read = |error| ModelError::Read { path: path.to_owned(), error };
-        let bytes = std::fs::metadata(path).map_err(read)?.len();
-        if bytes > MAX_MODEL_BYTES {
-            return Err(ModelError::TooLarge { path: path.to_owned(), bytes });
-        }
-        let data = std::fs::read(path).map_err(read)?;
+        let data = read_capped(path, MAX_MODEL_BYTES)
+            .map_err(read)?
+            .ok_or_else(|| ModelError::TooLarge { path: path.to_owned() })?;
         let sha256 = Sha256::digest(&data).iter().map(|b| format!("{b:02x}")).collect();
         let model = match format {
             ModelFormat::Safetensors => DriverModel::Native(Arc::new(
@@ -81,6 +80,15 @@ impl ModelFile {
     pub fn label(&self) -> String {
         format!("{}@{}", self.path.display(), &self.sha256[..LABEL_DIGEST_HEX])
     }
+}
+
+/// The file's bytes, or `None` past `max_bytes`. Reads at most one byte past the cap
+/// whatever the file is (a FIFO, a link to /dev/zero): its metadata's length cannot be
+/// trusted to bound the read.
+fn read_capped(path: &Path, max_bytes: u64) -> std::io::Result<Option<Vec<u8>>> {
+    let mut data = Vec::new();
+    std::fs::File::open(path)?.take(max_bytes + 1).read_to_end(&mut data)?;
+    Ok((data.len() as u64 <= max_bytes).then_some(data))
 }
 
 impl DriverModel {
@@ -113,5 +121,22 @@ impl DriverModel {
             DriverModel::Native(_) => 0,
             DriverModel::Onnx(model) => model.faults(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_read_stops_one_byte_past_the_cap_whatever_the_file_claims_to_be() {
+        // /dev/zero's metadata says 0 bytes and a read of it never ends.
+        assert_eq!(read_capped(Path::new("/dev/zero"), 1024).unwrap(), None);
+        let file = std::env::temp_dir().join(format!("risktwin-read-capped-{}.onnx", std::process::id()));
+        std::fs::write(&file, [7u8; 1024]).unwrap();
+        let (whole, over) = (read_capped(&file, 1024), read_capped(&file, 1023));
+        std::fs::remove_file(&file).unwrap();
+        assert_eq!(whole.unwrap().unwrap().len(), 1024);
+        assert_eq!(over.unwrap(), None);
     }
 }

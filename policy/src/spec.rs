@@ -18,9 +18,9 @@ pub enum DriverSpec {
 }
 
 /// The reference driver's SPEC and label.
-pub const REFERENCE: &str = "idm";
+pub const REFERENCE: &str = risktwin_common::driver::REFERENCE_LABEL;
 /// A recording's own ego: SPEC and label.
-pub const REPLAY: &str = "replay";
+pub const REPLAY: &str = risktwin_common::driver::REPLAY_LABEL;
 
 /// What a driver SPEC may be.
 pub const ACCEPTED: &str = "idm (the reference driver), replay (a recording's ego), PATH.safetensors (a policy file), PATH.onnx (an ONNX model)";

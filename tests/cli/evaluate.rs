@@ -91,6 +91,17 @@ fn a_library_evaluation_stores_outcomes_under_the_label_and_writes_a_report() {
     let outcomes: i64 =
         db.query_row("SELECT COUNT(*) FROM outcomes WHERE policy = ?1", [&label], |r| r.get(0)).unwrap();
     assert_eq!(outcomes as u64, stored);
+    // The library ranks by that driver's outcomes: every scenario, each with its episode's
+    // collision (the reference driver's ranking stays its own).
+    let ranked =
+        ok_json(dir.path(), &["scenarios", "rank", "--db", "lib.db", "--driver", "p/policy.onnx", "--format", "json"]);
+    let ranked = ranked.as_array().expect("an array");
+    assert_eq!(ranked.len() as u64, stored);
+    let episodes = v["episodes"].as_array().expect("episodes");
+    for item in ranked {
+        let episode = episodes.iter().find(|e| e["id"] == item["id"]).expect("ranked scenarios were driven");
+        assert_eq!(item["outcome"]["collision"], episode["metrics"]["collision"], "{item}");
+    }
     for file in ["report.md", "metrics.json", "collision.png", "success.png"] {
         assert!(dir.path().join("report").join(file).is_file(), "{file}");
     }
@@ -123,6 +134,9 @@ fn bad_models_and_flags_exit_2_by_name() {
         &["evaluate", "--driver", "idm", "--db", "none.db"],
         "no scenario library at none.db",
     );
+    // A held-out set's flags have nothing to choose among recordings.
+    let args = ["evaluate", "--driver", "idm", "--commonroad", "x.xml", "--seed", "3"];
+    assert_input_error(dir.path(), &args, "'--seed <SEED>' cannot be used with");
 }
 
 #[test]

@@ -261,6 +261,11 @@ pub struct RankArgs {
     /// Restrict to one kind (or `all`); `commonroad` ranks the recorded cases instead.
     #[arg(long)]
     pub kind: Option<String>,
+    /// Rank by this driver's latest outcomes (`idm`, `replay`, `PATH.safetensors`,
+    /// `PATH.onnx`; default: `idm`, and `replay` for `--kind commonroad`); scenarios it never
+    /// drove are left out.
+    #[arg(long = "driver", visible_alias = "policy", value_name = "SPEC")]
+    pub driver: Option<DriverSpec>,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
 }
@@ -297,8 +302,8 @@ pub struct EvaluateArgs {
     /// Who drives: `PATH.onnx`, `PATH.safetensors` or `idm` (docs/driver-interface.md).
     #[arg(long = "driver", visible_alias = "policy", value_name = "SPEC")]
     pub driver: DriverSpec,
-    /// Drive this library's scenarios (instead of the held-out set) and store every episode's
-    /// outcome there under the driver's label.
+    /// Drive this library's generated scenarios (instead of the held-out set) and add every
+    /// episode's outcome there under the driver's label (each run adds its own).
     #[arg(long, conflicts_with = "held_out")]
     pub db: Option<PathBuf>,
     /// Drive the held-out set of `risktwin run --seed S` (the default).
@@ -309,10 +314,10 @@ pub struct EvaluateArgs {
     #[arg(long, value_name = "FILE", num_args = 1.., conflicts_with_all = ["db", "held_out", "floor"])]
     pub commonroad: Vec<PathBuf>,
     /// The run seed whose held-out set is driven.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true, conflicts_with = "db")]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true, conflicts_with_all = ["db", "commonroad"])]
     pub seed: u64,
     /// Held-out scenarios per kind.
-    #[arg(long, default_value_t = 12, allow_negative_numbers = true, conflicts_with = "db")]
+    #[arg(long, default_value_t = 12, allow_negative_numbers = true, conflicts_with_all = ["db", "commonroad"])]
     pub per_kind: u64,
     /// Also search the achievable floor (the privileged planner) of every scenario.
     #[arg(long)]

@@ -5,7 +5,7 @@ use crate::error::{CliError, CliResult};
 use risktwin_cloud::trainer::drive::Driver;
 use risktwin_common::telemetry::PolicyRef;
 use risktwin_edge::scene::ActivePolicy;
-use risktwin_policy::model::ModelFile;
+use risktwin_policy::model::{DriverModel, ModelFile};
 use risktwin_policy::spec::{self, DriverSpec};
 
 /// A driver of generated scenarios.
@@ -22,7 +22,7 @@ impl LoadedDriver {
     pub fn load(spec: &DriverSpec, flag: &str) -> CliResult<Self> {
         if *spec == DriverSpec::Replay {
             return Err(CliError::input(format!(
-                "{flag} replay plays a recording's ego: generated scenarios are driven by idm or a model file"
+                "{flag} replay plays a recording's ego as recorded; here the ego is driven closed loop: name idm or a model file"
             )));
         }
         let model = load_model(spec)?;
@@ -41,16 +41,20 @@ impl LoadedDriver {
         self.model.map(|file| ActivePolicy { id: PolicyRef { policy_id: label, version: 0 }, model: file.model })
     }
 
-    /// Decisions a model failed to give and that were driven as the zero action (module
-    /// `risktwin_policy::onnx`); said on stderr, as they change what was measured.
+    /// Says the model's faults on stderr ([`warn_faults`]).
     pub fn warn_faults(&self) {
-        let faults = self.model.as_ref().map_or(0, |m| m.model.faults());
-        if faults > 0 {
-            eprintln!(
-                "warning: driver {}: {faults} decisions failed or were not finite (driven as the zero action)",
-                self.label
-            );
+        if let Some(m) = &self.model {
+            warn_faults(&self.label, &m.model);
         }
+    }
+}
+
+/// Decisions `model` failed to give and that were driven as the zero action (module
+/// `risktwin_policy::onnx`), said on stderr when there were any: they change what was measured.
+pub fn warn_faults(label: &str, model: &DriverModel) {
+    let faults = model.faults();
+    if faults > 0 {
+        eprintln!("warning: driver {label}: {faults} decisions failed or were not finite (driven as the zero action)");
     }
 }
 

@@ -2,7 +2,7 @@
 //! publishing real telemetry) until its count, duration or a signal, and print what it sent per
 //! stream as JSON on stdout.
 
-use super::driver::LoadedDriver;
+use super::driver::{LoadedDriver, warn_faults};
 use super::recover::warn_unfinished;
 use super::router::{transport_config, with_signals};
 use crate::cli::{EdgeArgs, ReplayArgs};
@@ -19,8 +19,13 @@ const VEHICLE_ROLE: &str = "edge-vehicle";
 
 pub fn vehicle(args: EdgeArgs) -> CliResult {
     let (config, metrics) = edge_config(args, vehicle::DEFAULT_STATE_RATE_HZ, VEHICLE_ROLE)?;
+    // The driver it started with (a policy push may replace it; its faults still count).
+    let started_with = config.driver.as_ref().map(|d| (d.id.policy_id.clone(), d.model.clone()));
     let summary =
         with_signals(|shutdown| async move { vehicle::run(&config, shutdown).await.map_err(CliError::runtime) })?;
+    if let Some((label, model)) = &started_with {
+        warn_faults(label, model);
+    }
     print_json(&summary)?;
     last_scrape(metrics);
     delivered(&summary.sent)

@@ -4,7 +4,7 @@
 //! ([`risktwin_cloud::trainer::outcomes`]). The document is a function of the flags and the
 //! model file (same seed → same bytes); progress and wall time go to stderr.
 
-use super::driver::LoadedDriver;
+use super::driver::{LoadedDriver, warn_faults};
 use super::recorded::{CommonRoadInput, read_xml};
 use super::scenarios::threads_flag;
 use super::simulate_commonroad::{Recording, drive_model, resimulate_recording};
@@ -113,8 +113,8 @@ pub fn evaluate(args: EvaluateArgs) -> CliResult {
     let (label, model, set, driven, avoidable) =
         if args.commonroad.is_empty() { generated(&args, threads)? } else { recorded(&args, threads)? };
     let faults = model.as_ref().map_or(0, |m| m.model.faults());
-    if faults > 0 {
-        eprintln!("warning: driver {label}: {faults} decisions failed or were not finite (driven as the zero action)");
+    if let Some(m) = &model {
+        warn_faults(&label, &m.model);
     }
     let compare = |kind: Option<&str>| {
         let of = |d: &&Driven| kind.is_none_or(|want| d.kind == want);

@@ -7,7 +7,17 @@ use crate::cli::RegressArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_cloud::trainer::HeldOut;
-use risktwin_cloud::trainer::gate::{SetComparison, gate};
+use risktwin_cloud::trainer::gate::{GateReport, SetComparison, gate};
+use serde::Serialize;
+
+/// The gate's report and the drivers it compared, in the documented key order.
+#[derive(Serialize)]
+struct Labelled<'a> {
+    #[serde(flatten)]
+    report: &'a GateReport,
+    candidate: &'a str,
+    deployed: &'a str,
+}
 
 pub fn regress(args: RegressArgs) -> CliResult {
     if args.per_kind == 0 || args.per_kind > 1000 {
@@ -23,10 +33,7 @@ pub fn regress(args: RegressArgs) -> CliResult {
     deployed.warn_faults();
     match args.format {
         Format::Json => {
-            let mut doc = serde_json::to_value(&report).map_err(CliError::runtime)?;
-            doc["candidate"] = candidate.label.into();
-            doc["deployed"] = deployed.label.into();
-            print_json(&doc)
+            print_json(&Labelled { report: &report, candidate: &candidate.label, deployed: &deployed.label })
         }
         _ => {
             let row = |set: &str, c: &SetComparison| {

@@ -1,5 +1,6 @@
 //! `risktwin scenarios generate|rank|mutate`: the scenario library from the command line.
 
+use super::driver::load_model;
 use super::source::{open_existing_library, parse_kinds};
 use crate::cli::{GenerateArgs, MutateArgs, RankArgs};
 use crate::error::{CliError, CliResult};
@@ -8,7 +9,7 @@ use risktwin_cloud::generate::{MutationError, generate_into, mutate_stored};
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::MutateError;
 use risktwin_store::library::{
-    COMMONROAD_KIND, REPLAY_POLICY, RankOutcome, RankedCase, RankedScenario, ScenarioLibrary,
+    COMMONROAD_KIND, DEFAULT_POLICY, REPLAY_POLICY, RankOutcome, RankedCase, RankedScenario, ScenarioLibrary,
 };
 use serde::Serialize;
 
@@ -87,18 +88,27 @@ pub fn mutate(args: MutateArgs) -> CliResult {
 }
 
 pub fn rank(args: RankArgs) -> CliResult {
+    // The label the driver's outcomes are stored under (a model file's is its path and digest).
+    let label = |default: &str| -> CliResult<String> {
+        match &args.driver {
+            None => Ok(default.to_owned()),
+            Some(spec) => Ok(load_model(spec)?.map_or_else(|| spec.to_string(), |m| m.label())),
+        }
+    };
     let kind = match args.kind.as_deref() {
         Some(COMMONROAD_KIND) => {
-            // Recorded cases, by S_risk of their reference outcome (the replayed ego).
+            // Recorded cases, by default by S_risk of their reference outcome (the replayed ego).
+            let policy = label(REPLAY_POLICY)?;
             let library = open_existing_library(&args.db)?;
-            let ranked = library.rank_recorded(REPLAY_POLICY, args.top)?;
+            let ranked = library.rank_recorded(&policy, args.top)?;
             return print_ranked(&ranked, args.format);
         }
         None | Some("all") => None,
         Some(k) => Some(parse_kinds(k)?[0]),
     };
+    let policy = label(DEFAULT_POLICY)?;
     let library = open_existing_library(&args.db)?;
-    let ranked = library.rank(args.top, kind)?;
+    let ranked = library.rank_for_policy(&policy, args.top, kind)?;
     print_ranked(&ranked, args.format)
 }
 

@@ -5,7 +5,7 @@
 //! Every role is a Zenoh peer listening on loopback only (the router introduces them). Every
 //! child is killed and reaped however the run ends.
 
-use super::driver::LoadedDriver;
+use super::driver::{LoadedDriver, warn_faults};
 use super::recorded::read_xml;
 use super::router::transport_config;
 use super::source::{parse_kinds, read_spec_file};
@@ -87,7 +87,7 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
     let ego_driver = match &args.driver {
         Some(spec) => {
             let loaded = LoadedDriver::load(spec, "--driver")?;
-            loaded.model.map(|file| EgoDriver { label: loaded.label, model: file.model })
+            loaded.model.map(|file| EgoDriver { label: loaded.label, sha256: file.sha256, model: file.model })
         }
         None => None,
     };
@@ -95,6 +95,14 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
 }
 
 /// The V2X channel the arguments ask for, seeded by the scene (`None`: no V2X).
+/// Says on stderr what the ego's model failed to decide in this process (only the ego's own
+/// participant drives it; in the others the count stays 0).
+fn warn_ego_faults(setup: &SceneSetup) {
+    if let Some(d) = setup.ego_driver() {
+        warn_faults(&d.label, &d.model);
+    }
+}
+
 fn v2x_of(args: &SceneArgs, setup: &SceneSetup) -> CliResult<Option<MessageChannel>> {
     let Some(model) = &args.v2x_model else {
         if args.v2x_latency.is_some() || args.v2x_bursts.is_some() {
@@ -348,6 +356,7 @@ pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
     let (_runtime, physics, data) = open_planes(&transport, data.as_ref())?;
     let summary =
         run_participant(&physics, &data, &site, &setup, &args.participant, Timeouts::default()).map_err(scene_error)?;
+    warn_ego_faults(&setup);
     print_json(&summary)
 }
 
@@ -369,6 +378,7 @@ pub fn run(args: SceneRunArgs) -> CliResult {
         let mut plane = Embedded::new(&setup).map_err(scene_error)?;
         let started = Instant::now();
         let outcome = run_scene(&setup, &mut plane).map_err(scene_error)?;
+        warn_ego_faults(&setup);
         log_pace(&outcome, started.elapsed());
         return print_json(&SceneReport { outcome, deadlines: None, v2x: plane.v2x_summaries() });
     }
@@ -452,7 +462,8 @@ fn scene_argv(args: &SceneArgs) -> Vec<String> {
         }
     }
     if let Some(driver) = &args.driver {
-        argv.extend(["--driver".to_owned(), driver.to_string()]);
+        // One argument: a path that starts with `-` is not read as a flag.
+        argv.push(format!("--driver={driver}"));
     }
     argv
 }

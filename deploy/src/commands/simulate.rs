@@ -1,6 +1,6 @@
 //! `risktwin simulate`: one episode of a scenario with the driver `--driver` names.
 
-use super::driver::load_model;
+use super::driver::{load_model, warn_faults};
 use super::recorded::commonroad_input;
 use super::source;
 use crate::cli::SimulateArgs;
@@ -24,17 +24,15 @@ pub fn simulate(args: SimulateArgs) -> CliResult {
     let spec = source::load(&args.source)?;
     let mut trace = args.trace.as_ref().map(|_| String::from(TRACE_HEADER));
     let (mut world, reference) = episode::with_reference_driver(&spec);
-    let mut driver: Box<dyn Policy> = match &args.driver {
-        DriverSpec::Reference => Box::new(reference),
-        DriverSpec::Replay => {
-            return Err(CliError::input(
-                "--driver replay plays a recording's ego: give --commonroad FILE or a recorded case (--db, --id)",
-            ));
-        }
-        DriverSpec::PolicyFile(_) | DriverSpec::Onnx(_) => match load_model(&args.driver)? {
-            Some(file) => Box::new(file.model.driver(world.desired_speed_mps, world.dt_s)),
-            None => Box::new(reference),
-        },
+    if args.driver == DriverSpec::Replay {
+        return Err(CliError::input(
+            "--driver replay plays a recording's ego: give --commonroad FILE or a recorded case (--db, --id)",
+        ));
+    }
+    let model = load_model(&args.driver)?;
+    let mut driver: Box<dyn Policy> = match &model {
+        Some(file) => Box::new(file.model.driver(world.desired_speed_mps, world.dt_s)),
+        None => Box::new(reference),
     };
     let mut recorder = match &args.record {
         None => None,
@@ -55,6 +53,9 @@ pub fn simulate(args: SimulateArgs) -> CliResult {
             record_error = rec.record(w).err();
         }
     });
+    if let Some(file) = &model {
+        warn_faults(&file.label(), &file.model);
+    }
     if let Some(e) = record_error {
         return Err(CliError::runtime(e));
     }

@@ -3,7 +3,7 @@
 //! ego replayed or driven closed-loop (by the reference driver or a model file) from its
 //! recorded initial state — measured like any episode.
 
-use super::driver::load_model;
+use super::driver::{load_model, warn_faults};
 use super::recorded::CommonRoadInput;
 use crate::cli::SimulateArgs;
 use crate::error::{CliError, CliResult};
@@ -64,7 +64,9 @@ pub fn drive(input: &CommonRoadInput, driver: &DriverSpec) -> CliResult<(Resimul
         DriverSpec::Replay => Ok((resimulate_input(input, EgoMode::Replay)?, spec::REPLAY.to_owned())),
         DriverSpec::PolicyFile(_) | DriverSpec::Onnx(_) => {
             let file = load_model(driver)?.ok_or_else(|| CliError::input("the driver has no model file"))?;
-            Ok((drive_model(&Recording::of(input), &file.model)?, file.label()))
+            let run = drive_model(&Recording::of(input), &file.model)?;
+            warn_faults(&file.label(), &file.model);
+            Ok((run, file.label()))
         }
     }
 }

@@ -140,17 +140,20 @@ pub struct SceneSetup {
     ego_driver: Option<EgoDriver>,
 }
 
-/// A model file driving a scene's ego, known by its label (path and digest: part of the
-/// scene's identity, so every participant drives the same file).
+/// A model file driving a scene's ego, known by its content's digest (part of the scene's
+/// identity, so every participant drives the same bytes wherever its copy lies).
 #[derive(Debug, Clone)]
 pub struct EgoDriver {
+    /// How messages name it (path and digest).
     pub label: String,
+    /// SHA-256 of the model file, hex.
+    pub sha256: String,
     pub model: DriverModel,
 }
 
 impl PartialEq for EgoDriver {
     fn eq(&self, other: &Self) -> bool {
-        self.label == other.label
+        self.sha256 == other.sha256
     }
 }
 
@@ -324,7 +327,7 @@ impl SceneSetup {
         let cpm = if self.cpm() { &b"\0cpm"[..] } else { &[][..] };
         let rsus = warnings.iter().chain(cpm).copied();
         // Last, so that a scene with the reference driver keeps the digest it always had.
-        let driver = self.ego_driver.iter().flat_map(|d| b"\0driver\0".iter().chain(d.label.as_bytes()).copied());
+        let driver = self.ego_driver.iter().flat_map(|d| b"\0driver\0".iter().chain(d.sha256.as_bytes()).copied());
         fnv1a64(head.iter().flatten().copied().chain(without).chain(scenario).chain(v2x).chain(rsus).chain(driver))
     }
 

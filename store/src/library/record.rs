@@ -8,7 +8,7 @@ pub use risktwin_common::scenario::content_id;
 use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
 
 /// The policy whose outcomes rank the library: the reference driver of docs/cli.md.
-pub const DEFAULT_POLICY: &str = "idm";
+pub const DEFAULT_POLICY: &str = risktwin_common::driver::REFERENCE_LABEL;
 
 /// How a scenario entered the library.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -19,7 +19,7 @@ use std::collections::BTreeMap;
 pub const COMMONROAD_KIND: &str = "commonroad";
 
 /// The policy label of the reference outcome: the recorded ego played back as it drove.
-pub const REPLAY_POLICY: &str = "replay";
+pub const REPLAY_POLICY: &str = risktwin_common::driver::REPLAY_LABEL;
 
 /// A recorded scenario offered to the library.
 #[derive(Debug, Clone, PartialEq, Eq)]

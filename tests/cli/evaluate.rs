@@ -136,7 +136,7 @@ fn bad_models_and_flags_exit_2_by_name() {
     );
     // A held-out set's flags have nothing to choose among recordings.
     let args = ["evaluate", "--driver", "idm", "--commonroad", "x.xml", "--seed", "3"];
-    assert_input_error(dir.path(), &args, "'--seed <SEED>' cannot be used with");
+    assert_input_error(dir.path(), &args, "cannot be used with '--seed <SEED>'");
 }
 
 #[test]

@@ -78,7 +78,12 @@ impl ModelFile {
     /// The label outcomes are stored under: the path and the start of the digest
     /// (`out/policy.onnx@3f2a…`), so two files of one name never mix.
     pub fn label(&self) -> String {
-        format!("{}@{}", self.path.display(), &self.sha256[..LABEL_DIGEST_HEX])
+        format!("{}{}", self.path.display(), self.label_suffix())
+    }
+
+    /// The end of the label that names the content whatever the path: `@` and the digest's start.
+    pub fn label_suffix(&self) -> String {
+        format!("@{}", &self.sha256[..LABEL_DIGEST_HEX])
     }
 }
 
@@ -86,8 +91,13 @@ impl ModelFile {
 /// whatever the file is (a FIFO, a link to /dev/zero): its metadata's length cannot be
 /// trusted to bound the read.
 fn read_capped(path: &Path, max_bytes: u64) -> std::io::Result<Option<Vec<u8>>> {
+    let file = std::fs::File::open(path)?;
+    let meta = file.metadata()?;
+    if meta.is_file() && meta.len() > max_bytes {
+        return Ok(None); // a regular file says its length: refused unread
+    }
     let mut data = Vec::new();
-    std::fs::File::open(path)?.take(max_bytes + 1).read_to_end(&mut data)?;
+    file.take(max_bytes + 1).read_to_end(&mut data)?;
     Ok((data.len() as u64 <= max_bytes).then_some(data))
 }
 

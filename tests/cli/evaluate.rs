@@ -102,6 +102,12 @@ fn a_library_evaluation_stores_outcomes_under_the_label_and_writes_a_report() {
         let episode = episodes.iter().find(|e| e["id"] == item["id"]).expect("ranked scenarios were driven");
         assert_eq!(item["outcome"]["collision"], episode["metrics"]["collision"], "{item}");
     }
+    // The same file by another path is the same driver (its digest); replay is no generated
+    // scenario's driver.
+    let by_other_path = ["scenarios", "rank", "--db", "lib.db", "--driver", "./p/../p/policy.onnx", "--format", "json"];
+    assert_eq!(&ok_json(dir.path(), &by_other_path), &Value::Array(ranked.clone()));
+    let args = ["scenarios", "rank", "--db", "lib.db", "--driver", "replay"];
+    assert_input_error(dir.path(), &args, "--kind commonroad");
     for file in ["report.md", "metrics.json", "collision.png", "success.png"] {
         assert!(dir.path().join("report").join(file).is_file(), "{file}");
     }
@@ -135,8 +141,14 @@ fn bad_models_and_flags_exit_2_by_name() {
         "no scenario library at none.db",
     );
     // A held-out set's flags have nothing to choose among recordings.
-    let args = ["evaluate", "--driver", "idm", "--commonroad", "x.xml", "--seed", "3"];
-    assert_input_error(dir.path(), &args, "cannot be used with '--seed <SEED>'");
+    for (flag, value) in [("--seed", "3"), ("--per-kind", "2")] {
+        for (set, of) in [("--commonroad", "x.xml"), ("--db", "lib.db")] {
+            let args = ["evaluate", "--driver", "idm", set, of, flag, value];
+            assert_input_error(dir.path(), &args, "cannot be used with");
+        }
+    }
+    let args = ["evaluate", "--driver", "idm", "--per-kind", "1", "--format", "csv"];
+    assert_input_error(dir.path(), &args, "not CSV");
 }
 
 #[test]

@@ -1,7 +1,7 @@
 //! `scenarios regress`: the regression gate holds back a policy that drives worse than the
 //! deployed version and lets through one that drives no worse.
 
-use crate::support::{assert_input_error, generate, ok_json, uint};
+use crate::support::{assert_input_error, generate, ok_json, ok_stdout, uint};
 use serde_json::Value;
 use tempfile::tempdir;
 
@@ -43,6 +43,13 @@ fn a_barely_trained_policy_is_held_back_and_one_no_worse_is_pushed() {
     let onnx = regress(dir.path(), &["--against", "weak/policy.onnx"]);
     assert_eq!(onnx["decision"], "push", "{onnx}");
     assert!(onnx["deployed"].as_str().is_some_and(|l| l.starts_with("weak/policy.onnx@")), "{onnx}");
+    // The document's keys in the order docs/cli.md gives them.
+    let args = ["scenarios", "regress", "--db", "lib.db", "--driver", "weak/policy.onnx", "--per-kind", "1"];
+    let raw = ok_stdout(dir.path(), &[&args[..], &["--format", "json"]].concat());
+    let top: Vec<&str> =
+        raw.lines().filter_map(|l| l.strip_prefix("  \"")).filter_map(|l| l.split('"').next()).collect();
+    let documented = ["decision", "reasons", "regression", "held_out", "completion_tolerance", "candidate", "deployed"];
+    assert_eq!(top, documented, "{raw}");
 }
 
 #[test]

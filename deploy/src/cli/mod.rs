@@ -40,7 +40,7 @@ pub enum Command {
     /// Generate and rank scenarios in a library database.
     #[command(subcommand)]
     Scenarios(ScenariosCommand),
-    /// Simulate one episode with the reference driver.
+    /// Simulate one episode (the reference driver, a model file or a recording's ego: --driver).
     Simulate(SimulateArgs),
     /// Evaluate a driver (policy file, ONNX model or the reference driver) on the held-out set
     /// or a library's scenarios: per-kind outcome shares and means with 95 % intervals, beside

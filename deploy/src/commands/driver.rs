@@ -20,12 +20,21 @@ impl LoadedDriver {
     /// Loads `spec`; `flag` names the option in the message for `replay`, which plays a
     /// recording's ego and has nothing to drive a generated scenario with.
     pub fn load(spec: &DriverSpec, flag: &str) -> CliResult<Self> {
+        let loaded = Self::quietly(spec, flag)?;
+        if let Some(m) = &loaded.model {
+            warn_model(&m.path.display().to_string(), &m.model);
+        }
+        Ok(loaded)
+    }
+
+    /// [`Self::load`] without the load's warnings (for a process that does not drive it).
+    pub fn quietly(spec: &DriverSpec, flag: &str) -> CliResult<Self> {
         if *spec == DriverSpec::Replay {
             return Err(CliError::input(format!(
                 "{flag} replay plays a recording's ego as recorded; here the ego is driven closed loop: name idm or a model file"
             )));
         }
-        let model = load_model(spec)?;
+        let model = spec.load().map_err(CliError::input)?;
         let label = model.as_ref().map_or_else(|| spec::REFERENCE.to_owned(), ModelFile::label);
         Ok(Self { label, model })
     }
@@ -62,9 +71,15 @@ pub fn warn_faults(label: &str, model: &DriverModel) {
 pub fn load_model(spec: &DriverSpec) -> CliResult<Option<ModelFile>> {
     let model = spec.load().map_err(CliError::input)?;
     if let Some(m) = &model {
-        for warning in m.model.warnings() {
-            eprintln!("warning: driver {}: {warning}", m.path.display());
-        }
+        warn_model(&m.path.display().to_string(), &m.model);
     }
     Ok(model)
+}
+
+/// What the load of `model` found worth a warning (an ONNX model without its metadata), on
+/// stderr.
+pub fn warn_model(shown: &str, model: &DriverModel) {
+    for warning in model.warnings() {
+        eprintln!("warning: driver {shown}: {warning}");
+    }
 }

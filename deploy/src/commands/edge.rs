@@ -22,10 +22,11 @@ pub fn vehicle(args: EdgeArgs) -> CliResult {
     // The driver it started with (a policy push may replace it; its faults still count).
     let started_with = config.driver.as_ref().map(|d| (d.id.policy_id.clone(), d.model.clone()));
     let summary =
-        with_signals(|shutdown| async move { vehicle::run(&config, shutdown).await.map_err(CliError::runtime) })?;
+        with_signals(|shutdown| async move { vehicle::run(&config, shutdown).await.map_err(CliError::runtime) });
     if let Some((label, model)) = &started_with {
         warn_faults(label, model);
     }
+    let summary = summary?;
     print_json(&summary)?;
     last_scrape(metrics);
     delivered(&summary.sent)

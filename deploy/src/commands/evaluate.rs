@@ -108,6 +108,9 @@ pub fn evaluate(args: EvaluateArgs) -> CliResult {
     if args.per_kind == 0 || args.per_kind > 10_000 {
         return Err(CliError::input(format!("--per-kind {} is out of range [1, 10000]", args.per_kind)));
     }
+    if args.format == Format::Csv {
+        return Err(CliError::input("evaluate prints a table or JSON (--format table|json), not CSV"));
+    }
     let threads = threads_flag(args.threads)?;
     let started = Instant::now();
     let (label, model, set, driven, avoidable) =

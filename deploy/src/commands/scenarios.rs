@@ -8,6 +8,8 @@ use crate::output::{Format, csv_float, print_json, print_table};
 use risktwin_cloud::generate::{MutationError, generate_into, mutate_stored};
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::MutateError;
+use risktwin_policy::model::ModelFile;
+use risktwin_policy::spec::DriverSpec;
 use risktwin_store::library::{
     COMMONROAD_KIND, DEFAULT_POLICY, REPLAY_POLICY, RankOutcome, RankedCase, RankedScenario, ScenarioLibrary,
 };
@@ -88,28 +90,47 @@ pub fn mutate(args: MutateArgs) -> CliResult {
 }
 
 pub fn rank(args: RankArgs) -> CliResult {
-    // The label the driver's outcomes are stored under (a model file's is its path and digest).
-    let label = |default: &str| -> CliResult<String> {
-        match &args.driver {
-            None => Ok(default.to_owned()),
-            Some(spec) => Ok(load_model(spec)?.map_or_else(|| spec.to_string(), |m| m.label())),
-        }
-    };
+    let recorded = args.kind.as_deref() == Some(COMMONROAD_KIND);
     let kind = match args.kind.as_deref() {
-        Some(COMMONROAD_KIND) => {
-            // Recorded cases, by default by S_risk of their reference outcome (the replayed ego).
-            let policy = label(REPLAY_POLICY)?;
-            let library = open_existing_library(&args.db)?;
-            let ranked = library.rank_recorded(&policy, args.top)?;
-            return print_ranked(&ranked, args.format);
-        }
-        None | Some("all") => None,
+        Some(COMMONROAD_KIND) | None | Some("all") => None,
         Some(k) => Some(parse_kinds(k)?[0]),
     };
-    let policy = label(DEFAULT_POLICY)?;
+    if args.driver == Some(DriverSpec::Replay) && !recorded {
+        return Err(CliError::input(
+            "--driver replay is a recording's ego: rank recorded cases with --kind commonroad",
+        ));
+    }
+    let model = args.driver.as_ref().map(load_model).transpose()?.flatten();
     let library = open_existing_library(&args.db)?;
-    let ranked = library.rank_for_policy(&policy, args.top, kind)?;
-    print_ranked(&ranked, args.format)
+    let label = match (&model, &args.driver) {
+        (Some(m), _) => stored_label(&library, m, recorded)?,
+        (None, Some(spec)) => spec.to_string(),
+        // Recorded cases by default by their replayed ego's outcome.
+        (None, None) if recorded => REPLAY_POLICY.to_owned(),
+        (None, None) => DEFAULT_POLICY.to_owned(),
+    };
+    if recorded {
+        print_ranked(&library.rank_recorded(&label, args.top)?, args.format)
+    } else {
+        print_ranked(&library.rank_for_policy(&label, args.top, kind)?, args.format)
+    }
+}
+
+/// The label a model file's outcomes are stored under in `library`: the label it has here, or
+/// the one label of the same content under another path (evaluated from another folder).
+fn stored_label(library: &ScenarioLibrary, model: &ModelFile, recorded: bool) -> CliResult<String> {
+    let own = model.label();
+    let stored = library.labels_ending_with(&model.label_suffix(), recorded)?;
+    match stored.as_slice() {
+        [] => Ok(own),
+        [one] => Ok(one.clone()),
+        _ if stored.contains(&own) => Ok(own),
+        _ => Err(CliError::input(format!(
+            "{} has outcomes under several labels ({}): name it by the path it was evaluated under",
+            model.path.display(),
+            stored.join(", ")
+        ))),
+    }
 }
 
 /// How one ranked item prints besides JSON: what names it, then its risk and outcome.

@@ -5,7 +5,7 @@
 //! Every role is a Zenoh peer listening on loopback only (the router introduces them). Every
 //! child is killed and reaped however the run ends.
 
-use super::driver::{LoadedDriver, warn_faults};
+use super::driver::{LoadedDriver, warn_faults, warn_model};
 use super::recorded::read_xml;
 use super::router::transport_config;
 use super::source::{parse_kinds, read_spec_file};
@@ -86,7 +86,8 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
     }
     let ego_driver = match &args.driver {
         Some(spec) => {
-            let loaded = LoadedDriver::load(spec, "--driver")?;
+            // Quietly: every process of a scene loads it, the ego's own warns (`warn_ego_model`).
+            let loaded = LoadedDriver::quietly(spec, "--driver")?;
             loaded.model.map(|file| EgoDriver { label: loaded.label, sha256: file.sha256, model: file.model })
         }
         None => None,
@@ -94,7 +95,13 @@ fn setup_of(args: &SceneArgs) -> CliResult<SceneSetup> {
     Ok(setup.with_v2x(v2x).with_warnings(args.v2x_warnings).with_cpm(args.v2x_cpm).with_ego_driver(ego_driver))
 }
 
-/// The V2X channel the arguments ask for, seeded by the scene (`None`: no V2X).
+/// The ego model's load warnings on stderr, from the process that drives it.
+fn warn_ego_model(setup: &SceneSetup) {
+    if let Some(d) = setup.ego_driver() {
+        warn_model(&d.label, &d.model);
+    }
+}
+
 /// Says on stderr what the ego's model failed to decide in this process (only the ego's own
 /// participant drives it; in the others the count stays 0).
 fn warn_ego_faults(setup: &SceneSetup) {
@@ -103,6 +110,7 @@ fn warn_ego_faults(setup: &SceneSetup) {
     }
 }
 
+/// The V2X channel the arguments ask for, seeded by the scene (`None`: no V2X).
 fn v2x_of(args: &SceneArgs, setup: &SceneSetup) -> CliResult<Option<MessageChannel>> {
     let Some(model) = &args.v2x_model else {
         if args.v2x_latency.is_some() || args.v2x_bursts.is_some() {
@@ -354,10 +362,12 @@ pub fn participant(args: SceneParticipantArgs, as_role: &str) -> CliResult {
     let transport = transport_config(args.zenoh)?;
     let _metrics = crate::metrics_endpoint::start(&args.metrics, &format!("scene-{as_role}"))?;
     let (_runtime, physics, data) = open_planes(&transport, data.as_ref())?;
-    let summary =
-        run_participant(&physics, &data, &site, &setup, &args.participant, Timeouts::default()).map_err(scene_error)?;
+    if role == Role::Ego {
+        warn_ego_model(&setup);
+    }
+    let summary = run_participant(&physics, &data, &site, &setup, &args.participant, Timeouts::default());
     warn_ego_faults(&setup);
-    print_json(&summary)
+    print_json(&summary.map_err(scene_error)?)
 }
 
 pub fn run(args: SceneRunArgs) -> CliResult {
@@ -376,9 +386,11 @@ pub fn run(args: SceneRunArgs) -> CliResult {
             return Err(CliError::input("--embedded runs in virtual time; --clock realtime needs the processes"));
         }
         let mut plane = Embedded::new(&setup).map_err(scene_error)?;
+        warn_ego_model(&setup);
         let started = Instant::now();
-        let outcome = run_scene(&setup, &mut plane).map_err(scene_error)?;
+        let outcome = run_scene(&setup, &mut plane);
         warn_ego_faults(&setup);
+        let outcome = outcome.map_err(scene_error)?;
         log_pace(&outcome, started.elapsed());
         return print_json(&SceneReport { outcome, deadlines: None, v2x: plane.v2x_summaries() });
     }

@@ -235,9 +235,6 @@ impl OnnxPolicy {
         Ok(policy)
     }
 
-    /// tract's reading of `proto` for one observation at a time, optimised. tract answers most
-    /// faults with an error, but an operator may panic on a graph it did not expect: that is the
-    /// model's fault too, refused as such (the panic's own message goes to stderr first).
     /// Runs the probe sequence; every output must be finite.
     fn probe(&self) -> Result<(), OnnxError> {
         let mut actor = self.session().map_err(|e| OnnxError::Unsupported(format!("{e:#}")))?;

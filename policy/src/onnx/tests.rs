@@ -187,3 +187,25 @@ fn a_host_policy_from_a_file_exports_the_same_model() {
     let back = HostPolicy::from_safetensors(&host.to_safetensors().expect("bytes")).expect("read");
     assert_eq!(back.to_onnx(), host.to_onnx());
 }
+
+#[test]
+fn a_decision_that_is_not_finite_at_run_time_drives_as_the_zero_action_and_is_counted() {
+    // √(observation·W + ½): finite over the probe's range (|Σ| ≤ 0.36), NaN far outside it.
+    let mut g = Graph::default();
+    let w = g.constant("w".into(), &[OBS_DIM, 3], &[0.01; OBS_DIM * 3]);
+    let half = g.constant("half".into(), &[], &[0.5]);
+    let product = g.op("MatMul", &["observation", &w], "product".into());
+    let shifted = g.op("Add", &[&product, &half], "shifted".into());
+    g.op("Sqrt", &[&shifted], "action".into());
+    let meta =
+        [(OBSERVATION_VERSION_KEY, OBSERVATION_VERSION.to_string()), (DECISION_RATE_KEY, DECISION_RATE_HZ.to_string())];
+    let bytes = model(g, vec![value("observation", OBS_DIM)], vec![value("action", 3)], &meta).encode_to_vec();
+    let onnx = Arc::new(OnnxPolicy::from_bytes(&bytes).expect("passes its probe"));
+    let mut actor = onnx.actor();
+    assert!(actor(&[0.0; OBS_DIM]).iter().all(|&a| (a - 0.5f32.sqrt()).abs() < 1e-6));
+    assert_eq!(onnx.faults(), 0);
+    assert_eq!(actor(&[-10.0; OBS_DIM]), [0.0; 3], "a NaN decision drives as the zero action");
+    assert_eq!(actor(&[-10.0; OBS_DIM]), [0.0; 3]);
+    assert_eq!(onnx.faults(), 2, "each counted");
+    assert!(actor(&[0.0; OBS_DIM])[0] > 0.0, "the next finite decision drives");
+}

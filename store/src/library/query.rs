@@ -85,6 +85,17 @@ impl ScenarioLibrary {
         Ok(chain)
     }
 
+    /// The driver labels that outcomes of generated scenarios (or, with `recorded`, of
+    /// recorded cases) are stored under and that end with `suffix` (a model file's `@` and
+    /// digest: the same file evaluated under other paths), sorted.
+    pub fn labels_ending_with(&self, suffix: &str, recorded: bool) -> Result<Vec<String>, LibraryError> {
+        let table = if recorded { "recorded_outcomes" } else { "outcomes" };
+        let sql = format!("SELECT DISTINCT policy FROM {table} WHERE substr(policy, -length(?1)) = ?1 ORDER BY policy");
+        let mut stmt = self.conn.prepare_cached(&sql)?;
+        let rows = stmt.query_map([suffix], |r| r.get::<_, String>(0))?;
+        Ok(rows.collect::<Result<Vec<_>, _>>()?)
+    }
+
     /// Stored, rejected and colliding (latest default-policy outcome) counts for every kind.
     pub fn count_by_kind(&self) -> Result<BTreeMap<ScenarioKind, KindCounts>, LibraryError> {
         let mut counts: BTreeMap<ScenarioKind, KindCounts> =

@@ -5,6 +5,7 @@ mod episode;
 mod onnx_models;
 mod peer_cache;
 mod peer_python;
+mod python_package;
 
 use std::process::Command;
 

@@ -13,10 +13,12 @@
 //! - [`gate`]: the regression gate a policy version passes before it is pushed.
 //! - [`stats`]: the metrics of paper table 1 (plus S_risk) and their spread.
 //! - [`outcomes`]: a driver's outcome shares and means with 95 % intervals.
+//! - [`evaluation`]: one driver's evaluation document beside the reference driver.
 
 pub mod ablation;
 pub mod curriculum;
 pub mod drive;
+pub mod evaluation;
 pub mod floor;
 pub mod gate;
 pub mod held_out;

@@ -176,6 +176,25 @@ fn vec_env_is_deterministic_across_thread_counts_and_resets() {
 }
 
 #[test]
+fn a_restart_starts_each_environments_next_episode_as_an_auto_reset_would() {
+    let reward = TrainingReward::eq7(Variant::Full.weights());
+    let source = ScenarioSource::all_kinds(3);
+    let mut env = VecEnv::new(4, source.clone(), reward).expect("source");
+    env.step(&[0.0; 4 * ACT_DIM]).expect("step");
+    env.restart().expect("restart");
+    // Episode 1 of each environment, from its s_0.
+    for i in 0..4 {
+        let mut obs = [0.0; OBS_DIM];
+        DrivingEnv::new(&source.spec(i, 1).expect("spec"), reward, &mut obs);
+        assert_eq!(&env.obs()[i * OBS_DIM..(i + 1) * OBS_DIM], &obs[..], "environment {i}");
+    }
+    assert!(env.rewards().iter().all(|&r| r == 0.0) && env.terminated().iter().all(|&t| t == 0));
+    let mut abandoned = 0;
+    env.drain_finished(|_, _| abandoned += 1);
+    assert_eq!(abandoned, 0, "an abandoned episode is not reported");
+}
+
+#[test]
 fn variants_parse_and_base_has_no_risk_weight() {
     assert_eq!("risk-only".parse::<Variant>(), Ok(Variant::RiskOnly));
     assert!("bogus".parse::<Variant>().is_err());

@@ -158,6 +158,29 @@ impl VecEnv {
         Ok(())
     }
 
+    /// Abandons every environment's episode and starts its next one from the source (an
+    /// abandoned episode is not reported by [`Self::drain_finished`]).
+    pub fn restart(&mut self) -> Result<(), SourceError> {
+        let source = &self.source;
+        let results: Vec<Result<(), SourceError>> = self
+            .slots
+            .par_iter_mut()
+            .zip(self.obs.par_chunks_mut(OBS_DIM))
+            .enumerate()
+            .map(|(i, (slot, obs))| {
+                let obs: &mut [f32; OBS_DIM] = obs.try_into().expect("chunks are OBS_DIM long");
+                slot.episode += 1;
+                (slot.finished, slot.outcome) = (None, StepOutcome::default());
+                slot.env.reset(&source.spec(i, slot.episode)?, obs);
+                Ok(())
+            })
+            .collect();
+        self.rewards.fill(0.0);
+        self.terminated.fill(0);
+        self.truncated.fill(0);
+        results.into_iter().collect()
+    }
+
     /// Hands the episodes finished by the last step, in environment order, to `f`.
     pub fn drain_finished(&mut self, mut f: impl FnMut(usize, EpisodeSummary)) {
         for (i, slot) in self.slots.iter_mut().enumerate() {

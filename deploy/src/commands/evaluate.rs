@@ -14,99 +14,27 @@ use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
 use risktwin_cloud::generate::parallel_map;
 use risktwin_cloud::trainer::HeldOut;
-use risktwin_cloud::trainer::drive::Driver;
-use risktwin_cloud::trainer::evaluate_floor;
-use risktwin_cloud::trainer::outcomes::{CONFIDENCE, OutcomeSummary, Share};
+use risktwin_cloud::trainer::evaluation::{
+    self, Comparison, Driven, EvaluationDoc, MAX_PER_KIND, ScenarioSet, library_specs, reference_runs, store_outcomes,
+};
+use risktwin_cloud::trainer::outcomes::{OutcomeSummary, Share};
 use risktwin_common::episode::EpisodeResult;
-use risktwin_common::metrics::{Ending, EpisodeMetrics};
-use risktwin_common::planner::Verdict;
-use risktwin_common::scenario::{ScenarioKind, ScenarioSpec};
+use risktwin_common::scenario::ScenarioSpec;
 use risktwin_commonroad::twin::{EgoMode, Resimulation};
 use risktwin_pipeline::figures::{ShareSeries, shares, write_png};
 use risktwin_policy::model::ModelFile;
 use risktwin_policy::spec::{self, DriverSpec};
-use risktwin_store::library::{COMMONROAD_KIND, Outcome, ScenarioLibrary, ScenarioRecord, content_id, recorded_id};
-use serde::Serialize;
-use std::collections::BTreeMap;
+use risktwin_store::library::{COMMONROAD_KIND, recorded_id};
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
-
-/// Which scenarios were driven.
-#[derive(Debug, Serialize)]
-#[serde(tag = "source", rename_all = "kebab-case")]
-enum ScenarioSet {
-    HeldOut {
-        seed: u64,
-        per_kind: u64,
-    },
-    Library {
-        db: String,
-    },
-    #[serde(rename = "commonroad")]
-    CommonRoad {
-        files: Vec<String>,
-    },
-}
-
-/// The achievable floor of a set: scenarios in which the privileged planner found a drive that
-/// completes the route unharmed, and the collision share no driver can go below (1 − that).
-#[derive(Debug, Serialize)]
-struct FloorSummary {
-    avoidable: Share,
-}
-
-/// One kind (or all): the driver, the reference driver and the floor.
-#[derive(Debug, Serialize)]
-struct Comparison {
-    driver: OutcomeSummary,
-    reference: OutcomeSummary,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    floor: Option<FloorSummary>,
-}
-
-/// One scenario's episode.
-#[derive(Debug, Serialize)]
-struct EpisodeRow {
-    id: String,
-    /// A scenario kind, or `commonroad` for a recording.
-    kind: String,
-    /// The generated scenario's seed (`null` for a recording).
-    seed: Option<u64>,
-    ended: Ending,
-    reference_ended: Ending,
-    metrics: EpisodeMetrics,
-}
-
-/// A scenario driven by the driver and by the reference driver.
-struct Driven {
-    id: String,
-    kind: String,
-    seed: Option<u64>,
-    driver: EpisodeResult,
-    reference: EpisodeResult,
-}
-
-/// The JSON document (docs/cli.md).
-#[derive(Debug, Serialize)]
-struct EvaluationDoc {
-    driver: String,
-    reference: &'static str,
-    set: ScenarioSet,
-    confidence: f64,
-    overall: Comparison,
-    by_kind: BTreeMap<String, Comparison>,
-    /// Decisions the model failed to give (driven as the zero action); 0 for a sound model.
-    model_faults: u64,
-    episodes: Vec<EpisodeRow>,
-}
 
 /// Scenarios per progress line and worker batch: a few per thread.
 const BATCH_PER_THREAD: usize = 4;
 
 pub fn evaluate(args: EvaluateArgs) -> CliResult {
-    if args.per_kind == 0 || args.per_kind > 10_000 {
-        return Err(CliError::input(format!("--per-kind {} is out of range [1, 10000]", args.per_kind)));
+    if !(1..=MAX_PER_KIND).contains(&args.per_kind) {
+        return Err(CliError::input(format!("--per-kind {} is out of range [1, {MAX_PER_KIND}]", args.per_kind)));
     }
     if args.format == Format::Csv {
         return Err(CliError::input("evaluate prints a table or JSON (--format table|json), not CSV"));
@@ -119,39 +47,7 @@ pub fn evaluate(args: EvaluateArgs) -> CliResult {
     if let Some(m) = &model {
         warn_faults(&label, &m.model);
     }
-    let compare = |kind: Option<&str>| {
-        let of = |d: &&Driven| kind.is_none_or(|want| d.kind == want);
-        let pick =
-            |f: fn(&Driven) -> &EpisodeResult| OutcomeSummary::of(driven.iter().filter(of).map(|d| &f(d).metrics));
-        let floor = avoidable.as_ref().map(|a| {
-            let (mine, n) =
-                driven.iter().zip(a).filter(|(d, _)| of(d)).fold((0, 0), |(k, n), (_, &v)| (k + u64::from(v), n + 1));
-            FloorSummary { avoidable: Share::wilson(mine, n) }
-        });
-        Comparison { driver: pick(|d| &d.driver), reference: pick(|d| &d.reference), floor }
-    };
-    let mut kinds: Vec<&str> = ScenarioKind::ALL.iter().map(|k| k.name()).chain([COMMONROAD_KIND]).collect();
-    kinds.retain(|k| driven.iter().any(|d| d.kind == *k));
-    let doc = EvaluationDoc {
-        driver: label,
-        reference: spec::REFERENCE,
-        set,
-        confidence: CONFIDENCE,
-        overall: compare(None),
-        by_kind: kinds.iter().map(|&k| (k.to_owned(), compare(Some(k)))).collect(),
-        model_faults: faults,
-        episodes: driven
-            .iter()
-            .map(|d| EpisodeRow {
-                id: d.id.clone(),
-                kind: d.kind.clone(),
-                seed: d.seed,
-                ended: d.driver.metrics.ending(),
-                reference_ended: d.reference.metrics.ending(),
-                metrics: d.driver.metrics.clone(),
-            })
-            .collect(),
-    };
+    let doc = EvaluationDoc::new(label, set, &driven, avoidable.as_deref(), faults);
     eprintln!("evaluate: {} scenarios in {:.1} s", driven.len(), started.elapsed().as_secs_f64());
     if let Some(out) = &args.out {
         write_report(out, &doc)?;
@@ -181,26 +77,15 @@ fn generated(args: &EvaluateArgs, threads: usize) -> CliResult<Evaluation> {
         return Err(CliError::input("the library holds no generated scenarios to evaluate on"));
     }
     let runs = with_progress(&specs, threads, "driver", |batch| driver.driver().episodes(batch, threads));
-    let reference = with_progress(&specs, threads, "reference", |batch| Driver::Reference.episodes(batch, threads));
+    let reference = with_progress(&specs, threads, "reference", |batch| reference_runs(batch, threads));
     let avoidable = args.floor.then(|| {
         eprintln!("evaluate: searching the floor of {} scenarios", specs.len());
-        let metrics: Vec<EpisodeMetrics> = reference.iter().map(|r| r.metrics.clone()).collect();
-        evaluate_floor(&specs, &metrics, threads).cases.iter().map(|c| c.verdict == Verdict::Avoidable).collect()
+        evaluation::avoidable(&specs, &reference, threads)
     });
     if let Some(lib) = library.as_mut() {
         store_outcomes(lib, &specs, &runs, &driver.label)?;
     }
-    let driven = specs
-        .iter()
-        .zip(runs.into_iter().zip(reference))
-        .map(|(s, (driver, reference))| Driven {
-            id: content_id(s),
-            kind: s.kind.name().to_owned(),
-            seed: Some(s.seed),
-            driver,
-            reference,
-        })
-        .collect();
+    let driven = Driven::generated(&specs, runs, reference);
     Ok((driver.label, driver.model, set, driven, avoidable))
 }
 
@@ -247,18 +132,6 @@ fn recorded(args: &EvaluateArgs, threads: usize) -> CliResult<Evaluation> {
     Ok((label, model, ScenarioSet::CommonRoad { files }, runs, None))
 }
 
-/// Every generated scenario of the library, in id order.
-fn library_specs(library: &ScenarioLibrary) -> CliResult<Vec<ScenarioSpec>> {
-    let mut ids: Vec<String> = library.rank(None, None)?.into_iter().map(|r| r.id).collect();
-    ids.sort();
-    ids.iter()
-        .map(|id| {
-            let stored = library.get(id)?.ok_or_else(|| CliError::runtime(format!("scenario {id} vanished")))?;
-            Ok(stored.spec)
-        })
-        .collect()
-}
-
 /// `drive` over `specs` in batches, a progress line on stderr after each.
 fn with_progress(
     specs: &[ScenarioSpec],
@@ -273,20 +146,6 @@ fn with_progress(
     }
     let _ = writeln!(std::io::stderr());
     results
-}
-
-/// Every episode's outcome in the library under `label` (a collision marks a regression case).
-fn store_outcomes(lib: &mut ScenarioLibrary, specs: &[ScenarioSpec], runs: &[EpisodeResult], label: &str) -> CliResult {
-    let records: Vec<ScenarioRecord> = specs
-        .iter()
-        .zip(runs)
-        .map(|(s, r)| {
-            let outcome = Outcome { policy: label.to_owned(), metrics: r.metrics.clone(), risk: r.risk };
-            ScenarioRecord::sampled(s.clone(), outcome)
-        })
-        .collect();
-    lib.insert_batch(&records)?;
-    Ok(())
 }
 
 /// One row per kind and one for all.

@@ -1,0 +1,158 @@
+//! The training environment as `risktwin train` steps it: `n` driving environments in
+//! flat buffers, stepped in parallel (rayon) with the GIL released, auto-reset in the same
+//! step (Gymnasium's `SAME_STEP` mode) with the final observation kept apart.
+
+use crate::error::{bad_input, failed};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use risktwin_common::env::{ACT_DIM, DEFAULT_REPLAY_SHARE, OBS_DIM, RiskShaping, ScenarioSource, Variant};
+use risktwin_common::scenario::ScenarioKind;
+use risktwin_learn::train::risk_ranked_specs;
+
+/// Candidates per kind `full`'s replay list is ranked from, as `risktwin train` ranks it.
+const REPLAY_CANDIDATES_PER_KIND: usize = 40;
+
+/// What one step gives back: observations, rewards, terminated, truncated, final observations.
+type StepArrays<'py> = (
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray1<f32>>,
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray2<f32>>,
+);
+
+/// `n` environments of one variant drawing scenarios of one kind or of all five.
+#[pyclass(module = "risktwin._native")]
+pub struct VecEnv {
+    env: risktwin_common::env::VecEnv,
+    n: usize,
+    kind: Option<ScenarioKind>,
+    variant: Variant,
+    /// The last step's actions, copied out of the caller's array (reused: no allocation).
+    actions: Vec<f32>,
+}
+
+impl VecEnv {
+    /// The scenario stream of `seed`: the trainer's for all kinds (for `full`, its replay of
+    /// the risk-ranked list beside fresh samples), else fresh samples of `kind`.
+    fn source(kind: Option<ScenarioKind>, variant: Variant, seed: u64) -> ScenarioSource {
+        match kind {
+            None if variant == Variant::Full => ScenarioSource::Replay {
+                seed,
+                specs: risk_ranked_specs(seed, REPLAY_CANDIDATES_PER_KIND),
+                share: DEFAULT_REPLAY_SHARE,
+            },
+            None => ScenarioSource::all_kinds(seed),
+            Some(kind) => ScenarioSource::Sampled { seed, kinds: vec![kind] },
+        }
+    }
+
+    fn build(py: Python<'_>, n: usize, kind: Option<ScenarioKind>, variant: Variant, seed: u64) -> PyResult<Self> {
+        let env = py.detach(|| {
+            let reward = variant.training_reward(RiskShaping::default());
+            risktwin_common::env::VecEnv::new(n, Self::source(kind, variant, seed), reward)
+        });
+        Ok(Self { env: env.map_err(failed)?, n, kind, variant, actions: vec![0.0; n * ACT_DIM] })
+    }
+
+    fn rows<'py>(&self, py: Python<'py>, flat: &[f32], width: usize) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        PyArray1::from_slice(py, flat).reshape([self.n, width])
+    }
+}
+
+#[pymethods]
+impl VecEnv {
+    /// `n` environments (1 to 65,536) of `variant` (base, risk-only, full, ttc) on scenarios
+    /// of `kind` (None: all five, as the trainer samples them), the stream of `seed`.
+    #[new]
+    #[pyo3(signature = (n, *, kind = None, variant = "full", seed = 0))]
+    fn new(py: Python<'_>, n: usize, kind: Option<&str>, variant: &str, seed: u64) -> PyResult<Self> {
+        if !(1..=65_536).contains(&n) {
+            return Err(bad_input(format!("n = {n} environments is out of range [1, 65536]")));
+        }
+        let kind = kind.map(str::parse::<ScenarioKind>).transpose().map_err(bad_input)?;
+        let variant = variant.parse::<Variant>().map_err(bad_input)?;
+        Self::build(py, n, kind, variant, seed)
+    }
+
+    #[getter]
+    fn num_envs(&self) -> usize {
+        self.n
+    }
+
+    /// The current observations, `(n, 24)` float32 (a fresh array).
+    fn obs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        self.rows(py, self.env.obs(), OBS_DIM)
+    }
+
+    /// With a seed: every environment from the first episode of that seed's stream. Without:
+    /// every environment abandons its episode and starts its next one. Returns the
+    /// observations.
+    #[pyo3(signature = (seed = None))]
+    fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        match seed {
+            Some(seed) => *self = Self::build(py, self.n, self.kind, self.variant, seed)?,
+            None => {
+                let env = &mut self.env;
+                py.detach(|| env.restart()).map_err(failed)?;
+            }
+        }
+        self.obs(py)
+    }
+
+    /// Steps every environment with its row of `actions` (`(n, 3)` float32, each in [−1, 1]:
+    /// steering, throttle, brake; outside is clamped, NaN is 0). Returns fresh arrays
+    /// `(obs, rewards, terminated, truncated, final_obs)`; where an episode ended, `obs` is
+    /// the next episode's first observation and `final_obs` the one that ended it.
+    fn step<'py>(&mut self, py: Python<'py>, actions: PyReadonlyArray2<'py, f32>) -> PyResult<StepArrays<'py>> {
+        let shape = actions.shape();
+        if shape != [self.n, ACT_DIM] {
+            return Err(bad_input(format!("actions have shape {shape:?}, not [{}, {ACT_DIM}]", self.n)));
+        }
+        // A non-contiguous view is copied element by element.
+        match actions.as_slice() {
+            Ok(flat) => self.actions.copy_from_slice(flat),
+            Err(_) => self.actions.iter_mut().zip(actions.as_array().iter()).for_each(|(a, &v)| *a = v),
+        }
+        let (env, acts) = (&mut self.env, &self.actions);
+        py.detach(|| env.step(acts)).map_err(failed)?;
+        let flags = |f: &[u8]| PyArray1::from_iter(py, f.iter().map(|&x| x != 0));
+        Ok((
+            self.rows(py, self.env.obs(), OBS_DIM)?,
+            PyArray1::from_slice(py, self.env.rewards()),
+            flags(self.env.terminated()),
+            flags(self.env.truncated()),
+            self.rows(py, self.env.final_obs(), OBS_DIM)?,
+        ))
+    }
+
+    /// The episodes the last step finished: `(index, kind, metrics as JSON)` in environment
+    /// order (the metrics of the training reward: no criticality figures).
+    fn finished(&mut self) -> PyResult<Vec<(usize, &'static str, String)>> {
+        let mut done = Vec::new();
+        let mut error = None;
+        self.env.drain_finished(|i, s| match serde_json::to_string(&s.metrics) {
+            Ok(json) => done.push((i, s.kind.name(), json)),
+            Err(e) => error = Some(e),
+        });
+        error.map_or(Ok(done), |e| Err(failed(e)))
+    }
+}
+
+/// Environment steps per second of `n` native environments stepped `steps` times with the
+/// zero action and no Python in the loop: the raw path the Python-side loop of
+/// python/bench/speed.py is measured against, in the same process.
+#[pyfunction]
+#[pyo3(signature = (n, steps, *, variant = "full", seed = 0))]
+pub fn native_steps_per_s(py: Python<'_>, n: usize, steps: usize, variant: &str, seed: u64) -> PyResult<f64> {
+    let mut env = VecEnv::new(py, n, None, variant, seed)?;
+    let actions = vec![0.0f32; n * ACT_DIM];
+    py.detach(|| {
+        let started = std::time::Instant::now();
+        for _ in 0..steps {
+            env.env.step(&actions)?;
+        }
+        Ok::<_, risktwin_common::env::SourceError>((n * steps) as f64 / started.elapsed().as_secs_f64())
+    })
+    .map_err(failed)
+}

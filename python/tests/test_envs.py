@@ -1,0 +1,143 @@
+"""The Gymnasium environments: Gymnasium's own checker, seeded resets, the single env as
+environment 0 of the vector env, termination and truncation apart, bad input raising."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import risktwin
+from risktwin.envs import DrivingEnv, DrivingVecEnv
+
+
+def keep_lane(obs):
+    """A deterministic action that depends on the observation (steer against the lane offset)."""
+    return np.array([np.clip(-0.5 * obs[2], -1, 1), 0.4, 0.0], dtype=np.float32)
+
+
+@pytest.mark.parametrize("variant", risktwin.VARIANTS)
+def test_gymnasium_env_checker_passes_for_every_variant(variant):
+    env = gym.make("risktwin/Driving-v0", variant=variant, seed=3)
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_spaces_are_the_driver_interface():
+    env = DrivingEnv()
+    assert env.observation_space.shape == (risktwin.OBS_DIM,) == (24,)
+    assert env.action_space.shape == (risktwin.ACT_DIM,) == (3,)
+    assert env.observation_space.dtype == env.action_space.dtype == np.float32
+    assert risktwin.DECISION_RATE_HZ == 20.0 and risktwin.STEP_S == 0.05
+    obs, info = env.reset(seed=1)
+    assert obs.dtype == np.float32 and obs.shape == (24,) and info == {}
+
+
+def run_episodes(env, seed, episodes):
+    """Observations, rewards and endings of `episodes` episodes after a seeded reset."""
+    trace = []
+    obs, _ = env.reset(seed=seed)
+    for _ in range(episodes):
+        while True:
+            obs, reward, terminated, truncated, info = env.step(keep_lane(obs))
+            trace.append((obs.copy(), reward, terminated, truncated))
+            if terminated or truncated:
+                trace.append(info["metrics"])
+                obs, _ = env.reset()
+                break
+    return trace
+
+
+def test_seeded_resets_reproduce_and_other_seeds_differ():
+    env = DrivingEnv(kind="cut-in", variant="base")
+    first = run_episodes(env, 7, 3)
+    again = run_episodes(env, 7, 3)
+    assert len(first) == len(again)
+    for a, b in zip(first, again):
+        if isinstance(a, dict):
+            assert a == b
+        else:
+            np.testing.assert_array_equal(a[0], b[0])
+            assert a[1:] == b[1:]
+    other = run_episodes(env, 8, 1)
+    assert not np.array_equal(first[0][0], other[0][0])
+
+
+def test_the_single_env_is_environment_0_of_the_vector_env_step_for_step():
+    single = DrivingEnv(variant="risk-only", seed=5)
+    vec = DrivingVecEnv(num_envs=4, variant="risk-only", seed=5)
+    obs, _ = single.reset()
+    vobs, _ = vec.reset()
+    np.testing.assert_array_equal(obs, vobs[0])
+    endings = 0
+    for _ in range(700):  # beyond two 15 s episodes
+        action = keep_lane(obs)
+        actions = np.stack([keep_lane(o) for o in vobs])
+        np.testing.assert_array_equal(actions[0], action)
+        obs, reward, terminated, truncated, info = single.step(action)
+        vobs, vrewards, vterm, vtrunc, vinfo = vec.step(actions)
+        assert (terminated, truncated) == (bool(vterm[0]), bool(vtrunc[0]))
+        assert reward == vrewards[0]
+        if terminated or truncated:
+            endings += 1
+            np.testing.assert_array_equal(obs, vinfo["final_obs"][0])
+            assert vinfo["final_info"][0] == info
+            assert not (terminated and truncated)
+            obs, _ = single.reset()
+        np.testing.assert_array_equal(obs, vobs[0])
+    assert endings >= 2
+
+
+def test_a_crash_terminates_and_the_horizon_truncates():
+    env = DrivingEnv(kind="emergency-braking", variant="full", seed=2)
+    env.reset(seed=2)
+    while True:  # full throttle into the braking lead
+        _, _, terminated, truncated, info = env.step(np.array([0.0, 1.0, 0.0], dtype=np.float32))
+        if terminated or truncated:
+            break
+    assert terminated and not truncated and info["metrics"]["collision"]
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.step(np.zeros(3, dtype=np.float32))
+    env.reset()
+    steps = 0
+    while True:  # standing still: the horizon ends it
+        _, _, terminated, truncated, info = env.step(np.array([0.0, 0.0, 1.0], dtype=np.float32))
+        steps += 1
+        if terminated or truncated:
+            break
+    assert truncated and not terminated and steps >= 300, steps
+    assert not info["metrics"]["collision"] and not info["metrics"]["success"]
+
+
+def test_make_vec_gives_the_native_vector_env():
+    envs = gym.make_vec("risktwin/Driving-v0", num_envs=8, variant="ttc", seed=1)
+    assert isinstance(envs.unwrapped, DrivingVecEnv)
+    obs, _ = envs.reset(seed=1)
+    assert obs.shape == (8, 24) and obs.dtype == np.float32
+    obs, rewards, terminated, truncated, _ = envs.step(np.zeros((8, 3), dtype=np.float32))
+    assert rewards.shape == terminated.shape == truncated.shape == (8,)
+    assert terminated.dtype == truncated.dtype == np.bool_
+    envs.close()
+
+
+def test_bad_input_raises_with_the_message():
+    with pytest.raises(ValueError, match="unknown"):
+        DrivingEnv(kind="roundabout")
+    with pytest.raises(ValueError, match="variant"):
+        DrivingEnv(variant="safest")
+    with pytest.raises(ValueError, match="out of range"):
+        DrivingVecEnv(num_envs=0)
+    with pytest.raises(ValueError, match="render"):
+        DrivingEnv(render_mode="human")
+    env = DrivingEnv()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(4, dtype=np.float32))
+    with pytest.raises(ValueError, match="non-negative"):
+        env.reset(seed=-1)
+    vec = DrivingVecEnv(num_envs=2)
+    vec.reset(seed=0)
+    with pytest.raises(ValueError, match="shape"):
+        vec.step(np.zeros((3, 3), dtype=np.float32))
+    # A non-contiguous view is read as its values.
+    wide = np.zeros((2, 6), dtype=np.float32)
+    vec.step(wide[:, ::2])

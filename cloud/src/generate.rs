@@ -27,6 +27,20 @@ pub struct Batch {
     pub sampled: u64,
 }
 
+/// Worker threads for episode batches: all cores.
+pub fn all_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Worker threads asked for (`None`: all cores); `Err` names the range when out of it.
+pub fn worker_threads(requested: Option<u64>) -> Result<usize, String> {
+    match requested {
+        None => Ok(all_cores()),
+        Some(t @ 1..=1024) => Ok(t as usize),
+        Some(t) => Err(format!("{t} is out of range [1, 1024]")),
+    }
+}
+
 /// Runs `f` over `items` on `threads` workers, returning results in input order. Each worker
 /// takes the next item as soon as it is free (an atomic index over `items`), so one slow item
 /// does not leave the other workers idle; every result is written back at its item's index, so

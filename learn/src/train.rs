@@ -186,6 +186,17 @@ pub fn risk_ranked_specs(seed: u64, per_kind: usize) -> Vec<ScenarioSpec> {
     scored.into_iter().map(|(_, s)| s).collect()
 }
 
+/// The scenarios a run of `variant` and `seed` trains on: every kind sampled fresh, and for
+/// `full` the risk-ranked list replayed beside them.
+pub fn training_source(variant: Variant, seed: u64) -> ScenarioSource {
+    match variant {
+        Variant::Full => {
+            ScenarioSource::Replay { seed, specs: risk_ranked_specs(seed, 40), share: DEFAULT_REPLAY_SHARE }
+        }
+        _ => ScenarioSource::all_kinds(seed),
+    }
+}
+
 /// Drives each spec with the policy's deterministic action ([`crate::drive::drive`]), scored
 /// as every evaluation scores (`full`'s weights, whatever the policy trained with): the metrics
 /// `risktwin simulate --driver` prints for the same file.
@@ -202,15 +213,7 @@ pub fn train(cfg: &TrainConfig, progress: &mut dyn FnMut(u64, u64)) -> Result<Tr
     if cfg.steps == 0 || cfg.n_envs == 0 {
         return Err(LearnError::BadConfig(format!("steps ({}) and envs ({}) must be positive", cfg.steps, cfg.n_envs)));
     }
-    let source = match &cfg.scenarios {
-        Some(s) => s.clone(),
-        None if cfg.variant == Variant::Full => ScenarioSource::Replay {
-            seed: cfg.seed,
-            specs: risk_ranked_specs(cfg.seed, 40),
-            share: DEFAULT_REPLAY_SHARE,
-        },
-        None => ScenarioSource::all_kinds(cfg.seed),
-    };
+    let source = cfg.scenarios.clone().unwrap_or_else(|| training_source(cfg.variant, cfg.seed));
     let benign = if cfg.benign_eval > 0 { benign_specs(cfg.seed ^ 0xBE91_6000, cfg.benign_eval) } else { Vec::new() };
     let start = Instant::now();
     let reward = cfg.variant.training_reward(RiskShaping::default());

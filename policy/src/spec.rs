@@ -22,6 +22,10 @@ pub const REFERENCE: &str = risktwin_common::driver::REFERENCE_LABEL;
 /// A recording's own ego: SPEC and label.
 pub const REPLAY: &str = risktwin_common::driver::REPLAY_LABEL;
 
+/// Why `replay` cannot drive a generated scenario (it has no recording to play).
+pub const REPLAY_OFF_RECORDING: &str =
+    "replay plays a recording's ego as recorded; here the ego is driven closed loop: name idm or a model file";
+
 /// What a driver SPEC may be.
 pub const ACCEPTED: &str = "idm (the reference driver), replay (a recording's ego), PATH.safetensors (a policy file), PATH.onnx (an ONNX model)";
 

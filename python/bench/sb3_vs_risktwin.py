@@ -1,5 +1,6 @@
 """Stable-Baselines3 PPO against `risktwin train --algo ppo`, at the same environment steps,
-variant and seed, on the same environment: each learner's environment steps per second, and
+variant and seed, on the same environment (SB3 at risktwin's PPO settings and at its own
+defaults, each on a DummyVecEnv of risktwin/Driving-v0 as an SB3 user builds it): each learner's environment steps per second, and
 each policy's held-out figures through risktwin.evaluate (SB3's deterministic actor written as
 an ONNX model of the driver interface). Not a test (PyTorch is a ~3 GB install):
 
@@ -23,12 +24,26 @@ from onnx import TensorProto, helper, numpy_helper
 import risktwin
 
 
-def sb3_train(steps, variant, seed, n_envs):
+# SB3's PPO at risktwin train's PPO settings (learn/src/ppo.rs): 64 environments x 64 steps per
+# rollout, 10 epochs of 8 minibatches, the same rates, clip, coefficients and initial log-std, the
+# same tanh 64-64 network. What SB3 has no counterpart for: the decaying imitation of the
+# reference driver and the critic warm-up of risktwin's learner.
+MATCHED = {
+    "n_envs": 64,
+    "ppo": dict(n_steps=64, batch_size=64 * 64 // 8, n_epochs=10, learning_rate=1e-3, gamma=0.99, gae_lambda=0.95,
+                clip_range=0.2, vf_coef=0.5, ent_coef=0.0, max_grad_norm=0.5,
+                policy_kwargs=dict(log_std_init=-1.2, net_arch=dict(pi=[64, 64], vf=[64, 64]))),
+}
+# SB3's own defaults (n_steps 2048, batch 64, lr 3e-4, log-std 0) on 8 environments.
+DEFAULTS = {"n_envs": 8, "ppo": {}}
+
+
+def sb3_train(steps, variant, seed, setting):
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
 
-    envs = make_vec_env("risktwin/Driving-v0", n_envs=n_envs, seed=seed, env_kwargs={"variant": variant, "seed": seed})
-    model = PPO("MlpPolicy", envs, seed=seed, device="cpu", verbose=0)
+    envs = make_vec_env("risktwin/Driving-v0", n_envs=setting["n_envs"], seed=seed, env_kwargs={"variant": variant})
+    model = PPO("MlpPolicy", envs, seed=seed, device="cpu", verbose=0, **setting["ppo"])
     started = time.perf_counter()
     model.learn(total_timesteps=steps)
     return model, time.perf_counter() - started
@@ -83,33 +98,31 @@ def main():
     parser.add_argument("--steps", type=int, default=200_000)
     parser.add_argument("--variant", default="base", choices=risktwin.VARIANTS)
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--envs", type=int, default=8, help="SB3's environments (DummyVecEnv)")
     parser.add_argument("--out", default="sb3-vs-risktwin")
     args = parser.parse_args()
     os.makedirs(args.out, exist_ok=True)
-
-    model, sb3_s = sb3_train(args.steps, args.variant, args.seed, args.envs)
-    sb3_onnx = os.path.join(args.out, "sb3_ppo.onnx")
-    sb3_to_onnx(model, sb3_onnx)
 
     ours = os.path.join(args.out, "risktwin")
     cmd = [args.risktwin, "train", "--algo", "ppo", "--variant", args.variant, "--steps", str(args.steps),
            "--seed", str(args.seed), "--out", ours, "--format", "json"]
     trained = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
-
-    sb3_doc = risktwin.evaluate(sb3_onnx, seed=args.seed)
+    ours_doc = risktwin.evaluate(os.path.join(ours, "policy.onnx"), seed=args.seed)
     result = {
         "steps": args.steps,
         "variant": args.variant,
         "seed": args.seed,
-        "sb3": {"envs": args.envs, "wall_s": round(sb3_s, 1), "env_steps_per_s": round(args.steps / sb3_s),
-                **figures(sb3_doc)},
         # Its own figures: the training loop's wall time, without the held-out evaluation after it.
-        "risktwin": {"envs": 64, "wall_s": round(trained["wall_s"], 1), "env_steps_per_s": round(trained["env_steps_per_s"]),
-                     **figures(risktwin.evaluate(os.path.join(ours, "policy.onnx"), seed=args.seed))},
-        # The reference driver's episodes of the same held-out set, from SB3's document.
-        "reference": figures({"driver": sb3_doc["reference"], "overall": {"driver": sb3_doc["overall"]["reference"]}}),
+        "risktwin": {"envs": 64, "wall_s": round(trained["wall_s"], 1),
+                     "env_steps_per_s": round(trained["env_steps_per_s"]), **figures(ours_doc)},
     }
+    for name, setting in [("sb3_matched", MATCHED), ("sb3_defaults", DEFAULTS)]:
+        model, wall_s = sb3_train(args.steps, args.variant, args.seed, setting)
+        path = os.path.join(args.out, f"{name}.onnx")
+        sb3_to_onnx(model, path)
+        result[name] = {"envs": setting["n_envs"], "wall_s": round(wall_s, 1),
+                        "env_steps_per_s": round(args.steps / wall_s), **figures(risktwin.evaluate(path, seed=args.seed))}
+    # The reference driver's episodes of the same held-out set.
+    result["reference"] = figures({"driver": ours_doc["reference"], "overall": {"driver": ours_doc["overall"]["reference"]}})
     text = json.dumps(result, indent=2)
     with open(os.path.join(args.out, "result.json"), "w") as f:
         f.write(text + "\n")

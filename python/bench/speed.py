@@ -5,7 +5,7 @@ DrivingEnv, and highway-env's highway-fast-v0 (the Gymnasium driving environment
 if it is installed. Zero actions everywhere (the same work for every path). Not a test:
 
     .venv/bin/pip install ./python highway-env
-    .venv/bin/python python/bench/speed.py [--envs 64] [--steps 200]
+    .venv/bin/python python/bench/speed.py [--envs 64] [--steps 200] [--rounds 5]
 """
 
 import argparse
@@ -65,13 +65,20 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--envs", type=int, default=64)
     parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--rounds", type=int, default=5)
     args = parser.parse_args()
-    native = _native.native_steps_per_s(args.envs, args.steps, seed=0)
-    through_python = vector(args.envs, args.steps)
+    # Native and Python-side rounds interleaved, the median of each: drift of the machine's load
+    # falls on both paths alike.
+    native, through_python = [], []
+    for _ in range(args.rounds):
+        native.append(_native.native_steps_per_s(args.envs, args.steps, seed=0))
+        through_python.append(vector(args.envs, args.steps))
+    native, through_python = float(np.median(native)), float(np.median(through_python))
     one = single(args.steps * 10)
     peer = highway(min(args.steps, 200))
     result = {
         "envs": args.envs,
+        "rounds": args.rounds,
         "native_vec_steps_per_s": round(native),
         "python_vec_steps_per_s": round(through_python),
         "python_vec_over_native": round(through_python / native, 3),

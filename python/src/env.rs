@@ -3,14 +3,11 @@
 //! step (Gymnasium's `SAME_STEP` mode) with the final observation kept apart.
 
 use crate::error::{bad_input, failed};
-use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use risktwin_common::env::{ACT_DIM, DEFAULT_REPLAY_SHARE, OBS_DIM, RiskShaping, ScenarioSource, Variant};
+use risktwin_common::env::{ACT_DIM, OBS_DIM, RiskShaping, ScenarioSource, Variant};
 use risktwin_common::scenario::ScenarioKind;
-use risktwin_learn::train::risk_ranked_specs;
-
-/// Candidates per kind `full`'s replay list is ranked from, as `risktwin train` ranks it.
-const REPLAY_CANDIDATES_PER_KIND: usize = 40;
+use risktwin_learn::train::training_source;
 
 /// What one step gives back: observations, rewards, terminated, truncated, final observations.
 type StepArrays<'py> = (
@@ -37,12 +34,7 @@ impl VecEnv {
     /// the risk-ranked list beside fresh samples), else fresh samples of `kind`.
     fn source(kind: Option<ScenarioKind>, variant: Variant, seed: u64) -> ScenarioSource {
         match kind {
-            None if variant == Variant::Full => ScenarioSource::Replay {
-                seed,
-                specs: risk_ranked_specs(seed, REPLAY_CANDIDATES_PER_KIND),
-                share: DEFAULT_REPLAY_SHARE,
-            },
-            None => ScenarioSource::all_kinds(seed),
+            None => training_source(variant, seed),
             Some(kind) => ScenarioSource::Sampled { seed, kinds: vec![kind] },
         }
     }
@@ -155,4 +147,48 @@ pub fn native_steps_per_s(py: Python<'_>, n: usize, steps: usize, variant: &str,
         Ok::<_, risktwin_common::env::SourceError>((n * steps) as f64 / started.elapsed().as_secs_f64())
     })
     .map_err(failed)
+}
+
+/// What [`native_rollout`] gives back: every step's observations, rewards, terminated, truncated.
+type Rollout<'py> =
+    (Bound<'py, PyArray3<f32>>, Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<bool>>, Bound<'py, PyArray2<bool>>);
+
+/// The native vector of environments stepped with `actions` (`(steps, n, 3)` float32,
+/// C-contiguous) from the stream of `seed`, every step in Rust with no Python between them:
+/// `(obs (steps, n, 24), rewards, terminated, truncated (steps, n))`, what `DrivingVecEnv`
+/// must give step for step (python/tests/test_envs.py).
+#[pyfunction]
+#[pyo3(signature = (actions, *, kind = None, variant = "full", seed = 0))]
+pub fn native_rollout<'py>(
+    py: Python<'py>,
+    actions: PyReadonlyArray3<'py, f32>,
+    kind: Option<&str>,
+    variant: &str,
+    seed: u64,
+) -> PyResult<Rollout<'py>> {
+    let (steps, n, width) = (actions.shape()[0], actions.shape()[1], actions.shape()[2]);
+    if width != ACT_DIM {
+        return Err(bad_input(format!("actions have {width} columns, not {ACT_DIM}")));
+    }
+    let flat = actions.as_slice().map_err(|_| bad_input("actions must be a C-contiguous array"))?;
+    let mut env = VecEnv::new(py, n, kind, variant, seed)?;
+    let (mut obs, mut rewards) = (Vec::with_capacity(steps * n * OBS_DIM), Vec::with_capacity(steps * n));
+    let (mut terminated, mut truncated) = (Vec::with_capacity(steps * n), Vec::with_capacity(steps * n));
+    py.detach(|| {
+        for step in flat.chunks_exact(n * ACT_DIM) {
+            env.env.step(step)?;
+            obs.extend_from_slice(env.env.obs());
+            rewards.extend_from_slice(env.env.rewards());
+            terminated.extend(env.env.terminated().iter().map(|&x| x != 0));
+            truncated.extend(env.env.truncated().iter().map(|&x| x != 0));
+        }
+        Ok::<_, risktwin_common::env::SourceError>(())
+    })
+    .map_err(failed)?;
+    Ok((
+        PyArray1::from_vec(py, obs).reshape([steps, n, OBS_DIM])?,
+        PyArray1::from_vec(py, rewards).reshape([steps, n])?,
+        PyArray1::from_vec(py, terminated).reshape([steps, n])?,
+        PyArray1::from_vec(py, truncated).reshape([steps, n])?,
+    ))
 }

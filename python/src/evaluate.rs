@@ -6,6 +6,7 @@
 use crate::error::{bad_input, failed};
 use numpy::PyArray1;
 use pyo3::prelude::*;
+use risktwin_cloud::generate::worker_threads;
 use risktwin_cloud::trainer::HeldOut;
 use risktwin_cloud::trainer::drive::{Driver, EVAL_VARIANT};
 use risktwin_cloud::trainer::evaluation::{
@@ -16,7 +17,7 @@ use risktwin_common::episode::{self, EpisodeResult};
 use risktwin_common::scenario::{ScenarioSpec, build};
 use risktwin_policy::model::ModelFile;
 use risktwin_policy::spec::{self, DriverSpec};
-use risktwin_store::library::ScenarioLibrary;
+use risktwin_store::library::{LibraryError, ScenarioLibrary};
 use std::path::PathBuf;
 
 /// Who drives: a model file (or the reference driver) or a Python callable.
@@ -36,17 +37,13 @@ pub fn evaluate(
     per_kind: u64,
     library: Option<PathBuf>,
     floor: bool,
-    threads: Option<usize>,
+    threads: Option<u64>,
     label: Option<String>,
 ) -> PyResult<String> {
     if !(1..=MAX_PER_KIND).contains(&per_kind) {
         return Err(bad_input(format!("per_kind = {per_kind} is out of range [1, {MAX_PER_KIND}]")));
     }
-    let threads = match threads {
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
-        Some(t @ 1..=1024) => t,
-        Some(t) => return Err(bad_input(format!("threads = {t} is out of range [1, 1024]"))),
-    };
+    let threads = worker_threads(threads).map_err(|e| bad_input(format!("threads = {e}")))?;
     let candidate = candidate(driver, label.as_deref(), library.is_some())?;
     let mut lib = library.as_deref().map(open_library).transpose()?;
     let (specs, set) = match (&lib, &library) {
@@ -87,7 +84,7 @@ fn candidate<'py>(driver: &Bound<'py, PyAny>, label: Option<&str>, stores: bool)
         }
         let spec = text.parse::<DriverSpec>().map_err(bad_input)?;
         if spec == DriverSpec::Replay {
-            return Err(bad_input("replay plays a recording's ego; generated scenarios are driven by idm or a model"));
+            return Err(bad_input(spec::REPLAY_OFF_RECORDING));
         }
         let model = spec.load().map_err(bad_input)?;
         let label = model.as_ref().map_or_else(|| spec::REFERENCE.to_owned(), ModelFile::label);
@@ -151,8 +148,10 @@ fn call(py: Python<'_>, f: &Bound<'_, PyAny>, obs: &[f32; OBS_DIM]) -> PyResult<
 
 /// A library that exists (opening creates a missing file, which an evaluation must not).
 pub fn open_library(path: &std::path::Path) -> PyResult<ScenarioLibrary> {
-    if !path.is_file() {
-        return Err(bad_input(format!("no scenario library at {}", path.display())));
-    }
-    ScenarioLibrary::open(path).map_err(|e| if e.blames_the_file() { bad_input(&e) } else { failed(&e) })
+    ScenarioLibrary::open_existing(path).map_err(library_error)
+}
+
+/// A library error: the file's fault is bad input, anything else a failed run.
+pub fn library_error(e: LibraryError) -> PyErr {
+    if e.blames_the_file() { bad_input(e) } else { failed(e) }
 }

@@ -32,6 +32,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("VARIANTS", risktwin_common::env::Variant::ALL.map(|v| v.name()).to_vec())?;
     m.add_class::<env::VecEnv>()?;
     m.add_function(wrap_pyfunction!(env::native_steps_per_s, m)?)?;
+    m.add_function(wrap_pyfunction!(env::native_rollout, m)?)?;
     m.add_class::<library::Library>()?;
     m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
     Ok(())

@@ -2,7 +2,7 @@
 //! through the same store as the CLI (`scenarios rank`, `simulate --db --id`).
 
 use crate::error::{bad_input, failed};
-use crate::evaluate::open_library;
+use crate::evaluate::{library_error, open_library};
 use pyo3::prelude::*;
 use risktwin_common::driver::REFERENCE_LABEL;
 use risktwin_common::scenario::ScenarioKind;
@@ -14,11 +14,6 @@ use std::sync::Mutex;
 #[pyclass(module = "risktwin._native")]
 pub struct Library {
     library: Mutex<ScenarioLibrary>,
-}
-
-/// A library error: the file's fault is bad input, anything else a failed run.
-fn library_error(e: LibraryError) -> PyErr {
-    if e.blames_the_file() { bad_input(e) } else { failed(e) }
 }
 
 impl Library {

@@ -87,6 +87,23 @@ def test_the_single_env_is_environment_0_of_the_vector_env_step_for_step():
     assert endings >= 2
 
 
+def test_the_vector_env_gives_what_the_native_one_gives_step_for_step():
+    steps, n = 700, 4  # beyond two 15 s episodes in each environment
+    actions = np.random.default_rng(11).uniform(-1, 1, (steps, n, 3)).astype(np.float32)
+    native = risktwin._native.native_rollout(actions, variant="full", seed=9)
+    vec = DrivingVecEnv(num_envs=n, variant="full", seed=9)
+    vec.reset(seed=9)
+    endings = 0
+    for t in range(steps):
+        obs, rewards, terminated, truncated, _ = vec.step(actions[t])
+        np.testing.assert_array_equal(obs, native[0][t])
+        np.testing.assert_array_equal(rewards, native[1][t].astype(np.float64))
+        np.testing.assert_array_equal(terminated, native[2][t])
+        np.testing.assert_array_equal(truncated, native[3][t])
+        endings += int((terminated | truncated).sum())
+    assert endings >= 2 * n
+
+
 def test_a_crash_terminates_and_the_horizon_truncates():
     env = DrivingEnv(kind="emergency-braking", variant="full", seed=2)
     env.reset(seed=2)

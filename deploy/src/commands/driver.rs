@@ -30,9 +30,7 @@ impl LoadedDriver {
     /// [`Self::load`] without the load's warnings (for a process that does not drive it).
     pub fn quietly(spec: &DriverSpec, flag: &str) -> CliResult<Self> {
         if *spec == DriverSpec::Replay {
-            return Err(CliError::input(format!(
-                "{flag} replay plays a recording's ego as recorded; here the ego is driven closed loop: name idm or a model file"
-            )));
+            return Err(CliError::input(format!("{flag} {}", spec::REPLAY_OFF_RECORDING)));
         }
         let model = spec.load().map_err(CliError::input)?;
         let label = model.as_ref().map_or_else(|| spec::REFERENCE.to_owned(), ModelFile::label);

@@ -16,17 +16,11 @@ use risktwin_store::library::{
 use serde::Serialize;
 
 /// Worker threads for episode batches: all cores.
-pub fn worker_threads() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
-}
+pub use risktwin_cloud::generate::all_cores as worker_threads;
 
 /// A `--threads` flag: all cores when absent, else 1 to 1024.
 pub fn threads_flag(threads: Option<u64>) -> CliResult<usize> {
-    match threads {
-        None => Ok(worker_threads()),
-        Some(t @ 1..=1024) => Ok(t as usize),
-        Some(t) => Err(CliError::input(format!("--threads {t} is out of range [1, 1024]"))),
-    }
+    risktwin_cloud::generate::worker_threads(threads).map_err(|e| CliError::input(format!("--threads {e}")))
 }
 
 pub fn generate(args: GenerateArgs) -> CliResult {

@@ -32,10 +32,7 @@ pub fn read_spec_file(path: &Path) -> CliResult<ScenarioSpec> {
 
 /// Opens a library database that must already exist (reading never creates one).
 pub fn open_existing_library(path: &Path) -> CliResult<ScenarioLibrary> {
-    if !path.is_file() {
-        return Err(CliError::input(format!("no scenario library at {}", path.display())));
-    }
-    Ok(ScenarioLibrary::open(path)?)
+    Ok(ScenarioLibrary::open_existing(path)?)
 }
 
 /// The scenario a `--spec` or `--db/--id` pair names.

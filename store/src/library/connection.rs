@@ -21,6 +21,15 @@ impl ScenarioLibrary {
         Ok(Self { conn, path })
     }
 
+    /// Opens the library at `path`, which must exist (reading never creates one).
+    pub fn open_existing(path: impl AsRef<Path>) -> Result<Self, LibraryError> {
+        let path = path.as_ref();
+        if !path.is_file() {
+            return Err(LibraryError::Missing { path: path.to_path_buf() });
+        }
+        Self::open(path)
+    }
+
     /// A fresh library that lives in memory only (tests, dry runs).
     pub fn open_in_memory() -> Result<Self, LibraryError> {
         let path = PathBuf::from(":memory:");

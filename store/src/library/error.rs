@@ -6,6 +6,8 @@ use std::path::PathBuf;
 /// Why a library operation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum LibraryError {
+    #[error("no scenario library at {}", path.display())]
+    Missing { path: PathBuf },
     #[error("cannot open scenario library {}: {source}", path.display())]
     Open { path: PathBuf, source: rusqlite::Error },
     #[error("{} is not a SQLite database: {reason}", path.display())]
@@ -35,7 +37,8 @@ impl LibraryError {
     /// failure (exit 1).
     pub fn blames_the_file(&self) -> bool {
         match self {
-            LibraryError::NotSqlite { .. }
+            LibraryError::Missing { .. }
+            | LibraryError::NotSqlite { .. }
             | LibraryError::NotALibrary { .. }
             | LibraryError::UnsupportedVersion { .. }
             | LibraryError::Corrupt { .. }

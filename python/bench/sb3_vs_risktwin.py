@@ -6,7 +6,7 @@ an ONNX model of the driver interface). Not a test (PyTorch is a ~3 GB install):
 
     .venv/bin/pip install ./python stable-baselines3==2.9.2 onnx==1.23.2
     .venv/bin/python python/bench/sb3_vs_risktwin.py --risktwin target/release/risktwin \
-        --steps 200000 --variant base --seed 1 --out sb3-vs-risktwin
+        --steps 200000 --variant full --seed 1 --out sb3-vs-risktwin
 
 Prints one JSON document (also written to OUT/result.json).
 """
@@ -96,7 +96,7 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--risktwin", required=True, help="the risktwin binary")
     parser.add_argument("--steps", type=int, default=200_000)
-    parser.add_argument("--variant", default="base", choices=risktwin.VARIANTS)
+    parser.add_argument("--variant", default="full", choices=risktwin.VARIANTS)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--out", default="sb3-vs-risktwin")
     args = parser.parse_args()

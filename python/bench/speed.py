@@ -4,7 +4,7 @@ risktwin.envs.DrivingVecEnv (Gymnasium's vector API, numpy in and out), the sing
 DrivingEnv, and highway-env's highway-fast-v0 (the Gymnasium driving environment RL work uses)
 if it is installed. Zero actions everywhere (the same work for every path). Not a test:
 
-    .venv/bin/pip install ./python highway-env
+    .venv/bin/pip install ./python highway-env==1.12.1
     .venv/bin/python python/bench/speed.py [--envs 64] [--steps 200] [--rounds 5]
 """
 

@@ -30,8 +30,10 @@ def _seed(seed):
 
 
 def _no_render(render_mode):
+    # TypeError, as for an argument the environment does not take: Stable-Baselines3's
+    # make_vec_env asks for rgb_array and on TypeError builds the environment without it.
     if render_mode is not None:
-        raise ValueError(f"render_mode {render_mode!r}: the environment does not render (record with risktwin simulate --record)")
+        raise TypeError(f"render_mode {render_mode!r}: the environment does not render (record with risktwin simulate --record)")
 
 
 def _restart(native, seed, options, fresh):

@@ -143,8 +143,8 @@ def test_bad_input_raises_with_the_message():
         DrivingEnv(variant="safest")
     with pytest.raises(ValueError, match="out of range"):
         DrivingVecEnv(num_envs=0)
-    with pytest.raises(ValueError, match="render"):
-        DrivingEnv(render_mode="human")
+    with pytest.raises(TypeError, match="does not render"):
+        gym.make("risktwin/Driving-v0", render_mode="rgb_array")  # what SB3's make_vec_env tries first
     env = DrivingEnv()
     env.reset(seed=0)
     with pytest.raises(ValueError, match="shape"):

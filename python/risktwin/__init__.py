@@ -9,6 +9,7 @@
 """
 
 import json as _json
+import os as _os
 
 import gymnasium as _gym
 
@@ -38,22 +39,33 @@ __all__ = [
 ]
 
 
-def evaluate(driver, *, seed=1, per_kind=12, library=None, floor=False, threads=None, label=None):
+def _count(name, value):
+    """An optional non-negative integer argument, checked before it crosses to Rust."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, float)) or not isinstance(value, int) or not 0 <= value < 2**64:
+        raise ValueError(f"{name} = {value!r} must be an integer in [0, 2**64)")
+    return value
+
+
+def evaluate(driver, *, seed=None, per_kind=None, library=None, floor=False, threads=None, label=None):
     """Drives ``driver`` over the held-out set of run seed ``seed`` (``per_kind`` scenarios of
-    each kind) or, with ``library``, every generated scenario of that library file (whose
+    each kind; 1 and 12 when not given) or, with ``library`` (which takes neither), every generated scenario of that library file (whose
     outcomes then gain the driver's), beside the reference driver; with ``floor`` also the
     achievable floor. ``driver`` is a SPEC (``"idm"``, ``"PATH.safetensors"``, ``"PATH.onnx"``)
     or a callable taking the observation (float32, shape (24,)) and returning three numbers
     (steering, throttle, brake in [-1, 1]); a callable is called once per 50 ms decision and
     is labelled ``python:<qualname>`` unless ``label`` says otherwise (required with
     ``library``). Returns the document ``risktwin evaluate --format json`` prints, as a dict."""
+    if isinstance(driver, _os.PathLike):
+        driver = _os.fspath(driver)
     text = _native.evaluate(
         driver,
-        seed=seed,
-        per_kind=per_kind,
-        library=None if library is None else str(library),
+        seed=_count("seed", seed),
+        per_kind=_count("per_kind", per_kind),
+        library=None if library is None else _os.fspath(library),
         floor=floor,
-        threads=threads,
+        threads=_count("threads", threads),
         label=label,
     )
     return _json.loads(text)

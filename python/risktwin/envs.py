@@ -16,17 +16,25 @@ from gymnasium.vector.utils import batch_space
 from . import _native
 from ._native import ACT_DIM, DECISION_RATE_HZ, OBS_DIM
 
-# Every observation feature is clamped to [-10, 10]; actions beyond [-1, 1] are clamped.
-OBSERVATION_SPACE = spaces.Box(-10.0, 10.0, (OBS_DIM,), np.float32)
-ACTION_SPACE = spaces.Box(-1.0, 1.0, (ACT_DIM,), np.float32)
+def _spaces():
+    """Fresh spaces for each environment (a space carries its own sampling state): every
+    observation feature is clamped to [-10, 10]; actions beyond [-1, 1] are clamped."""
+    return spaces.Box(-10.0, 10.0, (OBS_DIM,), np.float32), spaces.Box(-1.0, 1.0, (ACT_DIM,), np.float32)
 
 
 def _seed(seed):
+    """A seed as the native side takes it: an integer in [0, 2**64); None stays None."""
     if seed is None:
         return None
-    if isinstance(seed, (bool, float)) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed {seed!r} must be a non-negative integer (one for all environments)")
+    if isinstance(seed, (bool, float)) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**64:
+        raise ValueError(f"seed {seed!r} must be an integer in [0, 2**64) (one for all environments)")
     return int(seed)
+
+
+def _stream(seed):
+    """The scenario stream a constructor starts: `seed`, or stream 0 for None."""
+    seed = _seed(seed)
+    return 0 if seed is None else seed
 
 
 def _no_render(render_mode):
@@ -63,9 +71,8 @@ class DrivingEnv(gym.Env):
     def __init__(self, kind=None, variant="full", seed=0, render_mode=None):
         _no_render(render_mode)
         self.render_mode = None
-        self.observation_space = OBSERVATION_SPACE
-        self.action_space = ACTION_SPACE
-        self._native = _native.VecEnv(1, kind=kind, variant=variant, seed=_seed(seed))
+        self.observation_space, self.action_space = _spaces()
+        self._native = _native.VecEnv(1, kind=kind, variant=variant, seed=_stream(seed))
         # True while the current episode is untouched (built, or just auto-reset): the next
         # reset() without a seed starts it rather than skipping it.
         self._fresh = True
@@ -100,7 +107,8 @@ class DrivingVecEnv(VectorEnv):
     as ``risktwin train`` steps them: ``gymnasium.make_vec("risktwin/Driving-v0", num_envs=n)``.
     A finished episode resets in the same step (``AutoresetMode.SAME_STEP``): ``infos`` then
     holds ``final_obs`` (and mask ``_final_obs``) and ``final_info`` (kind and metrics of the
-    finished episode, mask ``_final_info``). ``reset(seed=s)`` restarts every environment on
+    finished episodes, mask ``_final_info``), laid out as Gymnasium's ``SyncVectorEnv`` lays
+    them out: ``infos["final_info"]["metrics"]["collision"][i]``. ``reset(seed=s)`` restarts every environment on
     seed s's stream; ``reset()`` starts each one's next episode."""
 
     metadata = {"render_modes": [], "render_fps": DECISION_RATE_HZ, "autoreset_mode": AutoresetMode.SAME_STEP}
@@ -108,12 +116,12 @@ class DrivingVecEnv(VectorEnv):
     def __init__(self, num_envs=1, kind=None, variant="full", seed=0, render_mode=None):
         _no_render(render_mode)
         self.render_mode = None
-        self.num_envs = int(num_envs)
-        self.single_observation_space = OBSERVATION_SPACE
-        self.single_action_space = ACTION_SPACE
-        self.observation_space = batch_space(OBSERVATION_SPACE, self.num_envs)
-        self.action_space = batch_space(ACTION_SPACE, self.num_envs)
-        self._native = _native.VecEnv(self.num_envs, kind=kind, variant=variant, seed=_seed(seed))
+        # The native side checks the count before any space is sized by it.
+        self._native = _native.VecEnv(int(num_envs), kind=kind, variant=variant, seed=_stream(seed))
+        self.num_envs = self._native.num_envs
+        self.single_observation_space, self.single_action_space = _spaces()
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._fresh = True
 
     def reset(self, *, seed=None, options=None):
@@ -125,16 +133,17 @@ class DrivingVecEnv(VectorEnv):
 
     def step(self, actions):
         actions = np.ascontiguousarray(actions, dtype=np.float32)
+        if actions.shape != (self.num_envs, ACT_DIM):
+            raise ValueError(f"actions have shape {actions.shape}, not ({self.num_envs}, {ACT_DIM})")
         obs, rewards, terminated, truncated, final_obs = self._native.step(actions)
         self._fresh = False
         infos = {}
         done = terminated | truncated
         if done.any():
+            # Laid out as Gymnasium's own vector environments lay it out (one entry per
+            # finished environment; arrays with masks, nested for final_info's dicts).
             finished = _finished(self._native)
-            final = np.full(self.num_envs, None, dtype=object)
-            final_info = np.full(self.num_envs, None, dtype=object)
             for i in np.flatnonzero(done):
-                final[i] = final_obs[i]
-                final_info[i] = finished[int(i)]
-            infos = {"final_obs": final, "_final_obs": done, "final_info": final_info, "_final_info": done}
+                i = int(i)
+                infos = self._add_info(infos, {"final_obs": final_obs[i], "final_info": finished[i]}, i)
         return obs, rewards.astype(np.float64), terminated, truncated, infos

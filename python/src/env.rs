@@ -119,15 +119,27 @@ impl VecEnv {
     }
 
     /// The episodes the last step finished: `(index, kind, metrics as JSON)` in environment
-    /// order (the metrics of the training reward: no criticality figures).
-    fn finished(&mut self) -> PyResult<Vec<(usize, &'static str, String)>> {
+    /// order. Only what the training environment measures: its episodes compute no risk score,
+    /// time-to-collision or closest distance (an evaluation does).
+    fn finished(&mut self) -> Vec<(usize, &'static str, String)> {
         let mut done = Vec::new();
-        let mut error = None;
-        self.env.drain_finished(|i, s| match serde_json::to_string(&s.metrics) {
-            Ok(json) => done.push((i, s.kind.name(), json)),
-            Err(e) => error = Some(e),
+        self.env.drain_finished(|i, s| {
+            let m = &s.metrics;
+            let metrics = serde_json::json!({
+                "ending": m.ending(),
+                "collision": m.collision,
+                "offroad": m.offroad,
+                "success": m.success,
+                "route_completion": m.route_completion,
+                "avg_speed_mps": m.avg_speed_mps,
+                "steering_smoothness": m.steering_smoothness,
+                "longitudinal_smoothness": m.longitudinal_smoothness,
+                "reward": m.reward,
+                "steps": m.steps,
+            });
+            done.push((i, s.kind.name(), metrics.to_string()));
         });
-        error.map_or(Ok(done), |e| Err(failed(e)))
+        done
     }
 }
 
@@ -137,6 +149,9 @@ impl VecEnv {
 #[pyfunction]
 #[pyo3(signature = (n, steps, *, variant = "full", seed = 0))]
 pub fn native_steps_per_s(py: Python<'_>, n: usize, steps: usize, variant: &str, seed: u64) -> PyResult<f64> {
+    if !(1..=MAX_MEASURED_STEPS).contains(&steps) {
+        return Err(bad_input(format!("steps = {steps} is out of range [1, {MAX_MEASURED_STEPS}]")));
+    }
     let mut env = VecEnv::new(py, n, None, variant, seed)?;
     let actions = vec![0.0f32; n * ACT_DIM];
     py.detach(|| {
@@ -144,10 +159,16 @@ pub fn native_steps_per_s(py: Python<'_>, n: usize, steps: usize, variant: &str,
         for _ in 0..steps {
             env.env.step(&actions)?;
         }
-        Ok::<_, risktwin_common::env::SourceError>((n * steps) as f64 / started.elapsed().as_secs_f64())
+        Ok::<_, risktwin_common::env::SourceError>(n as f64 * steps as f64 / started.elapsed().as_secs_f64())
     })
     .map_err(failed)
 }
+
+/// Environment steps one [`native_rollout`] may record (its observations: 400 MB).
+const MAX_ROLLOUT_CELLS: usize = 1 << 22;
+
+/// Steps one [`native_steps_per_s`] measurement may take.
+const MAX_MEASURED_STEPS: usize = 100_000;
 
 /// What [`native_rollout`] gives back: every step's observations, rewards, terminated, truncated.
 type Rollout<'py> =
@@ -170,10 +191,15 @@ pub fn native_rollout<'py>(
     if width != ACT_DIM {
         return Err(bad_input(format!("actions have {width} columns, not {ACT_DIM}")));
     }
-    let flat = actions.as_slice().map_err(|_| bad_input("actions must be a C-contiguous array"))?;
+    let cells = steps.checked_mul(n).filter(|&c| c <= MAX_ROLLOUT_CELLS);
+    let Some(cells) = cells.filter(|&c| c > 0) else {
+        return Err(bad_input(format!("{steps} steps x {n} environments is out of range [1, {MAX_ROLLOUT_CELLS}]")));
+    };
+    // Copied while the GIL is held: another thread may write the caller's array meanwhile.
+    let flat = actions.as_slice().map_err(|_| bad_input("actions must be a C-contiguous array"))?.to_vec();
     let mut env = VecEnv::new(py, n, kind, variant, seed)?;
-    let (mut obs, mut rewards) = (Vec::with_capacity(steps * n * OBS_DIM), Vec::with_capacity(steps * n));
-    let (mut terminated, mut truncated) = (Vec::with_capacity(steps * n), Vec::with_capacity(steps * n));
+    let (mut obs, mut rewards) = (Vec::with_capacity(cells * OBS_DIM), Vec::with_capacity(cells));
+    let (mut terminated, mut truncated) = (Vec::with_capacity(cells), Vec::with_capacity(cells));
     py.detach(|| {
         for step in flat.chunks_exact(n * ACT_DIM) {
             env.env.step(step)?;

@@ -5,7 +5,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyValueError};
 use pyo3::prelude::*;
 
-create_exception!(_native, RiskTwinError, PyException, "A RiskTwin run failed (the message says why).");
+create_exception!(risktwin._native, RiskTwinError, PyException, "A RiskTwin run failed (the message says why).");
 
 /// Bad input: `ValueError` with the message.
 pub fn bad_input(e: impl std::fmt::Display) -> PyErr {

@@ -10,7 +10,7 @@ use risktwin_cloud::generate::worker_threads;
 use risktwin_cloud::trainer::HeldOut;
 use risktwin_cloud::trainer::drive::{Driver, EVAL_VARIANT};
 use risktwin_cloud::trainer::evaluation::{
-    Driven, EvaluationDoc, MAX_PER_KIND, ScenarioSet, avoidable, library_specs, reference_runs, store_outcomes,
+    DEFAULT_PER_KIND, DEFAULT_SEED, Driven, EvaluationDoc, MAX_PER_KIND, ScenarioSet, avoidable, library_specs, reference_runs, store_outcomes,
 };
 use risktwin_common::env::{ACT_DIM, OBS_DIM, ObsPolicy};
 use risktwin_common::episode::{self, EpisodeResult};
@@ -28,18 +28,22 @@ enum Candidate<'py> {
 
 /// Evaluates `driver` and returns the document as JSON text (the Python side loads it).
 #[pyfunction]
-#[pyo3(signature = (driver, *, seed = 1, per_kind = 12, library = None, floor = false, threads = None, label = None))]
+#[pyo3(signature = (driver, *, seed = None, per_kind = None, library = None, floor = false, threads = None, label = None))]
 #[allow(clippy::too_many_arguments)] // The keyword arguments of `risktwin evaluate`'s flags.
 pub fn evaluate(
     py: Python<'_>,
     driver: &Bound<'_, PyAny>,
-    seed: u64,
-    per_kind: u64,
+    seed: Option<u64>,
+    per_kind: Option<u64>,
     library: Option<PathBuf>,
     floor: bool,
     threads: Option<u64>,
     label: Option<String>,
 ) -> PyResult<String> {
+    if library.is_some() && (seed.is_some() || per_kind.is_some()) {
+        return Err(bad_input("seed and per_kind choose the held-out set; with a library its scenarios are driven"));
+    }
+    let (seed, per_kind) = (seed.unwrap_or(DEFAULT_SEED), per_kind.unwrap_or(DEFAULT_PER_KIND));
     if !(1..=MAX_PER_KIND).contains(&per_kind) {
         return Err(bad_input(format!("per_kind = {per_kind} is out of range [1, {MAX_PER_KIND}]")));
     }
@@ -62,8 +66,9 @@ pub fn evaluate(
             (label.clone(), runs, model.as_ref().map_or(0, |m| m.model.faults()))
         }
         Candidate::Callable(f) => {
-            let runs = specs.iter().map(|s| drive_callable(py, f, s)).collect::<PyResult<Vec<_>>>()?;
-            (callable_label(f, label.as_deref())?, runs, 0)
+            let mut faults = 0;
+            let runs = specs.iter().map(|s| drive_callable(py, f, s, &mut faults)).collect::<PyResult<Vec<_>>>()?;
+            (callable_label(f, label.as_deref())?, runs, faults)
         }
     };
     let reference = py.detach(|| reference_runs(&specs, threads));
@@ -113,8 +118,15 @@ fn callable_label(f: &Bound<'_, PyAny>, label: Option<&str>) -> PyResult<String>
 
 /// One episode of `spec` driven by the callable through the training environment's
 /// observation and action mapping, scored as every evaluation scores (so the metrics are
-/// those of a model file giving the same actions). The first exception ends the evaluation.
-fn drive_callable(py: Python<'_>, f: &Bound<'_, PyAny>, spec: &ScenarioSpec) -> PyResult<EpisodeResult> {
+/// those of a model file giving the same actions). A decision with a non-finite number drives
+/// as the zero action and is counted in `faults`, as a model's is (`risktwin_policy::onnx`).
+/// The first exception ends the evaluation.
+fn drive_callable(
+    py: Python<'_>,
+    f: &Bound<'_, PyAny>,
+    spec: &ScenarioSpec,
+    faults: &mut u64,
+) -> PyResult<EpisodeResult> {
     let mut world = build(spec);
     let mut error: Option<PyErr> = None;
     let act = |obs: &[f32; OBS_DIM]| -> [f32; ACT_DIM] {
@@ -122,7 +134,11 @@ fn drive_callable(py: Python<'_>, f: &Bound<'_, PyAny>, spec: &ScenarioSpec) -> 
             return [0.0; ACT_DIM];
         }
         match call(py, f, obs) {
-            Ok(action) => action,
+            Ok(action) if action.iter().all(|x| x.is_finite()) => action,
+            Ok(_) => {
+                *faults += 1;
+                [0.0; ACT_DIM]
+            }
             Err(e) => {
                 error = Some(e);
                 [0.0; ACT_DIM]
@@ -135,8 +151,7 @@ fn drive_callable(py: Python<'_>, f: &Bound<'_, PyAny>, spec: &ScenarioSpec) -> 
     error.map_or(Ok(result), Err)
 }
 
-/// `f(obs)` with a fresh float32 array; three finite-or-not numbers back (NaN drives as 0,
-/// as for every driver).
+/// `f(obs)` with a fresh float32 array; three numbers back, finite or not.
 fn call(py: Python<'_>, f: &Bound<'_, PyAny>, obs: &[f32; OBS_DIM]) -> PyResult<[f32; ACT_DIM]> {
     py.check_signals()?;
     let out = f.call1((PyArray1::from_slice(py, obs),))?;

@@ -79,8 +79,11 @@ def test_the_single_env_is_environment_0_of_the_vector_env_step_for_step():
         assert reward == vrewards[0]
         if terminated or truncated:
             endings += 1
+            assert vinfo["_final_obs"][0] and vinfo["_final_info"][0]
             np.testing.assert_array_equal(obs, vinfo["final_obs"][0])
-            assert vinfo["final_info"][0] == info
+            assert vinfo["final_info"]["kind"][0] == info["kind"]
+            for key, value in info["metrics"].items():
+                assert vinfo["final_info"]["metrics"][key][0] == value, key
             assert not (terminated and truncated)
             obs, _ = single.reset()
         np.testing.assert_array_equal(obs, vobs[0])
@@ -112,6 +115,9 @@ def test_a_crash_terminates_and_the_horizon_truncates():
         if terminated or truncated:
             break
     assert terminated and not truncated and info["metrics"]["collision"]
+    assert info["metrics"]["ending"] == "collision" and info["kind"] == "emergency-braking"
+    # Only what the training environment measures (no risk score, TTC or closest distance).
+    assert "risk_score" not in info["metrics"] and "min_ttc_s" not in info["metrics"]
     with pytest.raises(RuntimeError, match="call reset"):
         env.step(np.zeros(3, dtype=np.float32))
     env.reset()
@@ -123,6 +129,7 @@ def test_a_crash_terminates_and_the_horizon_truncates():
             break
     assert truncated and not terminated and steps >= 300, steps
     assert not info["metrics"]["collision"] and not info["metrics"]["success"]
+    assert info["metrics"]["ending"] == "out-of-time"
 
 
 def test_make_vec_gives_the_native_vector_env():
@@ -149,12 +156,36 @@ def test_bad_input_raises_with_the_message():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="shape"):
         env.step(np.zeros(4, dtype=np.float32))
-    with pytest.raises(ValueError, match="non-negative"):
+    with pytest.raises(ValueError, match="integer"):
         env.reset(seed=-1)
+    with pytest.raises(ValueError, match="integer"):
+        env.reset(seed=2**64)
+    with pytest.raises(ValueError, match="out of range"):
+        DrivingVecEnv(num_envs=10**9)  # refused before any space is sized by it
+    assert DrivingEnv(seed=None).reset()[0].shape == (24,)
     vec = DrivingVecEnv(num_envs=2)
     vec.reset(seed=0)
     with pytest.raises(ValueError, match="shape"):
         vec.step(np.zeros((3, 3), dtype=np.float32))
-    # A non-contiguous view is read as its values.
-    wide = np.zeros((2, 6), dtype=np.float32)
-    vec.step(wide[:, ::2])
+    with pytest.raises(ValueError, match="shape"):
+        vec.step(np.zeros(6, dtype=np.float32))
+
+
+def test_a_strided_action_array_is_read_as_its_values():
+    wide = np.random.default_rng(3).uniform(-1, 1, (2, 6)).astype(np.float32)
+    strided, dense = DrivingVecEnv(num_envs=2, seed=4), DrivingVecEnv(num_envs=2, seed=4)
+    strided.reset(seed=4), dense.reset(seed=4)
+    a = strided._native.step(wide[:, ::2])  # the native side's own copy of a non-contiguous view
+    b = dense._native.step(np.ascontiguousarray(wide[:, ::2]))
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_the_spaces_are_each_environments_own():
+    one, two = DrivingEnv(), DrivingEnv()
+    assert one.action_space is not two.action_space
+    one.action_space.seed(1)
+    two.action_space.seed(1)
+    first = one.action_space.sample()
+    one.action_space.sample()  # advancing one's sampler leaves two's where it was
+    np.testing.assert_array_equal(two.action_space.sample(), first)

@@ -59,9 +59,20 @@ def test_a_callable_drives_as_a_model_file_with_the_same_actions(tmp_path):
     assert all(o.dtype == np.float32 and o.shape == (24,) for o in seen)
     steps = sum(e["metrics"]["steps"] for e in by_callable["episodes"])
     assert len(seen) == steps
+    assert by_callable["model_faults"] == 0
+    by_path = risktwin.evaluate(model, seed=3, per_kind=2)  # a path object names the same file
+    assert by_path["episodes"] == by_model["episodes"]
     braking = risktwin.evaluate(lambda obs: np.array([0, 0, 1.0]), seed=3, per_kind=2, label="brake")
     assert braking["driver"] == "brake"
     assert braking["episodes"] != by_callable["episodes"]
+
+
+def test_a_non_finite_decision_drives_as_the_zero_action_and_is_counted(tmp_path):
+    still = risktwin.evaluate(lambda obs: [0.0, 0.0, 0.0], seed=3, per_kind=1)
+    broken = risktwin.evaluate(lambda obs: [float("nan"), 0.3, 0.0], seed=3, per_kind=1)
+    assert broken["episodes"] == still["episodes"] and broken["overall"] == still["overall"]
+    steps = sum(e["metrics"]["steps"] for e in broken["episodes"])
+    assert broken["model_faults"] == steps > 0 and still["model_faults"] == 0
 
 
 def test_a_library_evaluation_stores_outcomes_that_rank_by_label(tmp_path, risktwin_cli):
@@ -92,6 +103,12 @@ def test_bad_drivers_and_arguments_raise_with_the_message(tmp_path):
         risktwin.evaluate("idm", per_kind=0)
     with pytest.raises(ValueError, match="no scenario library"):
         risktwin.evaluate("idm", library=tmp_path / "none.db")
+    with pytest.raises(ValueError, match="held-out set"):
+        risktwin.evaluate("idm", library=tmp_path / "none.db", seed=2)
+    with pytest.raises(ValueError, match="seed"):
+        risktwin.evaluate("idm", seed=-1)
+    with pytest.raises(ValueError, match="per_kind"):
+        risktwin.evaluate("idm", per_kind=2**64)
     with pytest.raises(ValueError, match="label"):
         risktwin.evaluate(lambda obs: CRUISE, library=tmp_path / "none.db")
     with pytest.raises(ValueError, match="returned 2 numbers"):

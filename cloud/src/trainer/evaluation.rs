@@ -17,6 +17,9 @@ use std::collections::BTreeMap;
 
 /// The most held-out scenarios of one kind an evaluation drives.
 pub const MAX_PER_KIND: u64 = 10_000;
+/// The held-out set evaluated when none is named: run seed 1, 12 scenarios per kind.
+pub const DEFAULT_SEED: u64 = 1;
+pub const DEFAULT_PER_KIND: u64 = 12;
 
 /// Which scenarios were driven.
 #[derive(Debug, Clone, Serialize)]

@@ -23,6 +23,7 @@ pub use v2x::*;
 
 use crate::output::Format;
 use clap::{ArgGroup, Args, Parser, Subcommand};
+use risktwin_cloud::trainer::evaluation;
 use risktwin_policy::spec::DriverSpec;
 use std::path::PathBuf;
 
@@ -314,10 +315,10 @@ pub struct EvaluateArgs {
     #[arg(long, value_name = "FILE", num_args = 1.., conflicts_with_all = ["db", "held_out", "floor"])]
     pub commonroad: Vec<PathBuf>,
     /// The run seed whose held-out set is driven.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true, conflicts_with_all = ["db", "commonroad"])]
+    #[arg(long, default_value_t = evaluation::DEFAULT_SEED, allow_negative_numbers = true, conflicts_with_all = ["db", "commonroad"])]
     pub seed: u64,
     /// Held-out scenarios per kind.
-    #[arg(long, default_value_t = 12, allow_negative_numbers = true, conflicts_with_all = ["db", "commonroad"])]
+    #[arg(long, default_value_t = evaluation::DEFAULT_PER_KIND, allow_negative_numbers = true, conflicts_with_all = ["db", "commonroad"])]
     pub per_kind: u64,
     /// Also search the achievable floor (the privileged planner) of every scenario.
     #[arg(long)]

@@ -1,7 +1,7 @@
 //! `risktwin scenarios regress`: the regression gate by hand ([`risktwin_cloud::trainer::gate`]).
 
 use super::driver::LoadedDriver;
-use super::scenarios::worker_threads;
+use risktwin_cloud::generate::all_cores;
 use super::source::open_existing_library;
 use crate::cli::RegressArgs;
 use crate::error::{CliError, CliResult};
@@ -27,7 +27,7 @@ pub fn regress(args: RegressArgs) -> CliResult {
     let candidate = LoadedDriver::load(&args.driver, "--driver")?;
     let deployed = LoadedDriver::load(&args.against, "--against")?;
     let held_out = HeldOut::new(args.seed, args.per_kind as usize);
-    let report = gate(&library, candidate.driver(), deployed.driver(), &held_out, worker_threads())
+    let report = gate(&library, candidate.driver(), deployed.driver(), &held_out, all_cores())
         .map_err(CliError::runtime)?;
     candidate.warn_faults();
     deployed.warn_faults();

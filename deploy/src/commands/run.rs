@@ -3,7 +3,7 @@
 
 use super::input_file::{MAX_CONFIG_BYTES, read_text_bounded};
 use super::run_progress::ProgressBar;
-use super::scenarios::worker_threads;
+use risktwin_cloud::generate::all_cores;
 use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
@@ -79,7 +79,7 @@ pub fn run(args: RunArgs) -> CliResult {
             "replay_rule \"frontier\" needs --algo ppo or ppo-gru (it samples with PPO's σ), not sac",
         ));
     }
-    config.training.threads = worker_threads();
+    config.training.threads = all_cores();
     let request = RunRequest { config, seed: args.seed, out_dir: args.out.clone().unwrap_or_else(default_out_dir) };
     // Nothing fires it: Ctrl-C ends the process, as it always has for `run`.
     let (_trigger, shutdown) = risktwin_transport::shutdown::channel();

@@ -5,7 +5,7 @@ use super::source::{open_existing_library, parse_kinds};
 use crate::cli::{GenerateArgs, MutateArgs, RankArgs};
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, csv_float, print_json, print_table};
-use risktwin_cloud::generate::{MutationError, generate_into, mutate_stored};
+use risktwin_cloud::generate::{MutationError, all_cores, generate_into, mutate_stored};
 use risktwin_common::risk::RiskTerms;
 use risktwin_common::scenario::MutateError;
 use risktwin_policy::model::ModelFile;
@@ -14,9 +14,6 @@ use risktwin_store::library::{
     COMMONROAD_KIND, DEFAULT_POLICY, REPLAY_POLICY, RankOutcome, RankedCase, RankedScenario, ScenarioLibrary,
 };
 use serde::Serialize;
-
-/// Worker threads for episode batches: all cores.
-pub use risktwin_cloud::generate::all_cores as worker_threads;
 
 /// A `--threads` flag: all cores when absent, else 1 to 1024.
 pub fn threads_flag(threads: Option<u64>) -> CliResult<usize> {
@@ -29,7 +26,7 @@ pub fn generate(args: GenerateArgs) -> CliResult {
         return Err(CliError::input(format!("--count {} is out of range [1, 1000000]", args.count)));
     }
     let mut library = ScenarioLibrary::open(&args.db).map_err(CliError::input)?;
-    let report = generate_into(&mut library, &kinds, args.count, args.seed, worker_threads())?;
+    let report = generate_into(&mut library, &kinds, args.count, args.seed, all_cores())?;
     match args.format {
         Format::Json => print_json(&report),
         _ => {
@@ -57,7 +54,7 @@ pub fn mutate(args: MutateArgs) -> CliResult {
     }
     let radius = args.radius.unwrap_or(risktwin_pipeline::RunConfig::default().training.mutation_radius);
     let mut library = open_existing_library(&args.db)?;
-    let report = mutate_stored(&mut library, &args.id, args.count, radius, args.seed, worker_threads()).map_err(
+    let report = mutate_stored(&mut library, &args.id, args.count, radius, args.seed, all_cores()).map_err(
         |e| match e {
             MutationError::Library(e) => CliError::runtime(e),
             MutationError::Mutate(e @ MutateError::InvalidRadius(_)) => {

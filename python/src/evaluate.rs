@@ -10,7 +10,8 @@ use risktwin_cloud::generate::worker_threads;
 use risktwin_cloud::trainer::HeldOut;
 use risktwin_cloud::trainer::drive::{Driver, EVAL_VARIANT};
 use risktwin_cloud::trainer::evaluation::{
-    DEFAULT_PER_KIND, DEFAULT_SEED, Driven, EvaluationDoc, MAX_PER_KIND, ScenarioSet, avoidable, library_specs, reference_runs, store_outcomes,
+    DEFAULT_PER_KIND, DEFAULT_SEED, Driven, EvaluationDoc, MAX_PER_KIND, ScenarioSet, avoidable, library_specs,
+    reference_runs, store_outcomes,
 };
 use risktwin_common::env::{ACT_DIM, OBS_DIM, ObsPolicy};
 use risktwin_common::episode::{self, EpisodeResult};

@@ -1,11 +1,11 @@
 //! `risktwin scenarios regress`: the regression gate by hand ([`risktwin_cloud::trainer::gate`]).
 
 use super::driver::LoadedDriver;
-use risktwin_cloud::generate::all_cores;
 use super::source::open_existing_library;
 use crate::cli::RegressArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
+use risktwin_cloud::generate::all_cores;
 use risktwin_cloud::trainer::HeldOut;
 use risktwin_cloud::trainer::gate::{GateReport, SetComparison, gate};
 use serde::Serialize;
@@ -27,8 +27,8 @@ pub fn regress(args: RegressArgs) -> CliResult {
     let candidate = LoadedDriver::load(&args.driver, "--driver")?;
     let deployed = LoadedDriver::load(&args.against, "--against")?;
     let held_out = HeldOut::new(args.seed, args.per_kind as usize);
-    let report = gate(&library, candidate.driver(), deployed.driver(), &held_out, all_cores())
-        .map_err(CliError::runtime)?;
+    let report =
+        gate(&library, candidate.driver(), deployed.driver(), &held_out, all_cores()).map_err(CliError::runtime)?;
     candidate.warn_faults();
     deployed.warn_faults();
     match args.format {

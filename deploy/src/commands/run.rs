@@ -3,10 +3,10 @@
 
 use super::input_file::{MAX_CONFIG_BYTES, read_text_bounded};
 use super::run_progress::ProgressBar;
-use risktwin_cloud::generate::all_cores;
 use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Format, print_json, print_table};
+use risktwin_cloud::generate::all_cores;
 use risktwin_cloud::trainer::{ReplayRule, Spread};
 use risktwin_learn::Algo;
 use risktwin_pipeline::{Progress, RunConfig, RunError, RunMetrics, RunRequest};

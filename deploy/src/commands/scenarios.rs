@@ -54,16 +54,15 @@ pub fn mutate(args: MutateArgs) -> CliResult {
     }
     let radius = args.radius.unwrap_or(risktwin_pipeline::RunConfig::default().training.mutation_radius);
     let mut library = open_existing_library(&args.db)?;
-    let report = mutate_stored(&mut library, &args.id, args.count, radius, args.seed, all_cores()).map_err(
-        |e| match e {
+    let report =
+        mutate_stored(&mut library, &args.id, args.count, radius, args.seed, all_cores()).map_err(|e| match e {
             MutationError::Library(e) => CliError::runtime(e),
             MutationError::Mutate(e @ MutateError::InvalidRadius(_)) => {
                 CliError::input(format!("--radius {radius}: {e}"))
             }
             MutationError::Mutate(e) => CliError::runtime(format!("stored scenario {}: {e}", args.id)),
             unknown => CliError::input(unknown),
-        },
-    )?;
+        })?;
     match args.format {
         Format::Json => print_json(&report),
         _ => {

@@ -9,6 +9,7 @@
 """
 
 import json as _json
+import operator as _operator
 import os as _os
 
 import gymnasium as _gym
@@ -43,9 +44,13 @@ def _count(name, value):
     """An optional non-negative integer argument, checked before it crosses to Rust."""
     if value is None:
         return None
-    if isinstance(value, (bool, float)) or not isinstance(value, int) or not 0 <= value < 2**64:
+    try:
+        number = None if isinstance(value, bool) else _operator.index(value)  # int, numpy integers
+    except TypeError:
+        number = None
+    if number is None or not 0 <= number < 2**64:
         raise ValueError(f"{name} = {value!r} must be an integer in [0, 2**64)")
-    return value
+    return number
 
 
 def evaluate(driver, *, seed=None, per_kind=None, library=None, floor=False, threads=None, label=None):

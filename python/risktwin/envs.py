@@ -14,7 +14,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _native
-from ._native import ACT_DIM, DECISION_RATE_HZ, OBS_DIM
+from ._native import ACT_DIM, DECISION_RATE_HZ, MAX_ENVS, OBS_DIM
 
 def _spaces():
     """Fresh spaces for each environment (a space carries its own sampling state): every
@@ -116,7 +116,9 @@ class DrivingVecEnv(VectorEnv):
     def __init__(self, num_envs=1, kind=None, variant="full", seed=0, render_mode=None):
         _no_render(render_mode)
         self.render_mode = None
-        # The native side checks the count before any space is sized by it.
+        # Checked before any space is sized by it.
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or not 1 <= num_envs <= MAX_ENVS:
+            raise ValueError(f"num_envs = {num_envs!r} is out of range [1, {MAX_ENVS}]")
         self._native = _native.VecEnv(int(num_envs), kind=kind, variant=variant, seed=_stream(seed))
         self.num_envs = self._native.num_envs
         self.single_observation_space, self.single_action_space = _spaces()

@@ -59,8 +59,8 @@ impl VecEnv {
     #[new]
     #[pyo3(signature = (n, *, kind = None, variant = "full", seed = 0))]
     fn new(py: Python<'_>, n: usize, kind: Option<&str>, variant: &str, seed: u64) -> PyResult<Self> {
-        if !(1..=65_536).contains(&n) {
-            return Err(bad_input(format!("n = {n} environments is out of range [1, 65536]")));
+        if !(1..=MAX_ENVS).contains(&n) {
+            return Err(bad_input(format!("n = {n} environments is out of range [1, {MAX_ENVS}]")));
         }
         let kind = kind.map(str::parse::<ScenarioKind>).transpose().map_err(bad_input)?;
         let variant = variant.parse::<Variant>().map_err(bad_input)?;
@@ -126,7 +126,7 @@ impl VecEnv {
         self.env.drain_finished(|i, s| {
             let m = &s.metrics;
             let metrics = serde_json::json!({
-                "ending": m.ending(),
+                "ended": m.ending(),
                 "collision": m.collision,
                 "offroad": m.offroad,
                 "success": m.success,
@@ -163,6 +163,9 @@ pub fn native_steps_per_s(py: Python<'_>, n: usize, steps: usize, variant: &str,
     })
     .map_err(failed)
 }
+
+/// The most environments one vector holds.
+pub const MAX_ENVS: usize = 65_536;
 
 /// Environment steps one [`native_rollout`] may record (its observations: 400 MB).
 const MAX_ROLLOUT_CELLS: usize = 1 << 22;

@@ -135,7 +135,7 @@ fn drive_callable(
             return [0.0; ACT_DIM];
         }
         match call(py, f, obs) {
-            Ok(action) if action.iter().all(|x| x.is_finite()) => action,
+            Ok(action) if action.iter().all(|x| x.is_finite()) => action.map(|x| x.clamp(-1.0, 1.0) as f32),
             Ok(_) => {
                 *faults += 1;
                 [0.0; ACT_DIM]
@@ -152,14 +152,15 @@ fn drive_callable(
     error.map_or(Ok(result), Err)
 }
 
-/// `f(obs)` with a fresh float32 array; three numbers back, finite or not.
-fn call(py: Python<'_>, f: &Bound<'_, PyAny>, obs: &[f32; OBS_DIM]) -> PyResult<[f32; ACT_DIM]> {
+/// `f(obs)` with a fresh float32 array; three numbers back, finite or not (read as Python's
+/// floats: a finite number beyond float32's range is clamped, not made infinite).
+fn call(py: Python<'_>, f: &Bound<'_, PyAny>, obs: &[f32; OBS_DIM]) -> PyResult<[f64; ACT_DIM]> {
     py.check_signals()?;
     let out = f.call1((PyArray1::from_slice(py, obs),))?;
-    let values: Vec<f32> = out.extract().map_err(|_| bad_input("the driver must return 3 numbers"))?;
+    let values: Vec<f64> = out.extract().map_err(|_| bad_input("the driver must return 3 numbers"))?;
     values
         .try_into()
-        .map_err(|v: Vec<f32>| bad_input(format!("the driver returned {} numbers, not {ACT_DIM}", v.len())))
+        .map_err(|v: Vec<f64>| bad_input(format!("the driver returned {} numbers, not {ACT_DIM}", v.len())))
 }
 
 /// A library that exists (opening creates a missing file, which an evaluation must not).

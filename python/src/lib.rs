@@ -25,6 +25,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RiskTwinError", m.py().get_type::<RiskTwinError>())?;
     m.add("OBS_DIM", OBS_DIM)?;
     m.add("ACT_DIM", ACT_DIM)?;
+    m.add("MAX_ENVS", env::MAX_ENVS)?;
     m.add("OBSERVATION_VERSION", OBSERVATION_VERSION)?;
     m.add("DECISION_RATE_HZ", DECISION_RATE_HZ)?;
     m.add("STEP_S", STEP_S)?;

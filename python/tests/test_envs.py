@@ -115,7 +115,7 @@ def test_a_crash_terminates_and_the_horizon_truncates():
         if terminated or truncated:
             break
     assert terminated and not truncated and info["metrics"]["collision"]
-    assert info["metrics"]["ending"] == "collision" and info["kind"] == "emergency-braking"
+    assert info["metrics"]["ended"] == "collision" and info["kind"] == "emergency-braking"
     # Only what the training environment measures (no risk score, TTC or closest distance).
     assert "risk_score" not in info["metrics"] and "min_ttc_s" not in info["metrics"]
     with pytest.raises(RuntimeError, match="call reset"):
@@ -129,7 +129,7 @@ def test_a_crash_terminates_and_the_horizon_truncates():
             break
     assert truncated and not terminated and steps >= 300, steps
     assert not info["metrics"]["collision"] and not info["metrics"]["success"]
-    assert info["metrics"]["ending"] == "out-of-time"
+    assert info["metrics"]["ended"] == "out-of-time"
 
 
 def test_make_vec_gives_the_native_vector_env():
@@ -160,8 +160,10 @@ def test_bad_input_raises_with_the_message():
         env.reset(seed=-1)
     with pytest.raises(ValueError, match="integer"):
         env.reset(seed=2**64)
-    with pytest.raises(ValueError, match="out of range"):
-        DrivingVecEnv(num_envs=10**9)  # refused before any space is sized by it
+    for bad in [0, -1, 10**9, 2**70]:  # refused before any space is sized by it
+        with pytest.raises(ValueError, match="out of range"):
+            DrivingVecEnv(num_envs=bad)
+    assert DrivingVecEnv(num_envs=np.int32(2)).num_envs == 2
     assert DrivingEnv(seed=None).reset()[0].shape == (24,)
     vec = DrivingVecEnv(num_envs=2)
     vec.reset(seed=0)

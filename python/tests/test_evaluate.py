@@ -60,6 +60,9 @@ def test_a_callable_drives_as_a_model_file_with_the_same_actions(tmp_path):
     steps = sum(e["metrics"]["steps"] for e in by_callable["episodes"])
     assert len(seen) == steps
     assert by_callable["model_faults"] == 0
+    assert risktwin.evaluate(cruise, seed=np.int64(3), per_kind=np.uint8(2))["episodes"] == by_callable["episodes"]
+    huge = risktwin.evaluate(lambda obs: [0.0, 1e39, 0.0], seed=3, per_kind=2)  # beyond float32: clamped to 1
+    assert huge["model_faults"] == 0 and huge["episodes"] == risktwin.evaluate(lambda obs: [0.0, 1.0, 0.0], seed=3, per_kind=2)["episodes"]
     by_path = risktwin.evaluate(model, seed=3, per_kind=2)  # a path object names the same file
     assert by_path["episodes"] == by_model["episodes"]
     braking = risktwin.evaluate(lambda obs: np.array([0, 0, 1.0]), seed=3, per_kind=2, label="brake")
@@ -107,6 +110,9 @@ def test_bad_drivers_and_arguments_raise_with_the_message(tmp_path):
         risktwin.evaluate("idm", library=tmp_path / "none.db", seed=2)
     with pytest.raises(ValueError, match="seed"):
         risktwin.evaluate("idm", seed=-1)
+    with pytest.raises(ValueError, match="seed"):
+        risktwin.evaluate("idm", seed=True)
+    assert risktwin.RiskTwinError.__module__ == "risktwin._native"
     with pytest.raises(ValueError, match="per_kind"):
         risktwin.evaluate("idm", per_kind=2**64)
     with pytest.raises(ValueError, match="label"):

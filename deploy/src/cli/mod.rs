@@ -186,10 +186,10 @@ pub struct RegressArgs {
     #[arg(long, value_name = "SPEC", default_value = "idm")]
     pub against: DriverSpec,
     /// The run seed whose held-out set is driven (`risktwin run --seed`).
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = evaluation::DEFAULT_SEED, allow_negative_numbers = true)]
     pub seed: u64,
     /// Held-out scenarios per kind (`eval_per_kind` of the run).
-    #[arg(long, default_value_t = 12, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = evaluation::DEFAULT_PER_KIND, allow_negative_numbers = true)]
     pub per_kind: u64,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
@@ -221,10 +221,10 @@ pub struct FloorArgs {
     #[arg(long, default_value = "all")]
     pub kind: String,
     /// Held-out scenarios per kind (`eval_per_kind` of the run; the first N of its set).
-    #[arg(long, default_value_t = 12, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = evaluation::DEFAULT_PER_KIND, allow_negative_numbers = true)]
     pub count: u64,
     /// The run seed whose held-out set is searched (`risktwin run --seed`).
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = evaluation::DEFAULT_SEED, allow_negative_numbers = true)]
     pub seed: u64,
     /// A driver to show beside the floor, scenario by scenario (`PATH.safetensors`,
     /// `PATH.onnx` or `idm`, as `simulate --driver`).
